@@ -1,0 +1,433 @@
+//! Linear-tetrahedron kinematics and constitutive laws: rest data, deformation gradient,
+//! Hooke's law for the `linear` (small-strain) and `corotated` models, element energy,
+//! gradient and stiffness.
+//!
+//! Conventions: `F = Ds · Dm⁻¹` with `Ds = [x1 − x0, x2 − x0, x3 − x0]`; `vec(F)` is column
+//! major (entry `F[a][k]` at `a + 3k`); energies in J, forces in N, stiffness in N/m.
+#![allow(non_snake_case)]
+
+use crate::mesh::TetMesh;
+use nalgebra::{Matrix3, SMatrix, Vector3};
+
+/// 9 × 9 matrix: derivative of `vec(P)` with respect to `vec(F)`.
+pub type Tangent = SMatrix<f64, 9, 9>;
+
+/// Isotropic linear-elastic material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// First Lamé constant λ (Pa).
+    pub lambda: f64,
+    /// Shear modulus μ (Pa).
+    pub mu: f64,
+    /// Density ρ (kg/m³).
+    pub density: f64,
+}
+
+impl Material {
+    /// Lamé constants from Young's modulus E (Pa) and Poisson's ratio ν (−1 < ν < 0.5).
+    pub fn from_young_poisson(e: f64, nu: f64, density: f64) -> Self {
+        Material { lambda: e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), mu: e / (2.0 * (1.0 + nu)), density }
+    }
+    /// Young's modulus E (Pa).
+    pub fn young(&self) -> f64 {
+        self.mu * (3.0 * self.lambda + 2.0 * self.mu) / (self.lambda + self.mu)
+    }
+    /// Poisson's ratio ν.
+    pub fn poisson(&self) -> f64 {
+        self.lambda / (2.0 * (self.lambda + self.mu))
+    }
+    /// Bulk modulus K = λ + 2μ/3 (Pa).
+    pub fn bulk(&self) -> f64 {
+        self.lambda + 2.0 * self.mu / 3.0
+    }
+    /// P-wave speed √((λ + 2μ)/ρ) (m/s).
+    pub fn p_wave_speed(&self) -> f64 {
+        ((self.lambda + 2.0 * self.mu) / self.density).sqrt()
+    }
+    /// Hooke's law σ = 2με + λ tr(ε) I (Pa) for a symmetric strain ε.
+    pub fn hooke(&self, eps: &Matrix3<f64>) -> Matrix3<f64> {
+        2.0 * self.mu * eps + Matrix3::identity() * (self.lambda * eps.trace())
+    }
+}
+
+/// Which strain measure the elastic energy uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ElasticModel {
+    /// Small strain ε = sym(F) − I: linear, exact for small displacements, but a rigid rotation
+    /// produces spurious strain and forces.
+    Linear,
+    /// Corotated: F = R S (polar decomposition), ε = S − I. Rotation invariant.
+    Corotated,
+}
+
+/// Rest data of one tet.
+#[derive(Clone, Copy, Debug)]
+pub struct ElementRest {
+    /// Rest volume (m³).
+    pub volume: f64,
+    /// Gradients of the four shape functions in the rest configuration (1/m).
+    pub grads: [Vector3<f64>; 4],
+}
+
+impl ElementRest {
+    /// Rest data of every tet of `mesh`.
+    pub fn of_mesh(mesh: &TetMesh) -> Vec<ElementRest> {
+        mesh.tets
+            .iter()
+            .map(|tet| {
+                let Dm = TetMesh::edge_matrix(&mesh.rest, tet);
+                // The mesh constructor rejected degenerate tets, so Dm is invertible.
+                let inv = Dm.try_inverse().unwrap_or_else(Matrix3::zeros);
+                let g1: Vector3<f64> = inv.row(0).transpose();
+                let g2: Vector3<f64> = inv.row(1).transpose();
+                let g3: Vector3<f64> = inv.row(2).transpose();
+                ElementRest { volume: Dm.determinant() / 6.0, grads: [-(g1 + g2 + g3), g1, g2, g3] }
+            })
+            .collect()
+    }
+
+    /// Deformation gradient F = Σᵢ xᵢ ⊗ ∇Nᵢ for the element's current vertex positions.
+    pub fn deformation_gradient(&self, x: &[Vector3<f64>; 4]) -> Matrix3<f64> {
+        let mut F = Matrix3::zeros();
+        for i in 0..4 {
+            F += x[i] * self.grads[i].transpose();
+        }
+        F
+    }
+}
+
+/// Energy, gradient and (optionally) stiffness of one element.
+#[derive(Clone, Debug)]
+pub struct ElementEval {
+    /// Elastic energy (J).
+    pub energy: f64,
+    /// dE/dx for the 12 vertex coordinates (N); the elastic force is its negative.
+    pub gradient: [f64; 12],
+    /// d²E/dx², row-major 12 × 12 (N/m), symmetric positive semi-definite.
+    pub hessian: [f64; 144],
+}
+
+impl Default for ElementEval {
+    fn default() -> Self {
+        ElementEval { energy: 0.0, gradient: [0.0; 12], hessian: [0.0; 144] }
+    }
+}
+
+/// First Piola–Kirchhoff stress P (Pa), energy density Ψ (J/m³) and, if asked, the tangent
+/// dP/dF for the elastic deformation gradient `Fe`.
+pub fn constitutive(
+    model: ElasticModel,
+    mat: &Material,
+    Fe: &Matrix3<f64>,
+    tangent: Option<&mut Tangent>,
+) -> (f64, Matrix3<f64>) {
+    match model {
+        ElasticModel::Linear => {
+            let eps = 0.5 * (Fe + Fe.transpose()) - Matrix3::identity();
+            let sigma = mat.hooke(&eps);
+            if let Some(t) = tangent {
+                *t = linear_tangent(mat);
+            }
+            (0.5 * sigma.dot(&eps), sigma)
+        }
+        ElasticModel::Corotated => corotated(mat, Fe, tangent),
+    }
+}
+
+/// dP/dF of the small-strain law: C acting on sym(dF).
+fn linear_tangent(mat: &Material) -> Tangent {
+    let mut t = Tangent::zeros();
+    for a in 0..3 {
+        for k in 0..3 {
+            let row = a + 3 * k;
+            // 2μ sym(dF): μ (dF_ak + dF_ka)
+            t[(row, a + 3 * k)] += mat.mu;
+            t[(row, k + 3 * a)] += mat.mu;
+            if a == k {
+                for b in 0..3 {
+                    t[(row, b + 3 * b)] += mat.lambda;
+                }
+            }
+        }
+    }
+    t
+}
+
+/// Signed SVD F = U diag(s) Vᵀ with det U = det V = +1; an inverted F gets a negative s[2].
+pub fn signed_svd(F: &Matrix3<f64>) -> (Matrix3<f64>, Vector3<f64>, Matrix3<f64>) {
+    let svd = F.svd(true, true);
+    // Both factors were requested, so they are present.
+    let mut U = svd.u.unwrap_or_else(Matrix3::identity);
+    let mut Vt = svd.v_t.unwrap_or_else(Matrix3::identity);
+    let mut s = svd.singular_values;
+    // Put the smallest singular value last so that a sign flip lands on it.
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&i, &j| s[j].total_cmp(&s[i]));
+    let (U0, Vt0, s0) = (U, Vt, s);
+    for (dst, &src) in order.iter().enumerate() {
+        U.set_column(dst, &U0.column(src));
+        Vt.set_row(dst, &Vt0.row(src));
+        s[dst] = s0[src];
+    }
+    if U.determinant() < 0.0 {
+        U.column_mut(2).neg_mut();
+        s[2] = -s[2];
+    }
+    if Vt.determinant() < 0.0 {
+        Vt.row_mut(2).neg_mut();
+        s[2] = -s[2];
+    }
+    (U, s, Vt.transpose())
+}
+
+/// Rotation R of the polar decomposition F = R S (the inversion-safe one: det R = +1).
+pub fn polar_rotation(F: &Matrix3<f64>) -> Matrix3<f64> {
+    let (U, _, V) = signed_svd(F);
+    U * V.transpose()
+}
+
+/// Corotated energy Ψ = μ Σ(sᵢ − 1)² + λ/2 (Σsᵢ − 3)² in the signed singular values sᵢ of F,
+/// i.e. ½ ε:C:ε with ε = S − I. Its tangent is exact except that the rotational (twist)
+/// eigenvalues (ψᵢ + ψⱼ)/(sᵢ + sⱼ) are clamped at zero where compression makes them negative,
+/// which keeps every element stiffness positive semi-definite (Teran et al. 2005).
+fn corotated(mat: &Material, F: &Matrix3<f64>, tangent: Option<&mut Tangent>) -> (f64, Matrix3<f64>) {
+    let (U, s, V) = signed_svd(F);
+    let (mu, lambda) = (mat.mu, mat.lambda);
+    let tr = s.sum() - 3.0;
+    let psi = s.map(|si| 2.0 * mu * (si - 1.0) + lambda * tr);
+    let energy = mu * s.iter().map(|si| (si - 1.0).powi(2)).sum::<f64>() + 0.5 * lambda * tr * tr;
+    let P = U * Matrix3::from_diagonal(&psi) * V.transpose();
+    if let Some(t) = tangent {
+        t.fill(0.0);
+        // Basis tensors D_ij = U e_i e_jᵀ Vᵀ, vectorised column-major.
+        let basis = |i: usize, j: usize| -> SMatrix<f64, 9, 1> {
+            let D = U.column(i) * V.column(j).transpose();
+            SMatrix::<f64, 9, 1>::from_column_slice(D.as_slice())
+        };
+        let d = [basis(0, 0), basis(1, 1), basis(2, 2)];
+        for i in 0..3 {
+            for j in 0..3 {
+                let h = 2.0 * mu * f64::from(i == j) + lambda;
+                *t += h * d[i] * d[j].transpose();
+            }
+        }
+        for (i, j) in [(0, 1), (0, 2), (1, 2)] {
+            let (bij, bji) = (basis(i, j), basis(j, i));
+            // Symmetric (shear) mode: (ψᵢ − ψⱼ)/(sᵢ − sⱼ) = 2μ exactly for this energy.
+            let flip = (bij + bji) * std::f64::consts::FRAC_1_SQRT_2;
+            *t += 2.0 * mu * flip * flip.transpose();
+            // Rotational mode; the denominator is guarded for elements inverted to s_i ≈ −s_j.
+            let twist = (bij - bji) * std::f64::consts::FRAC_1_SQRT_2;
+            let c2 = (psi[i] + psi[j]) / (s[i] + s[j]).max(1e-6);
+            if c2 > 0.0 {
+                *t += c2 * twist * twist.transpose();
+            }
+        }
+    }
+    (energy, P)
+}
+
+/// Stress offset handling: the elastic deformation gradient is `Fe = F · A` with
+/// `A = (I + ε*)⁻¹` for a symmetric strain offset ε* (eigenstrain plus plastic strain).
+/// For the linear model this is used as the additive split ε − ε* instead (see [`element_eval`]).
+#[derive(Clone, Copy, Debug)]
+pub struct StrainOffset(pub Matrix3<f64>);
+
+/// Evaluates one element: energy `V Ψ`, gradient `V P ∇Nᵢ` and, if `with_hessian`, the stiffness
+/// `V Bᵀ (dP/dF) B`.
+///
+/// The strain offset ε* (eigenstrain, plastic strain) enters as σ = C : (ε − ε*) in the linear
+/// model, and multiplicatively, `Fe = F (I + ε*)⁻¹`, in the corotated one — the same to first
+/// order, but exact for a free body: an isotropic ε* = e I gives a stress-free state scaled by
+/// exactly (1 + e).
+pub fn element_eval(
+    model: ElasticModel,
+    mat: &Material,
+    rest: &ElementRest,
+    x: &[Vector3<f64>; 4],
+    offset: &Matrix3<f64>,
+    with_hessian: bool,
+    out: &mut ElementEval,
+) {
+    let F = rest.deformation_gradient(x);
+    let mut tangent = Tangent::zeros();
+    let t = with_hessian.then_some(&mut tangent);
+    let (psi, P) = match model {
+        ElasticModel::Linear => {
+            // Shift F by ε* so that sym(F') − I = ε − ε*; the tangent is unchanged.
+            let (psi, P) = constitutive(model, mat, &(F - offset), t);
+            (psi, P)
+        }
+        ElasticModel::Corotated => {
+            if offset.iter().all(|v| *v == 0.0) {
+                constitutive(model, mat, &F, t)
+            } else {
+                let A = (Matrix3::identity() + offset).try_inverse().unwrap_or_else(Matrix3::identity);
+                let (psi, Pe) = constitutive(model, mat, &(F * A), t);
+                if with_hessian {
+                    // vec(dF A) = (Aᵀ ⊗ I) vec(dF); P = Pe Aᵀ → vec(P) = (A ⊗ I) vec(Pe).
+                    let mut K = Tangent::zeros();
+                    for r in 0..3 {
+                        for c in 0..3 {
+                            for a in 0..3 {
+                                K[(a + 3 * r, a + 3 * c)] = A[(c, r)];
+                            }
+                        }
+                    }
+                    tangent = K.transpose() * tangent * K;
+                }
+                (psi, Pe * A.transpose())
+            }
+        }
+    };
+    let v = rest.volume;
+    out.energy = v * psi;
+    for i in 0..4 {
+        let g = v * P * rest.grads[i];
+        out.gradient[3 * i..3 * i + 3].copy_from_slice(g.as_slice());
+    }
+    if with_hessian {
+        // K(3i+a, 3j+b) = V Σ_{k,l} T[a+3k, b+3l] g_i[k] g_j[l]
+        for i in 0..4 {
+            let gi = rest.grads[i];
+            for j in 0..4 {
+                let gj = rest.grads[j];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        let mut sum = 0.0;
+                        for k in 0..3 {
+                            for l in 0..3 {
+                                sum += tangent[(a + 3 * k, b + 3 * l)] * gi[k] * gj[l];
+                            }
+                        }
+                        out.hessian[(3 * i + a) * 12 + 3 * j + b] = v * sum;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Cauchy stress of an element in the world frame (Pa), Voigt order xx yy zz yz xz xy.
+/// Linear: σ = C:(ε − ε*). Corotated: σ = R (C:(S − I)) Rᵀ for Fe = F (I + ε*)⁻¹ = R S.
+pub fn element_stress(
+    model: ElasticModel,
+    mat: &Material,
+    rest: &ElementRest,
+    x: &[Vector3<f64>; 4],
+    offset: &Matrix3<f64>,
+) -> [f64; 6] {
+    let F = rest.deformation_gradient(x);
+    let sigma = match model {
+        ElasticModel::Linear => {
+            let eps = 0.5 * (F + F.transpose()) - Matrix3::identity() - offset;
+            mat.hooke(&eps)
+        }
+        ElasticModel::Corotated => {
+            let A = (Matrix3::identity() + offset).try_inverse().unwrap_or_else(Matrix3::identity);
+            let (U, s, V) = signed_svd(&(F * A));
+            let R = U * V.transpose();
+            let S = V * Matrix3::from_diagonal(&s) * V.transpose();
+            R * mat.hooke(&(S - Matrix3::identity())) * R.transpose()
+        }
+    };
+    to_voigt(&sigma)
+}
+
+/// Symmetric tensor to Voigt order xx yy zz yz xz xy.
+pub fn to_voigt(s: &Matrix3<f64>) -> [f64; 6] {
+    [s[(0, 0)], s[(1, 1)], s[(2, 2)], s[(1, 2)], s[(0, 2)], s[(0, 1)]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ICE: Material = Material { lambda: 8.64e10, mu: 3.70e10, density: 916.0 };
+
+    fn tet() -> (ElementRest, [Vector3<f64>; 4]) {
+        let mesh = TetMesh::from_arrays(
+            &[[0.0, 0.0, 0.0], [0.02, 0.001, 0.0], [0.003, 0.018, 0.002], [0.001, 0.002, 0.021]],
+            vec![[0, 1, 2, 3]],
+        )
+        .unwrap();
+        let rest = ElementRest::of_mesh(&mesh)[0];
+        (rest, [mesh.rest[0], mesh.rest[1], mesh.rest[2], mesh.rest[3]])
+    }
+
+    /// Gradient and Hessian against central finite differences of the energy / gradient.
+    fn check_derivatives(model: ElasticModel, offset: Matrix3<f64>, strain: f64) {
+        let (rest, x0) = tet();
+        let mut x = x0;
+        // A generic deformation: rotation-ish shear plus stretch of relative size `strain`.
+        let G = Matrix3::new(0.3, -0.7, 0.2, 0.5, 0.1, -0.4, -0.2, 0.6, 0.25) * strain;
+        let R = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.9).into_inner();
+        for v in x.iter_mut() {
+            *v = R * (*v + G * *v);
+        }
+        let mut e = ElementEval::default();
+        element_eval(model, &ICE, &rest, &x, &offset, true, &mut e);
+        let h = 1e-9;
+        let scale = e.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
+        let hscale = e.hessian.iter().map(|g| g.abs()).fold(0.0, f64::max);
+        for d in 0..12 {
+            let mut xp = x;
+            let mut xm = x;
+            xp[d / 3][d % 3] += h;
+            xm[d / 3][d % 3] -= h;
+            let (mut ep, mut em) = (ElementEval::default(), ElementEval::default());
+            element_eval(model, &ICE, &rest, &xp, &offset, false, &mut ep);
+            element_eval(model, &ICE, &rest, &xm, &offset, false, &mut em);
+            let fd = (ep.energy - em.energy) / (2.0 * h);
+            // Energy differences lose ~8 digits to cancellation at h = 1e-9: 1e-5 relative.
+            assert!((fd - e.gradient[d]).abs() <= 1e-5 * scale, "{model:?} grad {d}: {fd} vs {}", e.gradient[d]);
+            for c in 0..12 {
+                let fdh = (ep.gradient[c] - em.gradient[c]) / (2.0 * h);
+                assert!(
+                    (fdh - e.hessian[c * 12 + d]).abs() <= 1e-5 * hscale,
+                    "{model:?} hess ({c},{d}): {fdh} vs {}",
+                    e.hessian[c * 12 + d]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn linear_derivatives_match_finite_differences() {
+        check_derivatives(ElasticModel::Linear, Matrix3::zeros(), 0.0);
+        check_derivatives(ElasticModel::Linear, Matrix3::identity() * 0.0291, 0.0);
+    }
+
+    #[test]
+    fn corotated_derivatives_match_finite_differences_in_tension() {
+        // Stretched state: all twist eigenvalues positive, so the tangent is exact.
+        let stretch = Matrix3::identity() * -0.05;
+        check_derivatives(ElasticModel::Corotated, stretch, 0.01);
+        let sym = Matrix3::new(0.01, 0.002, 0.0, 0.002, -0.004, 0.001, 0.0, 0.001, 0.003) - Matrix3::identity() * 0.05;
+        check_derivatives(ElasticModel::Corotated, sym, 0.02);
+    }
+
+    #[test]
+    fn corotated_free_expansion_is_stress_free() {
+        let (rest, x0) = tet();
+        let e = 0.0291;
+        let x = x0.map(|p| p * (1.0 + e));
+        let offset = Matrix3::identity() * e;
+        let mut out = ElementEval::default();
+        element_eval(ElasticModel::Corotated, &ICE, &rest, &x, &offset, false, &mut out);
+        let gmax = out.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
+        // Forces of a 2 % strain would be ~1e7 N here; round-off leaves ~1e-16 of that.
+        assert!(gmax < 1e-6, "{gmax}");
+        let s = element_stress(ElasticModel::Corotated, &ICE, &rest, &x, &offset);
+        assert!(s.iter().all(|v| v.abs() < 1e-2), "{s:?}");
+    }
+
+    #[test]
+    fn signed_svd_flags_inversion() {
+        let F = Matrix3::from_diagonal(&Vector3::new(1.0, 0.5, -0.2));
+        let (U, s, V) = signed_svd(&F);
+        assert!(s[2] < 0.0 && U.determinant() > 0.0 && V.determinant() > 0.0);
+        assert!((U * Matrix3::from_diagonal(&s) * V.transpose() - F).norm() < 1e-14);
+    }
+}

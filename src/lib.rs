@@ -1,0 +1,7 @@
+//! icefem — an implicit finite-element simulator of ice that cracks as it freezes.
+//!
+//! Linear tetrahedra, backward-Euler dynamics with Newton iterations, sparse Cholesky or
+//! preconditioned CG. SI units throughout (m, kg, s, Pa, N, J).
+
+pub mod fem;
+pub mod mesh;
