@@ -87,13 +87,15 @@ impl ElementRest {
             .collect()
     }
 
-    /// Deformation gradient F = Σᵢ xᵢ ⊗ ∇Nᵢ for the element's current vertex positions.
-    pub fn deformation_gradient(&self, x: &[Vector3<f64>; 4]) -> Matrix3<f64> {
-        let mut F = Matrix3::zeros();
+    /// Displacement gradient H = ∇u = Σᵢ uᵢ ⊗ ∇Nᵢ = F − I for the element's vertex
+    /// displacements (m). Working with H rather than F keeps small strains accurate to round-off
+    /// of the strain itself instead of round-off of the positions.
+    pub fn displacement_gradient(&self, u: &[Vector3<f64>; 4]) -> Matrix3<f64> {
+        let mut H = Matrix3::zeros();
         for i in 0..4 {
-            F += x[i] * self.grads[i].transpose();
+            H += u[i] * self.grads[i].transpose();
         }
-        F
+        H
     }
 }
 
@@ -114,24 +116,24 @@ impl Default for ElementEval {
     }
 }
 
-/// First Piola–Kirchhoff stress P (Pa), energy density Ψ (J/m³) and, if asked, the tangent
-/// dP/dF for the elastic deformation gradient `Fe`.
+/// Energy density Ψ (J/m³), first Piola–Kirchhoff stress P (Pa) and, if asked, the tangent
+/// dP/dF for the elastic displacement gradient `He = Fe − I`.
 pub fn constitutive(
     model: ElasticModel,
     mat: &Material,
-    Fe: &Matrix3<f64>,
+    He: &Matrix3<f64>,
     tangent: Option<&mut Tangent>,
 ) -> (f64, Matrix3<f64>) {
     match model {
         ElasticModel::Linear => {
-            let eps = 0.5 * (Fe + Fe.transpose()) - Matrix3::identity();
+            let eps = 0.5 * (He + He.transpose());
             let sigma = mat.hooke(&eps);
             if let Some(t) = tangent {
                 *t = linear_tangent(mat);
             }
             (0.5 * sigma.dot(&eps), sigma)
         }
-        ElasticModel::Corotated => corotated(mat, Fe, tangent),
+        ElasticModel::Corotated => corotated(mat, &(Matrix3::identity() + He), tangent),
     }
 }
 
@@ -228,12 +230,6 @@ fn corotated(mat: &Material, F: &Matrix3<f64>, tangent: Option<&mut Tangent>) ->
     (energy, P)
 }
 
-/// Stress offset handling: the elastic deformation gradient is `Fe = F · A` with
-/// `A = (I + ε*)⁻¹` for a symmetric strain offset ε* (eigenstrain plus plastic strain).
-/// For the linear model this is used as the additive split ε − ε* instead (see [`element_eval`]).
-#[derive(Clone, Copy, Debug)]
-pub struct StrainOffset(pub Matrix3<f64>);
-
 /// Evaluates one element: energy `V Ψ`, gradient `V P ∇Nᵢ` and, if `with_hessian`, the stiffness
 /// `V Bᵀ (dP/dF) B`.
 ///
@@ -245,40 +241,34 @@ pub fn element_eval(
     model: ElasticModel,
     mat: &Material,
     rest: &ElementRest,
-    x: &[Vector3<f64>; 4],
+    u: &[Vector3<f64>; 4],
     offset: &Matrix3<f64>,
     with_hessian: bool,
     out: &mut ElementEval,
 ) {
-    let F = rest.deformation_gradient(x);
+    let H = rest.displacement_gradient(u);
     let mut tangent = Tangent::zeros();
     let t = with_hessian.then_some(&mut tangent);
     let (psi, P) = match model {
-        ElasticModel::Linear => {
-            // Shift F by ε* so that sym(F') − I = ε − ε*; the tangent is unchanged.
-            let (psi, P) = constitutive(model, mat, &(F - offset), t);
-            (psi, P)
-        }
+        // σ = C:(sym H − ε*); the tangent does not depend on ε*.
+        ElasticModel::Linear => constitutive(model, mat, &(H - offset), t),
+        ElasticModel::Corotated if offset.iter().all(|v| *v == 0.0) => constitutive(model, mat, &H, t),
         ElasticModel::Corotated => {
-            if offset.iter().all(|v| *v == 0.0) {
-                constitutive(model, mat, &F, t)
-            } else {
-                let A = (Matrix3::identity() + offset).try_inverse().unwrap_or_else(Matrix3::identity);
-                let (psi, Pe) = constitutive(model, mat, &(F * A), t);
-                if with_hessian {
-                    // vec(dF A) = (Aᵀ ⊗ I) vec(dF); P = Pe Aᵀ → vec(P) = (A ⊗ I) vec(Pe).
-                    let mut K = Tangent::zeros();
-                    for r in 0..3 {
-                        for c in 0..3 {
-                            for a in 0..3 {
-                                K[(a + 3 * r, a + 3 * c)] = A[(c, r)];
-                            }
+            let A = offset_inverse(offset);
+            let (psi, Pe) = constitutive(model, mat, &((Matrix3::identity() + H) * A - Matrix3::identity()), t);
+            if with_hessian {
+                // vec(dF A) = (Aᵀ ⊗ I) vec(dF) and vec(Pe Aᵀ) = (A ⊗ I) vec(Pe).
+                let mut K = Tangent::zeros();
+                for r in 0..3 {
+                    for c in 0..3 {
+                        for a in 0..3 {
+                            K[(a + 3 * r, a + 3 * c)] = A[(c, r)];
                         }
                     }
-                    tangent = K.transpose() * tangent * K;
                 }
-                (psi, Pe * A.transpose())
+                tangent = K.transpose() * tangent * K;
             }
+            (psi, Pe * A.transpose())
         }
     };
     let v = rest.volume;
@@ -315,24 +305,25 @@ pub fn element_stress(
     model: ElasticModel,
     mat: &Material,
     rest: &ElementRest,
-    x: &[Vector3<f64>; 4],
+    u: &[Vector3<f64>; 4],
     offset: &Matrix3<f64>,
 ) -> [f64; 6] {
-    let F = rest.deformation_gradient(x);
+    let H = rest.displacement_gradient(u);
     let sigma = match model {
-        ElasticModel::Linear => {
-            let eps = 0.5 * (F + F.transpose()) - Matrix3::identity() - offset;
-            mat.hooke(&eps)
-        }
+        ElasticModel::Linear => mat.hooke(&(0.5 * (H + H.transpose()) - offset)),
         ElasticModel::Corotated => {
-            let A = (Matrix3::identity() + offset).try_inverse().unwrap_or_else(Matrix3::identity);
-            let (U, s, V) = signed_svd(&(F * A));
+            let (U, s, V) = signed_svd(&((Matrix3::identity() + H) * offset_inverse(offset)));
             let R = U * V.transpose();
-            let S = V * Matrix3::from_diagonal(&s) * V.transpose();
-            R * mat.hooke(&(S - Matrix3::identity())) * R.transpose()
+            let strain = V * Matrix3::from_diagonal(&s.add_scalar(-1.0)) * V.transpose();
+            R * mat.hooke(&strain) * R.transpose()
         }
     };
     to_voigt(&sigma)
+}
+
+/// A = (I + ε*)⁻¹ for a strain offset ε* (a physical offset is far from −I, so the inverse exists).
+fn offset_inverse(offset: &Matrix3<f64>) -> Matrix3<f64> {
+    (Matrix3::identity() + offset).try_inverse().unwrap_or_else(Matrix3::identity)
 }
 
 /// Symmetric tensor to Voigt order xx yy zz yz xz xy.
@@ -359,13 +350,11 @@ mod tests {
     /// Gradient and Hessian against central finite differences of the energy / gradient.
     fn check_derivatives(model: ElasticModel, offset: Matrix3<f64>, strain: f64) {
         let (rest, x0) = tet();
-        let mut x = x0;
-        // A generic deformation: rotation-ish shear plus stretch of relative size `strain`.
+        // A generic deformation: a rotation of a shear plus stretch of relative size `strain`,
+        // given as displacements x − X.
         let G = Matrix3::new(0.3, -0.7, 0.2, 0.5, 0.1, -0.4, -0.2, 0.6, 0.25) * strain;
         let R = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.9).into_inner();
-        for v in x.iter_mut() {
-            *v = R * (*v + G * *v);
-        }
+        let x = x0.map(|p| R * (p + G * p) - p);
         let mut e = ElementEval::default();
         element_eval(model, &ICE, &rest, &x, &offset, true, &mut e);
         let h = 1e-9;
@@ -412,7 +401,7 @@ mod tests {
     fn corotated_free_expansion_is_stress_free() {
         let (rest, x0) = tet();
         let e = 0.0291;
-        let x = x0.map(|p| p * (1.0 + e));
+        let x = x0.map(|p| p * e);
         let offset = Matrix3::identity() * e;
         let mut out = ElementEval::default();
         element_eval(ElasticModel::Corotated, &ICE, &rest, &x, &offset, false, &mut out);

@@ -5,3 +5,7 @@
 
 pub mod fem;
 pub mod mesh;
+pub mod assembly;
+pub mod solver;
+pub mod physics;
+pub mod sim;

@@ -1,14 +1,963 @@
-//! Placeholder replaced by the Gmsh reader.
+//! Reader for Gmsh `.msh` meshes made of linear tetrahedra.
+//!
+//! Format 4.1 (ASCII and binary) is parsed by the `mshio` crate. mshio does not read
+//! format 2.2, so that one (ASCII and binary) is parsed by hand here. Both paths produce a
+//! [`RawMesh`] (nodes and tets by their Gmsh tags), which [`compact`] turns into the
+//! 0-based arrays the solver uses.
+//!
+//! Test fixtures live in `solver_tests/data/msh/`; `make_fixtures.py` there regenerates them.
+
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-/// Gmsh reader error.
+
+/// Error reading a Gmsh mesh file. Both variants name the file.
 #[derive(Debug, thiserror::Error)]
 pub enum GmshError {
+    /// The file could not be read (missing, unreadable, ...).
     #[error("cannot read mesh file {path}: {source}")]
-    Io { path: PathBuf, #[source] source: std::io::Error },
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file was read but is not a usable linear-tetrahedron mesh.
     #[error("mesh file {path}: {message}")]
     Format { path: PathBuf, message: String },
 }
-/// Reads tets.
+
+/// Reads the linear tetrahedra (Gmsh element type 4) of a Gmsh mesh file, formats 2.2 and 4.1, ASCII and binary.
+/// Returns node positions (m) and 0-based tets indexing into them. Only nodes referenced by a tet are kept
+/// (compacted, in order of first appearance by ascending original node tag). Other element types (points, lines, triangles, ...) are ignored.
+#[allow(clippy::type_complexity)] // the signature other modules were promised
 pub fn read_msh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[usize; 4]>), GmshError> {
-    Err(GmshError::Format { path: path.into(), message: "unsupported".into() })
+    let bytes = std::fs::read(path).map_err(|source| GmshError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse(&bytes).map_err(|message| GmshError::Format {
+        path: path.to_path_buf(),
+        message,
+    })
+}
+
+/// Parses a whole `.msh` file. Errors are plain messages; [`read_msh`] adds the path.
+fn parse(bytes: &[u8]) -> Result<Mesh, String> {
+    let header = read_header(bytes)?;
+    let raw = match header.version.as_str() {
+        "2.2" => parse_v22(bytes, header.binary)?,
+        "4.1" => parse_v41(bytes, &header)?,
+        other => {
+            return Err(format!(
+                "unsupported Gmsh format version {other} (supported: 2.2 and 4.1, ASCII or binary)"
+            ))
+        }
+    };
+    compact(raw)
+}
+
+/// What [`read_msh`] returns: node positions and 0-based tets.
+type Mesh = (Vec<[f64; 3]>, Vec<[usize; 4]>);
+
+/// Nodes and linear tets as the file gives them, by Gmsh tag.
+#[derive(Default)]
+struct RawMesh {
+    nodes: HashMap<u64, [f64; 3]>,
+    /// (element tag, node tags) of each linear tet, in file order.
+    tets: Vec<(u64, [u64; 4])>,
+}
+
+impl RawMesh {
+    fn add_node(&mut self, tag: u64, position: [f64; 3]) -> Result<(), String> {
+        match self.nodes.insert(tag, position) {
+            Some(_) => Err(format!("node {tag} is defined twice")),
+            None => Ok(()),
+        }
+    }
+}
+
+const NO_TETS: &str = "the file has no tetrahedra (Gmsh element type 4)";
+
+/// Keeps only the nodes used by tets and renumbers them 0.. in ascending tag order, so the
+/// result depends neither on the element order nor on the file format.
+fn compact(raw: RawMesh) -> Result<Mesh, String> {
+    if raw.tets.is_empty() {
+        return Err(NO_TETS.to_string());
+    }
+    let mut used: Vec<u64> = raw.tets.iter().flat_map(|(_, nodes)| *nodes).collect();
+    used.sort_unstable();
+    used.dedup();
+
+    let mut positions = Vec::with_capacity(used.len());
+    for tag in &used {
+        match raw.nodes.get(tag) {
+            Some(position) => positions.push(*position),
+            None => {
+                let element = raw
+                    .tets
+                    .iter()
+                    .find(|(_, nodes)| nodes.contains(tag))
+                    .map_or(0, |(element, _)| *element);
+                return Err(format!("element {element} refers to undefined node {tag}"));
+            }
+        }
+    }
+    let index: HashMap<u64, usize> = used.iter().enumerate().map(|(i, &t)| (t, i)).collect();
+    // Every tag in a tet is in `used`, hence in `index`: the lookup cannot fail.
+    let tets = raw
+        .tets
+        .iter()
+        .map(|(_, nodes)| nodes.map(|tag| index[&tag]))
+        .collect();
+    Ok((positions, tets))
+}
+
+// ---------------------------------------------------------------------------------------
+// Element types
+
+/// Gmsh element type of the 4-node (linear) tetrahedron.
+const LINEAR_TET: i64 = 4;
+
+/// Gmsh element types of higher-order tetrahedra (10, 20, 35, 56, ... nodes). Reading their
+/// corner nodes as linear tets would silently change the geometry, so they are an error.
+const HIGHER_ORDER_TETS: [i64; 16] = [
+    11, 29, 30, 31, 32, 33, 71, 72, 73, 74, 75, 79, 80, 81, 82, 83,
+];
+
+/// Whether an element of this type is kept (a linear tet); errors for higher-order tets.
+fn is_linear_tet(element_type: i64, element_tag: u64) -> Result<bool, String> {
+    if HIGHER_ORDER_TETS.contains(&element_type) {
+        return Err(format!(
+            "element {element_tag} is a higher-order tetrahedron (Gmsh element type {element_type}); \
+             only linear tetrahedra (type 4) are supported"
+        ));
+    }
+    // Dropping hexahedra, prisms or pyramids would silently lose part of the body.
+    if OTHER_VOLUME_ELEMENTS.contains(&element_type) {
+        return Err(format!(
+            "element {element_tag} is a non-tetrahedral volume element (Gmsh element type {element_type}: \
+             hexahedron, prism or pyramid); only linear tetrahedra (type 4) are supported"
+        ));
+    }
+    Ok(element_type == LINEAR_TET)
+}
+
+/// Gmsh types of hexahedra, prisms and pyramids of every order.
+const OTHER_VOLUME_ELEMENTS: [i64; 9] = [5, 6, 7, 12, 13, 14, 17, 18, 19];
+
+/// Nodes per element for the Gmsh element types a binary 2.2 file may hold; binary element
+/// blocks have no line structure, so skipping an element needs its size.
+fn nodes_per_element(element_type: i32) -> Option<usize> {
+    Some(match element_type {
+        15 => 1,
+        1 => 2,
+        2 | 8 => 3,
+        3 | 4 | 26 => 4,
+        7 | 27 => 5,
+        6 | 9 | 28 => 6,
+        5 | 16 => 8,
+        10 | 20 => 9,
+        11 | 21 => 10,
+        22 => 12,
+        19 => 13,
+        14 => 14,
+        18 | 23 | 24 => 15,
+        13 => 18,
+        17 | 29 => 20,
+        25 => 21,
+        12 => 27,
+        30 => 35,
+        31 => 56,
+        92 => 64,
+        93 => 125,
+        _ => return None,
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Header ($MeshFormat), common to all versions
+
+/// The `$MeshFormat` line: `version file-type data-size`.
+struct Header {
+    version: String,
+    binary: bool,
+    data_size: usize,
+}
+
+fn read_header(bytes: &[u8]) -> Result<Header, String> {
+    let mut cursor = Cursor::new(bytes);
+    if cursor.nonblank_line() != Some(b"$MeshFormat".as_slice()) {
+        return Err("not a Gmsh mesh file (it does not start with $MeshFormat)".to_string());
+    }
+    let line = cursor
+        .line()
+        .ok_or("unexpected end of file in $MeshFormat (the file may be truncated)")?;
+    let words: Vec<&str> = text(line)?.split_ascii_whitespace().collect();
+    let [version, file_type, data_size] = words[..] else {
+        return Err(format!("bad $MeshFormat line '{}'", show(line)));
+    };
+    let binary = match file_type {
+        "0" => false,
+        "1" => true,
+        _ => {
+            return Err(format!(
+                "bad file type '{file_type}' in $MeshFormat (expected 0 or 1)"
+            ))
+        }
+    };
+    let data_size = data_size
+        .parse()
+        .map_err(|_| format!("bad data size '{data_size}' in $MeshFormat"))?;
+    Ok(Header {
+        version: version.to_string(),
+        binary,
+        data_size,
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Format 4.1, through mshio
+
+fn parse_v41(bytes: &[u8], header: &Header) -> Result<RawMesh, String> {
+    // mshio panics (unimplemented!) on size_t sizes it has no parser for, and
+    // force_node_tag_maps patches an 8-byte field; Gmsh always writes 8.
+    if header.binary && header.data_size != 8 {
+        return Err(format!(
+            "binary 4.1 files with data size {} are not supported (expected 8)",
+            header.data_size
+        ));
+    }
+    // mshio 0.4 underflows (panics in debug builds) on a section announcing zero entries.
+    if section_count_is_zero(bytes, b"$Elements", header.binary) {
+        return Err(NO_TETS.to_string());
+    }
+    if section_count_is_zero(bytes, b"$Nodes", header.binary) {
+        return Err("the file has no nodes".to_string());
+    }
+    let bytes = force_node_tag_maps(bytes, header.binary);
+    // mshio 0.4 still has unwrap/unimplemented! in places; should malformed input reach
+    // one, report an error rather than take the caller down.
+    let parsed = std::panic::catch_unwind(|| {
+        mshio::parse_msh_bytes(&bytes).map_err(|error| mshio_message(&error.to_string()))
+    })
+    .map_err(|_| "malformed 4.1 data (the mshio parser panicked on it)".to_string())??;
+
+    let mut mesh = RawMesh::default();
+    for block in parsed.data.nodes.map(|n| n.node_blocks).unwrap_or_default() {
+        let tags = block.node_tags.unwrap_or_default();
+        // mshio maps tag -> position in a HashMap, which silently merges repeated tags.
+        if tags.len() != block.nodes.len() {
+            return Err(format!(
+                "node block of entity ({}, {}) has {} nodes but {} distinct node tags",
+                block.entity_dim,
+                block.entity_tag,
+                block.nodes.len(),
+                tags.len()
+            ));
+        }
+        for (tag, i) in tags {
+            let node = block.nodes.get(i).ok_or("node tag without coordinates")?;
+            mesh.add_node(tag, [node.x, node.y, node.z])?;
+        }
+    }
+    for block in parsed
+        .data
+        .elements
+        .map(|e| e.element_blocks)
+        .unwrap_or_default()
+    {
+        let element_type = block.element_type as i64;
+        for element in block.elements {
+            if is_linear_tet(element_type, element.element_tag)? {
+                let nodes = <[u64; 4]>::try_from(element.nodes.as_slice()).map_err(|_| {
+                    format!("tetrahedron {} does not have 4 nodes", element.element_tag)
+                })?;
+                mesh.tets.push((element.element_tag, nodes));
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+/// Makes mshio keep every node tag.
+///
+/// mshio keeps the node tags of a block only when the file's tags are sparse
+/// (`maxNodeTag - minNodeTag + 1 > numNodes`). For contiguous tags it drops them, implying
+/// tag = minNodeTag + position in file order, which is wrong when the blocks list the tags
+/// out of order (meshio's 4.1 writer does that, and renumbered Gmsh meshes can). Setting
+/// `maxNodeTag` in the `$Nodes` header to `u64::MAX` makes the tags always look sparse; mshio
+/// uses `maxNodeTag` for nothing else. A file too short to patch is passed on unchanged,
+/// for mshio to report.
+fn force_node_tag_maps(bytes: &[u8], binary: bool) -> Vec<u8> {
+    let mut patched = bytes.to_vec();
+    let Some(start) = section_start(bytes, b"$Nodes") else {
+        return patched;
+    };
+    if binary {
+        // numEntityBlocks, numNodes, minNodeTag, maxNodeTag: four 8-byte size_t (checked by
+        // the caller). All-ones bytes are u64::MAX in either byte order.
+        if let Some(max_tag) = patched.get_mut(start + 24..start + 32) {
+            max_tag.fill(0xff);
+        }
+    } else {
+        let rest = &bytes[start..];
+        let end = start + rest.iter().position(|&b| b == b'\n').unwrap_or(rest.len());
+        let words: Vec<&[u8]> = bytes[start..end].split(u8::is_ascii_whitespace).collect();
+        let words: Vec<&[u8]> = words.into_iter().filter(|w| !w.is_empty()).collect();
+        if let [blocks, count, min_tag, _max_tag] = words[..] {
+            let mut line = [blocks, count, min_tag].join(&b' ');
+            line.extend_from_slice(format!(" {}", u64::MAX).as_bytes());
+            patched.splice(start..end, line);
+        }
+    }
+    patched
+}
+
+/// Whether the header line of 4.1 section `tag` (`$Nodes` or `$Elements`:
+/// `numEntityBlocks numEntries minTag maxTag`) announces zero entries.
+fn section_count_is_zero(bytes: &[u8], tag: &[u8], binary: bool) -> bool {
+    let Some(start) = section_start(bytes, tag) else {
+        return false;
+    };
+    if binary {
+        // The second 8-byte size_t; zero reads the same in either byte order.
+        bytes.get(start + 8..start + 16) == Some([0; 8].as_slice())
+    } else {
+        let line = Cursor { bytes, pos: start }.line().unwrap_or_default();
+        let count = text(line)
+            .ok()
+            .and_then(|l| l.split_ascii_whitespace().nth(1));
+        count.and_then(|c| c.parse::<u64>().ok()) == Some(0)
+    }
+}
+
+/// Offset just past the line `tag` (e.g. `$Nodes`), if the file has such a line. A binary
+/// section before it could in principle contain the same bytes; Gmsh files in practice don't.
+fn section_start(bytes: &[u8], tag: &[u8]) -> Option<usize> {
+    let mut cursor = Cursor::new(bytes);
+    while let Some(line) = cursor.line() {
+        if line == tag {
+            return Some(cursor.pos);
+        }
+    }
+    None
+}
+
+/// mshio's error text ends in a hex dump of the rest of the file; keep the readable part
+/// on one line.
+fn mshio_message(message: &str) -> String {
+    let readable = message
+        .split_once("Hex dump")
+        .map_or(message, |(head, _)| head);
+    let words: Vec<&str> = readable.split_whitespace().collect();
+    format!("invalid 4.1 data: {}", words.join(" "))
+}
+
+// ---------------------------------------------------------------------------------------
+// Format 2.2, by hand
+
+/// Byte order of the numbers in a binary 2.2 file (given by the int `1` after the header).
+#[derive(Clone, Copy)]
+enum ByteOrder {
+    Little,
+    Big,
+}
+
+fn parse_v22(bytes: &[u8], binary: bool) -> Result<RawMesh, String> {
+    let mut cursor = Cursor::new(bytes);
+    let mut order = ByteOrder::Little;
+    let mut mesh = RawMesh::default();
+    while let Some(line) = cursor.nonblank_line() {
+        match line {
+            b"$MeshFormat" => {
+                cursor.line(); // the version line, already read by read_header
+                if binary {
+                    order = match cursor.array::<4>()? {
+                        one if i32::from_le_bytes(one) == 1 => ByteOrder::Little,
+                        one if i32::from_be_bytes(one) == 1 => ByteOrder::Big,
+                        _ => return Err("bad byte-order check value after $MeshFormat".into()),
+                    };
+                }
+                cursor.expect_line("$EndMeshFormat")?;
+            }
+            b"$Nodes" => {
+                read_nodes_v22(&mut cursor, binary, order, &mut mesh)
+                    .map_err(|e| format!("in $Nodes: {e}"))?;
+                cursor.expect_line("$EndNodes")?;
+            }
+            b"$Elements" => {
+                read_elements_v22(&mut cursor, binary, order, &mut mesh)
+                    .map_err(|e| format!("in $Elements: {e}"))?;
+                cursor.expect_line("$EndElements")?;
+            }
+            // Other sections ($PhysicalNames, $NodeData, ...) are not needed: skip them.
+            _ if line.starts_with(b"$") => cursor.skip_section(line)?,
+            _ => return Err(format!("unexpected line '{}' between sections", show(line))),
+        }
+    }
+    Ok(mesh)
+}
+
+/// `$Nodes`: a count line, then per node `tag x y z` (a text line, or int + 3 doubles).
+fn read_nodes_v22(
+    cursor: &mut Cursor,
+    binary: bool,
+    order: ByteOrder,
+    mesh: &mut RawMesh,
+) -> Result<(), String> {
+    let count = cursor.count_line()?;
+    for _ in 0..count {
+        if binary {
+            let tag = node_tag(i64::from(cursor.i32(order)?))?;
+            let position = [cursor.f64(order)?, cursor.f64(order)?, cursor.f64(order)?];
+            mesh.add_node(tag, position)?;
+        } else {
+            let line = cursor.line().ok_or(TRUNCATED)?;
+            let words: Vec<&str> = text(line)?.split_ascii_whitespace().collect();
+            let bad = || format!("bad node line '{}'", show(line));
+            let [tag, x, y, z] = words[..] else {
+                return Err(bad());
+            };
+            let tag = tag.parse().map_err(|_| bad())?;
+            let coordinate = |w: &str| w.parse::<f64>().map_err(|_| bad());
+            mesh.add_node(tag, [coordinate(x)?, coordinate(y)?, coordinate(z)?])?;
+        }
+    }
+    Ok(())
+}
+
+/// `$Elements`: a count line, then the elements. ASCII: one line
+/// `tag type ntags tag... node...` each. Binary: blocks, each a header
+/// `type count ntags` followed by `count` records `tag tag... node...`, all ints.
+fn read_elements_v22(
+    cursor: &mut Cursor,
+    binary: bool,
+    order: ByteOrder,
+    mesh: &mut RawMesh,
+) -> Result<(), String> {
+    let total = cursor.count_line()?;
+    if !binary {
+        for _ in 0..total {
+            let line = cursor.line().ok_or(TRUNCATED)?;
+            let bad = || format!("bad element line '{}'", show(line));
+            let numbers = text(line)?
+                .split_ascii_whitespace()
+                .map(|w| w.parse::<i64>().map_err(|_| bad()))
+                .collect::<Result<Vec<i64>, String>>()?;
+            let [tag, element_type, ntags, ref rest @ ..] = numbers[..] else {
+                return Err(bad());
+            };
+            let tag = u64::try_from(tag).map_err(|_| bad())?;
+            if is_linear_tet(element_type, tag)? {
+                let nodes = usize::try_from(ntags)
+                    .ok()
+                    .and_then(|n| rest.get(n..))
+                    .ok_or_else(bad)?;
+                let [a, b, c, d] = nodes[..] else {
+                    return Err(bad());
+                };
+                mesh.tets.push((
+                    tag,
+                    [node_tag(a)?, node_tag(b)?, node_tag(c)?, node_tag(d)?],
+                ));
+            }
+        }
+        return Ok(());
+    }
+
+    let mut done = 0;
+    while done < total {
+        let [element_type, count, ntags] =
+            [cursor.i32(order)?, cursor.i32(order)?, cursor.i32(order)?];
+        let count = usize::try_from(count).unwrap_or(0);
+        if count == 0 || count > total - done {
+            return Err(format!(
+                "element block of {count} elements does not fit the {total} elements announced"
+            ));
+        }
+        let tag_bytes = usize::try_from(ntags)
+            .ok()
+            .and_then(|n| n.checked_mul(4))
+            .ok_or_else(|| format!("bad number of element tags {ntags}"))?;
+        let nodes = nodes_per_element(element_type)
+            .ok_or_else(|| format!("unknown element type {element_type}"))?;
+        for _ in 0..count {
+            let tag = u64::try_from(cursor.i32(order)?).map_err(|_| "negative element tag")?;
+            cursor.take(tag_bytes)?; // physical/elementary tags: not needed
+            if is_linear_tet(i64::from(element_type), tag)? {
+                let mut tet = [0; 4];
+                for node in &mut tet {
+                    *node = node_tag(i64::from(cursor.i32(order)?))?;
+                }
+                mesh.tets.push((tag, tet));
+            } else {
+                cursor.take(4 * nodes)?;
+            }
+        }
+        done += count;
+    }
+    Ok(())
+}
+
+fn node_tag(tag: i64) -> Result<u64, String> {
+    u64::try_from(tag).map_err(|_| format!("negative node tag {tag}"))
+}
+
+const TRUNCATED: &str = "unexpected end of file (the file may be truncated)";
+
+/// Reads a `.msh` file front to back: text lines, or raw bytes of binary blocks.
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        Cursor { bytes, pos: 0 }
+    }
+
+    /// The next line, trimmed (also of a `\r`), or `None` at the end of the file.
+    fn line(&mut self) -> Option<&'a [u8]> {
+        let rest = self.bytes.get(self.pos..).filter(|r| !r.is_empty())?;
+        let len = rest.iter().position(|&b| b == b'\n').unwrap_or(rest.len());
+        self.pos += (len + 1).min(rest.len());
+        Some(rest[..len].trim_ascii())
+    }
+
+    /// The next non-blank line. Binary blocks end with a newline before their end tag.
+    fn nonblank_line(&mut self) -> Option<&'a [u8]> {
+        std::iter::from_fn(|| self.line()).find(|line| !line.is_empty())
+    }
+
+    /// Consumes the next non-blank line, which must be `expected` (e.g. `$EndNodes`).
+    fn expect_line(&mut self, expected: &str) -> Result<(), String> {
+        match self.nonblank_line() {
+            Some(line) if line == expected.as_bytes() => Ok(()),
+            Some(line) => Err(format!("expected {expected}, found '{}'", show(line))),
+            None => Err(format!("missing {expected} ({TRUNCATED})")),
+        }
+    }
+
+    /// Skips the section opened by `start` (e.g. `$PhysicalNames`) up to its end tag.
+    fn skip_section(&mut self, start: &[u8]) -> Result<(), String> {
+        let name = start.strip_prefix(b"$").unwrap_or(start);
+        let end = [b"$End".as_slice(), name].concat();
+        while let Some(line) = self.line() {
+            if line == end {
+                return Ok(());
+            }
+        }
+        Err(format!(
+            "section {} is not closed ({TRUNCATED})",
+            show(start)
+        ))
+    }
+
+    /// A line holding a single count (number of nodes or elements).
+    fn count_line(&mut self) -> Result<usize, String> {
+        let line = self.nonblank_line().ok_or(TRUNCATED)?;
+        text(line)?
+            .parse()
+            .map_err(|_| format!("expected a count, found '{}'", show(line)))
+    }
+
+    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+        let end = self.pos.checked_add(n).ok_or(TRUNCATED)?;
+        let taken = self.bytes.get(self.pos..end).ok_or(TRUNCATED)?;
+        self.pos = end;
+        Ok(taken)
+    }
+
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], String> {
+        let mut array = [0; N];
+        array.copy_from_slice(self.take(N)?);
+        Ok(array)
+    }
+
+    fn i32(&mut self, order: ByteOrder) -> Result<i32, String> {
+        let bytes = self.array()?;
+        Ok(match order {
+            ByteOrder::Little => i32::from_le_bytes(bytes),
+            ByteOrder::Big => i32::from_be_bytes(bytes),
+        })
+    }
+
+    fn f64(&mut self, order: ByteOrder) -> Result<f64, String> {
+        let bytes = self.array()?;
+        Ok(match order {
+            ByteOrder::Little => f64::from_le_bytes(bytes),
+            ByteOrder::Big => f64::from_be_bytes(bytes),
+        })
+    }
+}
+
+fn text(line: &[u8]) -> Result<&str, String> {
+    std::str::from_utf8(line).map_err(|_| format!("expected text, found '{}'", show(line)))
+}
+
+/// A line for an error message, shortened: a binary file read as text has very long "lines".
+fn show(line: &[u8]) -> String {
+    let shown = String::from_utf8_lossy(&line[..line.len().min(60)]);
+    if line.len() > 60 {
+        format!("{shown}...")
+    } else {
+        shown.into_owned()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fixture box, meshed by Gmsh (see make_fixtures.py): 0.2 x 0.1 x 0.05 m.
+    const BOX_VOLUME: f64 = 0.2 * 0.1 * 0.05;
+    const BOX_NODES: usize = 22;
+    const BOX_TETS: usize = 42;
+
+    /// The same box mesh in the four supported encodings, written by Gmsh.
+    const FOUR_FORMATS: [&str; 4] = [
+        "box_v41_ascii.msh",
+        "box_v41_binary.msh",
+        "box_v22_ascii.msh",
+        "box_v22_binary.msh",
+    ];
+
+    fn fixture(name: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("solver_tests/data/msh")
+            .join(name)
+    }
+
+    fn read(name: &str) -> (Vec<[f64; 3]>, Vec<[usize; 4]>) {
+        read_msh(&fixture(name)).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn volume(nodes: &[[f64; 3]], tets: &[[usize; 4]]) -> f64 {
+        let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        tets.iter()
+            .map(|t| {
+                let [a, b, c] = [1, 2, 3].map(|i| sub(nodes[t[i]], nodes[t[0]]));
+                let det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                    + a[2] * (b[0] * c[1] - b[1] * c[0]);
+                det.abs() / 6.0
+            })
+            .sum()
+    }
+
+    /// Positions equal up to the last digit: Gmsh's ASCII writers print 16 significant
+    /// digits, which does not always round-trip a double exactly.
+    fn assert_same_positions(a: &[[f64; 3]], b: &[[f64; 3]]) {
+        assert_eq!(a.len(), b.len());
+        for (p, q) in a.iter().zip(b) {
+            for k in 0..3 {
+                assert!((p[k] - q[k]).abs() <= 1e-15, "{p:?} != {q:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_fixture_is_the_whole_box() {
+        let all = FOUR_FORMATS.iter().chain(&[
+            "box_sparse_v41_binary.msh",
+            "box_sparse_v22_ascii.msh",
+            "box_reversed_v41_ascii.msh",
+            "box_meshio_v41_ascii.msh",
+            "box_meshio_v22_binary.msh",
+        ]);
+        for name in all {
+            let (nodes, tets) = read(name);
+            assert_eq!(nodes.len(), BOX_NODES, "{name}");
+            assert_eq!(tets.len(), BOX_TETS, "{name}");
+            assert!((volume(&nodes, &tets) - BOX_VOLUME).abs() < 1e-12, "{name}");
+            assert!(tets.iter().flatten().all(|&i| i < nodes.len()), "{name}");
+        }
+    }
+
+    #[test]
+    fn all_four_formats_give_the_same_mesh() {
+        let (nodes, tets) = read(FOUR_FORMATS[0]);
+        for name in &FOUR_FORMATS[1..] {
+            let (other_nodes, other_tets) = read(name);
+            assert_eq!(other_tets, tets, "{name}");
+            assert_same_positions(&other_nodes, &nodes);
+        }
+    }
+
+    #[test]
+    fn sparse_node_tags_map_to_the_same_mesh() {
+        // Tags 10*t + 7 keep the tag order, so the compacted mesh is unchanged.
+        let (nodes, tets) = read("box_v41_ascii.msh");
+        for name in ["box_sparse_v41_binary.msh", "box_sparse_v22_ascii.msh"] {
+            let (sparse_nodes, sparse_tets) = read(name);
+            assert_eq!(sparse_tets, tets, "{name}");
+            assert_same_positions(&sparse_nodes, &nodes);
+        }
+    }
+
+    #[test]
+    fn contiguous_tags_out_of_block_order_are_honoured() {
+        // Tags N+1-t: ascending tag order is the reverse of the original node order. A
+        // reader assuming tag = position in the file would scramble this mesh.
+        let (nodes, tets) = read("box_v41_ascii.msh");
+        let (rev_nodes, rev_tets) = read("box_reversed_v41_ascii.msh");
+        let last = nodes.len() - 1;
+        let reversed: Vec<[f64; 3]> = nodes.iter().rev().copied().collect();
+        assert_same_positions(&rev_nodes, &reversed);
+        let expected: Vec<[usize; 4]> = tets.iter().map(|t| t.map(|i| last - i)).collect();
+        assert_eq!(rev_tets, expected);
+    }
+
+    #[test]
+    fn meshio_written_files_match_gmsh_written_ones() {
+        let (nodes, tets) = read("box_v41_ascii.msh");
+        for name in ["box_meshio_v41_ascii.msh", "box_meshio_v22_binary.msh"] {
+            let (other_nodes, other_tets) = read(name);
+            assert_eq!(other_tets, tets, "{name}");
+            assert_same_positions(&other_nodes, &nodes);
+        }
+    }
+
+    #[test]
+    fn fixture_really_has_points_lines_and_triangles() {
+        // The reader must skip these; make sure the fixture exercises that.
+        let text = std::fs::read_to_string(fixture("box_v22_ascii.msh")).unwrap();
+        let elements = text.split("$Elements").nth(1).unwrap();
+        let types: Vec<&str> = elements
+            .lines()
+            .filter_map(|l| l.split_whitespace().nth(1))
+            .collect();
+        for (element_type, what) in [("15", "point"), ("1", "line"), ("2", "triangle")] {
+            assert!(types.contains(&element_type), "no {what} elements");
+        }
+        assert_eq!(types.iter().filter(|&&t| t == "4").count(), BOX_TETS);
+    }
+
+    // Hand-written meshes for the cases below: one tet on nodes 1-4.
+
+    const V22_ONE_TET: &str = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n\
+        $Nodes\n5\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n9 5 5 5\n$EndNodes\n\
+        $Elements\n3\n1 15 2 0 1 9\n2 2 2 0 1 1 2 9\n3 4 2 0 1 1 2 3 4\n$EndElements\n";
+
+    const V41_ONE_TET: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n\
+        $Nodes\n1 4 1 4\n3 1 0 4\n1\n2\n3\n4\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n$EndNodes\n\
+        $Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n";
+
+    /// Writes `content` to a temp file and reads it back.
+    fn read_text(content: &str) -> (tempfile::TempDir, Result<Mesh, GmshError>) {
+        read_bytes(content.as_bytes())
+    }
+
+    fn read_bytes(content: &[u8]) -> (tempfile::TempDir, Result<Mesh, GmshError>) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("mesh.msh");
+        std::fs::write(&path, content).unwrap();
+        let result = read_msh(&path);
+        (dir, result)
+    }
+
+    /// Asserts a Format error naming the file and containing `needle`.
+    fn assert_format_error(content: &str, needle: &str) {
+        let (dir, result) = read_text(content);
+        match result {
+            Err(error @ GmshError::Format { .. }) => {
+                let message = error.to_string();
+                assert!(message.contains(needle), "{message:?} lacks {needle:?}");
+                let path = dir.path().join("mesh.msh");
+                assert!(message.contains(&path.display().to_string()), "{message:?}");
+            }
+            other => panic!("expected a format error with {needle:?}, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn hand_written_meshes_read_and_drop_unused_nodes() {
+        // Node 9 is used only by a point and a triangle, so it is not kept.
+        for content in [V22_ONE_TET, V41_ONE_TET] {
+            let (_dir, result) = read_text(content);
+            let (nodes, tets) = result.unwrap();
+            assert_eq!(
+                nodes,
+                [
+                    [0.0, 0.0, 0.0],
+                    [1.0, 0.0, 0.0],
+                    [0.0, 1.0, 0.0],
+                    [0.0, 0.0, 1.0]
+                ]
+            );
+            assert_eq!(tets, [[0, 1, 2, 3]]);
+        }
+    }
+
+    /// A binary 2.2 file in the given byte order: nodes 1-4 and 9, a triangle block, and a
+    /// block with one tet of `tet_type` (4, or 11 with 10 nodes).
+    fn v22_binary(big_endian: bool, tet_type: i32) -> Vec<u8> {
+        let mut file = b"$MeshFormat\n2.2 1 8\n".to_vec();
+        let int = |file: &mut Vec<u8>, v: i32| {
+            file.extend(if big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            })
+        };
+        int(&mut file, 1);
+        file.extend(b"\n$EndMeshFormat\n$Nodes\n5\n");
+        let nodes: [(i32, [f64; 3]); 5] = [
+            (1, [0.0, 0.0, 0.0]),
+            (2, [1.0, 0.0, 0.0]),
+            (3, [0.0, 1.0, 0.0]),
+            (4, [0.0, 0.0, 1.0]),
+            (9, [5.0, 5.0, 5.0]),
+        ];
+        for (tag, position) in nodes {
+            int(&mut file, tag);
+            for x in position {
+                file.extend(if big_endian {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                });
+            }
+        }
+        file.extend(b"\n$EndNodes\n$Elements\n2\n");
+        // Block header [type, count, ntags], then per element [tag, ntags tags, nodes].
+        let triangle = [2, 1, 2, 1, 0, 1, 1, 2, 9];
+        let tet = if tet_type == 4 {
+            &[1, 2, 3, 4][..]
+        } else {
+            &[1, 2, 3, 4, 1, 2, 3, 4, 1, 2][..]
+        };
+        for v in triangle.iter().chain(&[tet_type, 1, 2, 2, 0, 1]).chain(tet) {
+            int(&mut file, *v);
+        }
+        file.extend(b"\n$EndElements\n");
+        file
+    }
+
+    #[test]
+    fn binary_2_2_in_both_byte_orders() {
+        for big_endian in [false, true] {
+            let (_dir, result) = read_bytes(&v22_binary(big_endian, 4));
+            let (nodes, tets) = result.unwrap();
+            assert_eq!(
+                nodes,
+                [
+                    [0.0, 0.0, 0.0],
+                    [1.0, 0.0, 0.0],
+                    [0.0, 1.0, 0.0],
+                    [0.0, 0.0, 1.0]
+                ]
+            );
+            assert_eq!(tets, [[0, 1, 2, 3]], "big endian: {big_endian}");
+        }
+        let (_dir, result) = read_bytes(&v22_binary(false, 11));
+        assert!(result
+            .unwrap_err()
+            .to_string()
+            .contains("only linear tetrahedra"));
+    }
+
+    #[test]
+    fn crlf_line_endings_are_accepted_in_2_2() {
+        let (_dir, result) = read_text(&V22_ONE_TET.replace('\n', "\r\n"));
+        assert_eq!(result.unwrap().1, [[0, 1, 2, 3]]);
+    }
+
+    #[test]
+    fn missing_file_is_an_io_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("nope.msh");
+        let error = read_msh(&path).unwrap_err();
+        assert!(matches!(error, GmshError::Io { .. }));
+        assert!(error.to_string().contains("nope.msh"));
+    }
+
+    #[test]
+    fn not_a_msh_file() {
+        assert_format_error("solid cube\nfacet normal 0 0 1\n", "not a Gmsh mesh file");
+        assert_format_error("", "not a Gmsh mesh file");
+    }
+
+    #[test]
+    fn unsupported_versions_are_named() {
+        for version in ["3.0", "4", "4.0", "2.1"] {
+            let content = V41_ONE_TET.replace("4.1 0 8", &format!("{version} 0 8"));
+            assert_format_error(
+                &content,
+                &format!("unsupported Gmsh format version {version}"),
+            );
+            assert_format_error(&content, "supported: 2.2 and 4.1");
+        }
+    }
+
+    #[test]
+    fn truncated_files_are_errors() {
+        // Every cut before the last character of the final $EndElements must fail cleanly.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("cut.msh");
+        for name in FOUR_FORMATS {
+            let bytes = std::fs::read(fixture(name)).unwrap();
+            let end = bytes.len() - 1 - bytes.iter().rev().position(|&b| b != b'\n').unwrap();
+            for cut in (0..end).step_by(7) {
+                std::fs::write(&path, &bytes[..cut]).unwrap();
+                let result = read_msh(&path);
+                assert!(
+                    matches!(result, Err(GmshError::Format { .. })),
+                    "{name} cut at {cut} of {} bytes read without error",
+                    bytes.len()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn truncation_message_says_so() {
+        let cut = &V22_ONE_TET[..V22_ONE_TET.find("3 0 1 0").unwrap()];
+        assert_format_error(cut, "truncated");
+    }
+
+    #[test]
+    fn undefined_node_tag() {
+        assert_format_error(
+            &V22_ONE_TET.replace("3 4 2 0 1 1 2 3 4", "3 4 2 0 1 1 2 3 99"),
+            "element 3 refers to undefined node 99",
+        );
+        assert_format_error(
+            &V41_ONE_TET.replace("1 1 2 3 4\n", "1 1 2 3 99\n"),
+            "element 1 refers to undefined node 99",
+        );
+    }
+
+    #[test]
+    fn second_order_tets_are_rejected() {
+        let v22 = V22_ONE_TET.replace("3 4 2 0 1 1 2 3 4", "3 11 2 0 1 1 2 3 4 1 2 3 4 1 2");
+        assert_format_error(&v22, "only linear tetrahedra");
+        let v41 = V41_ONE_TET.replace("3 1 4 1\n1 1 2 3 4\n", "3 1 11 1\n1 1 2 3 4 1 2 3 4 1 2\n");
+        assert_format_error(&v41, "only linear tetrahedra");
+    }
+
+    #[test]
+    fn no_tetrahedra() {
+        let v22 = V22_ONE_TET
+            .replace("$Elements\n3\n", "$Elements\n2\n")
+            .replace("3 4 2 0 1 1 2 3 4\n", "");
+        assert_format_error(&v22, "the file has no tetrahedra");
+        let v41 = V41_ONE_TET.replace("3 1 4 1\n1 1 2 3 4\n", "2 1 2 1\n1 1 2 3\n");
+        assert_format_error(&v41, "the file has no tetrahedra");
+    }
+
+    #[test]
+    fn duplicate_node_tags() {
+        let v22 = V22_ONE_TET.replace("9 5 5 5", "4 5 5 5");
+        assert_format_error(&v22, "node 4 is defined twice");
+        let v41 = V41_ONE_TET.replace("1\n2\n3\n4\n0 0 0", "1\n2\n3\n3\n0 0 0");
+        assert_format_error(&v41, "node");
+    }
+
+    #[test]
+    fn malformed_4_1_does_not_panic() {
+        // mshio panics on these without the guards in parse_v41.
+        assert_format_error(&V41_ONE_TET.replace("1 4 1 4\n", "1 0 1 1\n"), "no nodes");
+        let no_elements = V41_ONE_TET.replace("1 1 1 1\n3 1 4 1\n1 1 2 3 4\n", "0 0 1 1\n");
+        assert_format_error(&no_elements, "the file has no tetrahedra");
+        assert_format_error(&V41_ONE_TET.replace("4.1 0 8", "4.1 1 3"), "data size 3");
+    }
 }

@@ -1,0 +1,67 @@
+//! Mass and dead loads: lumped mass, gravity, surface traction.
+
+use super::Region;
+use crate::fem::ElementRest;
+use crate::mesh::TetMesh;
+use nalgebra::Vector3;
+
+/// A constant traction (Pa, force per rest area) on the boundary faces whose rest centroid lies
+/// in `region`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Traction {
+    /// Faces selected by their centroid.
+    pub region: Region,
+    /// Traction vector (Pa).
+    pub traction: Vector3<f64>,
+}
+
+/// Row-sum lumped mass of P1 tets: each vertex gets ρV/4 of each tet (kg per node).
+pub fn lumped_mass(mesh: &TetMesh, rest: &[ElementRest], density: f64) -> Vec<f64> {
+    let mut mass = vec![0.0; mesh.num_nodes()];
+    for (tet, r) in mesh.tets.iter().zip(rest) {
+        for &v in tet {
+            mass[v] += 0.25 * density * r.volume;
+        }
+    }
+    mass
+}
+
+/// Adds m g to every node's force (N).
+pub fn add_gravity(mass: &[f64], gravity: &Vector3<f64>, force: &mut [f64]) {
+    for (i, m) in mass.iter().enumerate() {
+        for a in 0..3 {
+            force[3 * i + a] += m * gravity[a];
+        }
+    }
+}
+
+/// Adds the consistent P1 load of a constant traction: each selected face gives t·A/3 to each
+/// of its three nodes (exact for constant t).
+pub fn add_traction(mesh: &TetMesh, traction: &Traction, force: &mut [f64]) {
+    for face in mesh.boundary_faces() {
+        let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
+        if !traction.region.contains(&((a + b + c) / 3.0)) {
+            continue;
+        }
+        let area = 0.5 * (b - a).cross(&(c - a)).norm();
+        for &v in &face.nodes {
+            for k in 0..3 {
+                force[3 * v + k] += traction.traction[k] * area / 3.0;
+            }
+        }
+    }
+}
+
+/// Number of boundary faces a traction acts on, and their total area (m²).
+pub fn traction_faces(mesh: &TetMesh, region: &Region) -> (usize, f64) {
+    let mut count = 0;
+    let mut area = 0.0;
+    for face in mesh.boundary_faces() {
+        let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
+        if region.contains(&((a + b + c) / 3.0)) {
+            count += 1;
+            area += 0.5 * (b - a).cross(&(c - a)).norm();
+        }
+    }
+    (count, area)
+}

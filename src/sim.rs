@@ -1,0 +1,256 @@
+//! The step loop: owns the model, the state and the solver data, and advances time.
+
+use crate::assembly::{Assembly, DofMap};
+use crate::physics::Model;
+use crate::solver::timestep::{Inertia, StepPotential};
+use crate::solver::{minimize, LinearSolver, LinearSolverKind, NewtonError, NewtonParams, NewtonReport, NewtonWorkspace, Potential};
+use std::time::Instant;
+
+/// Static equilibrium per step, or backward-Euler dynamics.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Analysis {
+    /// Each step solves for equilibrium at its end time (quasi-static load stepping).
+    Static,
+    /// Backward-Euler dynamics.
+    Dynamic,
+}
+
+/// How a run steps and solves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepSettings {
+    /// Static or dynamic.
+    pub analysis: Analysis,
+    /// Time step (s).
+    pub dt: f64,
+    /// Newton tolerances.
+    pub newton: NewtonParams,
+    /// Linear solver.
+    pub linear: LinearSolverKind,
+    /// CG relative tolerance.
+    pub cg_tolerance: f64,
+    /// CG iteration cap.
+    pub cg_max_iterations: usize,
+}
+
+/// The time-dependent state: everything a step depends on besides the model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct State {
+    /// Nodal displacement from the rest position (m), 3 per node.
+    pub u: Vec<f64>,
+    /// Nodal velocity (m/s), 3 per node.
+    pub v: Vec<f64>,
+    /// Time (s).
+    pub time: f64,
+    /// Completed steps.
+    pub step: u64,
+}
+
+/// Energies of a state (J).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Energies {
+    /// ½ vᵀ M v.
+    pub kinetic: f64,
+    /// Σ elastic element energies.
+    pub elastic: f64,
+    /// Potential of the dead loads, −f·u.
+    pub potential: f64,
+}
+
+impl Energies {
+    /// Kinetic + elastic + load potential.
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.elastic + self.potential
+    }
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StepReport {
+    /// Newton statistics.
+    pub newton: NewtonReport,
+    /// Energies after the step.
+    pub energies: Energies,
+    /// Wall time of the whole step (s).
+    pub t_step: f64,
+}
+
+/// Errors while setting up or stepping.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// A static analysis needs Dirichlet conditions (or a later contact term) to be solvable.
+    #[error("singular: no Dirichlet conditions, so a static solve has unconstrained rigid-body modes; add a [[dirichlet]] region or use analysis = \"dynamic\"")]
+    NoDirichlet,
+    /// A Dirichlet region matched no node.
+    #[error("dirichlet condition {index} (region {min:?} – {max:?}) holds no node of the mesh")]
+    EmptyDirichlet { index: usize, min: [f64; 3], max: [f64; 3] },
+    /// Newton failed in a step.
+    #[error("step {step} (t = {time:.6} s): {source}")]
+    Step { step: u64, time: f64, #[source] source: NewtonError },
+    /// Linear solver set-up failed.
+    #[error(transparent)]
+    Linear(#[from] crate::solver::LinearError),
+}
+
+/// A model, its state, and the solver data built for its mesh.
+pub struct Simulation {
+    /// The mechanics.
+    pub model: Model,
+    /// The current state.
+    pub state: State,
+    /// Step settings.
+    pub settings: StepSettings,
+    assembly: Assembly,
+    linear: LinearSolver,
+    workspace: NewtonWorkspace,
+    element_energy: Vec<f64>,
+    scratch: Vec<f64>,
+    previous: Vec<f64>,
+    predictor: Vec<f64>,
+    damping_stiffness: Vec<f64>,
+}
+
+impl Simulation {
+    /// Builds the pattern, slot map, colouring and (for Cholesky) the symbolic factorisation,
+    /// starting from rest at t = 0.
+    pub fn new(model: Model, settings: StepSettings) -> Result<Self, SimError> {
+        for (index, bc) in model.dirichlet.iter().enumerate() {
+            if bc.nodes(&model.mesh).next().is_none() {
+                return Err(SimError::EmptyDirichlet { index, min: bc.region.min.into(), max: bc.region.max.into() });
+            }
+        }
+        let constrained = model.constrained_dofs();
+        if settings.analysis == Analysis::Static && !constrained.iter().any(|c| *c) {
+            return Err(SimError::NoDirichlet);
+        }
+        let assembly = Assembly::new(&model.mesh, DofMap::new(&constrained));
+        let linear = LinearSolver::new(settings.linear, &assembly, settings.cg_tolerance, settings.cg_max_iterations)?;
+        let workspace = NewtonWorkspace::new(&assembly);
+        let n = 3 * model.num_nodes();
+        let state = State { u: vec![0.0; n], v: vec![0.0; n], time: 0.0, step: 0 };
+        let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
+        Ok(Simulation {
+            element_energy: vec![0.0; model.mesh.num_tets()],
+            scratch: vec![0.0; assembly.dofs().num_free()],
+            previous: vec![0.0; n],
+            predictor: vec![0.0; n],
+            damping_stiffness: if with_beta { vec![0.0; assembly.nnz()] } else { Vec::new() },
+            model,
+            state,
+            settings,
+            assembly,
+            linear,
+            workspace,
+        })
+    }
+
+    /// The assembled pattern (for statistics).
+    pub fn assembly(&self) -> &Assembly {
+        &self.assembly
+    }
+    /// The linear solver (for statistics).
+    pub fn linear_solver(&self) -> &LinearSolver {
+        &self.linear
+    }
+
+    /// Advances one step of `settings.dt`. On failure the state is left unchanged.
+    pub fn step(&mut self) -> Result<StepReport, SimError> {
+        let start = Instant::now();
+        let h = self.settings.dt;
+        let t_new = self.state.time + h;
+        let dynamic = self.settings.analysis == Analysis::Dynamic;
+        self.previous.copy_from_slice(&self.state.u);
+        let mut u = self.state.u.clone();
+        if dynamic {
+            for ((p, u0), v) in self.predictor.iter_mut().zip(&self.state.u).zip(&self.state.v) {
+                *p = u0 + h * v;
+            }
+            u.copy_from_slice(&self.predictor);
+        }
+        self.model.apply_dirichlet(t_new, &mut u);
+        let damping = self.model.damping.unwrap_or_default();
+        if dynamic && damping.stiffness > 0.0 {
+            self.stiffness_at_previous(damping.stiffness);
+        }
+        let force_floor = self.force_scale(h, dynamic);
+        let mut potential = StepPotential {
+            model: &self.model,
+            assembly: &self.assembly,
+            inertia: dynamic.then(|| Inertia {
+                dt: h,
+                predictor: &self.predictor,
+                previous: &self.previous,
+                alpha: damping.mass,
+                beta_stiffness: (damping.stiffness > 0.0).then_some(&self.damping_stiffness[..]),
+            }),
+            element_energy: &mut self.element_energy,
+            scratch: &mut self.scratch,
+        };
+        let newton = minimize(&mut potential, &mut u, &self.assembly, &mut self.linear, &self.settings.newton, force_floor, &mut self.workspace)
+            .map_err(|source| SimError::Step { step: self.state.step + 1, time: t_new, source })?;
+        if dynamic {
+            for ((v, un), u0) in self.state.v.iter_mut().zip(&u).zip(&self.previous) {
+                *v = (un - u0) / h;
+            }
+        }
+        self.state.u = u;
+        self.state.time = t_new;
+        self.state.step += 1;
+        let energies = self.energies();
+        Ok(StepReport { newton, energies, t_step: start.elapsed().as_secs_f64() })
+    }
+
+    /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.
+    fn stiffness_at_previous(&mut self, beta: f64) {
+        let mut potential = StepPotential {
+            model: &self.model,
+            assembly: &self.assembly,
+            inertia: None,
+            element_energy: &mut self.element_energy,
+            scratch: &mut self.scratch,
+        };
+        let mut gradient = vec![0.0; self.previous.len()];
+        potential.evaluate(&self.previous, &mut gradient, &mut self.damping_stiffness);
+        self.damping_stiffness.iter_mut().for_each(|k| *k *= beta);
+    }
+
+    /// A force scale of the step (N): the largest dead load or momentum change M v / h on a
+    /// free dof. Newton's residual is judged relative to it.
+    fn force_scale(&self, h: f64, dynamic: bool) -> f64 {
+        let dofs = self.assembly.dofs();
+        dofs.free_dofs()
+            .iter()
+            .map(|&d| {
+                let inertial = if dynamic { self.model.mass[d / 3] * self.state.v[d].abs() / h } else { 0.0 };
+                self.model.external_force[d].abs().max(inertial)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Energies of the current state.
+    pub fn energies(&mut self) -> Energies {
+        let u = &self.state.u;
+        let el = &self.model.elasticity;
+        let tets = &self.model.mesh.tets;
+        self.assembly.energies(|e, out| el.element(tets, u, e, false, out), &mut self.element_energy);
+        let elastic = self.element_energy.iter().sum();
+        let kinetic = self.state.v.iter().enumerate().map(|(d, v)| 0.5 * self.model.mass[d / 3] * v * v).sum();
+        let potential = -self.model.external_force.iter().zip(u).map(|(f, u)| f * u).sum::<f64>();
+        Energies { kinetic, elastic, potential }
+    }
+
+    /// Element stresses (Pa, Voigt xx yy zz yz xz xy) of the current state.
+    pub fn stresses(&self) -> Vec<[f64; 6]> {
+        self.model.elasticity.stresses(&self.model.mesh.tets, &self.state.u)
+    }
+
+    /// Current positions X + u (m).
+    pub fn positions(&self) -> Vec<[f64; 3]> {
+        self.model.mesh.rest.iter().enumerate().map(|(i, p)| std::array::from_fn(|a| p[a] + self.state.u[3 * i + a])).collect()
+    }
+
+    /// Displacement of node `i` (m).
+    pub fn displacement(&self, i: usize) -> [f64; 3] {
+        std::array::from_fn(|a| self.state.u[3 * i + a])
+    }
+}

@@ -1,0 +1,176 @@
+//! Sparse symmetric positive-definite linear solvers behind one interface: faer's supernodal
+//! Cholesky (symbolic analysis once per pattern, numeric factorisation per call) and
+//! Jacobi-preconditioned conjugate gradients.
+
+use crate::assembly::Assembly;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::LltError as DenseLltError;
+use faer::matrix_free::conjugate_gradient::{conjugate_gradient, conjugate_gradient_scratch, CgParams};
+use faer::matrix_free::InitialGuessStatus;
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering};
+use faer::diag::Diag;
+use faer::{Conj, MatMut, MatRef, Par, Side};
+use std::time::Instant;
+
+/// Which linear solver a Newton iteration uses.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LinearSolverKind {
+    /// Sparse Cholesky LLᵀ with fill-reducing (AMD) ordering.
+    Cholesky,
+    /// Conjugate gradients with a Jacobi (diagonal) preconditioner.
+    Cg,
+}
+
+/// Failures of the linear solve.
+#[derive(Debug, thiserror::Error)]
+pub enum LinearError {
+    /// The matrix is not positive definite: a rigid-body mode is unconstrained, or a part of
+    /// the mesh is detached.
+    #[error(
+        "the system matrix is not positive definite (pivot {pivot} of {n}): the body has an \
+         unconstrained rigid-body mode (add Dirichlet conditions) or a part of the mesh is detached"
+    )]
+    NotPositiveDefinite { pivot: usize, n: usize },
+    /// CG did not reach its tolerance.
+    #[error("conjugate gradients did not converge: relative residual {residual:e} after {iterations} iterations")]
+    CgNotConverged { iterations: usize, residual: f64 },
+    /// Memory or other failure inside faer.
+    #[error("sparse solver failure: {0}")]
+    Faer(String),
+}
+
+/// Time and work of one linear solve.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LinearStats {
+    /// Numeric factorisation (or preconditioner set-up) time (s).
+    pub t_factorization: f64,
+    /// Solve time (s).
+    pub t_solve: f64,
+    /// Iterations (1 for a direct solve).
+    pub iterations: usize,
+}
+
+/// A linear solver bound to one sparsity pattern.
+pub enum LinearSolver {
+    /// Cholesky with its symbolic analysis, factor storage and workspace kept between calls.
+    Cholesky { symbolic: SymbolicCholesky<usize>, l_values: Vec<f64>, work: MemBuffer, t_symbolic: f64 },
+    /// Preconditioned CG.
+    Cg { tolerance: f64, max_iterations: usize, inv_diag: Vec<f64>, work: MemBuffer },
+}
+
+impl LinearSolver {
+    /// Prepares a solver for the pattern of `assembly`: the symbolic analysis for Cholesky (done
+    /// here once, reused by every [`LinearSolver::solve`]), the workspace for CG.
+    pub fn new(kind: LinearSolverKind, assembly: &Assembly, cg_tolerance: f64, cg_max_iterations: usize) -> Result<Self, LinearError> {
+        let n = assembly.dofs().num_free();
+        match kind {
+            LinearSolverKind::Cholesky => {
+                let start = Instant::now();
+                let symbolic = factorize_symbolic_cholesky(
+                    assembly.symbolic(),
+                    Side::Lower,
+                    SymmetricOrdering::Amd,
+                    Default::default(),
+                )
+                .map_err(|e| LinearError::Faer(format!("{e:?}")))?;
+                let req = symbolic
+                    .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+                    .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+                let work = MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
+                let l_values = vec![0.0; symbolic.len_val()];
+                Ok(LinearSolver::Cholesky { symbolic, l_values, work, t_symbolic: start.elapsed().as_secs_f64() })
+            }
+            LinearSolverKind::Cg => {
+                let req = conjugate_gradient_scratch::<f64>(Diag::<f64>::zeros(n).as_ref(), assembly.matrix(&vec![0.0; assembly.nnz()]), 1, Par::Seq);
+                let work = MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
+                Ok(LinearSolver::Cg { tolerance: cg_tolerance, max_iterations: cg_max_iterations, inv_diag: vec![0.0; n], work })
+            }
+        }
+    }
+
+    /// Time of the symbolic analysis (s), zero for CG.
+    pub fn symbolic_time(&self) -> f64 {
+        match self {
+            LinearSolver::Cholesky { t_symbolic, .. } => *t_symbolic,
+            LinearSolver::Cg { .. } => 0.0,
+        }
+    }
+
+    /// Number of nonzeros of the Cholesky factor, if direct.
+    pub fn factor_nnz(&self) -> Option<usize> {
+        match self {
+            LinearSolver::Cholesky { l_values, .. } => Some(l_values.len()),
+            LinearSolver::Cg { .. } => None,
+        }
+    }
+
+    /// Solves `A x = b` for the matrix with `assembly`'s pattern and the given values; `x` is
+    /// overwritten (its input is ignored).
+    pub fn solve(&mut self, assembly: &Assembly, values: &[f64], b: &[f64], x: &mut [f64]) -> Result<LinearStats, LinearError> {
+        let a = assembly.matrix(values);
+        let n = b.len();
+        match self {
+            LinearSolver::Cholesky { symbolic, l_values, work, .. } => {
+                let start = Instant::now();
+                let stack = MemStack::new(work);
+                let llt = symbolic
+                    .factorize_numeric_llt::<f64>(l_values, a, Side::Lower, Default::default(), Par::Seq, stack, Default::default())
+                    .map_err(|e| match e {
+                        DenseLltError::NonPositivePivot { index } => LinearError::NotPositiveDefinite { pivot: index, n },
+                    })?;
+                let t_factorization = start.elapsed().as_secs_f64();
+                let start = Instant::now();
+                x.copy_from_slice(b);
+                llt.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(x, n, 1), Par::Seq, MemStack::new(work));
+                Ok(LinearStats { t_factorization, t_solve: start.elapsed().as_secs_f64(), iterations: 1 })
+            }
+            LinearSolver::Cg { tolerance, max_iterations, inv_diag, work } => {
+                let start = Instant::now();
+                jacobi_inverse(assembly, values, inv_diag);
+                let t_factorization = start.elapsed().as_secs_f64();
+                let start = Instant::now();
+                x.fill(0.0);
+                // faer 0.24.4 mis-handles `InitialGuessStatus::Zero`; a zeroed x with
+                // `MaybeNonZero` is equivalent and works.
+                let params = CgParams {
+                    initial_guess: InitialGuessStatus::MaybeNonZero,
+                    abs_tolerance: 0.0,
+                    rel_tolerance: *tolerance,
+                    max_iters: *max_iterations,
+                    ..Default::default()
+                };
+                let precond = faer::diag::DiagRef::from_slice(inv_diag);
+                let info = conjugate_gradient(
+                    MatMut::from_column_major_slice_mut(x, n, 1),
+                    precond,
+                    a,
+                    MatRef::from_column_major_slice(b, n, 1),
+                    params,
+                    |_| {},
+                    Par::Seq,
+                    MemStack::new(work),
+                );
+                let t_solve = start.elapsed().as_secs_f64();
+                match info {
+                    Ok(info) => Ok(LinearStats { t_factorization, t_solve, iterations: info.iter_count }),
+                    Err(faer::matrix_free::conjugate_gradient::CgError::NoConvergence { rel_residual, .. }) => {
+                        Err(LinearError::CgNotConverged { iterations: *max_iterations, residual: rel_residual })
+                    }
+                    Err(e) => Err(LinearError::Faer(format!("{e:?}"))),
+                }
+            }
+        }
+    }
+}
+
+/// Inverse of the diagonal of the matrix (zero where the diagonal is not positive).
+fn jacobi_inverse(assembly: &Assembly, values: &[f64], inv_diag: &mut [f64]) {
+    let s = assembly.symbolic();
+    for (c, d) in inv_diag.iter_mut().enumerate() {
+        let range = s.col_range(c);
+        let rows = s.row_idx_of_col_raw(c);
+        let diag = rows.binary_search(&c).map(|k| values[range.start + k]).unwrap_or(0.0);
+        *d = if diag > 0.0 { 1.0 / diag } else { 0.0 };
+    }
+}

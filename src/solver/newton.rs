@@ -1,0 +1,172 @@
+//! Newton's method with a backtracking line search on a scalar potential (the incremental
+//! potential of a backward-Euler step, or the total potential energy of a static step).
+
+use super::linear::{LinearError, LinearSolver};
+use crate::assembly::Assembly;
+use std::time::Instant;
+
+/// A smooth potential over all dofs (3 per node) whose free part Newton minimises.
+pub trait Potential {
+    /// Potential at the full dof vector `u` (J).
+    fn energy(&mut self, u: &[f64]) -> f64;
+    /// Potential, its gradient over all dofs (N) and the Hessian of the free system (N/m)
+    /// written into `hessian` (CSC values of `assembly`'s pattern; overwritten).
+    fn evaluate(&mut self, u: &[f64], gradient: &mut [f64], hessian: &mut [f64]) -> f64;
+}
+
+/// Newton settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NewtonParams {
+    /// Converged when max |free residual| ≤ `tolerance` × force scale (dimensionless).
+    pub tolerance: f64,
+    /// Also converged when the Newton update is below `step_tolerance` (m): round-off level.
+    pub step_tolerance: f64,
+    /// Iteration cap.
+    pub max_iterations: usize,
+}
+
+/// What one Newton solve did.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NewtonReport {
+    /// Newton iterations (linear solves).
+    pub iterations: usize,
+    /// Linear-solver iterations summed over Newton iterations.
+    pub linear_iterations: usize,
+    /// Final max |free residual| (N).
+    pub residual: f64,
+    /// Force scale the residual was judged against (N).
+    pub force_scale: f64,
+    /// Final potential (J).
+    pub energy: f64,
+    /// Assembly time (s).
+    pub t_assembly: f64,
+    /// Factorisation / preconditioner time (s).
+    pub t_factorization: f64,
+    /// Linear solve time (s).
+    pub t_solve: f64,
+}
+
+/// Newton failures.
+#[derive(Debug, thiserror::Error)]
+pub enum NewtonError {
+    /// The linear solve failed.
+    #[error(transparent)]
+    Linear(#[from] LinearError),
+    /// No convergence within the iteration cap.
+    #[error("Newton did not converge in {iterations} iterations (residual {residual:e} N against a tolerance of {target:e} N)")]
+    NotConverged { iterations: usize, residual: f64, target: f64 },
+    /// The potential became NaN or infinite.
+    #[error("the state became non-finite (NaN or infinity) during Newton iteration {iteration}")]
+    NonFinite { iteration: usize },
+}
+
+/// Buffers reused across Newton solves (allocated once per pattern).
+pub struct NewtonWorkspace {
+    gradient: Vec<f64>,
+    hessian: Vec<f64>,
+    rhs: Vec<f64>,
+    direction: Vec<f64>,
+    trial: Vec<f64>,
+}
+
+impl NewtonWorkspace {
+    /// Buffers for `assembly`'s system.
+    pub fn new(assembly: &Assembly) -> Self {
+        let nf = assembly.dofs().num_free();
+        let n = assembly.dofs().num_dofs();
+        NewtonWorkspace {
+            gradient: vec![0.0; n],
+            hessian: vec![0.0; assembly.nnz()],
+            rhs: vec![0.0; nf],
+            direction: vec![0.0; nf],
+            trial: vec![0.0; n],
+        }
+    }
+    /// Gradient over all dofs at the last evaluated iterate (N).
+    pub fn gradient(&self) -> &[f64] {
+        &self.gradient
+    }
+}
+
+/// Minimises `potential` over the free dofs of `u` (constrained dofs keep their values).
+/// `force_floor` (N) is a force scale of the problem (external and inertial forces) below which
+/// the residual is not judged; the scale used is the larger of it and the first residual.
+pub fn minimize(
+    potential: &mut impl Potential,
+    u: &mut [f64],
+    assembly: &Assembly,
+    linear: &mut LinearSolver,
+    params: &NewtonParams,
+    force_floor: f64,
+    work: &mut NewtonWorkspace,
+) -> Result<NewtonReport, NewtonError> {
+    let dofs = assembly.dofs();
+    let mut report = NewtonReport::default();
+    let free_max = |g: &[f64]| dofs.free_dofs().iter().map(|&d| g[d].abs()).fold(0.0, f64::max);
+    for iteration in 0..=params.max_iterations {
+        let start = Instant::now();
+        let energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
+        report.t_assembly += start.elapsed().as_secs_f64();
+        let residual = free_max(&work.gradient);
+        if !energy.is_finite() || !residual.is_finite() {
+            return Err(NewtonError::NonFinite { iteration });
+        }
+        if iteration == 0 {
+            report.force_scale = force_floor.max(residual);
+        }
+        report.residual = residual;
+        report.energy = energy;
+        let target = params.tolerance * report.force_scale;
+        if residual <= target {
+            return Ok(report);
+        }
+        if iteration == params.max_iterations {
+            return Err(NewtonError::NotConverged { iterations: iteration, residual, target });
+        }
+        for (r, &d) in work.rhs.iter_mut().zip(dofs.free_dofs()) {
+            *r = -work.gradient[d];
+        }
+        let stats = linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?;
+        report.iterations += 1;
+        report.linear_iterations += stats.iterations;
+        report.t_factorization += stats.t_factorization;
+        report.t_solve += stats.t_solve;
+        // Backtracking (Armijo) line search on the potential. Near convergence the decrease
+        // is below the round-off of the potential itself, so a step that changes the energy
+        // by less than that round-off is accepted as it is.
+        let slope: f64 = work.rhs.iter().zip(&work.direction).map(|(r, d)| -r * d).sum();
+        let roundoff = 1e-13 * energy.abs().max(f64::MIN_POSITIVE);
+        let mut alpha = 1.0;
+        let start = Instant::now();
+        loop {
+            work.trial.copy_from_slice(u);
+            for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
+                work.trial[d] += alpha * dx;
+            }
+            let e = potential.energy(&work.trial);
+            if e.is_finite() && (e <= energy + 1e-4 * alpha * slope || e <= energy + roundoff) {
+                break;
+            }
+            alpha *= 0.5;
+            if alpha < 1e-6 {
+                // No descent along the Newton direction: take the full step and let the
+                // residual test judge it (happens only at round-off level).
+                alpha = 1.0;
+                break;
+            }
+        }
+        report.t_assembly += start.elapsed().as_secs_f64();
+        let mut step_max: f64 = 0.0;
+        for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
+            u[d] += alpha * dx;
+            step_max = step_max.max((alpha * dx).abs());
+        }
+        if step_max <= params.step_tolerance {
+            let energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
+            report.residual = free_max(&work.gradient);
+            report.energy = energy;
+            return Ok(report);
+        }
+    }
+    unreachable!("the loop returns at iteration max_iterations")
+}

@@ -1,0 +1,115 @@
+//! The potentials Newton minimises in one step: the backward-Euler incremental potential and
+//! the static total potential energy.
+//!
+//! Backward Euler, for displacements u and velocities v at step n and a step h:
+//!
+//! ```text
+//! E(u) = Σₑ Wₑ(u) − f·u + 1/(2h²) (u − û)ᵀ M (u − û) + 1/(2h) (u − uₙ)ᵀ D (u − uₙ),
+//! û = uₙ + h vₙ,   D = α M + β Kₙ,   vₙ₊₁ = (uₙ₊₁ − uₙ)/h,
+//! ```
+//!
+//! whose stationarity condition is exactly M (vₙ₊₁ − vₙ)/h = f − ∇W(uₙ₊₁) − D vₙ₊₁. The damping
+//! stiffness Kₙ is the elastic Hessian at the start of the step, so the damping term is a fixed
+//! quadratic and the step stays a minimisation.
+
+use super::newton::Potential;
+use crate::assembly::Assembly;
+use crate::physics::Model;
+
+/// Inertia and damping data of a dynamic step.
+pub struct Inertia<'a> {
+    /// Time step h (s).
+    pub dt: f64,
+    /// Predictor û = uₙ + h vₙ (m), all dofs.
+    pub predictor: &'a [f64],
+    /// Displacement uₙ at the start of the step (m), all dofs.
+    pub previous: &'a [f64],
+    /// Mass-proportional damping α (1/s).
+    pub alpha: f64,
+    /// β Kₙ on the free system (CSC values), if stiffness damping is on.
+    pub beta_stiffness: Option<&'a [f64]>,
+}
+
+/// The potential of one step; static when `inertia` is `None`.
+pub struct StepPotential<'a> {
+    /// The mechanics.
+    pub model: &'a Model,
+    /// Pattern of the free system.
+    pub assembly: &'a Assembly,
+    /// Dynamic terms.
+    pub inertia: Option<Inertia<'a>>,
+    /// Per-element energy buffer (J), length = number of elements.
+    pub element_energy: &'a mut Vec<f64>,
+    /// Scratch for the damping product, length = free dofs.
+    pub scratch: &'a mut Vec<f64>,
+}
+
+impl StepPotential<'_> {
+    /// Energy of the non-elastic terms, adding their gradient and Hessian if given.
+    fn add_other_terms(&mut self, u: &[f64], mut gradient: Option<&mut [f64]>, mut hessian: Option<&mut [f64]>) -> f64 {
+        let model = self.model;
+        let mut energy = 0.0;
+        for (d, (ud, f)) in u.iter().zip(&model.external_force).enumerate() {
+            energy -= f * ud;
+            if let Some(g) = gradient.as_deref_mut() {
+                g[d] -= f;
+            }
+        }
+        let Some(inertia) = &self.inertia else { return energy };
+        let h = inertia.dt;
+        let dofs = self.assembly.dofs();
+        for d in 0..u.len() {
+            let m = model.mass[d / 3];
+            let a = u[d] - inertia.predictor[d];
+            let b = u[d] - inertia.previous[d];
+            energy += 0.5 * m * a * a / (h * h) + 0.5 * inertia.alpha * m * b * b / h;
+            if let Some(g) = gradient.as_deref_mut() {
+                g[d] += m * a / (h * h) + inertia.alpha * m * b / h;
+            }
+            if let (Some(hs), Some(f)) = (hessian.as_deref_mut(), dofs.free(d)) {
+                hs[self.assembly.diagonal_slot(f)] += m / (h * h) + inertia.alpha * m / h;
+            }
+        }
+        if let Some(k) = inertia.beta_stiffness {
+            let delta: Vec<f64> = dofs.free_dofs().iter().map(|&d| u[d] - inertia.previous[d]).collect();
+            self.assembly.multiply(k, &delta, self.scratch);
+            for (i, &d) in dofs.free_dofs().iter().enumerate() {
+                energy += 0.5 * delta[i] * self.scratch[i] / h;
+                if let Some(g) = gradient.as_deref_mut() {
+                    g[d] += self.scratch[i] / h;
+                }
+            }
+            if let Some(hs) = hessian.as_deref_mut() {
+                for (v, kv) in hs.iter_mut().zip(k) {
+                    *v += kv / h;
+                }
+            }
+        }
+        energy
+    }
+
+    /// Elastic energy Σ Wₑ (J) at `u`.
+    pub fn elastic_energy(&mut self, u: &[f64]) -> f64 {
+        let el = &self.model.elasticity;
+        let tets = &self.model.mesh.tets;
+        self.assembly.energies(|e, out| el.element(tets, u, e, false, out), self.element_energy);
+        // Summed in order so the result does not depend on thread scheduling.
+        self.element_energy.iter().sum()
+    }
+}
+
+impl Potential for StepPotential<'_> {
+    fn energy(&mut self, u: &[f64]) -> f64 {
+        self.elastic_energy(u) + self.add_other_terms(u, None, None)
+    }
+
+    fn evaluate(&mut self, u: &[f64], gradient: &mut [f64], hessian: &mut [f64]) -> f64 {
+        gradient.fill(0.0);
+        hessian.fill(0.0);
+        let el = &self.model.elasticity;
+        let tets = &self.model.mesh.tets;
+        self.assembly.assemble(|e, with_h, out| el.element(tets, u, e, with_h, out), self.element_energy, gradient, Some(hessian));
+        let elastic: f64 = self.element_energy.iter().sum();
+        elastic + self.add_other_terms(u, Some(gradient), Some(hessian))
+    }
+}
