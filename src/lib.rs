@@ -9,3 +9,6 @@ pub mod assembly;
 pub mod solver;
 pub mod physics;
 pub mod sim;
+pub mod scene;
+pub mod output;
+pub mod run;

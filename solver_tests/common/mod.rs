@@ -1,0 +1,80 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use icefem::fem::{ElasticModel, Material};
+use icefem::mesh::TetMesh;
+use icefem::physics::{Dirichlet, Elasticity, Model, Region};
+use icefem::sim::{Analysis, Simulation, StepSettings};
+use icefem::solver::{LinearSolverKind, NewtonParams};
+use nalgebra::Vector3;
+
+/// Ice, as in the paper: λ = 8.64e10 Pa, μ = 3.70e10 Pa, ρ = 916 kg/m³.
+pub const ICE: Material = Material { lambda: 8.64e10, mu: 3.70e10, density: 916.0 };
+
+/// Settings with the scene defaults.
+pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
+    StepSettings {
+        analysis,
+        dt,
+        newton: NewtonParams { tolerance: 1e-9, step_tolerance: 1e-16, max_iterations: 50 },
+        linear: LinearSolverKind::Cholesky,
+        cg_tolerance: 1e-12,
+        cg_max_iterations: 20_000,
+    }
+}
+
+/// Fixes every dof of the nodes with rest `x ≤ x_max`.
+pub fn clamp_below_x(x_max: f64) -> Dirichlet {
+    Dirichlet {
+        region: Region { min: Vector3::repeat(-1e30), max: Vector3::new(x_max, 1e30, 1e30) },
+        axes: [true; 3],
+        displacement: Vector3::zeros(),
+        velocity: Vector3::zeros(),
+    }
+}
+
+/// A simulation of `mesh` made of `material` with gravity `g` and the given supports.
+pub fn simulation(
+    mesh: TetMesh,
+    material: Material,
+    model: ElasticModel,
+    gravity: [f64; 3],
+    dirichlet: Vec<Dirichlet>,
+    settings: StepSettings,
+) -> Simulation {
+    let elasticity = Elasticity::new(&mesh, material, model);
+    let model = Model::new(mesh, elasticity, Vector3::from(gravity), &[], None, dirichlet).unwrap();
+    Simulation::new(model, settings).unwrap()
+}
+
+/// Relative L2 difference ‖a − b‖ / ‖b‖.
+pub fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
+    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+    let den: f64 = b.iter().map(|y| y * y).sum();
+    (num / den).sqrt()
+}
+
+/// Deterministic pseudo-random numbers in [−1, 1) (a 64-bit LCG), for irregular meshes.
+pub struct Lcg(pub u64);
+impl Lcg {
+    pub fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+}
+
+/// A box mesh whose interior nodes are moved randomly by up to `jitter` × the cell size.
+pub fn irregular_box(cells: [usize; 3], size: [f64; 3], jitter: f64, seed: u64) -> TetMesh {
+    let mut mesh = icefem::mesh::box_mesh([0.0; 3], size, cells, 6).unwrap();
+    let mut rng = Lcg(seed);
+    let h: Vec<f64> = (0..3).map(|a| size[a] / cells[a] as f64).collect();
+    for p in mesh.rest.iter_mut() {
+        let interior = (0..3).all(|a| p[a] > 1e-12 && p[a] < size[a] - 1e-12);
+        if interior {
+            for a in 0..3 {
+                p[a] += jitter * h[a] * rng.next();
+            }
+        }
+    }
+    TetMesh::new(mesh.rest, mesh.tets).unwrap()
+}

@@ -1,0 +1,450 @@
+//! Scene files: the TOML schema (`SceneFile`, raw, as written) and its validation into a
+//! [`Scene`] (checked, SI units, ready to simulate). Every error names the file and the field.
+//!
+//! ```toml
+//! [mesh]
+//! box = { size = [0.4, 0.04, 0.04], cells = [20, 2, 2] }   # or: file = "beam.msh"
+//! [material]
+//! density = 916.0          # kg/m³
+//! lambda = 8.64e10         # Pa   (or youngs_modulus + poisson_ratio)
+//! mu = 3.70e10             # Pa
+//! model = "corotated"      # or "linear"
+//! [physics]
+//! gravity = [0.0, 0.0, -9.81]
+//! [[dirichlet]]
+//! min = [-1.0, -1.0, -1.0]
+//! max = [0.0, 1.0, 1.0]
+//! [time]
+//! analysis = "dynamic"     # or "static"
+//! dt = 0.0333333333
+//! end_time = 1.0
+//! ```
+
+use crate::fem::{ElasticModel, Material};
+use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
+use crate::physics::{Dirichlet, Elasticity, Model, Rayleigh, Region, Traction};
+use crate::sim::{Analysis, StepSettings};
+use crate::solver::{LinearSolverKind, NewtonParams};
+use nalgebra::Vector3;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// A scene that could not be read or is not valid.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The scene file could not be read.
+    #[error("cannot read scene file {path}: {source}")]
+    Io { path: PathBuf, #[source] source: std::io::Error },
+    /// TOML syntax error, unknown key or wrong type (the message names line and key).
+    #[error("scene file {path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    /// A value is missing or out of its allowed range.
+    #[error("scene file {path}: field `{field}`: {message}")]
+    Invalid { path: PathBuf, field: String, message: String },
+    /// The mesh file could not be read.
+    #[error("scene file {path}: field `mesh.file`: {source}")]
+    MeshFile { path: PathBuf, #[source] source: gmsh::GmshError },
+    /// The mesh is not valid.
+    #[error("scene file {path}: field `mesh`: {source}")]
+    Mesh { path: PathBuf, #[source] source: MeshError },
+}
+
+/// The scene file as written (all fields optional where a default exists).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Mesh source.
+    pub mesh: MeshSection,
+    /// Material.
+    pub material: MaterialSection,
+    /// Physics terms.
+    #[serde(default)]
+    pub physics: PhysicsSection,
+    /// Dirichlet conditions.
+    #[serde(default)]
+    pub dirichlet: Vec<DirichletSection>,
+    /// Surface tractions.
+    #[serde(default)]
+    pub traction: Vec<TractionSection>,
+    /// Time stepping.
+    pub time: TimeSection,
+    /// Solver settings.
+    #[serde(default)]
+    pub solver: SolverSection,
+    /// Output settings.
+    #[serde(default)]
+    pub output: OutputSection,
+}
+
+/// `[mesh]`: a built-in box or a Gmsh file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSection {
+    /// Built-in box generator.
+    #[serde(rename = "box")]
+    pub box_: Option<BoxSection>,
+    /// Gmsh `.msh` file, relative to the scene file.
+    pub file: Option<String>,
+    /// Factor applied to file coordinates to get metres (e.g. 0.001 for mm). Default 1.
+    pub scale: Option<f64>,
+}
+
+/// `[mesh.box]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxSection {
+    /// Lower corner (m). Default 0.
+    #[serde(default)]
+    pub origin: [f64; 3],
+    /// Edge lengths (m).
+    pub size: [f64; 3],
+    /// Cells per axis.
+    pub cells: [usize; 3],
+    /// 5 or 6 tets per cell. Default 6.
+    pub tets_per_cell: Option<usize>,
+}
+
+/// `[material]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSection {
+    /// ρ (kg/m³).
+    pub density: f64,
+    /// λ (Pa); give with `mu`.
+    pub lambda: Option<f64>,
+    /// μ (Pa); give with `lambda`.
+    pub mu: Option<f64>,
+    /// E (Pa); give with `poisson_ratio`.
+    pub youngs_modulus: Option<f64>,
+    /// ν; give with `youngs_modulus`.
+    pub poisson_ratio: Option<f64>,
+    /// Strain measure, default corotated.
+    pub model: Option<ElasticModel>,
+}
+
+/// `[physics]`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhysicsSection {
+    /// Gravity (m/s²), default zero.
+    pub gravity: Option<[f64; 3]>,
+    /// Rayleigh damping.
+    pub damping: Option<DampingSection>,
+}
+
+/// `[physics.damping]`: D = α M + β K.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DampingSection {
+    /// α (1/s).
+    #[serde(default)]
+    pub mass: f64,
+    /// β (s).
+    #[serde(default)]
+    pub stiffness: f64,
+}
+
+/// `[[dirichlet]]`: nodes in the box `min`–`max` prescribed on `axes`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DirichletSection {
+    /// Region lower corner (m).
+    pub min: [f64; 3],
+    /// Region upper corner (m).
+    pub max: [f64; 3],
+    /// Constrained axes, a subset of "xyz". Default "xyz".
+    pub axes: Option<String>,
+    /// Displacement at t = 0 (m). Default 0.
+    pub displacement: Option<[f64; 3]>,
+    /// Prescribed velocity (m/s). Default 0.
+    pub velocity: Option<[f64; 3]>,
+}
+
+/// `[[traction]]`: a constant traction on boundary faces whose centroid is in the box.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TractionSection {
+    /// Region lower corner (m).
+    pub min: [f64; 3],
+    /// Region upper corner (m).
+    pub max: [f64; 3],
+    /// Traction (Pa).
+    pub traction: [f64; 3],
+}
+
+/// `[time]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSection {
+    /// Static or dynamic; default dynamic.
+    pub analysis: Option<Analysis>,
+    /// Time step (s).
+    pub dt: f64,
+    /// End time (s).
+    pub end_time: f64,
+    /// Write a frame every this many steps. Default 1.
+    pub output_every: Option<u64>,
+}
+
+/// `[solver]`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSection {
+    /// "cholesky" (default) or "cg".
+    pub linear: Option<LinearSolverKind>,
+    /// Newton relative residual tolerance. Default 1e-9.
+    pub tolerance: Option<f64>,
+    /// Newton iteration cap. Default 50.
+    pub max_iterations: Option<usize>,
+    /// CG relative tolerance. Default 1e-12.
+    pub cg_tolerance: Option<f64>,
+    /// CG iteration cap. Default 20000.
+    pub cg_max_iterations: Option<usize>,
+}
+
+/// `[output]`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// HDF5 file, relative to the working directory. Default: the scene's name with `.h5`.
+    pub file: Option<String>,
+}
+
+/// A validated scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Where it was read from.
+    pub path: PathBuf,
+    /// The scene text (stored in the output).
+    pub text: String,
+    /// The mechanics.
+    pub model: Model,
+    /// Stepping and solver settings.
+    pub settings: StepSettings,
+    /// End time (s).
+    pub end_time: f64,
+    /// Steps per output frame.
+    pub output_every: u64,
+    /// Default output file.
+    pub output: PathBuf,
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.into(), source })?;
+        Scene::parse(&text, path)
+    }
+
+    /// Validates scene `text` as if read from `path` (mesh files are relative to its folder).
+    pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
+        let raw: SceneFile =
+            toml::from_str(text).map_err(|e| SceneError::Parse { path: path.into(), message: e.to_string() })?;
+        Validator { path }.scene(raw, text)
+    }
+}
+
+struct Validator<'a> {
+    path: &'a Path,
+}
+
+impl Validator<'_> {
+    fn invalid(&self, field: &str, message: impl Into<String>) -> SceneError {
+        SceneError::Invalid { path: self.path.into(), field: field.into(), message: message.into() }
+    }
+
+    fn finite(&self, field: &str, v: f64) -> Result<f64, SceneError> {
+        if v.is_finite() { Ok(v) } else { Err(self.invalid(field, format!("must be a finite number, got {v}"))) }
+    }
+
+    fn positive(&self, field: &str, v: f64) -> Result<f64, SceneError> {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.invalid(field, format!("must be finite and > 0, got {v}")))
+        }
+    }
+
+    fn non_negative(&self, field: &str, v: f64) -> Result<f64, SceneError> {
+        if v.is_finite() && v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(self.invalid(field, format!("must be finite and ≥ 0, got {v}")))
+        }
+    }
+
+    fn vector(&self, field: &str, v: [f64; 3]) -> Result<Vector3<f64>, SceneError> {
+        for (a, c) in v.iter().enumerate() {
+            self.finite(&format!("{field}[{a}]"), *c)?;
+        }
+        Ok(Vector3::from(v))
+    }
+
+    fn region(&self, field: &str, min: [f64; 3], max: [f64; 3]) -> Result<Region, SceneError> {
+        let region = Region { min: self.vector(&format!("{field}.min"), min)?, max: self.vector(&format!("{field}.max"), max)? };
+        if (0..3).any(|a| region.min[a] > region.max[a]) {
+            return Err(self.invalid(&format!("{field}.min"), format!("must be ≤ max on every axis, got min {min:?}, max {max:?}")));
+        }
+        Ok(region)
+    }
+
+    fn scene(&self, raw: SceneFile, text: &str) -> Result<Scene, SceneError> {
+        let mesh = self.mesh(&raw.mesh)?;
+        let (material, model) = self.material(&raw.material)?;
+        let gravity = self.vector("physics.gravity", raw.physics.gravity.unwrap_or_default())?;
+        let damping = match &raw.physics.damping {
+            Some(d) => Some(Rayleigh {
+                mass: self.non_negative("physics.damping.mass", d.mass)?,
+                stiffness: self.non_negative("physics.damping.stiffness", d.stiffness)?,
+            }),
+            None => None,
+        };
+        let dirichlet = raw
+            .dirichlet
+            .iter()
+            .enumerate()
+            .map(|(i, d)| self.dirichlet(i, d))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut tractions = Vec::new();
+        for (i, t) in raw.traction.iter().enumerate() {
+            let field = format!("traction[{i}]");
+            let region = self.region(&field, t.min, t.max)?;
+            let traction = Traction { region, traction: self.vector(&format!("{field}.traction"), t.traction)? };
+            if crate::physics::loads::traction_faces(&mesh, &region).0 == 0 {
+                return Err(self.invalid(&field, "the region contains no boundary-face centroid of the mesh"));
+            }
+            tractions.push(traction);
+        }
+        let time = &raw.time;
+        let dt = self.positive("time.dt", time.dt)?;
+        let end_time = self.positive("time.end_time", time.end_time)?;
+        let output_every = time.output_every.unwrap_or(1);
+        if output_every == 0 {
+            return Err(self.invalid("time.output_every", "must be ≥ 1"));
+        }
+        let solver = &raw.solver;
+        let tolerance = solver.tolerance.unwrap_or(1e-9);
+        if !(tolerance > 0.0 && tolerance < 1.0) {
+            return Err(self.invalid("solver.tolerance", format!("must be in (0, 1), got {tolerance}")));
+        }
+        let cg_tolerance = solver.cg_tolerance.unwrap_or(1e-12);
+        if !(cg_tolerance > 0.0 && cg_tolerance < 1.0) {
+            return Err(self.invalid("solver.cg_tolerance", format!("must be in (0, 1), got {cg_tolerance}")));
+        }
+        let max_iterations = solver.max_iterations.unwrap_or(50);
+        if max_iterations == 0 {
+            return Err(self.invalid("solver.max_iterations", "must be ≥ 1"));
+        }
+        let cg_max_iterations = solver.cg_max_iterations.unwrap_or(20_000);
+        if cg_max_iterations == 0 {
+            return Err(self.invalid("solver.cg_max_iterations", "must be ≥ 1"));
+        }
+        let (lo, hi) = mesh.bounding_box();
+        let settings = StepSettings {
+            analysis: time.analysis.unwrap_or(Analysis::Dynamic),
+            dt,
+            newton: NewtonParams {
+                tolerance,
+                // An update of 1e-15 of the body size is at the round-off of the positions.
+                step_tolerance: 1e-15 * (hi - lo).norm(),
+                max_iterations,
+            },
+            linear: solver.linear.unwrap_or(LinearSolverKind::Cholesky),
+            cg_tolerance,
+            cg_max_iterations,
+        };
+        let elasticity = Elasticity::new(&mesh, material, model);
+        let model = Model::new(mesh, elasticity, gravity, &tractions, damping, dirichlet)
+            .map_err(|source| SceneError::Mesh { path: self.path.into(), source })?;
+        let output = match &raw.output.file {
+            Some(f) => PathBuf::from(f),
+            None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),
+        };
+        Ok(Scene { path: self.path.into(), text: text.into(), model, settings, end_time, output_every, output })
+    }
+
+    fn mesh(&self, m: &MeshSection) -> Result<TetMesh, SceneError> {
+        let mesh_err = |source| SceneError::Mesh { path: self.path.into(), source };
+        match (&m.box_, &m.file) {
+            (Some(b), None) => {
+                if m.scale.is_some() {
+                    return Err(self.invalid("mesh.scale", "applies to mesh files only"));
+                }
+                for a in 0..3 {
+                    self.positive(&format!("mesh.box.size[{a}]"), b.size[a])?;
+                    self.finite(&format!("mesh.box.origin[{a}]"), b.origin[a])?;
+                    if b.cells[a] == 0 {
+                        return Err(self.invalid(&format!("mesh.box.cells[{a}]"), "must be ≥ 1"));
+                    }
+                }
+                let tpc = b.tets_per_cell.unwrap_or(6);
+                if tpc != 5 && tpc != 6 {
+                    return Err(self.invalid("mesh.box.tets_per_cell", format!("must be 5 or 6, got {tpc}")));
+                }
+                box_mesh(b.origin, b.size, b.cells, tpc).map_err(mesh_err)
+            }
+            (None, Some(file)) => {
+                let scale = self.positive("mesh.scale", m.scale.unwrap_or(1.0))?;
+                let file = self.path.parent().unwrap_or(Path::new("")).join(file);
+                let (nodes, tets) =
+                    gmsh::read_msh(&file).map_err(|source| SceneError::MeshFile { path: self.path.into(), source })?;
+                let nodes: Vec<[f64; 3]> = nodes.iter().map(|p| p.map(|c| c * scale)).collect();
+                TetMesh::from_arrays(&nodes, tets).map_err(mesh_err)
+            }
+            _ => Err(self.invalid("mesh", "give exactly one of `box` (built-in generator) or `file` (Gmsh .msh)")),
+        }
+    }
+
+    fn material(&self, m: &MaterialSection) -> Result<(Material, ElasticModel), SceneError> {
+        let density = self.positive("material.density", m.density)?;
+        let material = match (m.lambda, m.mu, m.youngs_modulus, m.poisson_ratio) {
+            (Some(lambda), Some(mu), None, None) => {
+                let lambda = self.finite("material.lambda", lambda)?;
+                let mu = self.positive("material.mu", mu)?;
+                // Positive bulk modulus ⇔ ν in (−1, 0.5); ν < 0.5 strictly (no incompressibility).
+                if lambda + 2.0 * mu / 3.0 <= 0.0 {
+                    return Err(self.invalid("material.lambda", format!("must be > −2μ/3 = {:e} Pa (positive bulk modulus), got {lambda:e}", -2.0 * mu / 3.0)));
+                }
+                Material { lambda, mu, density }
+            }
+            (None, None, Some(e), Some(nu)) => {
+                let e = self.positive("material.youngs_modulus", e)?;
+                if !(nu.is_finite() && nu > -1.0 && nu < 0.5) {
+                    return Err(self.invalid("material.poisson_ratio", format!("must be in (−1, 0.5), got {nu}")));
+                }
+                Material::from_young_poisson(e, nu, density)
+            }
+            _ => {
+                return Err(self.invalid(
+                    "material",
+                    "give either `lambda` and `mu`, or `youngs_modulus` and `poisson_ratio` (exactly one pair)",
+                ))
+            }
+        };
+        Ok((material, m.model.unwrap_or(ElasticModel::Corotated)))
+    }
+
+    fn dirichlet(&self, i: usize, d: &DirichletSection) -> Result<Dirichlet, SceneError> {
+        let field = format!("dirichlet[{i}]");
+        let region = self.region(&field, d.min, d.max)?;
+        let axes_text = d.axes.as_deref().unwrap_or("xyz");
+        let mut axes = [false; 3];
+        for c in axes_text.chars() {
+            match c {
+                'x' => axes[0] = true,
+                'y' => axes[1] = true,
+                'z' => axes[2] = true,
+                _ => return Err(self.invalid(&format!("{field}.axes"), format!("must be letters from \"xyz\", got {axes_text:?}"))),
+            }
+        }
+        if axes_text.is_empty() {
+            return Err(self.invalid(&format!("{field}.axes"), "must name at least one axis"));
+        }
+        Ok(Dirichlet {
+            region,
+            axes,
+            displacement: self.vector(&format!("{field}.displacement"), d.displacement.unwrap_or_default())?,
+            velocity: self.vector(&format!("{field}.velocity"), d.velocity.unwrap_or_default())?,
+        })
+    }
+}
