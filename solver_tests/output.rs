@@ -1,0 +1,160 @@
+//! HDF5 output: layout, XDMF sidecar, and resume — a run cut off halfway and resumed ends
+//! bit-identical to an uninterrupted one.
+
+use icefem::run::{run, RunOptions};
+use icefem::scene::Scene;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+const SCENE: &str = r#"
+[mesh]
+box = { size = [0.2, 0.02, 0.02], cells = [10, 1, 1] }
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[physics]
+gravity = [0.0, -3.0, -9.81]
+damping = { mass = 0.5, stiffness = 1e-5 }
+[[dirichlet]]
+min = [-1.0, -1.0, -1.0]
+max = [1e-9, 1.0, 1.0]
+[time]
+dt = 0.002
+end_time = 0.02
+output_every = 2
+"#;
+
+fn scene(dir: &Path) -> Scene {
+    let path = dir.join("beam.toml");
+    std::fs::write(&path, SCENE).unwrap();
+    Scene::load(&path).unwrap()
+}
+
+fn last_frame(path: &Path) -> (f64, u64, Vec<Vec<f64>>) {
+    let file = hdf5::File::open(path).unwrap();
+    let frames = file.group("frames").unwrap().member_names().unwrap();
+    let g = file.group(&format!("frames/{}", frames.iter().max().unwrap())).unwrap();
+    let time = g.attr("time").unwrap().read_scalar::<f64>().unwrap();
+    let step = g.attr("step").unwrap().read_scalar::<u64>().unwrap();
+    let data = ["positions", "velocities", "displacement", "stress"]
+        .iter()
+        .map(|d| g.dataset(d).unwrap().read_raw::<f64>().unwrap())
+        .collect();
+    (time, step, data)
+}
+
+fn stats_column(path: &Path, name: &str) -> Vec<f64> {
+    hdf5::File::open(path).unwrap().dataset(&format!("stats/{name}")).unwrap().read_raw::<f64>().unwrap()
+}
+
+#[test]
+fn layout_is_as_documented() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene(dir.path());
+    let out = dir.path().join("full.h5");
+    let options = RunOptions { output: Some(out.clone()), ..Default::default() };
+    let summary = run(&scene, &options, &AtomicBool::new(false), |_| {}).unwrap();
+    assert_eq!((summary.steps, summary.frames), (10, 6)); // frame 0 and every 2nd step
+    let file = hdf5::File::open(&out).unwrap();
+    let n = scene.model.num_nodes();
+    let m = scene.model.mesh.num_tets();
+    assert_eq!(file.dataset("mesh/rest_positions").unwrap().shape(), vec![n, 3]);
+    assert_eq!(file.dataset("mesh/tets").unwrap().shape(), vec![m, 4]);
+    let f = file.group("frames/000003").unwrap();
+    assert_eq!(f.attr("step").unwrap().read_scalar::<u64>().unwrap(), 6);
+    assert!((f.attr("time").unwrap().read_scalar::<f64>().unwrap() - 0.012).abs() < 1e-15);
+    assert_eq!(f.dataset("stress").unwrap().shape(), vec![m, 6]);
+    assert_eq!(f.dataset("positions").unwrap().shape(), vec![n, 3]);
+    assert_eq!(f.dataset("velocities").unwrap().shape(), vec![n, 3]);
+    assert_eq!(f.dataset("tets").unwrap().shape(), vec![m, 4]);
+    assert_eq!(stats_column(&out, "newton_iterations").len(), 10);
+    let scene_attr = file.attr("scene").unwrap().read_scalar::<hdf5::types::VarLenUnicode>().unwrap();
+    assert_eq!(scene_attr.as_str(), SCENE);
+    // positions = rest + displacement
+    let rest = file.dataset("mesh/rest_positions").unwrap().read_raw::<f64>().unwrap();
+    let pos = f.dataset("positions").unwrap().read_raw::<f64>().unwrap();
+    let disp = f.dataset("displacement").unwrap().read_raw::<f64>().unwrap();
+    for k in 0..rest.len() {
+        assert_eq!(pos[k], rest[k] + disp[k]);
+    }
+    let xdmf = std::fs::read_to_string(out.with_extension("xdmf")).unwrap();
+    assert_eq!(xdmf.matches("<Grid Name=").count() - 1, 6, "one grid per frame plus the collection");
+    // `icefem info` reads it.
+    let info = icefem::output::describe(&out).unwrap();
+    assert!(info.contains("6 complete"), "{info}");
+}
+
+#[test]
+fn resumed_run_is_bit_identical_to_uninterrupted_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene(dir.path());
+    let never = AtomicBool::new(false);
+    let full = dir.path().join("full.h5");
+    run(&scene, &RunOptions { output: Some(full.clone()), ..Default::default() }, &never, |_| {}).unwrap();
+
+    // Cut off at t = 0.01 s (step 5 is not a frame step: the last frame is written anyway).
+    let half = dir.path().join("half.h5");
+    let first = RunOptions { output: Some(half.clone()), end_time: Some(0.01), ..Default::default() };
+    assert_eq!(run(&scene, &first, &never, |_| {}).unwrap().final_step, 5);
+    let resume = RunOptions { output: Some(half.clone()), resume: true, ..Default::default() };
+    let summary = run(&scene, &resume, &never, |_| {}).unwrap();
+    assert_eq!((summary.steps, summary.final_step), (5, 10));
+    assert_eq!(last_frame(&full), last_frame(&half), "resumed end state differs");
+    for column in ["energy", "residual", "newton_iterations", "time"] {
+        assert_eq!(stats_column(&full, column), stats_column(&half, column), "/stats/{column}");
+    }
+
+    // Interrupted (Ctrl-C) after step 3, then resumed.
+    let cut = dir.path().join("cut.h5");
+    let flag = AtomicBool::new(false);
+    let options = RunOptions { output: Some(cut.clone()), ..Default::default() };
+    let summary = run(&scene, &options, &flag, |p| {
+        if p.step == 3 {
+            flag.store(true, Ordering::SeqCst);
+        }
+    })
+    .unwrap();
+    assert!(summary.interrupted && summary.final_step == 3);
+    let resume = RunOptions { output: Some(cut.clone()), resume: true, ..Default::default() };
+    run(&scene, &resume, &never, |_| {}).unwrap();
+    assert_eq!(last_frame(&full), last_frame(&cut), "interrupted-and-resumed end state differs");
+}
+
+#[test]
+fn killed_process_leaves_a_readable_file_that_resumes() {
+    let exe = env!("CARGO_BIN_EXE_icefem");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("long.toml");
+    // Long enough that it is still running when killed.
+    std::fs::write(&path, SCENE.replace("end_time = 0.02", "end_time = 1000.0").replace("output_every = 2", "output_every = 1")).unwrap();
+    let out = dir.path().join("long.h5");
+    let mut child = std::process::Command::new(exe)
+        .arg("run")
+        .arg(&path)
+        .arg("--output")
+        .arg(&out)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    child.kill().unwrap(); // SIGKILL: no destructor, no HDF5 close
+    child.wait().unwrap();
+    let info = icefem::output::describe(&out).unwrap();
+    assert!(info.contains("complete"), "{info}");
+    let (_, killed_at, _) = last_frame(&out);
+    let target = killed_at + 50;
+    let status = std::process::Command::new(exe)
+        .arg("run")
+        .arg(&path)
+        .arg("--resume")
+        .arg(&out)
+        .args(["--end-time", &format!("{}", target as f64 * 0.002)])
+        .stderr(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let (time, step, _) = last_frame(&out);
+    assert_eq!(step, target);
+    assert!((time - target as f64 * 0.002).abs() < 1e-9);
+}
