@@ -12,3 +12,4 @@ pub mod sim;
 pub mod scene;
 pub mod output;
 pub mod run;
+pub mod bench;

@@ -2,7 +2,9 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use icefem::bench;
 use icefem::run::{run, Progress, RunOptions};
+use icefem::solver::LinearSolverKind;
 use icefem::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
@@ -37,6 +39,24 @@ enum Command {
         #[arg(long, value_name = "FILE", conflicts_with = "output")]
         resume: Option<PathBuf>,
     },
+    /// Time the solver on ice cubes of several sizes and print a markdown table (medians).
+    Bench {
+        /// Approximate tet counts, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
+        tets: Vec<usize>,
+        /// Backward-Euler steps per run (per-step figures are medians over them).
+        #[arg(long, default_value_t = 5)]
+        steps: usize,
+        /// Runs per size, each in a fresh process (so peak memory is per size).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+        /// Linear solver.
+        #[arg(long, value_enum, default_value = "cholesky")]
+        solver: SolverArg,
+        /// Internal: run one size in this process and print one result line.
+        #[arg(long, hide = true)]
+        single: Option<usize>,
+    },
     /// Print what an icefem HDF5 file holds.
     Info {
         /// HDF5 file written by `icefem run`.
@@ -51,12 +71,78 @@ fn main() {
             let options = RunOptions { output: resume.clone().or(output), end_time, dt, resume: resume.is_some() };
             run_command(&scene, &options)
         }
+        Command::Bench { tets, steps, repeats, solver, single } => bench_command(&tets, steps, repeats, solver, single),
         Command::Info { file } => icefem::output::describe(&file).map(|text| print!("{text}")).map_err(Into::into),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum SolverArg {
+    Cholesky,
+    Cg,
+}
+
+impl From<SolverArg> for LinearSolverKind {
+    fn from(s: SolverArg) -> Self {
+        match s {
+            SolverArg::Cholesky => LinearSolverKind::Cholesky,
+            SolverArg::Cg => LinearSolverKind::Cg,
+        }
+    }
+}
+
+const BENCH_FIELDS: usize = 14;
+
+fn bench_command(sizes: &[usize], steps: usize, repeats: usize, solver: SolverArg, single: Option<usize>) -> Result<()> {
+    if let Some(tets) = single {
+        let r = bench::run_size(tets, steps.max(1), solver.into())?;
+        let m = r.peak_memory.unwrap_or(0) as f64;
+        let row = [
+            r.tets as f64, r.dofs as f64, r.nnz as f64, r.factor_nnz as f64, r.t_model, r.t_pattern, r.t_symbolic,
+            r.t_assembly, r.t_factorization, r.t_solve, r.t_step, r.newton_iterations as f64, r.linear_iterations as f64, m,
+        ];
+        println!("{}", row.map(|v| v.to_string()).join(" "));
+        return Ok(());
+    }
+    let exe = std::env::current_exe().context("locating the icefem executable")?;
+    let solver_name = match solver {
+        SolverArg::Cholesky => "cholesky",
+        SolverArg::Cg => "cg",
+    };
+    println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}");
+    println!("{} threads; medians of {repeats} runs (fresh process each) of the per-step medians over {steps} steps\n", rayon::current_num_threads());
+    println!("| tets | free dofs | nnz(K) | nnz(L) | pattern (s) | symbolic (s) | assembly/step (s) | factor/step (s) | solve/step (s) | step (s) | Newton it. | lin. it. | peak memory (MB) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for &tets in sizes {
+        let mut rows: Vec<[f64; BENCH_FIELDS]> = Vec::new();
+        for _ in 0..repeats.max(1) {
+            let out = std::process::Command::new(&exe)
+                .args(["bench", "--single", &tets.to_string(), "--steps", &steps.to_string(), "--solver", solver_name])
+                .output()
+                .context("running a benchmark process")?;
+            if !out.status.success() {
+                anyhow::bail!("benchmark at {tets} tets failed: {}", String::from_utf8_lossy(&out.stderr));
+            }
+            let text = String::from_utf8_lossy(&out.stdout);
+            let values: Vec<f64> = text.split_whitespace().filter_map(|v| v.parse().ok()).collect();
+            let row: [f64; BENCH_FIELDS] = values.try_into().map_err(|_| anyhow::anyhow!("malformed benchmark output: {text}"))?;
+            rows.push(row);
+        }
+        let med = |k: usize| {
+            let mut v: Vec<f64> = rows.iter().map(|r| r[k]).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        println!(
+            "| {} | {} | {:.2e} | {:.2e} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {} | {} | {:.0} |",
+            med(0), med(1), med(2), med(3), med(5), med(6), med(7), med(8), med(9), med(10), med(11), med(12), med(13) / 1e6
+        );
+    }
+    Ok(())
 }
 
 fn run_command(scene_path: &PathBuf, options: &RunOptions) -> Result<()> {

@@ -87,6 +87,9 @@ pub enum SimError {
     /// Newton failed in a step.
     #[error("step {step} (t = {time:.6} s): {source}")]
     Step { step: u64, time: f64, #[source] source: NewtonError },
+    /// Building the problem failed.
+    #[error("set-up failed: {0}")]
+    Setup(String),
     /// Linear solver set-up failed.
     #[error(transparent)]
     Linear(#[from] crate::solver::LinearError),
