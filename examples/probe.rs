@@ -6,7 +6,12 @@ fn main() {
     let mut sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
     let n = sim.model.num_nodes();
     let steps = (scene.end_time / scene.settings.dt).round() as usize;
-    println!("nodes {n} tets {} free {} nnz {}", sim.model.mesh.num_tets(), sim.assembly().dofs().num_free(), sim.assembly().nnz());
+    println!(
+        "nodes {n} tets {} free {} nnz {}",
+        sim.model.mesh.num_tets(),
+        sim.assembly().dofs().num_free(),
+        sim.assembly().nnz()
+    );
     for _ in 0..steps {
         let r = sim.step().unwrap();
         let tip = sim.displacement(n - 1);

@@ -10,7 +10,14 @@ use nalgebra::Vector3;
 /// A free ice cube spinning and breathing: v = ω × (X − c) + s (X − c).
 fn spinning_cube(model: ElasticModel, dt: f64) -> icefem::sim::Simulation {
     let mesh = box_mesh([0.0; 3], [0.1, 0.1, 0.1], [3, 3, 3], 6).unwrap();
-    let mut sim = simulation(mesh, ICE, model, [0.0; 3], vec![], settings(Analysis::Dynamic, dt));
+    let mut sim = simulation(
+        mesh,
+        ICE,
+        model,
+        [0.0; 3],
+        vec![],
+        settings(Analysis::Dynamic, dt),
+    );
     let c = Vector3::new(0.05, 0.05, 0.05);
     let omega = Vector3::new(0.0, 0.0, 20.0);
     for (i, p) in sim.model.mesh.rest.iter().enumerate() {
@@ -21,7 +28,16 @@ fn spinning_cube(model: ElasticModel, dt: f64) -> icefem::sim::Simulation {
 }
 
 fn momentum(sim: &icefem::sim::Simulation) -> Vector3<f64> {
-    (0..sim.model.num_nodes()).map(|i| sim.model.mass[i] * Vector3::new(sim.state.v[3 * i], sim.state.v[3 * i + 1], sim.state.v[3 * i + 2])).sum()
+    (0..sim.model.num_nodes())
+        .map(|i| {
+            sim.model.mass[i]
+                * Vector3::new(
+                    sim.state.v[3 * i],
+                    sim.state.v[3 * i + 1],
+                    sim.state.v[3 * i + 2],
+                )
+        })
+        .sum()
 }
 
 #[test]
@@ -35,12 +51,19 @@ fn energy_never_increases_without_forcing() {
                 let report = sim.step().unwrap();
                 // No external force: M Δv = −h Σ(residual), so linear momentum changes by at
                 // most h · 3n · max|residual| (plus round-off of the element-force sums).
-                let bound = dt * sim.state.u.len() as f64 * report.newton.residual + 1e-14 * sim.model.total_mass();
+                let bound = dt * sim.state.u.len() as f64 * report.newton.residual
+                    + 1e-14 * sim.model.total_mass();
                 let drift = (momentum(&sim) - p0).norm();
-                assert!(drift <= bound, "{model:?} dt {dt}: momentum drift {drift:e} > {bound:e}");
+                assert!(
+                    drift <= bound,
+                    "{model:?} dt {dt}: momentum drift {drift:e} > {bound:e}"
+                );
                 let e = report.energies.total();
                 // Backward Euler dissipates; allow only the round-off of the energy itself.
-                assert!(e <= energy * (1.0 + 1e-10), "{model:?} dt {dt}: energy rose {energy} → {e}");
+                assert!(
+                    e <= energy * (1.0 + 1e-10),
+                    "{model:?} dt {dt}: energy rose {energy} → {e}"
+                );
                 energy = e;
             }
         }
@@ -50,7 +73,14 @@ fn energy_never_increases_without_forcing() {
 #[test]
 fn ice_cantilever_at_frame_steps_is_stable_and_converges_fast() {
     let mesh = box_mesh([0.0; 3], [0.4, 0.04, 0.04], [20, 2, 2], 6).unwrap();
-    let mut sim = simulation(mesh, ICE, ElasticModel::Corotated, [0.0, 0.0, -9.81], vec![clamp_below_x(1e-9)], settings(Analysis::Dynamic, 1.0 / 30.0));
+    let mut sim = simulation(
+        mesh,
+        ICE,
+        ElasticModel::Corotated,
+        [0.0, 0.0, -9.81],
+        vec![clamp_below_x(1e-9)],
+        settings(Analysis::Dynamic, 1.0 / 30.0),
+    );
     let mut max_newton = 0;
     for _ in 0..90 {
         let r = sim.step().unwrap();
@@ -58,14 +88,26 @@ fn ice_cantilever_at_frame_steps_is_stable_and_converges_fast() {
         // Gravity is part of the potential: starting at rest with zero energy, the total
         // (kinetic + elastic − f·u) can only fall under backward Euler.
         assert!(r.energies.total() <= 1e-15, "energy {}", r.energies.total());
-        assert!(sim.state.u.iter().chain(&sim.state.v).all(|x| x.is_finite()));
+        assert!(sim
+            .state
+            .u
+            .iter()
+            .chain(&sim.state.v)
+            .all(|x| x.is_finite()));
     }
     // Explicit stability would need dt < ~1.5 µs here; at 1/30 s Newton needs only a few
     // iterations because the step is dominated by the (linear-ish) elastic response.
     assert!(max_newton <= 5, "Newton took {max_newton} iterations");
     // After 3 s the beam has settled at its static deflection: compare with a static solve.
     let mesh = box_mesh([0.0; 3], [0.4, 0.04, 0.04], [20, 2, 2], 6).unwrap();
-    let mut stat = simulation(mesh, ICE, ElasticModel::Corotated, [0.0, 0.0, -9.81], vec![clamp_below_x(1e-9)], settings(Analysis::Static, 1.0));
+    let mut stat = simulation(
+        mesh,
+        ICE,
+        ElasticModel::Corotated,
+        [0.0, 0.0, -9.81],
+        vec![clamp_below_x(1e-9)],
+        settings(Analysis::Static, 1.0),
+    );
     stat.step().unwrap();
     let err = rel_l2(&sim.state.u, &stat.state.u);
     // BE's numerical damping at ω·dt ≫ 1 kills the oscillation within a step or two.

@@ -34,7 +34,9 @@ fn scene(dir: &Path) -> Scene {
 fn last_frame(path: &Path) -> (f64, u64, Vec<Vec<f64>>) {
     let file = hdf5::File::open(path).unwrap();
     let frames = file.group("frames").unwrap().member_names().unwrap();
-    let g = file.group(&format!("frames/{}", frames.iter().max().unwrap())).unwrap();
+    let g = file
+        .group(&format!("frames/{}", frames.iter().max().unwrap()))
+        .unwrap();
     let time = g.attr("time").unwrap().read_scalar::<f64>().unwrap();
     let step = g.attr("step").unwrap().read_scalar::<u64>().unwrap();
     let data = ["positions", "velocities", "displacement", "stress"]
@@ -45,7 +47,12 @@ fn last_frame(path: &Path) -> (f64, u64, Vec<Vec<f64>>) {
 }
 
 fn stats_column(path: &Path, name: &str) -> Vec<f64> {
-    hdf5::File::open(path).unwrap().dataset(&format!("stats/{name}")).unwrap().read_raw::<f64>().unwrap()
+    hdf5::File::open(path)
+        .unwrap()
+        .dataset(&format!("stats/{name}"))
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap()
 }
 
 #[test]
@@ -53,13 +60,19 @@ fn layout_is_as_documented() {
     let dir = tempfile::tempdir().unwrap();
     let scene = scene(dir.path());
     let out = dir.path().join("full.h5");
-    let options = RunOptions { output: Some(out.clone()), ..Default::default() };
+    let options = RunOptions {
+        output: Some(out.clone()),
+        ..Default::default()
+    };
     let summary = run(&scene, &options, &AtomicBool::new(false), |_| {}).unwrap();
     assert_eq!((summary.steps, summary.frames), (10, 6)); // frame 0 and every 2nd step
     let file = hdf5::File::open(&out).unwrap();
     let n = scene.model.num_nodes();
     let m = scene.model.mesh.num_tets();
-    assert_eq!(file.dataset("mesh/rest_positions").unwrap().shape(), vec![n, 3]);
+    assert_eq!(
+        file.dataset("mesh/rest_positions").unwrap().shape(),
+        vec![n, 3]
+    );
     assert_eq!(file.dataset("mesh/tets").unwrap().shape(), vec![m, 4]);
     let f = file.group("frames/000003").unwrap();
     assert_eq!(f.attr("step").unwrap().read_scalar::<u64>().unwrap(), 6);
@@ -69,17 +82,33 @@ fn layout_is_as_documented() {
     assert_eq!(f.dataset("velocities").unwrap().shape(), vec![n, 3]);
     assert_eq!(f.dataset("tets").unwrap().shape(), vec![m, 4]);
     assert_eq!(stats_column(&out, "newton_iterations").len(), 10);
-    let scene_attr = file.attr("scene").unwrap().read_scalar::<hdf5::types::VarLenUnicode>().unwrap();
+    let scene_attr = file
+        .attr("scene")
+        .unwrap()
+        .read_scalar::<hdf5::types::VarLenUnicode>()
+        .unwrap();
     assert_eq!(scene_attr.as_str(), SCENE);
     // positions = rest + displacement
-    let rest = file.dataset("mesh/rest_positions").unwrap().read_raw::<f64>().unwrap();
+    let rest = file
+        .dataset("mesh/rest_positions")
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap();
     let pos = f.dataset("positions").unwrap().read_raw::<f64>().unwrap();
-    let disp = f.dataset("displacement").unwrap().read_raw::<f64>().unwrap();
+    let disp = f
+        .dataset("displacement")
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap();
     for k in 0..rest.len() {
         assert_eq!(pos[k], rest[k] + disp[k]);
     }
     let xdmf = std::fs::read_to_string(out.with_extension("xdmf")).unwrap();
-    assert_eq!(xdmf.matches("<Grid Name=").count() - 1, 6, "one grid per frame plus the collection");
+    assert_eq!(
+        xdmf.matches("<Grid Name=").count() - 1,
+        6,
+        "one grid per frame plus the collection"
+    );
     // `icefem info` reads it.
     let info = icefem::output::describe(&out).unwrap();
     assert!(info.contains("6 complete"), "{info}");
@@ -91,24 +120,52 @@ fn resumed_run_is_bit_identical_to_uninterrupted_one() {
     let scene = scene(dir.path());
     let never = AtomicBool::new(false);
     let full = dir.path().join("full.h5");
-    run(&scene, &RunOptions { output: Some(full.clone()), ..Default::default() }, &never, |_| {}).unwrap();
+    run(
+        &scene,
+        &RunOptions {
+            output: Some(full.clone()),
+            ..Default::default()
+        },
+        &never,
+        |_| {},
+    )
+    .unwrap();
 
     // Cut off at t = 0.01 s (step 5 is not a frame step: the last frame is written anyway).
     let half = dir.path().join("half.h5");
-    let first = RunOptions { output: Some(half.clone()), end_time: Some(0.01), ..Default::default() };
+    let first = RunOptions {
+        output: Some(half.clone()),
+        end_time: Some(0.01),
+        ..Default::default()
+    };
     assert_eq!(run(&scene, &first, &never, |_| {}).unwrap().final_step, 5);
-    let resume = RunOptions { output: Some(half.clone()), resume: true, ..Default::default() };
+    let resume = RunOptions {
+        output: Some(half.clone()),
+        resume: true,
+        ..Default::default()
+    };
     let summary = run(&scene, &resume, &never, |_| {}).unwrap();
     assert_eq!((summary.steps, summary.final_step), (5, 10));
-    assert_eq!(last_frame(&full), last_frame(&half), "resumed end state differs");
+    assert_eq!(
+        last_frame(&full),
+        last_frame(&half),
+        "resumed end state differs"
+    );
     for column in ["energy", "residual", "newton_iterations", "time"] {
-        assert_eq!(stats_column(&full, column), stats_column(&half, column), "/stats/{column}");
+        assert_eq!(
+            stats_column(&full, column),
+            stats_column(&half, column),
+            "/stats/{column}"
+        );
     }
 
     // Interrupted (Ctrl-C) after step 3, then resumed.
     let cut = dir.path().join("cut.h5");
     let flag = AtomicBool::new(false);
-    let options = RunOptions { output: Some(cut.clone()), ..Default::default() };
+    let options = RunOptions {
+        output: Some(cut.clone()),
+        ..Default::default()
+    };
     let summary = run(&scene, &options, &flag, |p| {
         if p.step == 3 {
             flag.store(true, Ordering::SeqCst);
@@ -116,9 +173,17 @@ fn resumed_run_is_bit_identical_to_uninterrupted_one() {
     })
     .unwrap();
     assert!(summary.interrupted && summary.final_step == 3);
-    let resume = RunOptions { output: Some(cut.clone()), resume: true, ..Default::default() };
+    let resume = RunOptions {
+        output: Some(cut.clone()),
+        resume: true,
+        ..Default::default()
+    };
     run(&scene, &resume, &never, |_| {}).unwrap();
-    assert_eq!(last_frame(&full), last_frame(&cut), "interrupted-and-resumed end state differs");
+    assert_eq!(
+        last_frame(&full),
+        last_frame(&cut),
+        "interrupted-and-resumed end state differs"
+    );
 }
 
 #[test]
@@ -127,7 +192,13 @@ fn killed_process_leaves_a_readable_file_that_resumes() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("long.toml");
     // Long enough that it is still running when killed.
-    std::fs::write(&path, SCENE.replace("end_time = 0.02", "end_time = 1000.0").replace("output_every = 2", "output_every = 1")).unwrap();
+    std::fs::write(
+        &path,
+        SCENE
+            .replace("end_time = 0.02", "end_time = 1000.0")
+            .replace("output_every = 2", "output_every = 1"),
+    )
+    .unwrap();
     let out = dir.path().join("long.h5");
     let mut child = std::process::Command::new(exe)
         .arg("run")

@@ -29,7 +29,9 @@ fn parse(text: &str) -> Result<Scene, SceneError> {
 
 /// The error text for `text`, checked to name the file and (if given) the field.
 fn error_of(text: &str, field: Option<&str>) -> String {
-    let err = parse(text).expect_err("scene should be rejected").to_string();
+    let err = parse(text)
+        .expect_err("scene should be rejected")
+        .to_string();
     assert!(err.contains("test_scene.toml"), "no file name in: {err}");
     if let Some(f) = field {
         assert!(err.contains(f), "field `{f}` not named in: {err}");
@@ -43,37 +45,85 @@ fn good_scene_parses_with_defaults() {
     assert_eq!(scene.model.mesh.num_tets(), 30);
     assert_eq!(scene.output_every, 1);
     assert_eq!(scene.output, PathBuf::from("test_scene.h5"));
-    assert_eq!(scene.model.elasticity.model, icefem::fem::ElasticModel::Corotated);
+    assert_eq!(
+        scene.model.elasticity.model,
+        icefem::fem::ElasticModel::Corotated
+    );
 }
 
 #[test]
 fn unknown_keys_are_rejected_with_their_name() {
-    let err = error_of(&GOOD.replace("mu = 3.70e10", "mu = 3.70e10\nshear = 1.0"), Some("shear"));
+    let err = error_of(
+        &GOOD.replace("mu = 3.70e10", "mu = 3.70e10\nshear = 1.0"),
+        Some("shear"),
+    );
     assert!(err.contains("unknown field"), "{err}");
     error_of(&GOOD.replace("[time]", "[tiem]"), Some("tiem"));
 }
 
 #[test]
 fn non_physical_values_name_field_and_range() {
-    let young = GOOD.replace("lambda = 8.64e10\nmu = 3.70e10", "youngs_modulus = 1e11\npoisson_ratio = 0.5");
+    let young = GOOD.replace(
+        "lambda = 8.64e10\nmu = 3.70e10",
+        "youngs_modulus = 1e11\npoisson_ratio = 0.5",
+    );
     let err = error_of(&young, Some("material.poisson_ratio"));
     assert!(err.contains("(−1, 0.5)"), "{err}");
-    error_of(&GOOD.replace("density = 916.0", "density = -916.0"), Some("material.density"));
+    error_of(
+        &GOOD.replace("density = 916.0", "density = -916.0"),
+        Some("material.density"),
+    );
     error_of(&GOOD.replace("dt = 0.01", "dt = -0.01"), Some("time.dt"));
     error_of(&GOOD.replace("dt = 0.01", "dt = 0.0"), Some("time.dt"));
-    error_of(&GOOD.replace("mu = 3.70e10", "mu = nan"), Some("material.mu"));
-    error_of(&GOOD.replace("lambda = 8.64e10", "lambda = nan"), Some("material.lambda"));
-    error_of(&GOOD.replace("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, inf, -9.81]"), Some("physics.gravity[1]"));
-    error_of(&GOOD.replace("end_time = 0.03", "end_time = nan"), Some("time.end_time"));
-    error_of(&GOOD.replace("lambda = 8.64e10", "lambda = -8.64e10"), Some("material.lambda"));
-    error_of(&GOOD.replace("cells = [5, 1, 1]", "cells = [5, 0, 1]"), Some("mesh.box.cells[1]"));
-    error_of(&GOOD.replace("max = [1e-9, 1.0, 1.0]", "max = [1e-9, 1.0, 1.0]\naxes = \"xw\""), Some("dirichlet[0].axes"));
-    error_of(&GOOD.replace("max = [1e-9, 1.0, 1.0]", "max = [-2.0, 1.0, 1.0]"), Some("dirichlet[0].min"));
-    error_of(&GOOD.replace("[time]", "[solver]\ntolerance = 2.0\n[time]"), Some("solver.tolerance"));
+    error_of(
+        &GOOD.replace("mu = 3.70e10", "mu = nan"),
+        Some("material.mu"),
+    );
+    error_of(
+        &GOOD.replace("lambda = 8.64e10", "lambda = nan"),
+        Some("material.lambda"),
+    );
+    error_of(
+        &GOOD.replace("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, inf, -9.81]"),
+        Some("physics.gravity[1]"),
+    );
+    error_of(
+        &GOOD.replace("end_time = 0.03", "end_time = nan"),
+        Some("time.end_time"),
+    );
+    error_of(
+        &GOOD.replace("lambda = 8.64e10", "lambda = -8.64e10"),
+        Some("material.lambda"),
+    );
+    error_of(
+        &GOOD.replace("cells = [5, 1, 1]", "cells = [5, 0, 1]"),
+        Some("mesh.box.cells[1]"),
+    );
+    error_of(
+        &GOOD.replace(
+            "max = [1e-9, 1.0, 1.0]",
+            "max = [1e-9, 1.0, 1.0]\naxes = \"xw\"",
+        ),
+        Some("dirichlet[0].axes"),
+    );
+    error_of(
+        &GOOD.replace("max = [1e-9, 1.0, 1.0]", "max = [-2.0, 1.0, 1.0]"),
+        Some("dirichlet[0].min"),
+    );
+    error_of(
+        &GOOD.replace("[time]", "[solver]\ntolerance = 2.0\n[time]"),
+        Some("solver.tolerance"),
+    );
     error_of(&(GOOD.to_string() + "[[traction]]\nmin = [5.0, 5.0, 5.0]\nmax = [6.0, 6.0, 6.0]\ntraction = [0.0, 0.0, 1.0]\n"), Some("traction[0]"));
     // Wrong types and missing sections come from the TOML layer, still with the file name.
-    error_of(&GOOD.replace("density = 916.0", "density = \"heavy\""), Some("density"));
-    error_of(&GOOD.replace("[time]\ndt = 0.01\nend_time = 0.03\n", ""), Some("time"));
+    error_of(
+        &GOOD.replace("density = 916.0", "density = \"heavy\""),
+        Some("density"),
+    );
+    error_of(
+        &GOOD.replace("[time]\ndt = 0.01\nend_time = 0.03\n", ""),
+        Some("time"),
+    );
     error_of(&GOOD.replace("lambda = 8.64e10\n", ""), Some("material"));
 }
 
@@ -81,28 +131,53 @@ fn non_physical_values_name_field_and_range() {
 fn missing_and_bad_mesh_files_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let scene_path = dir.path().join("scene.toml");
-    let text = GOOD.replace("box = { size = [0.1, 0.02, 0.02], cells = [5, 1, 1] }", "file = \"nowhere.msh\"");
+    let text = GOOD.replace(
+        "box = { size = [0.1, 0.02, 0.02], cells = [5, 1, 1] }",
+        "file = \"nowhere.msh\"",
+    );
     let err = Scene::parse(&text, &scene_path).unwrap_err().to_string();
-    assert!(err.contains("scene.toml") && err.contains("mesh.file") && err.contains("nowhere.msh"), "{err}");
+    assert!(
+        err.contains("scene.toml") && err.contains("mesh.file") && err.contains("nowhere.msh"),
+        "{err}"
+    );
     // An inverted tet in a Gmsh file: the error names the element.
     let msh = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n$Elements\n1\n1 4 2 0 1 1 3 2 4\n$EndElements\n";
     std::fs::write(dir.path().join("inverted.msh"), msh).unwrap();
     let text = text.replace("nowhere.msh", "inverted.msh");
     let err = Scene::parse(&text, &scene_path).unwrap_err().to_string();
-    assert!(err.contains("scene.toml") && err.contains("inverted") && err.contains("tetrahedron 0"), "{err}");
+    assert!(
+        err.contains("scene.toml") && err.contains("inverted") && err.contains("tetrahedron 0"),
+        "{err}"
+    );
     // The same tet correctly oriented loads.
     std::fs::write(dir.path().join("ok.msh"), msh.replace("1 3 2 4", "1 2 3 4")).unwrap();
-    let scene = Scene::parse(&text.replace("inverted.msh", "ok.msh").replace("max = [1e-9, 1.0, 1.0]", "max = [1e-9, 1.0, 1e-9]"), &scene_path).unwrap();
+    let scene = Scene::parse(
+        &text
+            .replace("inverted.msh", "ok.msh")
+            .replace("max = [1e-9, 1.0, 1.0]", "max = [1e-9, 1.0, 1e-9]"),
+        &scene_path,
+    )
+    .unwrap();
     assert_eq!(scene.model.mesh.num_tets(), 1);
 }
 
 #[test]
 fn static_scene_without_supports_is_a_clear_error() {
-    let text = GOOD.replace("[[dirichlet]]\nmin = [-1.0, -1.0, -1.0]\nmax = [1e-9, 1.0, 1.0]\n", "").replace("dt = 0.01", "analysis = \"static\"\ndt = 0.01");
+    let text = GOOD
+        .replace(
+            "[[dirichlet]]\nmin = [-1.0, -1.0, -1.0]\nmax = [1e-9, 1.0, 1.0]\n",
+            "",
+        )
+        .replace("dt = 0.01", "analysis = \"static\"\ndt = 0.01");
     let scene = parse(&text).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let options = RunOptions { output: Some(dir.path().join("x.h5")), ..Default::default() };
-    let err = run(&scene, &options, &AtomicBool::new(false), |_| {}).unwrap_err().to_string();
+    let options = RunOptions {
+        output: Some(dir.path().join("x.h5")),
+        ..Default::default()
+    };
+    let err = run(&scene, &options, &AtomicBool::new(false), |_| {})
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("singular: no Dirichlet conditions"), "{err}");
 }
 
@@ -118,12 +193,20 @@ fn every_shipped_scene_runs_a_few_steps() {
         }
         let scene = Scene::load(&path).unwrap();
         let options = RunOptions {
-            output: Some(dir.path().join(path.file_stem().unwrap()).with_extension("h5")),
+            output: Some(
+                dir.path()
+                    .join(path.file_stem().unwrap())
+                    .with_extension("h5"),
+            ),
             end_time: Some(3.0 * scene.settings.dt.min(scene.end_time)),
             ..Default::default()
         };
         let summary = run(&scene, &options, &AtomicBool::new(false), |_| {}).unwrap();
-        assert!(summary.steps >= 1 && summary.max_residual.is_finite(), "{}: {summary:?}", path.display());
+        assert!(
+            summary.steps >= 1 && summary.max_residual.is_finite(),
+            "{}: {summary:?}",
+            path.display()
+        );
         count += 1;
     }
     assert!(count >= 2);
@@ -135,12 +218,27 @@ fn cli_exits_non_zero_with_a_message_on_bad_input() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.toml");
     std::fs::write(&bad, GOOD.replace("density = 916.0", "density = -1.0")).unwrap();
-    let out = std::process::Command::new(exe).arg("run").arg(&bad).current_dir(dir.path()).output().unwrap();
+    let out = std::process::Command::new(exe)
+        .arg("run")
+        .arg(&bad)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("bad.toml") && stderr.contains("material.density"), "{stderr}");
-    let out = std::process::Command::new(exe).args(["info", "/nonexistent.h5"]).output().unwrap();
+    assert!(
+        stderr.contains("bad.toml") && stderr.contains("material.density"),
+        "{stderr}"
+    );
+    let out = std::process::Command::new(exe)
+        .args(["info", "/nonexistent.h5"])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
-    let out = std::process::Command::new(exe).arg("info").arg(&bad).output().unwrap();
+    let out = std::process::Command::new(exe)
+        .arg("info")
+        .arg(&bad)
+        .output()
+        .unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("bad.toml"));
 }

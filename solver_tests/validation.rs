@@ -17,15 +17,38 @@ struct Reference {
 }
 
 fn open(name: &str) -> Reference {
-    let path = format!("{}/validation/reference/{name}.h5", env!("CARGO_MANIFEST_DIR"));
+    let path = format!(
+        "{}/validation/reference/{name}.h5",
+        env!("CARGO_MANIFEST_DIR")
+    );
     let file = hdf5::File::open(&path).unwrap();
-    let nodes = file.dataset("mesh/nodes").unwrap().read_2d::<f64>().unwrap();
+    let nodes = file
+        .dataset("mesh/nodes")
+        .unwrap()
+        .read_2d::<f64>()
+        .unwrap();
     let tets = file.dataset("mesh/tets").unwrap().read_2d::<i64>().unwrap();
-    let nodes: Vec<[f64; 3]> = nodes.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
-    let tets: Vec<[usize; 4]> = tets.rows().into_iter().map(|r| [0, 1, 2, 3].map(|k| r[k] as usize)).collect();
+    let nodes: Vec<[f64; 3]> = nodes
+        .rows()
+        .into_iter()
+        .map(|r| [r[0], r[1], r[2]])
+        .collect();
+    let tets: Vec<[usize; 4]> = tets
+        .rows()
+        .into_iter()
+        .map(|r| [0, 1, 2, 3].map(|k| r[k] as usize))
+        .collect();
     let attr = |n: &str| file.attr(n).unwrap().read_scalar::<f64>().unwrap();
-    let material = Material { lambda: attr("lambda"), mu: attr("mu"), density: attr("rho") };
-    Reference { mesh: TetMesh::from_arrays(&nodes, tets).unwrap(), material, file }
+    let material = Material {
+        lambda: attr("lambda"),
+        mu: attr("mu"),
+        density: attr("rho"),
+    };
+    Reference {
+        mesh: TetMesh::from_arrays(&nodes, tets).unwrap(),
+        material,
+        file,
+    }
 }
 
 impl Reference {
@@ -34,10 +57,31 @@ impl Reference {
         Vector3::new(v[0], v[1], v[2])
     }
     fn flat(&self, dataset: &str) -> Vec<f64> {
-        self.file.dataset(dataset).unwrap().read_2d::<f64>().unwrap().iter().copied().collect()
+        self.file
+            .dataset(dataset)
+            .unwrap()
+            .read_2d::<f64>()
+            .unwrap()
+            .iter()
+            .copied()
+            .collect()
     }
-    fn simulation(&self, elasticity: Elasticity, tractions: &[Traction], analysis: Analysis, dt: f64) -> Simulation {
-        let model = Model::new(self.mesh.clone(), elasticity, self.vector_attr("gravity"), tractions, None, vec![clamp_below_x(1e-9)]).unwrap();
+    fn simulation(
+        &self,
+        elasticity: Elasticity,
+        tractions: &[Traction],
+        analysis: Analysis,
+        dt: f64,
+    ) -> Simulation {
+        let model = Model::new(
+            self.mesh.clone(),
+            elasticity,
+            self.vector_attr("gravity"),
+            tractions,
+            None,
+            vec![clamp_below_x(1e-9)],
+        )
+        .unwrap();
         Simulation::new(model, settings(analysis, dt)).unwrap()
     }
 }
@@ -47,21 +91,50 @@ fn static_case(name: &str) -> f64 {
     let mut elasticity = Elasticity::new(&r.mesh, r.material, ElasticModel::Linear);
     let mut tractions = vec![];
     if name.starts_with("traction") {
-        let x_min = r.file.attr("traction_face_x_min").unwrap().read_scalar::<f64>().unwrap();
-        let region = Region { min: Vector3::new(x_min, -1e30, -1e30), max: Vector3::repeat(1e30) };
-        let n = r.file.attr("n_traction_facets").unwrap().read_scalar::<i64>().unwrap();
-        assert_eq!(loads::traction_faces(&r.mesh, &region).0 as i64, n, "same traction faces");
-        tractions.push(Traction { region, traction: r.vector_attr("traction") });
+        let x_min = r
+            .file
+            .attr("traction_face_x_min")
+            .unwrap()
+            .read_scalar::<f64>()
+            .unwrap();
+        let region = Region {
+            min: Vector3::new(x_min, -1e30, -1e30),
+            max: Vector3::repeat(1e30),
+        };
+        let n = r
+            .file
+            .attr("n_traction_facets")
+            .unwrap()
+            .read_scalar::<i64>()
+            .unwrap();
+        assert_eq!(
+            loads::traction_faces(&r.mesh, &region).0 as i64,
+            n,
+            "same traction faces"
+        );
+        tractions.push(Traction {
+            region,
+            traction: r.vector_attr("traction"),
+        });
     }
     if name.starts_with("eigenstrain") {
-        elasticity.eigenstrain = r.file.dataset("mesh/eigenstrain").unwrap().read_1d::<f64>().unwrap().to_vec();
+        elasticity.eigenstrain = r
+            .file
+            .dataset("mesh/eigenstrain")
+            .unwrap()
+            .read_1d::<f64>()
+            .unwrap()
+            .to_vec();
     }
     let mut sim = r.simulation(elasticity, &tractions, Analysis::Static, 1.0);
     // The eigenstrain cube is clamped at z = 0, not x = 0.
     if name.starts_with("eigenstrain") {
         let mut bc = clamp_below_x(1e30);
         bc.region.max = Vector3::new(1e30, 1e30, 1e-9);
-        let model = Model { dirichlet: vec![bc], ..sim.model.clone() };
+        let model = Model {
+            dirichlet: vec![bc],
+            ..sim.model.clone()
+        };
         sim = Simulation::new(model, settings(Analysis::Static, 1.0)).unwrap();
     }
     sim.step().unwrap();
@@ -85,7 +158,12 @@ fn static_cases_match_scikit_fem() {
 #[test]
 fn backward_euler_matches_scikit_fem_step_for_step() {
     let r = open("dynamics_beam");
-    let tip = r.file.attr("tip_node").unwrap().read_scalar::<i64>().unwrap() as usize;
+    let tip = r
+        .file
+        .attr("tip_node")
+        .unwrap()
+        .read_scalar::<i64>()
+        .unwrap() as usize;
     for label in ["dt_1e-5", "dt_1e-4", "dt_1e-3", "dt_1_30"] {
         let group = r.file.group(&format!("dynamics/{label}")).unwrap();
         let dt = group.attr("dt").unwrap().read_scalar::<f64>().unwrap();
@@ -101,8 +179,22 @@ fn backward_euler_matches_scikit_fem_step_for_step() {
                 worst = worst.max((sim.state.u[3 * tip + a] - history[[n, a]]).abs() / scale);
             }
         }
-        let u_ref: Vec<f64> = group.dataset("u").unwrap().read_2d::<f64>().unwrap().iter().copied().collect();
-        let v_ref: Vec<f64> = group.dataset("v").unwrap().read_2d::<f64>().unwrap().iter().copied().collect();
+        let u_ref: Vec<f64> = group
+            .dataset("u")
+            .unwrap()
+            .read_2d::<f64>()
+            .unwrap()
+            .iter()
+            .copied()
+            .collect();
+        let v_ref: Vec<f64> = group
+            .dataset("v")
+            .unwrap()
+            .read_2d::<f64>()
+            .unwrap()
+            .iter()
+            .copied()
+            .collect();
         let eu = rel_l2(&sim.state.u, &u_ref);
         // v = (uₙ₊₁ − uₙ)/h: its error is that of u times 2/h, so measure it on the scale of
         // ‖u‖/h (the final v itself is ~0 once the beam has settled).
@@ -112,7 +204,10 @@ fn backward_euler_matches_scikit_fem_step_for_step() {
         eprintln!("{label}: tip history max rel. diff {worst:.2e}, final u {eu:.2e}, v {ev:.2e}");
         // Same scheme, same matrices: differences are solver round-off amplified by the
         // conditioning (≈1e6 for these slender beams), i.e. ≤ 1e-8 relative.
-        assert!(worst <= 1e-8 && eu <= 1e-8, "{label}: tip {worst:e}, u {eu:e}");
+        assert!(
+            worst <= 1e-8 && eu <= 1e-8,
+            "{label}: tip {worst:e}, u {eu:e}"
+        );
         assert!(ev <= 2e-8, "{label}: v {ev:e}");
     }
 }

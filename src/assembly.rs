@@ -36,7 +36,10 @@ impl DofMap {
                 free_dofs.push(d);
             }
         }
-        DofMap { free_index, free_dofs }
+        DofMap {
+            free_index,
+            free_dofs,
+        }
     }
     /// Number of free dofs.
     pub fn num_free(&self) -> usize {
@@ -103,8 +106,11 @@ impl Assembly {
         let mut neighbours: Vec<Vec<usize>> = (0..n)
             .into_par_iter()
             .map(|i| {
-                let mut v: Vec<usize> =
-                    adjacency.of(i).iter().flat_map(|&(t, _)| mesh.tets[t as usize]).collect();
+                let mut v: Vec<usize> = adjacency
+                    .of(i)
+                    .iter()
+                    .flat_map(|&(t, _)| mesh.tets[t as usize])
+                    .collect();
                 v.sort_unstable();
                 v.dedup();
                 v
@@ -129,7 +135,8 @@ impl Assembly {
             .tets
             .par_iter()
             .flat_map_iter(|tet| {
-                let local: [Option<usize>; 12] = std::array::from_fn(|k| dofs.free(3 * tet[k / 3] + k % 3));
+                let local: [Option<usize>; 12] =
+                    std::array::from_fn(|k| dofs.free(3 * tet[k / 3] + k % 3));
                 let (col_ptr, row_idx) = (&col_ptr, &row_idx);
                 (0..144).map(move |rc| {
                     let (r, c) = (rc / 12, rc % 12);
@@ -148,10 +155,23 @@ impl Assembly {
         let (color_ptr, color_elems) = color_elements(mesh, &adjacency);
         // Columns are sorted with unique rows by construction.
         let diagonal = (0..nf)
-            .map(|c| col_ptr[c] + row_idx[col_ptr[c]..col_ptr[c + 1]].binary_search(&c).unwrap_or(0))
+            .map(|c| {
+                col_ptr[c]
+                    + row_idx[col_ptr[c]..col_ptr[c + 1]]
+                        .binary_search(&c)
+                        .unwrap_or(0)
+            })
             .collect();
         let symbolic = SymbolicSparseColMat::new_checked(nf, nf, col_ptr, None, row_idx);
-        Assembly { dofs, symbolic, slots, color_ptr, color_elems, tets: mesh.tets.clone(), diagonal }
+        Assembly {
+            dofs,
+            symbolic,
+            slots,
+            color_ptr,
+            color_elems,
+            tets: mesh.tets.clone(),
+            diagonal,
+        }
     }
 
     /// The dof map of the free system.
@@ -193,8 +213,13 @@ impl Assembly {
     /// Runs `kernel(e, out)` on every element and accumulates: energies into `energies[e]`,
     /// gradients into `gradient` (all 3n dofs) and, if `values` is given, stiffness into the
     /// free-system CSC values. `gradient` and `values` are added to, not overwritten.
-    pub fn assemble<K>(&self, kernel: K, energies: &mut [f64], gradient: &mut [f64], values: Option<&mut [f64]>)
-    where
+    pub fn assemble<K>(
+        &self,
+        kernel: K,
+        energies: &mut [f64],
+        gradient: &mut [f64],
+        values: Option<&mut [f64]>,
+    ) where
         K: Fn(usize, bool, &mut ElementEval) + Sync,
     {
         let with_hessian = values.is_some();
@@ -202,9 +227,9 @@ impl Assembly {
         let grad = SharedMut(gradient.as_mut_ptr());
         let energy = SharedMut(energies.as_mut_ptr());
         for k in 0..self.num_colors() {
-            self.color_elems[self.color_ptr[k]..self.color_ptr[k + 1]].par_iter().for_each_init(
-                ElementEval::default,
-                |out, &e| {
+            self.color_elems[self.color_ptr[k]..self.color_ptr[k + 1]]
+                .par_iter()
+                .for_each_init(ElementEval::default, |out, &e| {
                     let e = e as usize;
                     kernel(e, with_hessian, out);
                     let tet = &self.tets[e];
@@ -224,8 +249,7 @@ impl Assembly {
                             }
                         }
                     }
-                },
-            );
+                });
         }
     }
 
@@ -234,10 +258,13 @@ impl Assembly {
     where
         K: Fn(usize, &mut ElementEval) + Sync,
     {
-        energies.par_iter_mut().enumerate().for_each_init(ElementEval::default, |out, (e, energy)| {
-            kernel(e, out);
-            *energy = out.energy;
-        });
+        energies.par_iter_mut().enumerate().for_each_init(
+            ElementEval::default,
+            |out, (e, energy)| {
+                kernel(e, out);
+                *energy = out.energy;
+            },
+        );
     }
 }
 
@@ -257,11 +284,13 @@ fn color_elements(mesh: &TetMesh, adjacency: &crate::mesh::NodeTets) -> (Vec<usi
                 }
             }
         }
-        let c = (0..num_colors).find(|&c| forbidden[c as usize] != e).unwrap_or_else(|| {
-            forbidden.push(usize::MAX);
-            num_colors += 1;
-            num_colors - 1
-        });
+        let c = (0..num_colors)
+            .find(|&c| forbidden[c as usize] != e)
+            .unwrap_or_else(|| {
+                forbidden.push(usize::MAX);
+                num_colors += 1;
+                num_colors - 1
+            });
         color[e] = c;
     }
     let mut ptr = vec![0usize; num_colors as usize + 1];

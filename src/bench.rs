@@ -54,25 +54,48 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Runs `steps` backward-Euler steps of a 10 cm corotated ice cube with ≈ `tets` tets and
 /// reports median per-step timings.
-pub fn run_size(tets: usize, steps: usize, linear: LinearSolverKind) -> Result<BenchResult, SimError> {
+pub fn run_size(
+    tets: usize,
+    steps: usize,
+    linear: LinearSolverKind,
+) -> Result<BenchResult, SimError> {
     let start = Instant::now();
     let c = cells_for(tets);
-    let mesh = box_mesh([0.0; 3], [0.1; 3], [c, c, c], 6).map_err(|e| SimError::Setup(e.to_string()))?;
-    let material = Material { lambda: 8.64e10, mu: 3.70e10, density: 916.0 };
+    let mesh =
+        box_mesh([0.0; 3], [0.1; 3], [c, c, c], 6).map_err(|e| SimError::Setup(e.to_string()))?;
+    let material = Material {
+        lambda: 8.64e10,
+        mu: 3.70e10,
+        density: 916.0,
+    };
     let elasticity = Elasticity::new(&mesh, material, ElasticModel::Corotated);
     let base = Dirichlet {
-        region: Region { min: Vector3::repeat(-1.0), max: Vector3::new(1.0, 1.0, 1e-9) },
+        region: Region {
+            min: Vector3::repeat(-1.0),
+            max: Vector3::new(1.0, 1.0, 1e-9),
+        },
         axes: [true; 3],
         displacement: Vector3::zeros(),
         velocity: Vector3::zeros(),
     };
     // A sideways component makes the problem non-trivial for the corotated rotations.
-    let model = Model::new(mesh, elasticity, Vector3::new(3.0, 0.0, -9.81), &[], None, vec![base])
-        .map_err(|e| SimError::Setup(e.to_string()))?;
+    let model = Model::new(
+        mesh,
+        elasticity,
+        Vector3::new(3.0, 0.0, -9.81),
+        &[],
+        None,
+        vec![base],
+    )
+    .map_err(|e| SimError::Setup(e.to_string()))?;
     let settings = StepSettings {
         analysis: Analysis::Dynamic,
         dt: 1.0 / 30.0,
-        newton: NewtonParams { tolerance: 1e-9, step_tolerance: 1e-15 * 0.1 * 3f64.sqrt(), max_iterations: 50 },
+        newton: NewtonParams {
+            tolerance: 1e-9,
+            step_tolerance: 1e-15 * 0.1 * 3f64.sqrt(),
+            max_iterations: 50,
+        },
         linear,
         cg_tolerance: 1e-10,
         cg_max_iterations: 100_000,
@@ -86,7 +109,14 @@ pub fn run_size(tets: usize, steps: usize, linear: LinearSolverKind) -> Result<B
     for _ in 0..steps {
         let r = sim.step()?;
         let n = r.newton;
-        per_step.push([n.t_assembly, n.t_factorization, n.t_solve, r.t_step, n.iterations as f64, n.linear_iterations as f64]);
+        per_step.push([
+            n.t_assembly,
+            n.t_factorization,
+            n.t_solve,
+            r.t_step,
+            n.iterations as f64,
+            n.linear_iterations as f64,
+        ]);
     }
     let col = |k: usize| median(per_step.iter().map(|r| r[k]).collect());
     Ok(BenchResult {

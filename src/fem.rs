@@ -26,7 +26,11 @@ pub struct Material {
 impl Material {
     /// Lamé constants from Young's modulus E (Pa) and Poisson's ratio ν (−1 < ν < 0.5).
     pub fn from_young_poisson(e: f64, nu: f64, density: f64) -> Self {
-        Material { lambda: e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), mu: e / (2.0 * (1.0 + nu)), density }
+        Material {
+            lambda: e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+            mu: e / (2.0 * (1.0 + nu)),
+            density,
+        }
     }
     /// Young's modulus E (Pa).
     pub fn young(&self) -> f64 {
@@ -82,7 +86,10 @@ impl ElementRest {
                 let g1: Vector3<f64> = inv.row(0).transpose();
                 let g2: Vector3<f64> = inv.row(1).transpose();
                 let g3: Vector3<f64> = inv.row(2).transpose();
-                ElementRest { volume: Dm.determinant() / 6.0, grads: [-(g1 + g2 + g3), g1, g2, g3] }
+                ElementRest {
+                    volume: Dm.determinant() / 6.0,
+                    grads: [-(g1 + g2 + g3), g1, g2, g3],
+                }
             })
             .collect()
     }
@@ -91,11 +98,10 @@ impl ElementRest {
     /// displacements (m). Working with H rather than F keeps small strains accurate to round-off
     /// of the strain itself instead of round-off of the positions.
     pub fn displacement_gradient(&self, u: &[Vector3<f64>; 4]) -> Matrix3<f64> {
-        let mut H = Matrix3::zeros();
-        for i in 0..4 {
-            H += u[i] * self.grads[i].transpose();
-        }
-        H
+        u.iter()
+            .zip(&self.grads)
+            .map(|(ui, gi)| ui * gi.transpose())
+            .sum()
     }
 }
 
@@ -112,7 +118,11 @@ pub struct ElementEval {
 
 impl Default for ElementEval {
     fn default() -> Self {
-        ElementEval { energy: 0.0, gradient: [0.0; 12], hessian: [0.0; 144] }
+        ElementEval {
+            energy: 0.0,
+            gradient: [0.0; 12],
+            hessian: [0.0; 144],
+        }
     }
 }
 
@@ -191,7 +201,11 @@ pub fn signed_svd(F: &Matrix3<f64>) -> (Matrix3<f64>, Vector3<f64>, Matrix3<f64>
 fn corotated_strain(R: &Matrix3<f64>, H: &Matrix3<f64>) -> Matrix3<f64> {
     let cos_theta = 0.5 * (R.trace() - 1.0);
     let sym_r = if cos_theta > 0.0 {
-        let w = Vector3::new(R[(2, 1)] - R[(1, 2)], R[(0, 2)] - R[(2, 0)], R[(1, 0)] - R[(0, 1)]) * 0.5;
+        let w = Vector3::new(
+            R[(2, 1)] - R[(1, 2)],
+            R[(0, 2)] - R[(2, 0)],
+            R[(1, 0)] - R[(0, 1)],
+        ) * 0.5;
         -(Matrix3::identity() * w.norm_squared() - w * w.transpose()) / (1.0 + cos_theta)
     } else {
         0.5 * (R + R.transpose()) - Matrix3::identity()
@@ -210,7 +224,11 @@ pub fn polar_rotation(F: &Matrix3<f64>) -> Matrix3<f64> {
 /// i.e. ½ ε:C:ε with ε = S − I. Its tangent is exact except that the rotational (twist)
 /// eigenvalues (ψᵢ + ψⱼ)/(sᵢ + sⱼ) are clamped at zero where compression makes them negative,
 /// which keeps every element stiffness positive semi-definite (Teran et al. 2005).
-fn corotated(mat: &Material, He: &Matrix3<f64>, tangent: Option<&mut Tangent>) -> (f64, Matrix3<f64>) {
+fn corotated(
+    mat: &Material,
+    He: &Matrix3<f64>,
+    tangent: Option<&mut Tangent>,
+) -> (f64, Matrix3<f64>) {
     let (U, s, V) = signed_svd(&(Matrix3::identity() + He));
     let (mu, lambda) = (mat.mu, mat.lambda);
     let R = U * V.transpose();
@@ -273,7 +291,9 @@ pub fn element_eval(
     let (psi, P) = match model {
         // σ = C:(sym H − ε*); the tangent does not depend on ε*.
         ElasticModel::Linear => constitutive(model, mat, &(H - offset), t),
-        ElasticModel::Corotated if offset.iter().all(|v| *v == 0.0) => constitutive(model, mat, &H, t),
+        ElasticModel::Corotated if offset.iter().all(|v| *v == 0.0) => {
+            constitutive(model, mat, &H, t)
+        }
         ElasticModel::Corotated => {
             let A = offset_inverse(offset);
             // Fe − I = (I + H) A − I = (H − ε*) A, formed without cancellation.
@@ -344,28 +364,49 @@ pub fn element_stress(
 
 /// A = (I + ε*)⁻¹ for a strain offset ε* (a physical offset is far from −I, so the inverse exists).
 fn offset_inverse(offset: &Matrix3<f64>) -> Matrix3<f64> {
-    (Matrix3::identity() + offset).try_inverse().unwrap_or_else(Matrix3::identity)
+    (Matrix3::identity() + offset)
+        .try_inverse()
+        .unwrap_or_else(Matrix3::identity)
 }
 
 /// Symmetric tensor to Voigt order xx yy zz yz xz xy.
 pub fn to_voigt(s: &Matrix3<f64>) -> [f64; 6] {
-    [s[(0, 0)], s[(1, 1)], s[(2, 2)], s[(1, 2)], s[(0, 2)], s[(0, 1)]]
+    [
+        s[(0, 0)],
+        s[(1, 1)],
+        s[(2, 2)],
+        s[(1, 2)],
+        s[(0, 2)],
+        s[(0, 1)],
+    ]
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    const ICE: Material = Material { lambda: 8.64e10, mu: 3.70e10, density: 916.0 };
+    const ICE: Material = Material {
+        lambda: 8.64e10,
+        mu: 3.70e10,
+        density: 916.0,
+    };
 
     fn tet() -> (ElementRest, [Vector3<f64>; 4]) {
         let mesh = TetMesh::from_arrays(
-            &[[0.0, 0.0, 0.0], [0.02, 0.001, 0.0], [0.003, 0.018, 0.002], [0.001, 0.002, 0.021]],
+            &[
+                [0.0, 0.0, 0.0],
+                [0.02, 0.001, 0.0],
+                [0.003, 0.018, 0.002],
+                [0.001, 0.002, 0.021],
+            ],
             vec![[0, 1, 2, 3]],
         )
         .unwrap();
         let rest = ElementRest::of_mesh(&mesh)[0];
-        (rest, [mesh.rest[0], mesh.rest[1], mesh.rest[2], mesh.rest[3]])
+        (
+            rest,
+            [mesh.rest[0], mesh.rest[1], mesh.rest[2], mesh.rest[3]],
+        )
     }
 
     /// Gradient and Hessian against central finite differences of the energy / gradient.
@@ -391,7 +432,11 @@ mod tests {
             element_eval(model, &ICE, &rest, &xm, &offset, false, &mut em);
             let fd = (ep.energy - em.energy) / (2.0 * h);
             // Energy differences lose ~8 digits to cancellation at h = 1e-9: 1e-5 relative.
-            assert!((fd - e.gradient[d]).abs() <= 1e-5 * scale, "{model:?} grad {d}: {fd} vs {}", e.gradient[d]);
+            assert!(
+                (fd - e.gradient[d]).abs() <= 1e-5 * scale,
+                "{model:?} grad {d}: {fd} vs {}",
+                e.gradient[d]
+            );
             for c in 0..12 {
                 let fdh = (ep.gradient[c] - em.gradient[c]) / (2.0 * h);
                 assert!(
@@ -414,7 +459,8 @@ mod tests {
         // Stretched state: all twist eigenvalues positive, so the tangent is exact.
         let stretch = Matrix3::identity() * -0.05;
         check_derivatives(ElasticModel::Corotated, stretch, 0.01);
-        let sym = Matrix3::new(0.01, 0.002, 0.0, 0.002, -0.004, 0.001, 0.0, 0.001, 0.003) - Matrix3::identity() * 0.05;
+        let sym = Matrix3::new(0.01, 0.002, 0.0, 0.002, -0.004, 0.001, 0.0, 0.001, 0.003)
+            - Matrix3::identity() * 0.05;
         check_derivatives(ElasticModel::Corotated, sym, 0.02);
     }
 
@@ -425,7 +471,15 @@ mod tests {
         let x = x0.map(|p| p * e);
         let offset = Matrix3::identity() * e;
         let mut out = ElementEval::default();
-        element_eval(ElasticModel::Corotated, &ICE, &rest, &x, &offset, false, &mut out);
+        element_eval(
+            ElasticModel::Corotated,
+            &ICE,
+            &rest,
+            &x,
+            &offset,
+            false,
+            &mut out,
+        );
         let gmax = out.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
         // Forces of a 2 % strain would be ~1e7 N here; round-off leaves ~1e-16 of that.
         assert!(gmax < 1e-6, "{gmax}");

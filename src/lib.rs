@@ -3,13 +3,13 @@
 //! Linear tetrahedra, backward-Euler dynamics with Newton iterations, sparse Cholesky or
 //! preconditioned CG. SI units throughout (m, kg, s, Pa, N, J).
 
+pub mod assembly;
+pub mod bench;
 pub mod fem;
 pub mod mesh;
-pub mod assembly;
-pub mod solver;
-pub mod physics;
-pub mod sim;
-pub mod scene;
 pub mod output;
+pub mod physics;
 pub mod run;
-pub mod bench;
+pub mod scene;
+pub mod sim;
+pub mod solver;

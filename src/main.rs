@@ -4,17 +4,21 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use icefem::bench;
 use icefem::run::{run, Progress, RunOptions};
-use icefem::solver::LinearSolverKind;
 use icefem::scene::Scene;
+use icefem::solver::LinearSolverKind;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "icefem", version, about = "Implicit FEM simulator of ice cracking as it freezes")]
+#[command(
+    name = "icefem",
+    version,
+    about = "Implicit FEM simulator of ice cracking as it freezes"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -67,12 +71,31 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scene, output, end_time, dt, resume } => {
-            let options = RunOptions { output: resume.clone().or(output), end_time, dt, resume: resume.is_some() };
+        Command::Run {
+            scene,
+            output,
+            end_time,
+            dt,
+            resume,
+        } => {
+            let options = RunOptions {
+                output: resume.clone().or(output),
+                end_time,
+                dt,
+                resume: resume.is_some(),
+            };
             run_command(&scene, &options)
         }
-        Command::Bench { tets, steps, repeats, solver, single } => bench_command(&tets, steps, repeats, solver, single),
-        Command::Info { file } => icefem::output::describe(&file).map(|text| print!("{text}")).map_err(Into::into),
+        Command::Bench {
+            tets,
+            steps,
+            repeats,
+            solver,
+            single,
+        } => bench_command(&tets, steps, repeats, solver, single),
+        Command::Info { file } => icefem::output::describe(&file)
+            .map(|text| print!("{text}"))
+            .map_err(Into::into),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
@@ -97,13 +120,31 @@ impl From<SolverArg> for LinearSolverKind {
 
 const BENCH_FIELDS: usize = 14;
 
-fn bench_command(sizes: &[usize], steps: usize, repeats: usize, solver: SolverArg, single: Option<usize>) -> Result<()> {
+fn bench_command(
+    sizes: &[usize],
+    steps: usize,
+    repeats: usize,
+    solver: SolverArg,
+    single: Option<usize>,
+) -> Result<()> {
     if let Some(tets) = single {
         let r = bench::run_size(tets, steps.max(1), solver.into())?;
         let m = r.peak_memory.unwrap_or(0) as f64;
         let row = [
-            r.tets as f64, r.dofs as f64, r.nnz as f64, r.factor_nnz as f64, r.t_model, r.t_pattern, r.t_symbolic,
-            r.t_assembly, r.t_factorization, r.t_solve, r.t_step, r.newton_iterations as f64, r.linear_iterations as f64, m,
+            r.tets as f64,
+            r.dofs as f64,
+            r.nnz as f64,
+            r.factor_nnz as f64,
+            r.t_model,
+            r.t_pattern,
+            r.t_symbolic,
+            r.t_assembly,
+            r.t_factorization,
+            r.t_solve,
+            r.t_step,
+            r.newton_iterations as f64,
+            r.linear_iterations as f64,
+            m,
         ];
         println!("{}", row.map(|v| v.to_string()).join(" "));
         return Ok(());
@@ -121,15 +162,31 @@ fn bench_command(sizes: &[usize], steps: usize, repeats: usize, solver: SolverAr
         let mut rows: Vec<[f64; BENCH_FIELDS]> = Vec::new();
         for _ in 0..repeats.max(1) {
             let out = std::process::Command::new(&exe)
-                .args(["bench", "--single", &tets.to_string(), "--steps", &steps.to_string(), "--solver", solver_name])
+                .args([
+                    "bench",
+                    "--single",
+                    &tets.to_string(),
+                    "--steps",
+                    &steps.to_string(),
+                    "--solver",
+                    solver_name,
+                ])
                 .output()
                 .context("running a benchmark process")?;
             if !out.status.success() {
-                anyhow::bail!("benchmark at {tets} tets failed: {}", String::from_utf8_lossy(&out.stderr));
+                anyhow::bail!(
+                    "benchmark at {tets} tets failed: {}",
+                    String::from_utf8_lossy(&out.stderr)
+                );
             }
             let text = String::from_utf8_lossy(&out.stdout);
-            let values: Vec<f64> = text.split_whitespace().filter_map(|v| v.parse().ok()).collect();
-            let row: [f64; BENCH_FIELDS] = values.try_into().map_err(|_| anyhow::anyhow!("malformed benchmark output: {text}"))?;
+            let values: Vec<f64> = text
+                .split_whitespace()
+                .filter_map(|v| v.parse().ok())
+                .collect();
+            let row: [f64; BENCH_FIELDS] = values
+                .try_into()
+                .map_err(|_| anyhow::anyhow!("malformed benchmark output: {text}"))?;
             rows.push(row);
         }
         let med = |k: usize| {
@@ -145,7 +202,7 @@ fn bench_command(sizes: &[usize], steps: usize, repeats: usize, solver: SolverAr
     Ok(())
 }
 
-fn run_command(scene_path: &PathBuf, options: &RunOptions) -> Result<()> {
+fn run_command(scene_path: &Path, options: &RunOptions) -> Result<()> {
     let scene = Scene::load(scene_path)?;
     let interrupt = Arc::new(AtomicBool::new(false));
     {
@@ -174,8 +231,10 @@ fn run_command(scene_path: &PathBuf, options: &RunOptions) -> Result<()> {
     if terminal {
         bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
         bar.set_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} steps  t = {msg}  [{elapsed_precise} < {eta}]")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} steps  t = {msg}  [{elapsed_precise} < {eta}]",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
     }
     let start = Instant::now();
@@ -185,7 +244,8 @@ fn run_command(scene_path: &PathBuf, options: &RunOptions) -> Result<()> {
             bar.set_length(p.total_steps);
             bar.set_position(p.step);
             bar.set_message(format!("{:.4} s", p.time));
-        } else if p.step == p.total_steps || last_log.elapsed().as_secs_f64() >= 2.0 || p.step <= 1 {
+        } else if p.step == p.total_steps || last_log.elapsed().as_secs_f64() >= 2.0 || p.step <= 1
+        {
             last_log = Instant::now();
             eprintln!(
                 "step {}/{}  t = {:.4} s  newton {}  residual {:.2e} N  energy {:.4e} J  {:.3} s/step",
@@ -212,7 +272,11 @@ fn run_command(scene_path: &PathBuf, options: &RunOptions) -> Result<()> {
         summary.output.display()
     );
     if summary.interrupted {
-        eprintln!("resume with: icefem run {} --resume {}", scene_path.display(), summary.output.display());
+        eprintln!(
+            "resume with: icefem run {} --resume {}",
+            scene_path.display(),
+            summary.output.display()
+        );
         std::process::exit(130);
     }
     Ok(())

@@ -137,9 +137,9 @@ pub struct StepStats {
     pub dt: f64,
     /// Newton iterations taken by the step.
     pub newton_iterations: u32,
-    /// Linear-solver iterations summed over the step (0 for direct solvers).
+    /// Linear-solver iterations summed over the step (one per Newton iteration for Cholesky).
     pub linear_iterations: u32,
-    /// Final nonlinear residual norm (solver units).
+    /// Final Newton residual, max |free-dof force imbalance| (N).
     pub residual: f64,
     /// Total energy (J).
     pub energy: f64,

@@ -86,17 +86,34 @@ pub fn run(
     let mut settings = scene.settings;
     if let Some(dt) = options.dt {
         if !(dt.is_finite() && dt > 0.0) {
-            return Err(RunError::Scene(SceneError::Invalid { path: scene.path.clone(), field: "--dt".into(), message: format!("must be finite and > 0, got {dt}") }));
+            return Err(RunError::Scene(SceneError::Invalid {
+                path: scene.path.clone(),
+                field: "--dt".into(),
+                message: format!("must be finite and > 0, got {dt}"),
+            }));
         }
         settings.dt = dt;
     }
     let end_time = options.end_time.unwrap_or(scene.end_time);
     if !(end_time.is_finite() && end_time > 0.0) {
-        return Err(RunError::Scene(SceneError::Invalid { path: scene.path.clone(), field: "--end-time".into(), message: format!("must be finite and > 0, got {end_time}") }));
+        return Err(RunError::Scene(SceneError::Invalid {
+            path: scene.path.clone(),
+            field: "--end-time".into(),
+            message: format!("must be finite and > 0, got {end_time}"),
+        }));
     }
-    let output = options.output.clone().unwrap_or_else(|| scene.output.clone());
+    let output = options
+        .output
+        .clone()
+        .unwrap_or_else(|| scene.output.clone());
     let mut sim = Simulation::new(scene.model.clone(), settings)?;
-    let rest: Vec<[f64; 3]> = sim.model.mesh.rest.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let rest: Vec<[f64; 3]> = sim
+        .model
+        .mesh
+        .rest
+        .iter()
+        .map(|p| [p.x, p.y, p.z])
+        .collect();
     let mut writer = if options.resume {
         let (writer, frame) = OutputWriter::resume(&output)?;
         restore(&mut sim, &output, &frame, &rest, &scene.text)?;
@@ -114,7 +131,10 @@ pub fn run(
         writer
     };
     let total_steps = step_count(end_time, settings.dt);
-    let mut summary = RunSummary { output: output.clone(), ..Default::default() };
+    let mut summary = RunSummary {
+        output: output.clone(),
+        ..Default::default()
+    };
     while sim.state.step < total_steps {
         if interrupt.load(Ordering::SeqCst) {
             summary.interrupted = true;
@@ -129,7 +149,12 @@ pub fn run(
         if sim.state.step % scene.output_every == 0 || last || interrupt.load(Ordering::SeqCst) {
             write_frame(&mut writer, &sim, &rest, false)?;
         }
-        progress(&Progress { step: sim.state.step, total_steps, time: sim.state.time, report: &report });
+        progress(&Progress {
+            step: sim.state.step,
+            total_steps,
+            time: sim.state.time,
+            report: &report,
+        });
     }
     summary.final_step = sim.state.step;
     summary.final_time = sim.state.time;
@@ -166,7 +191,12 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
     rows
 }
 
-fn write_frame(writer: &mut OutputWriter, sim: &Simulation, rest: &[[f64; 3]], first: bool) -> Result<(), OutputError> {
+fn write_frame(
+    writer: &mut OutputWriter,
+    sim: &Simulation,
+    rest: &[[f64; 3]],
+    first: bool,
+) -> Result<(), OutputError> {
     let positions = sim.positions();
     let stress = sim.stresses();
     let eigenstrain = &sim.model.elasticity.eigenstrain;
@@ -179,10 +209,18 @@ fn write_frame(writer: &mut OutputWriter, sim: &Simulation, rest: &[[f64; 3]], f
         tets: &sim.model.mesh.tets,
         topology_changed: first,
         stress: &stress,
-        element_fields: &[Field { name: "eigenstrain", cols: 1, data: eigenstrain }],
+        element_fields: &[Field {
+            name: "eigenstrain",
+            cols: 1,
+            data: eigenstrain,
+        }],
         // The displacement is stored exactly (positions = rest + u are rounded), so that a
         // resumed run continues bit for bit.
-        node_fields: &[Field { name: "displacement", cols: 3, data: &sim.state.u }],
+        node_fields: &[Field {
+            name: "displacement",
+            cols: 3,
+            data: &sim.state.u,
+        }],
     })
 }
 
@@ -193,16 +231,28 @@ fn restore(
     rest: &[[f64; 3]],
     scene_text: &str,
 ) -> Result<(), RunError> {
-    let bad = |reason: String| RunError::Resume { path: path.into(), reason };
+    let bad = |reason: String| RunError::Resume {
+        path: path.into(),
+        reason,
+    };
     if frame.scene_text != scene_text {
-        return Err(bad("it was written from a different scene text (resume needs the same scene)".into()));
+        return Err(bad(
+            "it was written from a different scene text (resume needs the same scene)".into(),
+        ));
     }
     if frame.rest_positions.as_slice() != rest || frame.tets != sim.model.mesh.tets {
         return Err(bad("its mesh differs from the scene's mesh".into()));
     }
     let n = 3 * rest.len();
-    let field = |name: &str| frame.node_fields.iter().find(|f| f.0 == name && f.1 == 3 && f.2.len() == n).map(|f| f.2.clone());
-    let u = field("displacement").ok_or_else(|| bad("the last complete frame has no node field `displacement`".into()))?;
+    let field = |name: &str| {
+        frame
+            .node_fields
+            .iter()
+            .find(|f| f.0 == name && f.1 == 3 && f.2.len() == n)
+            .map(|f| f.2.clone())
+    };
+    let u = field("displacement")
+        .ok_or_else(|| bad("the last complete frame has no node field `displacement`".into()))?;
     if frame.velocities.len() != rest.len() {
         return Err(bad("the velocities do not match the mesh".into()));
     }

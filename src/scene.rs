@@ -34,19 +34,35 @@ use std::path::{Path, PathBuf};
 pub enum SceneError {
     /// The scene file could not be read.
     #[error("cannot read scene file {path}: {source}")]
-    Io { path: PathBuf, #[source] source: std::io::Error },
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     /// TOML syntax error, unknown key or wrong type (the message names line and key).
     #[error("scene file {path}: {message}")]
     Parse { path: PathBuf, message: String },
     /// A value is missing or out of its allowed range.
     #[error("scene file {path}: field `{field}`: {message}")]
-    Invalid { path: PathBuf, field: String, message: String },
+    Invalid {
+        path: PathBuf,
+        field: String,
+        message: String,
+    },
     /// The mesh file could not be read.
     #[error("scene file {path}: field `mesh.file`: {source}")]
-    MeshFile { path: PathBuf, #[source] source: gmsh::GmshError },
+    MeshFile {
+        path: PathBuf,
+        #[source]
+        source: gmsh::GmshError,
+    },
     /// The mesh is not valid.
     #[error("scene file {path}: field `mesh`: {source}")]
-    Mesh { path: PathBuf, #[source] source: MeshError },
+    Mesh {
+        path: PathBuf,
+        #[source]
+        source: MeshError,
+    },
 }
 
 /// The scene file as written (all fields optional where a default exists).
@@ -232,14 +248,19 @@ pub struct Scene {
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.into(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.into(),
+            source,
+        })?;
         Scene::parse(&text, path)
     }
 
     /// Validates scene `text` as if read from `path` (mesh files are relative to its folder).
     pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
-        let raw: SceneFile =
-            toml::from_str(text).map_err(|e| SceneError::Parse { path: path.into(), message: e.to_string() })?;
+        let raw: SceneFile = toml::from_str(text).map_err(|e| SceneError::Parse {
+            path: path.into(),
+            message: e.to_string(),
+        })?;
         Validator { path }.scene(raw, text)
     }
 }
@@ -250,11 +271,19 @@ struct Validator<'a> {
 
 impl Validator<'_> {
     fn invalid(&self, field: &str, message: impl Into<String>) -> SceneError {
-        SceneError::Invalid { path: self.path.into(), field: field.into(), message: message.into() }
+        SceneError::Invalid {
+            path: self.path.into(),
+            field: field.into(),
+            message: message.into(),
+        }
     }
 
     fn finite(&self, field: &str, v: f64) -> Result<f64, SceneError> {
-        if v.is_finite() { Ok(v) } else { Err(self.invalid(field, format!("must be a finite number, got {v}"))) }
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.invalid(field, format!("must be a finite number, got {v}")))
+        }
     }
 
     fn positive(&self, field: &str, v: f64) -> Result<f64, SceneError> {
@@ -281,9 +310,15 @@ impl Validator<'_> {
     }
 
     fn region(&self, field: &str, min: [f64; 3], max: [f64; 3]) -> Result<Region, SceneError> {
-        let region = Region { min: self.vector(&format!("{field}.min"), min)?, max: self.vector(&format!("{field}.max"), max)? };
+        let region = Region {
+            min: self.vector(&format!("{field}.min"), min)?,
+            max: self.vector(&format!("{field}.max"), max)?,
+        };
         if (0..3).any(|a| region.min[a] > region.max[a]) {
-            return Err(self.invalid(&format!("{field}.min"), format!("must be ≤ max on every axis, got min {min:?}, max {max:?}")));
+            return Err(self.invalid(
+                &format!("{field}.min"),
+                format!("must be ≤ max on every axis, got min {min:?}, max {max:?}"),
+            ));
         }
         Ok(region)
     }
@@ -309,9 +344,15 @@ impl Validator<'_> {
         for (i, t) in raw.traction.iter().enumerate() {
             let field = format!("traction[{i}]");
             let region = self.region(&field, t.min, t.max)?;
-            let traction = Traction { region, traction: self.vector(&format!("{field}.traction"), t.traction)? };
+            let traction = Traction {
+                region,
+                traction: self.vector(&format!("{field}.traction"), t.traction)?,
+            };
             if crate::physics::loads::traction_faces(&mesh, &region).0 == 0 {
-                return Err(self.invalid(&field, "the region contains no boundary-face centroid of the mesh"));
+                return Err(self.invalid(
+                    &field,
+                    "the region contains no boundary-face centroid of the mesh",
+                ));
             }
             tractions.push(traction);
         }
@@ -325,11 +366,17 @@ impl Validator<'_> {
         let solver = &raw.solver;
         let tolerance = solver.tolerance.unwrap_or(1e-9);
         if !(tolerance > 0.0 && tolerance < 1.0) {
-            return Err(self.invalid("solver.tolerance", format!("must be in (0, 1), got {tolerance}")));
+            return Err(self.invalid(
+                "solver.tolerance",
+                format!("must be in (0, 1), got {tolerance}"),
+            ));
         }
         let cg_tolerance = solver.cg_tolerance.unwrap_or(1e-12);
         if !(cg_tolerance > 0.0 && cg_tolerance < 1.0) {
-            return Err(self.invalid("solver.cg_tolerance", format!("must be in (0, 1), got {cg_tolerance}")));
+            return Err(self.invalid(
+                "solver.cg_tolerance",
+                format!("must be in (0, 1), got {cg_tolerance}"),
+            ));
         }
         let max_iterations = solver.max_iterations.unwrap_or(50);
         if max_iterations == 0 {
@@ -354,17 +401,32 @@ impl Validator<'_> {
             cg_max_iterations,
         };
         let elasticity = Elasticity::new(&mesh, material, model);
-        let model = Model::new(mesh, elasticity, gravity, &tractions, damping, dirichlet)
-            .map_err(|source| SceneError::Mesh { path: self.path.into(), source })?;
+        let model = Model::new(mesh, elasticity, gravity, &tractions, damping, dirichlet).map_err(
+            |source| SceneError::Mesh {
+                path: self.path.into(),
+                source,
+            },
+        )?;
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),
             None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),
         };
-        Ok(Scene { path: self.path.into(), text: text.into(), model, settings, end_time, output_every, output })
+        Ok(Scene {
+            path: self.path.into(),
+            text: text.into(),
+            model,
+            settings,
+            end_time,
+            output_every,
+            output,
+        })
     }
 
     fn mesh(&self, m: &MeshSection) -> Result<TetMesh, SceneError> {
-        let mesh_err = |source| SceneError::Mesh { path: self.path.into(), source };
+        let mesh_err = |source| SceneError::Mesh {
+            path: self.path.into(),
+            source,
+        };
         match (&m.box_, &m.file) {
             (Some(b), None) => {
                 if m.scale.is_some() {
@@ -379,7 +441,10 @@ impl Validator<'_> {
                 }
                 let tpc = b.tets_per_cell.unwrap_or(6);
                 if tpc != 5 && tpc != 6 {
-                    return Err(self.invalid("mesh.box.tets_per_cell", format!("must be 5 or 6, got {tpc}")));
+                    return Err(self.invalid(
+                        "mesh.box.tets_per_cell",
+                        format!("must be 5 or 6, got {tpc}"),
+                    ));
                 }
                 box_mesh(b.origin, b.size, b.cells, tpc).map_err(mesh_err)
             }
@@ -387,11 +452,17 @@ impl Validator<'_> {
                 let scale = self.positive("mesh.scale", m.scale.unwrap_or(1.0))?;
                 let file = self.path.parent().unwrap_or(Path::new("")).join(file);
                 let (nodes, tets) =
-                    gmsh::read_msh(&file).map_err(|source| SceneError::MeshFile { path: self.path.into(), source })?;
+                    gmsh::read_msh(&file).map_err(|source| SceneError::MeshFile {
+                        path: self.path.into(),
+                        source,
+                    })?;
                 let nodes: Vec<[f64; 3]> = nodes.iter().map(|p| p.map(|c| c * scale)).collect();
                 TetMesh::from_arrays(&nodes, tets).map_err(mesh_err)
             }
-            _ => Err(self.invalid("mesh", "give exactly one of `box` (built-in generator) or `file` (Gmsh .msh)")),
+            _ => Err(self.invalid(
+                "mesh",
+                "give exactly one of `box` (built-in generator) or `file` (Gmsh .msh)",
+            )),
         }
     }
 
@@ -434,7 +505,12 @@ impl Validator<'_> {
                 'x' => axes[0] = true,
                 'y' => axes[1] = true,
                 'z' => axes[2] = true,
-                _ => return Err(self.invalid(&format!("{field}.axes"), format!("must be letters from \"xyz\", got {axes_text:?}"))),
+                _ => {
+                    return Err(self.invalid(
+                        &format!("{field}.axes"),
+                        format!("must be letters from \"xyz\", got {axes_text:?}"),
+                    ))
+                }
             }
         }
         if axes_text.is_empty() {
@@ -443,7 +519,10 @@ impl Validator<'_> {
         Ok(Dirichlet {
             region,
             axes,
-            displacement: self.vector(&format!("{field}.displacement"), d.displacement.unwrap_or_default())?,
+            displacement: self.vector(
+                &format!("{field}.displacement"),
+                d.displacement.unwrap_or_default(),
+            )?,
             velocity: self.vector(&format!("{field}.velocity"), d.velocity.unwrap_or_default())?,
         })
     }

@@ -3,7 +3,10 @@
 use crate::assembly::{Assembly, DofMap};
 use crate::physics::Model;
 use crate::solver::timestep::{Inertia, StepPotential};
-use crate::solver::{minimize, LinearSolver, LinearSolverKind, NewtonError, NewtonParams, NewtonReport, NewtonWorkspace, Potential};
+use crate::solver::{
+    minimize, LinearSolver, LinearSolverKind, NewtonError, NewtonParams, NewtonReport,
+    NewtonWorkspace, Potential,
+};
 use std::time::Instant;
 
 /// Static equilibrium per step, or backward-Euler dynamics.
@@ -83,10 +86,19 @@ pub enum SimError {
     NoDirichlet,
     /// A Dirichlet region matched no node.
     #[error("dirichlet condition {index} (region {min:?} – {max:?}) holds no node of the mesh")]
-    EmptyDirichlet { index: usize, min: [f64; 3], max: [f64; 3] },
+    EmptyDirichlet {
+        index: usize,
+        min: [f64; 3],
+        max: [f64; 3],
+    },
     /// Newton failed in a step.
     #[error("step {step} (t = {time:.6} s): {source}")]
-    Step { step: u64, time: f64, #[source] source: NewtonError },
+    Step {
+        step: u64,
+        time: f64,
+        #[source]
+        source: NewtonError,
+    },
     /// Building the problem failed.
     #[error("set-up failed: {0}")]
     Setup(String),
@@ -119,7 +131,11 @@ impl Simulation {
     pub fn new(model: Model, settings: StepSettings) -> Result<Self, SimError> {
         for (index, bc) in model.dirichlet.iter().enumerate() {
             if bc.nodes(&model.mesh).next().is_none() {
-                return Err(SimError::EmptyDirichlet { index, min: bc.region.min.into(), max: bc.region.max.into() });
+                return Err(SimError::EmptyDirichlet {
+                    index,
+                    min: bc.region.min.into(),
+                    max: bc.region.max.into(),
+                });
             }
         }
         let constrained = model.constrained_dofs();
@@ -127,17 +143,31 @@ impl Simulation {
             return Err(SimError::NoDirichlet);
         }
         let assembly = Assembly::new(&model.mesh, DofMap::new(&constrained));
-        let linear = LinearSolver::new(settings.linear, &assembly, settings.cg_tolerance, settings.cg_max_iterations)?;
+        let linear = LinearSolver::new(
+            settings.linear,
+            &assembly,
+            settings.cg_tolerance,
+            settings.cg_max_iterations,
+        )?;
         let workspace = NewtonWorkspace::new(&assembly);
         let n = 3 * model.num_nodes();
-        let state = State { u: vec![0.0; n], v: vec![0.0; n], time: 0.0, step: 0 };
+        let state = State {
+            u: vec![0.0; n],
+            v: vec![0.0; n],
+            time: 0.0,
+            step: 0,
+        };
         let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
         Ok(Simulation {
             element_energy: vec![0.0; model.mesh.num_tets()],
             scratch: vec![0.0; assembly.dofs().num_free()],
             previous: vec![0.0; n],
             predictor: vec![0.0; n],
-            damping_stiffness: if with_beta { vec![0.0; assembly.nnz()] } else { Vec::new() },
+            damping_stiffness: if with_beta {
+                vec![0.0; assembly.nnz()]
+            } else {
+                Vec::new()
+            },
             model,
             state,
             settings,
@@ -165,7 +195,12 @@ impl Simulation {
         self.previous.copy_from_slice(&self.state.u);
         let mut u = self.state.u.clone();
         if dynamic {
-            for ((p, u0), v) in self.predictor.iter_mut().zip(&self.state.u).zip(&self.state.v) {
+            for ((p, u0), v) in self
+                .predictor
+                .iter_mut()
+                .zip(&self.state.u)
+                .zip(&self.state.v)
+            {
                 *p = u0 + h * v;
             }
             u.copy_from_slice(&self.predictor);
@@ -189,8 +224,20 @@ impl Simulation {
             element_energy: &mut self.element_energy,
             scratch: &mut self.scratch,
         };
-        let newton = minimize(&mut potential, &mut u, &self.assembly, &mut self.linear, &self.settings.newton, force_floor, &mut self.workspace)
-            .map_err(|source| SimError::Step { step: self.state.step + 1, time: t_new, source })?;
+        let newton = minimize(
+            &mut potential,
+            &mut u,
+            &self.assembly,
+            &mut self.linear,
+            &self.settings.newton,
+            force_floor,
+            &mut self.workspace,
+        )
+        .map_err(|source| SimError::Step {
+            step: self.state.step + 1,
+            time: t_new,
+            source,
+        })?;
         if dynamic {
             for ((v, un), u0) in self.state.v.iter_mut().zip(&u).zip(&self.previous) {
                 *v = (un - u0) / h;
@@ -200,7 +247,11 @@ impl Simulation {
         self.state.time = t_new;
         self.state.step += 1;
         let energies = self.energies();
-        Ok(StepReport { newton, energies, t_step: start.elapsed().as_secs_f64() })
+        Ok(StepReport {
+            newton,
+            energies,
+            t_step: start.elapsed().as_secs_f64(),
+        })
     }
 
     /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.
@@ -224,7 +275,11 @@ impl Simulation {
         dofs.free_dofs()
             .iter()
             .map(|&d| {
-                let inertial = if dynamic { self.model.mass[d / 3] * self.state.v[d].abs() / h } else { 0.0 };
+                let inertial = if dynamic {
+                    self.model.mass[d / 3] * self.state.v[d].abs() / h
+                } else {
+                    0.0
+                };
                 self.model.external_force[d].abs().max(inertial)
             })
             .fold(0.0, f64::max)
@@ -235,21 +290,48 @@ impl Simulation {
         let u = &self.state.u;
         let el = &self.model.elasticity;
         let tets = &self.model.mesh.tets;
-        self.assembly.energies(|e, out| el.element(tets, u, e, false, out), &mut self.element_energy);
+        self.assembly.energies(
+            |e, out| el.element(tets, u, e, false, out),
+            &mut self.element_energy,
+        );
         let elastic = self.element_energy.iter().sum();
-        let kinetic = self.state.v.iter().enumerate().map(|(d, v)| 0.5 * self.model.mass[d / 3] * v * v).sum();
-        let potential = -self.model.external_force.iter().zip(u).map(|(f, u)| f * u).sum::<f64>();
-        Energies { kinetic, elastic, potential }
+        let kinetic = self
+            .state
+            .v
+            .iter()
+            .enumerate()
+            .map(|(d, v)| 0.5 * self.model.mass[d / 3] * v * v)
+            .sum();
+        let potential = -self
+            .model
+            .external_force
+            .iter()
+            .zip(u)
+            .map(|(f, u)| f * u)
+            .sum::<f64>();
+        Energies {
+            kinetic,
+            elastic,
+            potential,
+        }
     }
 
     /// Element stresses (Pa, Voigt xx yy zz yz xz xy) of the current state.
     pub fn stresses(&self) -> Vec<[f64; 6]> {
-        self.model.elasticity.stresses(&self.model.mesh.tets, &self.state.u)
+        self.model
+            .elasticity
+            .stresses(&self.model.mesh.tets, &self.state.u)
     }
 
     /// Current positions X + u (m).
     pub fn positions(&self) -> Vec<[f64; 3]> {
-        self.model.mesh.rest.iter().enumerate().map(|(i, p)| std::array::from_fn(|a| p[a] + self.state.u[3 * i + a])).collect()
+        self.model
+            .mesh
+            .rest
+            .iter()
+            .enumerate()
+            .map(|(i, p)| std::array::from_fn(|a| p[a] + self.state.u[3 * i + a]))
+            .collect()
     }
 
     /// Displacement of node `i` (m).

@@ -9,14 +9,22 @@ use icefem::solver::{LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
 
 /// Ice, as in the paper: λ = 8.64e10 Pa, μ = 3.70e10 Pa, ρ = 916 kg/m³.
-pub const ICE: Material = Material { lambda: 8.64e10, mu: 3.70e10, density: 916.0 };
+pub const ICE: Material = Material {
+    lambda: 8.64e10,
+    mu: 3.70e10,
+    density: 916.0,
+};
 
 /// Settings with the scene defaults.
 pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
     StepSettings {
         analysis,
         dt,
-        newton: NewtonParams { tolerance: 1e-9, step_tolerance: 1e-16, max_iterations: 50 },
+        newton: NewtonParams {
+            tolerance: 1e-9,
+            step_tolerance: 1e-16,
+            max_iterations: 50,
+        },
         linear: LinearSolverKind::Cholesky,
         cg_tolerance: 1e-12,
         cg_max_iterations: 20_000,
@@ -26,7 +34,10 @@ pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
 /// Fixes every dof of the nodes with rest `x ≤ x_max`.
 pub fn clamp_below_x(x_max: f64) -> Dirichlet {
     Dirichlet {
-        region: Region { min: Vector3::repeat(-1e30), max: Vector3::new(x_max, 1e30, 1e30) },
+        region: Region {
+            min: Vector3::repeat(-1e30),
+            max: Vector3::new(x_max, 1e30, 1e30),
+        },
         axes: [true; 3],
         displacement: Vector3::zeros(),
         velocity: Vector3::zeros(),
@@ -43,7 +54,15 @@ pub fn simulation(
     settings: StepSettings,
 ) -> Simulation {
     let elasticity = Elasticity::new(&mesh, material, model);
-    let model = Model::new(mesh, elasticity, Vector3::from(gravity), &[], None, dirichlet).unwrap();
+    let model = Model::new(
+        mesh,
+        elasticity,
+        Vector3::from(gravity),
+        &[],
+        None,
+        dirichlet,
+    )
+    .unwrap();
     Simulation::new(model, settings).unwrap()
 }
 
@@ -58,7 +77,10 @@ pub fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
 pub struct Lcg(pub u64);
 impl Lcg {
     pub fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
     }
 }

@@ -13,8 +13,10 @@ pub fn box_mesh(
     cells: [usize; 3],
     tets_per_cell: usize,
 ) -> Result<TetMesh, MeshError> {
-    if cells.iter().any(|&c| c == 0) {
-        return Err(MeshError::Generator(format!("cells must be ≥ 1 per axis, got {cells:?}")));
+    if cells.contains(&0) {
+        return Err(MeshError::Generator(format!(
+            "cells must be ≥ 1 per axis, got {cells:?}"
+        )));
     }
     if size.iter().any(|&s| !(s.is_finite() && s > 0.0)) || origin.iter().any(|o| !o.is_finite()) {
         return Err(MeshError::Generator(format!(
@@ -22,7 +24,9 @@ pub fn box_mesh(
         )));
     }
     if tets_per_cell != 5 && tets_per_cell != 6 {
-        return Err(MeshError::Generator(format!("tets_per_cell must be 5 or 6, got {tets_per_cell}")));
+        return Err(MeshError::Generator(format!(
+            "tets_per_cell must be 5 or 6, got {tets_per_cell}"
+        )));
     }
     let [nx, ny, nz] = cells;
     let node = |i: usize, j: usize, k: usize| i + (nx + 1) * (j + (ny + 1) * k);
@@ -39,10 +43,28 @@ pub fn box_mesh(
         }
     }
     // Cell corners are numbered by their bits: corner c = (c & 1, (c >> 1) & 1, (c >> 2) & 1).
-    const KUHN: [[usize; 4]; 6] =
-        [[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]];
-    const FIVE_EVEN: [[usize; 4]; 5] = [[1, 2, 4, 7], [0, 1, 2, 4], [3, 1, 2, 7], [5, 1, 4, 7], [6, 2, 4, 7]];
-    const FIVE_ODD: [[usize; 4]; 5] = [[0, 3, 5, 6], [1, 0, 3, 5], [2, 0, 3, 6], [4, 0, 5, 6], [7, 3, 5, 6]];
+    const KUHN: [[usize; 4]; 6] = [
+        [0, 1, 3, 7],
+        [0, 1, 5, 7],
+        [0, 2, 3, 7],
+        [0, 2, 6, 7],
+        [0, 4, 5, 7],
+        [0, 4, 6, 7],
+    ];
+    const FIVE_EVEN: [[usize; 4]; 5] = [
+        [1, 2, 4, 7],
+        [0, 1, 2, 4],
+        [3, 1, 2, 7],
+        [5, 1, 4, 7],
+        [6, 2, 4, 7],
+    ];
+    const FIVE_ODD: [[usize; 4]; 5] = [
+        [0, 3, 5, 6],
+        [1, 0, 3, 5],
+        [2, 0, 3, 6],
+        [4, 0, 5, 6],
+        [7, 3, 5, 6],
+    ];
     let mut tets = Vec::with_capacity(nx * ny * nz * tets_per_cell);
     for k in 0..nz {
         for j in 0..ny {

@@ -19,16 +19,28 @@ pub enum MeshError {
     Empty { nodes: usize, tets: usize },
     /// A tet refers to a node that does not exist.
     #[error("tetrahedron {tet} refers to node {node}, but the mesh has only {nodes} nodes")]
-    BadIndex { tet: usize, node: usize, nodes: usize },
+    BadIndex {
+        tet: usize,
+        node: usize,
+        nodes: usize,
+    },
     /// A node coordinate is NaN or infinite.
     #[error("node {node} has a non-finite coordinate {position:?}")]
     NonFinite { node: usize, position: [f64; 3] },
     /// A tet has (near) zero volume or repeated vertices.
     #[error("tetrahedron {tet} is degenerate (volume {volume:e} m³, vertices {vertices:?})")]
-    Degenerate { tet: usize, volume: f64, vertices: [usize; 4] },
+    Degenerate {
+        tet: usize,
+        volume: f64,
+        vertices: [usize; 4],
+    },
     /// A tet is inverted (negative signed volume).
     #[error("tetrahedron {tet} is inverted (signed volume {volume:e} m³, vertices {vertices:?}); swap two vertices")]
-    Inverted { tet: usize, volume: f64, vertices: [usize; 4] },
+    Inverted {
+        tet: usize,
+        volume: f64,
+        vertices: [usize; 4],
+    },
     /// A node is not used by any tet (it would have no mass and no stiffness).
     #[error("node {node} belongs to no tetrahedron")]
     Orphan { node: usize },
@@ -108,18 +120,28 @@ impl TetMesh {
     fn check(&self) -> Result<(), MeshError> {
         let n = self.num_nodes();
         if n == 0 || self.tets.is_empty() {
-            return Err(MeshError::Empty { nodes: n, tets: self.tets.len() });
+            return Err(MeshError::Empty {
+                nodes: n,
+                tets: self.tets.len(),
+            });
         }
         for (i, p) in self.rest.iter().enumerate() {
             if !p.iter().all(|c| c.is_finite()) {
-                return Err(MeshError::NonFinite { node: i, position: [p.x, p.y, p.z] });
+                return Err(MeshError::NonFinite {
+                    node: i,
+                    position: [p.x, p.y, p.z],
+                });
             }
         }
         let mut used = vec![false; n];
         for (t, tet) in self.tets.iter().enumerate() {
             for &v in tet {
                 if v >= n {
-                    return Err(MeshError::BadIndex { tet: t, node: v, nodes: n });
+                    return Err(MeshError::BadIndex {
+                        tet: t,
+                        node: v,
+                        nodes: n,
+                    });
                 }
                 used[v] = true;
             }
@@ -131,17 +153,28 @@ impl TetMesh {
         // of the unit scale of the mesh; 1e-12 admits aspect ratios far beyond 1e3.
         let (lo, hi) = self.bounding_box();
         let mean_volume = self.tets.len() as f64;
-        let mean_volume = ((hi - lo).iter().map(|d| d.max(f64::MIN_POSITIVE)).product::<f64>()
+        let mean_volume = ((hi - lo)
+            .iter()
+            .map(|d| d.max(f64::MIN_POSITIVE))
+            .product::<f64>()
             / mean_volume)
             .max(f64::MIN_POSITIVE);
         for (t, tet) in self.tets.iter().enumerate() {
             let volume = self.signed_volume(t);
             let repeated = (0..4).any(|a| (a + 1..4).any(|b| tet[a] == tet[b]));
             if repeated || volume.abs() <= 1e-12 * mean_volume {
-                return Err(MeshError::Degenerate { tet: t, volume, vertices: *tet });
+                return Err(MeshError::Degenerate {
+                    tet: t,
+                    volume,
+                    vertices: *tet,
+                });
             }
             if volume < 0.0 {
-                return Err(MeshError::Inverted { tet: t, volume, vertices: *tet });
+                return Err(MeshError::Inverted {
+                    tet: t,
+                    volume,
+                    vertices: *tet,
+                });
             }
         }
         Ok(())
@@ -174,7 +207,8 @@ impl TetMesh {
     /// Boundary faces (faces that belong to exactly one tet), each oriented with its normal
     /// pointing out of the body, paired with the tet it belongs to. Sorted for determinism.
     pub fn boundary_faces(&self) -> Vec<BoundaryFace> {
-        let mut faces: Vec<([usize; 3], [usize; 3], usize)> = Vec::with_capacity(self.tets.len() * 4);
+        let mut faces: Vec<([usize; 3], [usize; 3], usize)> =
+            Vec::with_capacity(self.tets.len() * 4);
         for (t, tet) in self.tets.iter().enumerate() {
             for f in TET_FACES {
                 let oriented = [tet[f[0]], tet[f[1]], tet[f[2]]];
@@ -183,7 +217,7 @@ impl TetMesh {
                 faces.push((key, oriented, t));
             }
         }
-        faces.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+        faces.sort_unstable_by_key(|f| f.0);
         let mut out = Vec::new();
         let mut i = 0;
         while i < faces.len() {
@@ -192,7 +226,10 @@ impl TetMesh {
                 j += 1;
             }
             if j - i == 1 {
-                out.push(BoundaryFace { nodes: faces[i].1, tet: faces[i].2 });
+                out.push(BoundaryFace {
+                    nodes: faces[i].1,
+                    tet: faces[i].2,
+                });
             }
             i = j;
         }
@@ -204,7 +241,14 @@ impl TetMesh {
     pub fn quality(&self) -> Vec<f64> {
         self.tets
             .iter()
-            .map(|tet| radius_ratio([self.rest[tet[0]], self.rest[tet[1]], self.rest[tet[2]], self.rest[tet[3]]]))
+            .map(|tet| {
+                radius_ratio([
+                    self.rest[tet[0]],
+                    self.rest[tet[1]],
+                    self.rest[tet[2]],
+                    self.rest[tet[3]],
+                ])
+            })
             .collect()
     }
 }
@@ -243,11 +287,17 @@ pub fn radius_ratio(x: [Vector3<f64>; 4]) -> f64 {
     if six_v == 0.0 {
         return 0.0;
     }
-    let area = |p: Vector3<f64>, q: Vector3<f64>, r: Vector3<f64>| 0.5 * (q - p).cross(&(r - p)).norm();
-    let surface = area(x[0], x[1], x[2]) + area(x[0], x[1], x[3]) + area(x[0], x[2], x[3]) + area(x[1], x[2], x[3]);
+    let area =
+        |p: Vector3<f64>, q: Vector3<f64>, r: Vector3<f64>| 0.5 * (q - p).cross(&(r - p)).norm();
+    let surface = area(x[0], x[1], x[2])
+        + area(x[0], x[1], x[3])
+        + area(x[0], x[2], x[3])
+        + area(x[1], x[2], x[3]);
     let r_in = 0.5 * six_v / surface; // 3V / S
-    // Circumradius: |a|²(b×c) + |b|²(c×a) + |c|²(a×b) over 2·(6V)... (standard formula).
-    let num = a.norm_squared() * b.cross(&c) + b.norm_squared() * c.cross(&a) + c.norm_squared() * a.cross(&b);
+                                      // Circumradius: |a|²(b×c) + |b|²(c×a) + |c|²(a×b) over 2·(6V)... (standard formula).
+    let num = a.norm_squared() * b.cross(&c)
+        + b.norm_squared() * c.cross(&a)
+        + c.norm_squared() * a.cross(&b);
     let r_circ = num.norm() / (2.0 * six_v);
     3.0 * r_in / r_circ
 }
@@ -258,7 +308,12 @@ mod tests {
 
     fn unit_tet() -> TetMesh {
         TetMesh::from_arrays(
-            &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            &[
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
             vec![[0, 1, 2, 3]],
         )
         .unwrap()
@@ -267,7 +322,12 @@ mod tests {
     #[test]
     fn inverted_tet_is_an_error_naming_it() {
         let err = TetMesh::from_arrays(
-            &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            &[
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
             vec![[0, 2, 1, 3]],
         )
         .unwrap_err();

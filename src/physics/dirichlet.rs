@@ -21,7 +21,11 @@ pub struct Dirichlet {
 impl Dirichlet {
     /// Nodes this condition holds.
     pub fn nodes<'a>(&'a self, mesh: &'a TetMesh) -> impl Iterator<Item = usize> + 'a {
-        mesh.rest.iter().enumerate().filter(|(_, p)| self.region.contains(p)).map(|(i, _)| i)
+        mesh.rest
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| self.region.contains(p))
+            .map(|(i, _)| i)
     }
 
     /// Marks the constrained dofs in `mask`.

@@ -21,7 +21,12 @@ pub struct Elasticity {
 impl Elasticity {
     /// Elasticity of `mesh` with zero eigenstrain.
     pub fn new(mesh: &TetMesh, material: Material, model: ElasticModel) -> Self {
-        Elasticity { material, model, rest: ElementRest::of_mesh(mesh), eigenstrain: vec![0.0; mesh.num_tets()] }
+        Elasticity {
+            material,
+            model,
+            rest: ElementRest::of_mesh(mesh),
+            eigenstrain: vec![0.0; mesh.num_tets()],
+        }
     }
 
     /// Displacements of the four vertices of `tet` from the global dof vector `u` (m).
@@ -30,9 +35,24 @@ impl Elasticity {
     }
 
     /// Energy, gradient and optionally stiffness of element `e` for displacements `u`.
-    pub fn element(&self, tets: &[[usize; 4]], u: &[f64], e: usize, with_hessian: bool, out: &mut ElementEval) {
+    pub fn element(
+        &self,
+        tets: &[[usize; 4]],
+        u: &[f64],
+        e: usize,
+        with_hessian: bool,
+        out: &mut ElementEval,
+    ) {
         let offset = Matrix3::identity() * self.eigenstrain[e];
-        element_eval(self.model, &self.material, &self.rest[e], &Self::local(u, &tets[e]), &offset, with_hessian, out);
+        element_eval(
+            self.model,
+            &self.material,
+            &self.rest[e],
+            &Self::local(u, &tets[e]),
+            &offset,
+            with_hessian,
+            out,
+        );
     }
 
     /// Cauchy stress (Pa, Voigt xx yy zz yz xz xy) of every element.
@@ -42,7 +62,13 @@ impl Elasticity {
             .into_par_iter()
             .map(|e| {
                 let offset = Matrix3::identity() * self.eigenstrain[e];
-                element_stress(self.model, &self.material, &self.rest[e], &Self::local(u, &tets[e]), &offset)
+                element_stress(
+                    self.model,
+                    &self.material,
+                    &self.rest[e],
+                    &Self::local(u, &tets[e]),
+                    &offset,
+                )
             })
             .collect()
     }

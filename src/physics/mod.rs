@@ -73,7 +73,14 @@ impl Model {
         for t in tractions {
             loads::add_traction(&mesh, t, &mut external_force);
         }
-        Ok(Model { mesh, elasticity, mass, external_force, damping, dirichlet })
+        Ok(Model {
+            mesh,
+            elasticity,
+            mass,
+            external_force,
+            damping,
+            dirichlet,
+        })
     }
 
     /// Number of nodes.

@@ -3,12 +3,16 @@
 //! Jacobi-preconditioned conjugate gradients.
 
 use crate::assembly::Assembly;
+use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltError as DenseLltError;
-use faer::matrix_free::conjugate_gradient::{conjugate_gradient, conjugate_gradient_scratch, CgParams};
+use faer::matrix_free::conjugate_gradient::{
+    conjugate_gradient, conjugate_gradient_scratch, CgParams,
+};
 use faer::matrix_free::InitialGuessStatus;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering};
-use faer::diag::Diag;
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering,
+};
 use faer::{Conj, MatMut, MatRef, Par, Side};
 use std::time::Instant;
 
@@ -52,17 +56,34 @@ pub struct LinearStats {
 }
 
 /// A linear solver bound to one sparsity pattern.
+// One instance per simulation: the size difference between the variants does not matter.
+#[allow(clippy::large_enum_variant)]
 pub enum LinearSolver {
     /// Cholesky with its symbolic analysis, factor storage and workspace kept between calls.
-    Cholesky { symbolic: SymbolicCholesky<usize>, l_values: Vec<f64>, work: MemBuffer, t_symbolic: f64 },
+    Cholesky {
+        symbolic: SymbolicCholesky<usize>,
+        l_values: Vec<f64>,
+        work: MemBuffer,
+        t_symbolic: f64,
+    },
     /// Preconditioned CG.
-    Cg { tolerance: f64, max_iterations: usize, inv_diag: Vec<f64>, work: MemBuffer },
+    Cg {
+        tolerance: f64,
+        max_iterations: usize,
+        inv_diag: Vec<f64>,
+        work: MemBuffer,
+    },
 }
 
 impl LinearSolver {
     /// Prepares a solver for the pattern of `assembly`: the symbolic analysis for Cholesky (done
     /// here once, reused by every [`LinearSolver::solve`]), the workspace for CG.
-    pub fn new(kind: LinearSolverKind, assembly: &Assembly, cg_tolerance: f64, cg_max_iterations: usize) -> Result<Self, LinearError> {
+    pub fn new(
+        kind: LinearSolverKind,
+        assembly: &Assembly,
+        cg_tolerance: f64,
+        cg_max_iterations: usize,
+    ) -> Result<Self, LinearError> {
         let n = assembly.dofs().num_free();
         match kind {
             LinearSolverKind::Cholesky => {
@@ -77,14 +98,31 @@ impl LinearSolver {
                 let req = symbolic
                     .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
                     .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
-                let work = MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
+                let work =
+                    MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
                 let l_values = vec![0.0; symbolic.len_val()];
-                Ok(LinearSolver::Cholesky { symbolic, l_values, work, t_symbolic: start.elapsed().as_secs_f64() })
+                Ok(LinearSolver::Cholesky {
+                    symbolic,
+                    l_values,
+                    work,
+                    t_symbolic: start.elapsed().as_secs_f64(),
+                })
             }
             LinearSolverKind::Cg => {
-                let req = conjugate_gradient_scratch::<f64>(Diag::<f64>::zeros(n).as_ref(), assembly.matrix(&vec![0.0; assembly.nnz()]), 1, Par::Seq);
-                let work = MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
-                Ok(LinearSolver::Cg { tolerance: cg_tolerance, max_iterations: cg_max_iterations, inv_diag: vec![0.0; n], work })
+                let req = conjugate_gradient_scratch::<f64>(
+                    Diag::<f64>::zeros(n).as_ref(),
+                    assembly.matrix(&vec![0.0; assembly.nnz()]),
+                    1,
+                    Par::Seq,
+                );
+                let work =
+                    MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
+                Ok(LinearSolver::Cg {
+                    tolerance: cg_tolerance,
+                    max_iterations: cg_max_iterations,
+                    inv_diag: vec![0.0; n],
+                    work,
+                })
             }
         }
     }
@@ -107,25 +145,60 @@ impl LinearSolver {
 
     /// Solves `A x = b` for the matrix with `assembly`'s pattern and the given values; `x` is
     /// overwritten (its input is ignored).
-    pub fn solve(&mut self, assembly: &Assembly, values: &[f64], b: &[f64], x: &mut [f64]) -> Result<LinearStats, LinearError> {
+    pub fn solve(
+        &mut self,
+        assembly: &Assembly,
+        values: &[f64],
+        b: &[f64],
+        x: &mut [f64],
+    ) -> Result<LinearStats, LinearError> {
         let a = assembly.matrix(values);
         let n = b.len();
         match self {
-            LinearSolver::Cholesky { symbolic, l_values, work, .. } => {
+            LinearSolver::Cholesky {
+                symbolic,
+                l_values,
+                work,
+                ..
+            } => {
                 let start = Instant::now();
                 let stack = MemStack::new(work);
                 let llt = symbolic
-                    .factorize_numeric_llt::<f64>(l_values, a, Side::Lower, Default::default(), Par::Seq, stack, Default::default())
+                    .factorize_numeric_llt::<f64>(
+                        l_values,
+                        a,
+                        Side::Lower,
+                        Default::default(),
+                        Par::Seq,
+                        stack,
+                        Default::default(),
+                    )
                     .map_err(|e| match e {
-                        DenseLltError::NonPositivePivot { index } => LinearError::NotPositiveDefinite { pivot: index, n },
+                        DenseLltError::NonPositivePivot { index } => {
+                            LinearError::NotPositiveDefinite { pivot: index, n }
+                        }
                     })?;
                 let t_factorization = start.elapsed().as_secs_f64();
                 let start = Instant::now();
                 x.copy_from_slice(b);
-                llt.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(x, n, 1), Par::Seq, MemStack::new(work));
-                Ok(LinearStats { t_factorization, t_solve: start.elapsed().as_secs_f64(), iterations: 1 })
+                llt.solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(x, n, 1),
+                    Par::Seq,
+                    MemStack::new(work),
+                );
+                Ok(LinearStats {
+                    t_factorization,
+                    t_solve: start.elapsed().as_secs_f64(),
+                    iterations: 1,
+                })
             }
-            LinearSolver::Cg { tolerance, max_iterations, inv_diag, work } => {
+            LinearSolver::Cg {
+                tolerance,
+                max_iterations,
+                inv_diag,
+                work,
+            } => {
                 let start = Instant::now();
                 jacobi_inverse(assembly, values, inv_diag);
                 let t_factorization = start.elapsed().as_secs_f64();
@@ -153,10 +226,18 @@ impl LinearSolver {
                 );
                 let t_solve = start.elapsed().as_secs_f64();
                 match info {
-                    Ok(info) => Ok(LinearStats { t_factorization, t_solve, iterations: info.iter_count }),
-                    Err(faer::matrix_free::conjugate_gradient::CgError::NoConvergence { rel_residual, .. }) => {
-                        Err(LinearError::CgNotConverged { iterations: *max_iterations, residual: rel_residual })
-                    }
+                    Ok(info) => Ok(LinearStats {
+                        t_factorization,
+                        t_solve,
+                        iterations: info.iter_count,
+                    }),
+                    Err(faer::matrix_free::conjugate_gradient::CgError::NoConvergence {
+                        rel_residual,
+                        ..
+                    }) => Err(LinearError::CgNotConverged {
+                        iterations: *max_iterations,
+                        residual: rel_residual,
+                    }),
                     Err(e) => Err(LinearError::Faer(format!("{e:?}"))),
                 }
             }
@@ -170,7 +251,10 @@ fn jacobi_inverse(assembly: &Assembly, values: &[f64], inv_diag: &mut [f64]) {
     for (c, d) in inv_diag.iter_mut().enumerate() {
         let range = s.col_range(c);
         let rows = s.row_idx_of_col_raw(c);
-        let diag = rows.binary_search(&c).map(|k| values[range.start + k]).unwrap_or(0.0);
+        let diag = rows
+            .binary_search(&c)
+            .map(|k| values[range.start + k])
+            .unwrap_or(0.0);
         *d = if diag > 0.0 { 1.0 / diag } else { 0.0 };
     }
 }

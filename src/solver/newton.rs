@@ -54,7 +54,11 @@ pub enum NewtonError {
     Linear(#[from] LinearError),
     /// No convergence within the iteration cap.
     #[error("Newton did not converge in {iterations} iterations (residual {residual:e} N against a tolerance of {target:e} N)")]
-    NotConverged { iterations: usize, residual: f64, target: f64 },
+    NotConverged {
+        iterations: usize,
+        residual: f64,
+        target: f64,
+    },
     /// The potential became NaN or infinite.
     #[error("the state became non-finite (NaN or infinity) during Newton iteration {iteration}")]
     NonFinite { iteration: usize },
@@ -102,7 +106,12 @@ pub fn minimize(
 ) -> Result<NewtonReport, NewtonError> {
     let dofs = assembly.dofs();
     let mut report = NewtonReport::default();
-    let free_max = |g: &[f64]| dofs.free_dofs().iter().map(|&d| g[d].abs()).fold(0.0, f64::max);
+    let free_max = |g: &[f64]| {
+        dofs.free_dofs()
+            .iter()
+            .map(|&d| g[d].abs())
+            .fold(0.0, f64::max)
+    };
     for iteration in 0..=params.max_iterations {
         let start = Instant::now();
         let energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
@@ -121,7 +130,11 @@ pub fn minimize(
             return Ok(report);
         }
         if iteration == params.max_iterations {
-            return Err(NewtonError::NotConverged { iterations: iteration, residual, target });
+            return Err(NewtonError::NotConverged {
+                iterations: iteration,
+                residual,
+                target,
+            });
         }
         for (r, &d) in work.rhs.iter_mut().zip(dofs.free_dofs()) {
             *r = -work.gradient[d];
@@ -134,7 +147,12 @@ pub fn minimize(
         // Backtracking (Armijo) line search on the potential. Near convergence the decrease
         // is below the round-off of the potential itself, so a step that changes the energy
         // by less than that round-off is accepted as it is.
-        let slope: f64 = work.rhs.iter().zip(&work.direction).map(|(r, d)| -r * d).sum();
+        let slope: f64 = work
+            .rhs
+            .iter()
+            .zip(&work.direction)
+            .map(|(r, d)| -r * d)
+            .sum();
         let roundoff = 1e-13 * energy.abs().max(f64::MIN_POSITIVE);
         let mut alpha = 1.0;
         let start = Instant::now();

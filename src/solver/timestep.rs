@@ -46,7 +46,12 @@ pub struct StepPotential<'a> {
 
 impl StepPotential<'_> {
     /// Energy of the non-elastic terms, adding their gradient and Hessian if given.
-    fn add_other_terms(&mut self, u: &[f64], mut gradient: Option<&mut [f64]>, mut hessian: Option<&mut [f64]>) -> f64 {
+    fn add_other_terms(
+        &mut self,
+        u: &[f64],
+        mut gradient: Option<&mut [f64]>,
+        mut hessian: Option<&mut [f64]>,
+    ) -> f64 {
         let model = self.model;
         let mut energy = 0.0;
         for (d, (ud, f)) in u.iter().zip(&model.external_force).enumerate() {
@@ -55,7 +60,9 @@ impl StepPotential<'_> {
                 g[d] -= f;
             }
         }
-        let Some(inertia) = &self.inertia else { return energy };
+        let Some(inertia) = &self.inertia else {
+            return energy;
+        };
         let h = inertia.dt;
         let dofs = self.assembly.dofs();
         for d in 0..u.len() {
@@ -71,7 +78,11 @@ impl StepPotential<'_> {
             }
         }
         if let Some(k) = inertia.beta_stiffness {
-            let delta: Vec<f64> = dofs.free_dofs().iter().map(|&d| u[d] - inertia.previous[d]).collect();
+            let delta: Vec<f64> = dofs
+                .free_dofs()
+                .iter()
+                .map(|&d| u[d] - inertia.previous[d])
+                .collect();
             self.assembly.multiply(k, &delta, self.scratch);
             for (i, &d) in dofs.free_dofs().iter().enumerate() {
                 energy += 0.5 * delta[i] * self.scratch[i] / h;
@@ -79,7 +90,7 @@ impl StepPotential<'_> {
                     g[d] += self.scratch[i] / h;
                 }
             }
-            if let Some(hs) = hessian.as_deref_mut() {
+            if let Some(hs) = hessian {
                 for (v, kv) in hs.iter_mut().zip(k) {
                     *v += kv / h;
                 }
@@ -92,7 +103,10 @@ impl StepPotential<'_> {
     pub fn elastic_energy(&mut self, u: &[f64]) -> f64 {
         let el = &self.model.elasticity;
         let tets = &self.model.mesh.tets;
-        self.assembly.energies(|e, out| el.element(tets, u, e, false, out), self.element_energy);
+        self.assembly.energies(
+            |e, out| el.element(tets, u, e, false, out),
+            self.element_energy,
+        );
         // Summed in order so the result does not depend on thread scheduling.
         self.element_energy.iter().sum()
     }
@@ -108,7 +122,12 @@ impl Potential for StepPotential<'_> {
         hessian.fill(0.0);
         let el = &self.model.elasticity;
         let tets = &self.model.mesh.tets;
-        self.assembly.assemble(|e, with_h, out| el.element(tets, u, e, with_h, out), self.element_energy, gradient, Some(hessian));
+        self.assembly.assemble(
+            |e, with_h, out| el.element(tets, u, e, with_h, out),
+            self.element_energy,
+            gradient,
+            Some(hessian),
+        );
         let elastic: f64 = self.element_energy.iter().sum();
         elastic + self.add_other_terms(u, Some(gradient), Some(hessian))
     }
