@@ -82,6 +82,9 @@ pub struct SceneFile {
     /// Surface tractions.
     #[serde(default)]
     pub traction: Vec<TractionSection>,
+    /// Fixed isotropic eigenstrains in regions.
+    #[serde(default)]
+    pub eigenstrain: Vec<EigenstrainSection>,
     /// Time stepping.
     pub time: TimeSection,
     /// Solver settings.
@@ -186,6 +189,19 @@ pub struct TractionSection {
     pub max: [f64; 3],
     /// Traction (Pa).
     pub traction: [f64; 3],
+}
+
+/// `[[eigenstrain]]`: a fixed isotropic eigenstrain e (σ = C : (ε − e I)) in the elements
+/// whose rest centroid lies in the box. Later entries override earlier ones.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EigenstrainSection {
+    /// Region lower corner (m).
+    pub min: [f64; 3],
+    /// Region upper corner (m).
+    pub max: [f64; 3],
+    /// e (dimensionless), in (−0.5, 0.5).
+    pub value: f64,
 }
 
 /// `[time]`.
@@ -400,7 +416,28 @@ impl Validator<'_> {
             cg_tolerance,
             cg_max_iterations,
         };
-        let elasticity = Elasticity::new(&mesh, material, model);
+        let mut elasticity = Elasticity::new(&mesh, material, model);
+        for (i, section) in raw.eigenstrain.iter().enumerate() {
+            let field = format!("eigenstrain[{i}]");
+            let region = self.region(&field, section.min, section.max)?;
+            let e = section.value;
+            // Physical eigenstrains are a few percent; beyond ±0.5 the small-strain reading of
+            // σ = C:(ε − e I) and the multiplicative corotated form part ways.
+            if !(e.is_finite() && e.abs() < 0.5) {
+                return Err(self.invalid(&format!("{field}.value"), format!("must be in (−0.5, 0.5), got {e}")));
+            }
+            let mut count = 0;
+            for (t, tet) in mesh.tets.iter().enumerate() {
+                let centroid = tet.iter().map(|&v| mesh.rest[v]).sum::<Vector3<f64>>() / 4.0;
+                if region.contains(&centroid) {
+                    elasticity.eigenstrain[t] = e;
+                    count += 1;
+                }
+            }
+            if count == 0 {
+                return Err(self.invalid(&field, "the region contains no element centroid of the mesh"));
+            }
+        }
         let model = Model::new(mesh, elasticity, gravity, &tractions, damping, dirichlet).map_err(
             |source| SceneError::Mesh {
                 path: self.path.into(),
