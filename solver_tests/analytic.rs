@@ -14,7 +14,10 @@ use nalgebra::Vector3;
 fn at_point(p: [f64; 3], axes: [bool; 3], displacement: [f64; 3]) -> Dirichlet {
     let p = Vector3::from(p);
     Dirichlet {
-        region: Region { min: p.add_scalar(-1e-9), max: p.add_scalar(1e-9) },
+        region: Region {
+            min: p.add_scalar(-1e-9),
+            max: p.add_scalar(1e-9),
+        },
         axes,
         displacement: Vector3::from(displacement),
         velocity: Vector3::zeros(),
@@ -24,7 +27,10 @@ fn at_point(p: [f64; 3], axes: [bool; 3], displacement: [f64; 3]) -> Dirichlet {
 /// A Dirichlet condition on the nodes of a box region (rollers when one axis is given).
 fn on_box(min: [f64; 3], max: [f64; 3], axes: [bool; 3], displacement: [f64; 3]) -> Dirichlet {
     Dirichlet {
-        region: Region { min: Vector3::from(min), max: Vector3::from(max) },
+        region: Region {
+            min: Vector3::from(min),
+            max: Vector3::from(max),
+        },
         axes,
         displacement: Vector3::from(displacement),
         velocity: Vector3::zeros(),
@@ -45,7 +51,14 @@ fn free_body_with_uniform_eigenstrain_expands_stress_free() {
     let e = 0.0291;
     for model in [ElasticModel::Linear, ElasticModel::Corotated] {
         let mesh = irregular_box([3, 3, 3], [0.1; 3], 0.25, 11);
-        let mut sim = simulation(mesh, ICE, model, [0.0; 3], statically_determinate(0.1), settings(Analysis::Static, 1.0));
+        let mut sim = simulation(
+            mesh,
+            ICE,
+            model,
+            [0.0; 3],
+            statically_determinate(0.1),
+            settings(Analysis::Static, 1.0),
+        );
         sim.model.elasticity.eigenstrain.fill(e);
         sim.step().unwrap();
         // u = e x exactly (P1 represents linear fields; the supports admit it).
@@ -57,8 +70,15 @@ fn free_body_with_uniform_eigenstrain_expands_stress_free() {
             }
         }
         // Zero stress: against the 3Ke ≈ 9.7e9 Pa a confined body would carry, round-off only.
-        let smax = sim.stresses().iter().flatten().fold(0.0f64, |m, s| m.max(s.abs()));
-        assert!(smax < 1e-6 * 3.0 * ICE.bulk() * e, "{model:?}: residual stress {smax:e} Pa");
+        let smax = sim
+            .stresses()
+            .iter()
+            .flatten()
+            .fold(0.0f64, |m, s| m.max(s.abs()));
+        assert!(
+            smax < 1e-6 * 3.0 * ICE.bulk() * e,
+            "{model:?}: residual stress {smax:e} Pa"
+        );
     }
 }
 
@@ -78,16 +98,33 @@ fn confined_body_with_eigenstrain_carries_pressure_3ke() {
     }
     for model in [ElasticModel::Linear, ElasticModel::Corotated] {
         let mesh = irregular_box([3, 3, 3], [s; 3], 0.25, 5);
-        let mut sim = simulation(mesh, ICE, model, [0.0; 3], supports.clone(), settings(Analysis::Static, 1.0));
+        let mut sim = simulation(
+            mesh,
+            ICE,
+            model,
+            [0.0; 3],
+            supports.clone(),
+            settings(Analysis::Static, 1.0),
+        );
         sim.model.elasticity.eigenstrain.fill(e);
         sim.step().unwrap();
         let p_exact = 3.0 * ICE.bulk() * e;
         let p_corot = 3.0 * ICE.bulk() * (1.0 - 1.0 / (1.0 + e)); // Fe = I/(1 + e): S − I = −e/(1 + e) I
-        let expected = if model == ElasticModel::Linear { p_exact } else { p_corot };
+        let expected = if model == ElasticModel::Linear {
+            p_exact
+        } else {
+            p_corot
+        };
         for sigma in sim.stresses() {
             let p = -(sigma[0] + sigma[1] + sigma[2]) / 3.0;
-            assert!((p - expected).abs() < 1e-9 * expected, "{model:?}: p = {p:e}, expected {expected:e}");
-            assert!(sigma[3..].iter().all(|s| s.abs() < 1e-9 * expected), "{model:?}: shear {sigma:?}");
+            assert!(
+                (p - expected).abs() < 1e-9 * expected,
+                "{model:?}: p = {p:e}, expected {expected:e}"
+            );
+            assert!(
+                sigma[3..].iter().all(|s| s.abs() < 1e-9 * expected),
+                "{model:?}: shear {sigma:?}"
+            );
         }
         eprintln!("{model:?}: pressure {expected:.6e} Pa (3Ke = {p_exact:.6e} Pa)");
     }
@@ -99,7 +136,10 @@ fn tet_error_squared(x: [Vector3<f64>; 4], uh: [f64; 4], c: [f64; 3]) -> f64 {
     let z: [f64; 4] = std::array::from_fn(|i| x[i].z);
     let a: [f64; 4] = std::array::from_fn(|i| uh[i] - c[1] * z[i]);
     let q = |i: usize, j: usize| 0.5 * (a[i] + a[j]) - c[0] - c[2] * z[i] * z[j];
-    let volume = (x[1] - x[0]).dot(&(x[2] - x[0]).cross(&(x[3] - x[0]))).abs() / 6.0;
+    let volume = (x[1] - x[0])
+        .dot(&(x[2] - x[0]).cross(&(x[3] - x[0])))
+        .abs()
+        / 6.0;
     let fact = [1.0, 1.0, 2.0, 6.0, 24.0];
     let mut sum = 0.0;
     for i in 0..4 {
@@ -135,17 +175,40 @@ fn column_under_self_weight_converges_at_rate_two() {
         let rollers = vec![
             on_box([-1.0; 3], [1.0, 1.0, 1e-9], [false, false, true], [0.0; 3]),
             on_box([-1.0; 3], [1e-9, 1.0, 1.0], [true, false, false], [0.0; 3]),
-            on_box([a - 1e-9, -1.0, -1.0], [1.0; 3], [true, false, false], [0.0; 3]),
+            on_box(
+                [a - 1e-9, -1.0, -1.0],
+                [1.0; 3],
+                [true, false, false],
+                [0.0; 3],
+            ),
             on_box([-1.0; 3], [1.0, 1e-9, 1.0], [false, true, false], [0.0; 3]),
-            on_box([-1.0, a - 1e-9, -1.0], [1.0; 3], [false, true, false], [0.0; 3]),
+            on_box(
+                [-1.0, a - 1e-9, -1.0],
+                [1.0; 3],
+                [false, true, false],
+                [0.0; 3],
+            ),
         ];
-        let mut sim = simulation(mesh, material, ElasticModel::Linear, [0.0, 0.0, -g], rollers, settings(Analysis::Static, 1.0));
+        let mut sim = simulation(
+            mesh,
+            material,
+            ElasticModel::Linear,
+            [0.0, 0.0, -g],
+            rollers,
+            settings(Analysis::Static, 1.0),
+        );
         sim.step().unwrap();
         let mesh: &TetMesh = &sim.model.mesh;
         let err2: f64 = mesh
             .tets
             .iter()
-            .map(|t| tet_error_squared(t.map(|v| mesh.rest[v]), t.map(|v| sim.state.u[3 * v + 2]), c))
+            .map(|t| {
+                tet_error_squared(
+                    t.map(|v| mesh.rest[v]),
+                    t.map(|v| sim.state.u[3 * v + 2]),
+                    c,
+                )
+            })
             .sum();
         errors.push(err2.sqrt());
     }
@@ -165,22 +228,41 @@ fn bar_pulled_by_prescribed_displacement_is_in_uniaxial_stress() {
     let mesh = irregular_box([6, 2, 2], [l, s, s], 0.2, 17);
     let supports = vec![
         on_box([-1.0; 3], [1e-9, 1.0, 1.0], [true, false, false], [0.0; 3]),
-        on_box([l - 1e-9, -1.0, -1.0], [1.0; 3], [true, false, false], [d, 0.0, 0.0]),
+        on_box(
+            [l - 1e-9, -1.0, -1.0],
+            [1.0; 3],
+            [true, false, false],
+            [d, 0.0, 0.0],
+        ),
         at_point([0.0; 3], [false, true, true], [0.0; 3]),
         at_point([0.0, 0.0, s], [false, true, false], [0.0; 3]),
     ];
-    let mut sim = simulation(mesh, ICE, ElasticModel::Linear, [0.0; 3], supports, settings(Analysis::Static, 1.0));
+    let mut sim = simulation(
+        mesh,
+        ICE,
+        ElasticModel::Linear,
+        [0.0; 3],
+        supports,
+        settings(Analysis::Static, 1.0),
+    );
     sim.step().unwrap();
     let sxx = ICE.young() * d / l;
     for sigma in sim.stresses() {
-        assert!((sigma[0] - sxx).abs() < 1e-9 * sxx, "σxx {} vs {sxx}", sigma[0]);
+        assert!(
+            (sigma[0] - sxx).abs() < 1e-9 * sxx,
+            "σxx {} vs {sxx}",
+            sigma[0]
+        );
         assert!(sigma[1..].iter().all(|v| v.abs() < 1e-9 * sxx), "{sigma:?}");
     }
     // Lateral contraction u_y = −ν ε y.
     let nu = ICE.poisson();
     for (i, p) in sim.model.mesh.rest.iter().enumerate() {
         let expected = -nu * d / l * p.y;
-        assert!((sim.state.u[3 * i + 1] - expected).abs() < 1e-9 * d, "node {i}");
+        assert!(
+            (sim.state.u[3 * i + 1] - expected).abs() < 1e-9 * d,
+            "node {i}"
+        );
     }
 }
 
@@ -190,8 +272,13 @@ fn mass_proportional_damping_decays_as_backward_euler_predicts() {
     let (alpha, h) = (3.0, 0.01);
     let mesh = box_mesh([0.0; 3], [0.1; 3], [2, 2, 2], 5).unwrap();
     let elasticity = icefem::physics::Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
-    let damping = Some(icefem::physics::Rayleigh { mass: alpha, stiffness: 0.0 });
-    let model = icefem::physics::Model::new(mesh, elasticity, Vector3::zeros(), &[], damping, vec![]).unwrap();
+    let damping = Some(icefem::physics::Rayleigh {
+        mass: alpha,
+        stiffness: 0.0,
+    });
+    let model =
+        icefem::physics::Model::new(mesh, elasticity, Vector3::zeros(), &[], damping, vec![])
+            .unwrap();
     let mut sim = icefem::sim::Simulation::new(model, settings(Analysis::Dynamic, h)).unwrap();
     let v0 = [0.3, -0.2, 0.1];
     for i in 0..sim.model.num_nodes() {
@@ -203,7 +290,11 @@ fn mass_proportional_damping_decays_as_backward_euler_predicts() {
         for (d, v) in sim.state.v.iter().enumerate() {
             // Newton stops at a residual of 1e-9 × the momentum force scale M|v|/h, which bounds
             // the velocity error by ~1e-9 |v| per step.
-            assert!((v - v0[d % 3] * factor).abs() < 1e-8 * 0.3, "step {n} dof {d}: {v} vs {}", v0[d % 3] * factor);
+            assert!(
+                (v - v0[d % 3] * factor).abs() < 1e-8 * 0.3,
+                "step {n} dof {d}: {v} vs {}",
+                v0[d % 3] * factor
+            );
         }
     }
 }

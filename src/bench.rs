@@ -5,7 +5,7 @@ use crate::fem::{ElasticModel, Material};
 use crate::mesh::box_mesh;
 use crate::physics::{Dirichlet, Elasticity, Model, Region};
 use crate::sim::{Analysis, SimError, Simulation, StepSettings};
-use crate::solver::{LinearSolverKind, NewtonParams};
+use crate::solver::{FillOrdering, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -58,6 +58,7 @@ pub fn run_size(
     tets: usize,
     steps: usize,
     linear: LinearSolverKind,
+    ordering: FillOrdering,
 ) -> Result<BenchResult, SimError> {
     let start = Instant::now();
     let c = cells_for(tets);
@@ -97,6 +98,7 @@ pub fn run_size(
             max_iterations: 50,
         },
         linear,
+        ordering,
         cg_tolerance: 1e-10,
         cg_max_iterations: 100_000,
     };

@@ -5,7 +5,7 @@ use clap::{Parser, Subcommand};
 use icefem::bench;
 use icefem::run::{run, Progress, RunOptions};
 use icefem::scene::Scene;
-use icefem::solver::LinearSolverKind;
+use icefem::solver::{FillOrdering, LinearSolverKind};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -57,6 +57,9 @@ enum Command {
         /// Linear solver.
         #[arg(long, value_enum, default_value = "cholesky")]
         solver: SolverArg,
+        /// Cholesky fill-reducing ordering.
+        #[arg(long, value_enum, default_value = "auto")]
+        ordering: OrderingArg,
         /// Internal: run one size in this process and print one result line.
         #[arg(long, hide = true)]
         single: Option<usize>,
@@ -91,8 +94,9 @@ fn main() {
             steps,
             repeats,
             solver,
+            ordering,
             single,
-        } => bench_command(&tets, steps, repeats, solver, single),
+        } => bench_command(&tets, steps, repeats, solver, ordering, single),
         Command::Info { file } => icefem::output::describe(&file)
             .map(|text| print!("{text}"))
             .map_err(Into::into),
@@ -118,6 +122,33 @@ impl From<SolverArg> for LinearSolverKind {
     }
 }
 
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum OrderingArg {
+    Auto,
+    Amd,
+    Metis,
+}
+
+impl OrderingArg {
+    fn name(self) -> &'static str {
+        match self {
+            OrderingArg::Auto => "auto",
+            OrderingArg::Amd => "amd",
+            OrderingArg::Metis => "metis",
+        }
+    }
+}
+
+impl From<OrderingArg> for FillOrdering {
+    fn from(o: OrderingArg) -> Self {
+        match o {
+            OrderingArg::Auto => FillOrdering::Auto,
+            OrderingArg::Amd => FillOrdering::Amd,
+            OrderingArg::Metis => FillOrdering::Metis,
+        }
+    }
+}
+
 const BENCH_FIELDS: usize = 14;
 
 fn bench_command(
@@ -125,10 +156,11 @@ fn bench_command(
     steps: usize,
     repeats: usize,
     solver: SolverArg,
+    ordering: OrderingArg,
     single: Option<usize>,
 ) -> Result<()> {
     if let Some(tets) = single {
-        let r = bench::run_size(tets, steps.max(1), solver.into())?;
+        let r = bench::run_size(tets, steps.max(1), solver.into(), ordering.into())?;
         let m = r.peak_memory.unwrap_or(0) as f64;
         let row = [
             r.tets as f64,
@@ -154,7 +186,7 @@ fn bench_command(
         SolverArg::Cholesky => "cholesky",
         SolverArg::Cg => "cg",
     };
-    println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}");
+    println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}, ordering {}", ordering.name());
     println!("{} threads; medians of {repeats} runs (fresh process each) of the per-step medians over {steps} steps\n", rayon::current_num_threads());
     println!("| tets | free dofs | nnz(K) | nnz(L) | pattern (s) | symbolic (s) | assembly/step (s) | factor/step (s) | solve/step (s) | step (s) | Newton it. | lin. it. | peak memory (MB) |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
@@ -170,6 +202,8 @@ fn bench_command(
                     &steps.to_string(),
                     "--solver",
                     solver_name,
+                    "--ordering",
+                    ordering.name(),
                 ])
                 .output()
                 .context("running a benchmark process")?;

@@ -24,7 +24,7 @@ use crate::fem::{ElasticModel, Material};
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
 use crate::physics::{Dirichlet, Elasticity, Model, Rayleigh, Region, Traction};
 use crate::sim::{Analysis, StepSettings};
-use crate::solver::{LinearSolverKind, NewtonParams};
+use crate::solver::{FillOrdering, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -224,6 +224,8 @@ pub struct TimeSection {
 pub struct SolverSection {
     /// "cholesky" (default) or "cg".
     pub linear: Option<LinearSolverKind>,
+    /// Cholesky ordering: "auto" (default), "amd" or "metis".
+    pub ordering: Option<FillOrdering>,
     /// Newton relative residual tolerance. Default 1e-9.
     pub tolerance: Option<f64>,
     /// Newton iteration cap. Default 50.
@@ -413,6 +415,7 @@ impl Validator<'_> {
                 max_iterations,
             },
             linear: solver.linear.unwrap_or(LinearSolverKind::Cholesky),
+            ordering: solver.ordering.unwrap_or(FillOrdering::Auto),
             cg_tolerance,
             cg_max_iterations,
         };
@@ -424,7 +427,10 @@ impl Validator<'_> {
             // Physical eigenstrains are a few percent; beyond ±0.5 the small-strain reading of
             // σ = C:(ε − e I) and the multiplicative corotated form part ways.
             if !(e.is_finite() && e.abs() < 0.5) {
-                return Err(self.invalid(&format!("{field}.value"), format!("must be in (−0.5, 0.5), got {e}")));
+                return Err(self.invalid(
+                    &format!("{field}.value"),
+                    format!("must be in (−0.5, 0.5), got {e}"),
+                ));
             }
             let mut count = 0;
             for (t, tet) in mesh.tets.iter().enumerate() {
@@ -435,7 +441,10 @@ impl Validator<'_> {
                 }
             }
             if count == 0 {
-                return Err(self.invalid(&field, "the region contains no element centroid of the mesh"));
+                return Err(self.invalid(
+                    &field,
+                    "the region contains no element centroid of the mesh",
+                ));
             }
         }
         let model = Model::new(mesh, elasticity, gravity, &tractions, damping, dirichlet).map_err(

@@ -4,8 +4,8 @@ use crate::assembly::{Assembly, DofMap};
 use crate::physics::Model;
 use crate::solver::timestep::{Inertia, StepPotential};
 use crate::solver::{
-    minimize, LinearSolver, LinearSolverKind, NewtonError, NewtonParams, NewtonReport,
-    NewtonWorkspace, Potential,
+    minimize, FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams,
+    NewtonReport, NewtonWorkspace, Potential,
 };
 use std::time::Instant;
 
@@ -30,6 +30,8 @@ pub struct StepSettings {
     pub newton: NewtonParams,
     /// Linear solver.
     pub linear: LinearSolverKind,
+    /// Fill-reducing ordering of the Cholesky factor.
+    pub ordering: FillOrdering,
     /// CG relative tolerance.
     pub cg_tolerance: f64,
     /// CG iteration cap.
@@ -145,6 +147,7 @@ impl Simulation {
         let assembly = Assembly::new(&model.mesh, DofMap::new(&constrained));
         let linear = LinearSolver::new(
             settings.linear,
+            settings.ordering,
             &assembly,
             settings.cg_tolerance,
             settings.cg_max_iterations,

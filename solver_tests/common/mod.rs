@@ -26,6 +26,7 @@ pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
             max_iterations: 50,
         },
         linear: LinearSolverKind::Cholesky,
+        ordering: icefem::solver::FillOrdering::Auto,
         cg_tolerance: 1e-12,
         cg_max_iterations: 20_000,
     }

@@ -2,6 +2,7 @@
 //! Cholesky (symbolic analysis once per pattern, numeric factorisation per call) and
 //! Jacobi-preconditioned conjugate gradients.
 
+use super::ordering::{nested_dissection, FillOrdering};
 use crate::assembly::Assembly;
 use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -10,7 +11,9 @@ use faer::matrix_free::conjugate_gradient::{
     conjugate_gradient, conjugate_gradient_scratch, CgParams,
 };
 use faer::matrix_free::InitialGuessStatus;
+use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
+    LltRef,
     factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::{Conj, MatMut, MatRef, Par, Side};
@@ -47,8 +50,6 @@ pub enum LinearError {
 /// Time and work of one linear solve.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LinearStats {
-    /// Numeric factorisation (or preconditioner set-up) time (s).
-    pub t_factorization: f64,
     /// Solve time (s).
     pub t_solve: f64,
     /// Iterations (1 for a direct solve).
@@ -65,6 +66,8 @@ pub enum LinearSolver {
         l_values: Vec<f64>,
         work: MemBuffer,
         t_symbolic: f64,
+        /// Whether nested dissection (rather than AMD) ordered the factor.
+        nested_dissection: bool,
     },
     /// Preconditioned CG.
     Cg {
@@ -80,6 +83,7 @@ impl LinearSolver {
     /// here once, reused by every [`LinearSolver::solve`]), the workspace for CG.
     pub fn new(
         kind: LinearSolverKind,
+        ordering: FillOrdering,
         assembly: &Assembly,
         cg_tolerance: f64,
         cg_max_iterations: usize,
@@ -88,10 +92,22 @@ impl LinearSolver {
         match kind {
             LinearSolverKind::Cholesky => {
                 let start = Instant::now();
+                let permutation = if ordering.uses_metis(n) {
+                    nested_dissection(assembly)
+                } else {
+                    None
+                };
+                let nested_dissection = permutation.is_some();
+                let faer_ordering = match &permutation {
+                    Some((forward, inverse)) => {
+                        SymmetricOrdering::Custom(PermRef::new_checked(forward, inverse, n))
+                    }
+                    None => SymmetricOrdering::Amd,
+                };
                 let symbolic = factorize_symbolic_cholesky(
                     assembly.symbolic(),
                     Side::Lower,
-                    SymmetricOrdering::Amd,
+                    faer_ordering,
                     Default::default(),
                 )
                 .map_err(|e| LinearError::Faer(format!("{e:?}")))?;
@@ -106,6 +122,7 @@ impl LinearSolver {
                     l_values,
                     work,
                     t_symbolic: start.elapsed().as_secs_f64(),
+                    nested_dissection,
                 })
             }
             LinearSolverKind::Cg => {
@@ -135,6 +152,17 @@ impl LinearSolver {
         }
     }
 
+    /// Whether the Cholesky factor was ordered by nested dissection.
+    pub fn uses_nested_dissection(&self) -> bool {
+        matches!(
+            self,
+            LinearSolver::Cholesky {
+                nested_dissection: true,
+                ..
+            }
+        )
+    }
+
     /// Number of nonzeros of the Cholesky factor, if direct.
     pub fn factor_nnz(&self) -> Option<usize> {
         match self {
@@ -143,34 +171,21 @@ impl LinearSolver {
         }
     }
 
-    /// Solves `A x = b` for the matrix with `assembly`'s pattern and the given values; `x` is
-    /// overwritten (its input is ignored).
-    pub fn solve(
-        &mut self,
-        assembly: &Assembly,
-        values: &[f64],
-        b: &[f64],
-        x: &mut [f64],
-    ) -> Result<LinearStats, LinearError> {
-        let a = assembly.matrix(values);
-        let n = b.len();
+    /// Prepares solves with the matrix of `assembly`'s pattern and these values: the numeric
+    /// Cholesky factorisation, or the Jacobi preconditioner for CG. Returns its time (s).
+    pub fn factorize(&mut self, assembly: &Assembly, values: &[f64]) -> Result<f64, LinearError> {
+        let start = Instant::now();
         match self {
-            LinearSolver::Cholesky {
-                symbolic,
-                l_values,
-                work,
-                ..
-            } => {
-                let start = Instant::now();
-                let stack = MemStack::new(work);
-                let llt = symbolic
+            LinearSolver::Cholesky { symbolic, l_values, work, .. } => {
+                let n = symbolic.nrows();
+                symbolic
                     .factorize_numeric_llt::<f64>(
                         l_values,
-                        a,
+                        assembly.matrix(values),
                         Side::Lower,
                         Default::default(),
                         Par::Seq,
-                        stack,
+                        MemStack::new(work),
                         Default::default(),
                     )
                     .map_err(|e| match e {
@@ -178,31 +193,35 @@ impl LinearSolver {
                             LinearError::NotPositiveDefinite { pivot: index, n }
                         }
                     })?;
-                let t_factorization = start.elapsed().as_secs_f64();
-                let start = Instant::now();
+            }
+            LinearSolver::Cg { inv_diag, .. } => jacobi_inverse(assembly, values, inv_diag),
+        }
+        Ok(start.elapsed().as_secs_f64())
+    }
+
+    /// Solves `A x = b` with the matrix last passed to [`LinearSolver::factorize`]: `values`
+    /// must still hold it (CG multiplies by it; Cholesky uses its factor). `x` is overwritten.
+    pub fn solve(
+        &mut self,
+        assembly: &Assembly,
+        values: &[f64],
+        b: &[f64],
+        x: &mut [f64],
+    ) -> Result<LinearStats, LinearError> {
+        let n = b.len();
+        let start = Instant::now();
+        match self {
+            LinearSolver::Cholesky { symbolic, l_values, work, .. } => {
                 x.copy_from_slice(b);
-                llt.solve_in_place_with_conj(
+                LltRef::new(symbolic, l_values).solve_in_place_with_conj(
                     Conj::No,
                     MatMut::from_column_major_slice_mut(x, n, 1),
                     Par::Seq,
                     MemStack::new(work),
                 );
-                Ok(LinearStats {
-                    t_factorization,
-                    t_solve: start.elapsed().as_secs_f64(),
-                    iterations: 1,
-                })
+                Ok(LinearStats { t_solve: start.elapsed().as_secs_f64(), iterations: 1 })
             }
-            LinearSolver::Cg {
-                tolerance,
-                max_iterations,
-                inv_diag,
-                work,
-            } => {
-                let start = Instant::now();
-                jacobi_inverse(assembly, values, inv_diag);
-                let t_factorization = start.elapsed().as_secs_f64();
-                let start = Instant::now();
+            LinearSolver::Cg { tolerance, max_iterations, inv_diag, work } => {
                 x.fill(0.0);
                 // faer 0.24.4 mis-handles `InitialGuessStatus::Zero`; a zeroed x with
                 // `MaybeNonZero` is equivalent and works.
@@ -213,11 +232,10 @@ impl LinearSolver {
                     max_iters: *max_iterations,
                     ..Default::default()
                 };
-                let precond = faer::diag::DiagRef::from_slice(inv_diag);
                 let info = conjugate_gradient(
                     MatMut::from_column_major_slice_mut(x, n, 1),
-                    precond,
-                    a,
+                    faer::diag::DiagRef::from_slice(inv_diag),
+                    assembly.matrix(values),
                     MatRef::from_column_major_slice(b, n, 1),
                     params,
                     |_| {},
@@ -226,11 +244,7 @@ impl LinearSolver {
                 );
                 let t_solve = start.elapsed().as_secs_f64();
                 match info {
-                    Ok(info) => Ok(LinearStats {
-                        t_factorization,
-                        t_solve,
-                        iterations: info.iter_count,
-                    }),
+                    Ok(info) => Ok(LinearStats { t_solve, iterations: info.iter_count }),
                     Err(faer::matrix_free::conjugate_gradient::CgError::NoConvergence {
                         rel_residual,
                         ..

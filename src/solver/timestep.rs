@@ -131,4 +131,18 @@ impl Potential for StepPotential<'_> {
         let elastic: f64 = self.element_energy.iter().sum();
         elastic + self.add_other_terms(u, Some(gradient), Some(hessian))
     }
+
+    fn gradient(&mut self, u: &[f64], gradient: &mut [f64]) -> f64 {
+        gradient.fill(0.0);
+        let el = &self.model.elasticity;
+        let tets = &self.model.mesh.tets;
+        self.assembly.assemble(
+            |e, with_h, out| el.element(tets, u, e, with_h, out),
+            self.element_energy,
+            gradient,
+            None,
+        );
+        let elastic: f64 = self.element_energy.iter().sum();
+        elastic + self.add_other_terms(u, Some(gradient), None)
+    }
 }
