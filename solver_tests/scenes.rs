@@ -115,8 +115,16 @@ fn non_physical_values_name_field_and_range() {
         Some("solver.tolerance"),
     );
     error_of(&(GOOD.to_string() + "[[traction]]\nmin = [5.0, 5.0, 5.0]\nmax = [6.0, 6.0, 6.0]\ntraction = [0.0, 0.0, 1.0]\n"), Some("traction[0]"));
-    error_of(&(GOOD.to_string() + "[[eigenstrain]]\nmin = [5.0, 5.0, 5.0]\nmax = [6.0, 6.0, 6.0]\nvalue = 0.01\n"), Some("eigenstrain[0]"));
-    error_of(&(GOOD.to_string() + "[[eigenstrain]]\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nvalue = 0.7\n"), Some("eigenstrain[0].value"));
+    error_of(
+        &(GOOD.to_string()
+            + "[[eigenstrain]]\nmin = [5.0, 5.0, 5.0]\nmax = [6.0, 6.0, 6.0]\nvalue = 0.01\n"),
+        Some("eigenstrain[0]"),
+    );
+    error_of(
+        &(GOOD.to_string()
+            + "[[eigenstrain]]\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nvalue = 0.7\n"),
+        Some("eigenstrain[0].value"),
+    );
     // Wrong types and missing sections come from the TOML layer, still with the file name.
     error_of(
         &GOOD.replace("density = 916.0", "density = \"heavy\""),
