@@ -139,6 +139,8 @@ pub struct StepStats {
     pub newton_iterations: u32,
     /// Linear-solver iterations summed over the step (one per Newton iteration for Cholesky).
     pub linear_iterations: u32,
+    /// Numeric factorisations (Hessian refreshes) in the step.
+    pub factorizations: u32,
     /// Final Newton residual, max |free-dof force imbalance| (N).
     pub residual: f64,
     /// Total energy (J).
@@ -169,7 +171,7 @@ enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-const STATS_COLUMNS: [(&str, StatsColumn); 14] = [
+const STATS_COLUMNS: [(&str, StatsColumn); 15] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -181,6 +183,7 @@ const STATS_COLUMNS: [(&str, StatsColumn); 14] = [
         "linear_iterations",
         StatsColumn::U32(|s| s.linear_iterations),
     ),
+    ("factorizations", StatsColumn::U32(|s| s.factorizations)),
     ("residual", StatsColumn::F64(|s| s.residual)),
     ("energy", StatsColumn::F64(|s| s.energy)),
     ("kinetic_energy", StatsColumn::F64(|s| s.kinetic_energy)),
@@ -1458,6 +1461,7 @@ mod tests {
             dt: 1e-3,
             newton_iterations: 3,
             linear_iterations: 7,
+            factorizations: 2,
             residual: 1e-9,
             energy: 1.5,
             kinetic_energy: 0.5,

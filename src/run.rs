@@ -171,6 +171,7 @@ fn stats_row(sim: &Simulation, report: &StepReport) -> StepStats {
         dt: sim.settings.dt,
         newton_iterations: n.iterations as u32,
         linear_iterations: n.linear_iterations as u32,
+        factorizations: n.factorizations as u32,
         residual: n.residual,
         energy: report.energies.total(),
         kinetic_energy: report.energies.kinetic,

@@ -109,7 +109,7 @@ def check_hdf5(path):
                 "shared_topology": bool(shared), "fields": fields,
             })
 
-        cols = ["step", "time", "dt", "newton_iterations", "linear_iterations", "residual",
+        cols = ["step", "time", "dt", "newton_iterations", "linear_iterations", "factorizations", "residual",
                 "energy", "kinetic_energy", "elastic_energy", "potential_energy",
                 "t_assembly", "t_factorization", "t_solve", "t_step"]
         lens = {c: f["stats"][c].shape[0] for c in cols if c in f["stats"]}
