@@ -13,6 +13,9 @@ use crate::mesh::TetMesh;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use rayon::prelude::*;
 
+/// Fewest elements a parallel task takes: below this the scheduling costs more than it saves.
+const MIN_TASK_ELEMENTS: usize = 256;
+
 /// Marks a slot or dof that is not in the free system.
 const NONE: u32 = u32::MAX;
 
@@ -229,6 +232,8 @@ impl Assembly {
         for k in 0..self.num_colors() {
             self.color_elems[self.color_ptr[k]..self.color_ptr[k + 1]]
                 .par_iter()
+                // Small colours are not worth splitting into many tasks.
+                .with_min_len(MIN_TASK_ELEMENTS)
                 .for_each_init(ElementEval::default, |out, &e| {
                     let e = e as usize;
                     kernel(e, with_hessian, out);
@@ -258,7 +263,7 @@ impl Assembly {
     where
         K: Fn(usize, &mut ElementEval) + Sync,
     {
-        energies.par_iter_mut().enumerate().for_each_init(
+        energies.par_iter_mut().with_min_len(MIN_TASK_ELEMENTS).enumerate().for_each_init(
             ElementEval::default,
             |out, (e, energy)| {
                 kernel(e, out);

@@ -68,6 +68,8 @@ pub enum LinearSolver {
         t_symbolic: f64,
         /// Whether nested dissection (rather than AMD) ordered the factor.
         nested_dissection: bool,
+        /// The matrix values the current factor was computed from (empty before the first).
+        factored: Vec<f64>,
     },
     /// Preconditioned CG.
     Cg {
@@ -123,6 +125,7 @@ impl LinearSolver {
                     work,
                     t_symbolic: start.elapsed().as_secs_f64(),
                     nested_dissection,
+                    factored: Vec::new(),
                 })
             }
             LinearSolverKind::Cg => {
@@ -172,12 +175,21 @@ impl LinearSolver {
     }
 
     /// Prepares solves with the matrix of `assembly`'s pattern and these values: the numeric
-    /// Cholesky factorisation, or the Jacobi preconditioner for CG. Returns its time (s).
-    pub fn factorize(&mut self, assembly: &Assembly, values: &[f64]) -> Result<f64, LinearError> {
+    /// Cholesky factorisation, or the Jacobi preconditioner for CG. Returns its time (s), or
+    /// `None` when the values are bit for bit those of the current factor (a linear model at a
+    /// fixed step has the same matrix every step), which is then kept.
+    pub fn factorize(&mut self, assembly: &Assembly, values: &[f64]) -> Result<Option<f64>, LinearError> {
         let start = Instant::now();
         match self {
-            LinearSolver::Cholesky { symbolic, l_values, work, .. } => {
+            LinearSolver::Cholesky { symbolic, l_values, work, factored, .. } => {
+                let same = factored.len() == values.len()
+                    && factored.iter().zip(values).all(|(a, b)| a.to_bits() == b.to_bits());
+                if same {
+                    return Ok(None);
+                }
                 let n = symbolic.nrows();
+                // Forget the old values first: a failed factorisation leaves `l_values` invalid.
+                factored.clear();
                 symbolic
                     .factorize_numeric_llt::<f64>(
                         l_values,
@@ -193,10 +205,11 @@ impl LinearSolver {
                             LinearError::NotPositiveDefinite { pivot: index, n }
                         }
                     })?;
+                factored.extend_from_slice(values);
             }
             LinearSolver::Cg { inv_diag, .. } => jacobi_inverse(assembly, values, inv_diag),
         }
-        Ok(start.elapsed().as_secs_f64())
+        Ok(Some(start.elapsed().as_secs_f64()))
     }
 
     /// Solves `A x = b` with the matrix last passed to [`LinearSolver::factorize`]: `values`

@@ -157,8 +157,10 @@ pub fn minimize(
             report.t_assembly += start.elapsed().as_secs_f64();
         }
         if refresh {
-            report.t_factorization += linear.factorize(assembly, &work.hessian)?;
-            report.factorizations += 1;
+            if let Some(t) = linear.factorize(assembly, &work.hessian)? {
+                report.t_factorization += t;
+                report.factorizations += 1;
+            }
         }
         for (r, &d) in work.rhs.iter_mut().zip(dofs.free_dofs()) {
             *r = -work.gradient[d];
