@@ -33,10 +33,15 @@ fn scene(dir: &Path) -> Scene {
 
 fn last_frame(path: &Path) -> (f64, u64, Vec<Vec<f64>>) {
     let file = hdf5::File::open(path).unwrap();
-    let frames = file.group("frames").unwrap().member_names().unwrap();
-    let g = file
-        .group(&format!("frames/{}", frames.iter().max().unwrap()))
-        .unwrap();
+    let mut frames = file.group("frames").unwrap().member_names().unwrap();
+    frames.sort();
+    // The last frame marked complete (a killed run may leave a partial group after it).
+    let g = frames
+        .iter()
+        .rev()
+        .map(|f| file.group(&format!("frames/{f}")).unwrap())
+        .find(|g| g.attr("complete").is_ok_and(|a| a.read_scalar::<u8>().unwrap_or(0) == 1))
+        .expect("a complete frame");
     let time = g.attr("time").unwrap().read_scalar::<f64>().unwrap();
     let step = g.attr("step").unwrap().read_scalar::<u64>().unwrap();
     let data = ["positions", "velocities", "displacement", "stress"]
@@ -205,10 +210,17 @@ fn killed_process_leaves_a_readable_file_that_resumes() {
         .arg(&path)
         .arg("--output")
         .arg(&out)
-        .stderr(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // Wait for the first step's log line (frame 1 is written before it), then a little more,
+    // so the kill lands in the middle of a run with complete frames, whatever the load.
+    let mut log = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while std::io::BufRead::read_line(&mut log, &mut line).unwrap() > 0 && !line.contains("step 1/") {
+        line.clear();
+    }
+    std::thread::sleep(std::time::Duration::from_millis(300));
     child.kill().unwrap(); // SIGKILL: no destructor, no HDF5 close
     child.wait().unwrap();
     let info = icefem::output::describe(&out).unwrap();

@@ -44,6 +44,27 @@ use ndarray::{ArrayView1, ArrayView2};
 /// root attribute `format_version`. Bump when the layout changes incompatibly.
 pub const FORMAT_VERSION: u32 = 1;
 
+/// Marks the file's descriptor close-on-exec. HDF5 opens files without `O_CLOEXEC`, so a
+/// child process started while a file is open inherits the descriptor and keeps the file's lock
+/// after we close it: our own next open of that file then fails with "unable to lock file"
+/// (seen in the test suite, which writes files while it runs `icefem` processes). Best effort:
+/// on failure the descriptor simply stays inheritable.
+fn close_on_exec(file: &File) {
+    hdf5::sync::sync(|| {
+        let mut handle: *mut std::ffi::c_void = std::ptr::null_mut();
+        // SAFETY: `file` is an open file id; with the default (sec2) driver the VFD handle
+        // points to the POSIX descriptor, an `int`. The HDF5 call runs under hdf5's lock.
+        unsafe {
+            let status =
+                hdf5_sys::h5f::H5Fget_vfd_handle(file.id(), hdf5_sys::h5p::H5P_DEFAULT, &mut handle);
+            if status >= 0 && !handle.is_null() {
+                let fd = *(handle as *const libc::c_int);
+                libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC);
+            }
+        }
+    });
+}
+
 /// Dataset names inside a frame group that are not user fields.
 const RESERVED_FRAME_NAMES: [&str; 5] = [
     "positions",
@@ -350,6 +371,7 @@ impl OutputWriter {
         let version = vlen_str(path, "icefem_version", header.version)?;
 
         let file = File::create(path).ctx(path, || "creating the file".into())?;
+        close_on_exec(&file);
         let root: &Group = &file;
         write_attr(path, root, "scene", &scene)?;
         write_attr(path, root, "scene_path", &scene_path)?;
@@ -661,6 +683,7 @@ impl OutputWriter {
     pub fn resume(path: &Path) -> Result<(Self, ResumeFrame), OutputError> {
         check_hdf5_signature(path)?;
         let file = File::open_rw(path).ctx(path, || "opening for resume".into())?;
+        close_on_exec(&file);
         check_icefem_layout(path, &file)?;
         let scene_text = read_string_attr(path, &file, "scene")?;
         let frames = file
@@ -1174,6 +1197,7 @@ fn xdmf_attribute_type(shape: &[usize]) -> &'static str {
 pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
     check_hdf5_signature(h5_path)?;
     let file = File::open(h5_path).ctx(h5_path, || "opening to write the XDMF sidecar".into())?;
+    close_on_exec(&file);
     check_icefem_layout(h5_path, &file)?;
     let h5_name = h5_path
         .file_name()
@@ -1311,6 +1335,7 @@ pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
 pub fn describe(path: &Path) -> Result<String, OutputError> {
     check_hdf5_signature(path)?;
     let file = File::open(path).ctx(path, || "opening".into())?;
+    close_on_exec(&file);
     check_icefem_layout(path, &file)?;
     let version = read_string_attr(path, &file, "icefem_version")?;
     let scene_path = read_string_attr(path, &file, "scene_path").unwrap_or_else(|_| "?".into());
