@@ -40,7 +40,10 @@ fn last_frame(path: &Path) -> (f64, u64, Vec<Vec<f64>>) {
         .iter()
         .rev()
         .map(|f| file.group(&format!("frames/{f}")).unwrap())
-        .find(|g| g.attr("complete").is_ok_and(|a| a.read_scalar::<u8>().unwrap_or(0) == 1))
+        .find(|g| {
+            g.attr("complete")
+                .is_ok_and(|a| a.read_scalar::<u8>().unwrap_or(0) == 1)
+        })
         .expect("a complete frame");
     let time = g.attr("time").unwrap().read_scalar::<f64>().unwrap();
     let step = g.attr("step").unwrap().read_scalar::<u64>().unwrap();
@@ -217,7 +220,8 @@ fn killed_process_leaves_a_readable_file_that_resumes() {
     // so the kill lands in the middle of a run with complete frames, whatever the load.
     let mut log = std::io::BufReader::new(child.stderr.take().unwrap());
     let mut line = String::new();
-    while std::io::BufRead::read_line(&mut log, &mut line).unwrap() > 0 && !line.contains("step 1/") {
+    while std::io::BufRead::read_line(&mut log, &mut line).unwrap() > 0 && !line.contains("step 1/")
+    {
         line.clear();
     }
     std::thread::sleep(std::time::Duration::from_millis(300));

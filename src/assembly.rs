@@ -193,6 +193,31 @@ impl Assembly {
     pub fn matrix<'a>(&'a self, values: &'a [f64]) -> SparseColMatRef<'a, usize, f64> {
         SparseColMatRef::new(self.symbolic.as_ref(), values)
     }
+    /// Value index of entry (row, col) of the free system, if it is in the pattern (binary
+    /// search: for set-up, not for the hot path).
+    pub fn slot(&self, row: usize, col: usize) -> Option<usize> {
+        let s = self.symbolic.as_ref();
+        let range = s.col_range(col);
+        s.row_idx_of_col_raw(col)
+            .binary_search(&row)
+            .ok()
+            .map(|k| range.start + k)
+    }
+
+    /// Value indices of the 3 × 3 block of `node` (row-major), `u32::MAX` where a dof is
+    /// constrained.
+    pub fn node_block_slots(&self, node: usize) -> [u32; 9] {
+        std::array::from_fn(|k| {
+            match (
+                self.dofs.free(3 * node + k / 3),
+                self.dofs.free(3 * node + k % 3),
+            ) {
+                (Some(r), Some(c)) => self.slot(r, c).map_or(NONE, |s| s as u32),
+                _ => NONE,
+            }
+        })
+    }
+
     /// Value index of the diagonal entry of free dof `f`.
     pub fn diagonal_slot(&self, f: usize) -> usize {
         self.diagonal[f]
@@ -263,13 +288,14 @@ impl Assembly {
     where
         K: Fn(usize, &mut ElementEval) + Sync,
     {
-        energies.par_iter_mut().with_min_len(MIN_TASK_ELEMENTS).enumerate().for_each_init(
-            ElementEval::default,
-            |out, (e, energy)| {
+        energies
+            .par_iter_mut()
+            .with_min_len(MIN_TASK_ELEMENTS)
+            .enumerate()
+            .for_each_init(ElementEval::default, |out, (e, energy)| {
                 kernel(e, out);
                 *energy = out.energy;
-            },
-        );
+            });
     }
 }
 

@@ -55,8 +55,11 @@ fn close_on_exec(file: &File) {
         // SAFETY: `file` is an open file id; with the default (sec2) driver the VFD handle
         // points to the POSIX descriptor, an `int`. The HDF5 call runs under hdf5's lock.
         unsafe {
-            let status =
-                hdf5_sys::h5f::H5Fget_vfd_handle(file.id(), hdf5_sys::h5p::H5P_DEFAULT, &mut handle);
+            let status = hdf5_sys::h5f::H5Fget_vfd_handle(
+                file.id(),
+                hdf5_sys::h5p::H5P_DEFAULT,
+                &mut handle,
+            );
             if status >= 0 && !handle.is_null() {
                 let fd = *(handle as *const libc::c_int);
                 libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC);
@@ -162,6 +165,8 @@ pub struct StepStats {
     pub linear_iterations: u32,
     /// Numeric factorisations (Hessian refreshes) in the step.
     pub factorizations: u32,
+    /// Solves the step took (1, or more when Newton failed and the step was halved).
+    pub substeps: u32,
     /// Final Newton residual, max |free-dof force imbalance| (N).
     pub residual: f64,
     /// Total energy (J).
@@ -172,6 +177,8 @@ pub struct StepStats {
     pub elastic_energy: f64,
     /// Potential (gravity / external) energy (J).
     pub potential_energy: f64,
+    /// Penalty energy stored in contact (J).
+    pub contact_energy: f64,
     /// Wall-clock time spent assembling (s).
     pub t_assembly: f64,
     /// Wall-clock time spent factorizing (s).
@@ -192,7 +199,7 @@ enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-const STATS_COLUMNS: [(&str, StatsColumn); 15] = [
+const STATS_COLUMNS: [(&str, StatsColumn); 17] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -205,11 +212,13 @@ const STATS_COLUMNS: [(&str, StatsColumn); 15] = [
         StatsColumn::U32(|s| s.linear_iterations),
     ),
     ("factorizations", StatsColumn::U32(|s| s.factorizations)),
+    ("substeps", StatsColumn::U32(|s| s.substeps)),
     ("residual", StatsColumn::F64(|s| s.residual)),
     ("energy", StatsColumn::F64(|s| s.energy)),
     ("kinetic_energy", StatsColumn::F64(|s| s.kinetic_energy)),
     ("elastic_energy", StatsColumn::F64(|s| s.elastic_energy)),
     ("potential_energy", StatsColumn::F64(|s| s.potential_energy)),
+    ("contact_energy", StatsColumn::F64(|s| s.contact_energy)),
     ("t_assembly", StatsColumn::F64(|s| s.t_assembly)),
     ("t_factorization", StatsColumn::F64(|s| s.t_factorization)),
     ("t_solve", StatsColumn::F64(|s| s.t_solve)),
@@ -1487,11 +1496,13 @@ mod tests {
             newton_iterations: 3,
             linear_iterations: 7,
             factorizations: 2,
+            substeps: 1,
             residual: 1e-9,
             energy: 1.5,
             kinetic_energy: 0.5,
             elastic_energy: 0.75,
             potential_energy: 0.25,
+            contact_energy: 0.0,
             t_assembly: 0.01,
             t_factorization: 0.02,
             t_solve: 0.003,

@@ -172,11 +172,13 @@ fn stats_row(sim: &Simulation, report: &StepReport) -> StepStats {
         newton_iterations: n.iterations as u32,
         linear_iterations: n.linear_iterations as u32,
         factorizations: n.factorizations as u32,
+        substeps: report.substeps,
         residual: n.residual,
         energy: report.energies.total(),
         kinetic_energy: report.energies.kinetic,
         elastic_energy: report.energies.elastic,
         potential_energy: report.energies.potential,
+        contact_energy: report.energies.contact,
         t_assembly: n.t_assembly,
         t_factorization: n.t_factorization,
         t_solve: n.t_solve,
@@ -201,6 +203,32 @@ fn write_frame(
     let positions = sim.positions();
     let stress = sim.stresses();
     let eigenstrain = &sim.model.elasticity.eigenstrain;
+    // The displacement is stored exactly (positions = rest + u are rounded), so that a
+    // resumed run continues bit for bit.
+    let mut node_fields = vec![Field {
+        name: "displacement",
+        cols: 3,
+        data: &sim.state.u,
+    }];
+    let zeros;
+    if let Some(forces) = sim.contact_forces() {
+        let (normal, friction) = if forces.normal.is_empty() {
+            zeros = vec![0.0; sim.state.u.len()];
+            (&zeros[..], &zeros[..])
+        } else {
+            (&forces.normal[..], &forces.friction[..])
+        };
+        node_fields.push(Field {
+            name: "contact_normal_force",
+            cols: 3,
+            data: normal,
+        });
+        node_fields.push(Field {
+            name: "contact_friction_force",
+            cols: 3,
+            data: friction,
+        });
+    }
     writer.write_frame(&Frame {
         step: sim.state.step,
         time: sim.state.time,
@@ -215,13 +243,7 @@ fn write_frame(
             cols: 1,
             data: eigenstrain,
         }],
-        // The displacement is stored exactly (positions = rest + u are rounded), so that a
-        // resumed run continues bit for bit.
-        node_fields: &[Field {
-            name: "displacement",
-            cols: 3,
-            data: &sim.state.u,
-        }],
+        node_fields: &node_fields,
     })
 }
 

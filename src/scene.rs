@@ -22,7 +22,8 @@
 
 use crate::fem::{ElasticModel, Material};
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
-use crate::physics::{Dirichlet, Elasticity, Model, Rayleigh, Region, Traction};
+use crate::physics::contact::{default_stiffness, Shape};
+use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Rayleigh, Region, Traction};
 use crate::sim::{Analysis, StepSettings};
 use crate::solver::{FillOrdering, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
@@ -85,6 +86,9 @@ pub struct SceneFile {
     /// Fixed isotropic eigenstrains in regions.
     #[serde(default)]
     pub eigenstrain: Vec<EigenstrainSection>,
+    /// Rigid obstacles the ice touches (penalty contact with friction).
+    #[serde(default)]
+    pub obstacle: Vec<ObstacleSection>,
     /// Time stepping.
     pub time: TimeSection,
     /// Solver settings.
@@ -149,6 +153,9 @@ pub struct PhysicsSection {
     pub gravity: Option<[f64; 3]>,
     /// Rayleigh damping.
     pub damping: Option<DampingSection>,
+    /// Friction smoothing velocity ε_v (m/s): slower relative sliding counts as sticking.
+    /// Default 1e-4.
+    pub friction_smoothing_velocity: Option<f64>,
 }
 
 /// `[physics.damping]`: D = α M + β K.
@@ -202,6 +209,30 @@ pub struct EigenstrainSection {
     pub max: [f64; 3],
     /// e (dimensionless), in (−0.5, 0.5).
     pub value: f64,
+}
+
+/// `[[obstacle]]`: a rigid obstacle, `type = "halfspace"` (with `point`, `normal`) or
+/// `type = "container"` (open-top box with inner corners `min`, `max`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleSection {
+    /// "halfspace" or "container".
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Half-space: a point on its surface (m).
+    pub point: Option<[f64; 3]>,
+    /// Half-space: normal pointing out of the obstacle (normalised here).
+    pub normal: Option<[f64; 3]>,
+    /// Container: inner lower corner (m).
+    pub min: Option<[f64; 3]>,
+    /// Container: inner upper corner (m); its z is the rim (the top is open).
+    pub max: Option<[f64; 3]>,
+    /// Rigid velocity (m/s). Default 0.
+    pub velocity: Option<[f64; 3]>,
+    /// Penalty stiffness (N/m³). Default 100 E / h (h: mean boundary edge length).
+    pub stiffness: Option<f64>,
+    /// Coulomb friction coefficient. Default 0.
+    pub friction: Option<f64>,
 }
 
 /// `[time]`.
@@ -447,12 +478,23 @@ impl Validator<'_> {
                 ));
             }
         }
-        let model = Model::new(mesh, elasticity, gravity, &tractions, damping, dirichlet).map_err(
-            |source| SceneError::Mesh {
+        let obstacles = raw
+            .obstacle
+            .iter()
+            .enumerate()
+            .map(|(i, o)| self.obstacle(i, o, &mesh, &material))
+            .collect::<Result<Vec<_>, _>>()?;
+        let smoothing = self.positive(
+            "physics.friction_smoothing_velocity",
+            raw.physics.friction_smoothing_velocity.unwrap_or(1e-4),
+        )?;
+        let contact = (!obstacles.is_empty()).then(|| Contact::new(&mesh, obstacles, smoothing));
+        let mut model = Model::new(mesh, elasticity, gravity, &tractions, damping, dirichlet)
+            .map_err(|source| SceneError::Mesh {
                 path: self.path.into(),
                 source,
-            },
-        )?;
+            })?;
+        model.contact = contact;
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),
             None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),
@@ -539,6 +581,76 @@ impl Validator<'_> {
             }
         };
         Ok((material, m.model.unwrap_or(ElasticModel::Corotated)))
+    }
+
+    fn obstacle(
+        &self,
+        i: usize,
+        o: &ObstacleSection,
+        mesh: &TetMesh,
+        material: &Material,
+    ) -> Result<Obstacle, SceneError> {
+        let field = format!("obstacle[{i}]");
+        let f = |name: &str| format!("{field}.{name}");
+        let shape = match o.kind.as_str() {
+            "halfspace" => {
+                if o.min.is_some() || o.max.is_some() {
+                    return Err(self.invalid(
+                        &f("min"),
+                        "`min`/`max` belong to containers; a half-space takes `point` and `normal`",
+                    ));
+                }
+                let point = o.point.ok_or_else(|| {
+                    self.invalid(&f("point"), "missing (a point on the surface, m)")
+                })?;
+                let normal = o
+                    .normal
+                    .ok_or_else(|| self.invalid(&f("normal"), "missing (outward normal)"))?;
+                let normal = self.vector(&f("normal"), normal)?;
+                if normal.norm() == 0.0 {
+                    return Err(self.invalid(&f("normal"), "must not be zero"));
+                }
+                Shape::HalfSpace {
+                    point: self.vector(&f("point"), point)?,
+                    normal: normal.normalize(),
+                }
+            }
+            "container" => {
+                if o.point.is_some() || o.normal.is_some() {
+                    return Err(self.invalid(
+                        &f("point"),
+                        "`point`/`normal` belong to half-spaces; a container takes `min` and `max`",
+                    ));
+                }
+                let min = o
+                    .min
+                    .ok_or_else(|| self.invalid(&f("min"), "missing (inner lower corner, m)"))?;
+                let max = o
+                    .max
+                    .ok_or_else(|| self.invalid(&f("max"), "missing (inner upper corner, m)"))?;
+                let inner = self.region(&field, min, max)?;
+                if (0..3).any(|a| inner.max[a] <= inner.min[a]) {
+                    return Err(self.invalid(&f("max"), "must exceed `min` on every axis"));
+                }
+                Shape::Container { inner }
+            }
+            other => {
+                return Err(self.invalid(
+                    &f("type"),
+                    format!("must be \"halfspace\" or \"container\", got {other:?}"),
+                ))
+            }
+        };
+        let stiffness = match o.stiffness {
+            Some(k) => self.positive(&f("stiffness"), k)?,
+            None => default_stiffness(mesh, material.young()),
+        };
+        Ok(Obstacle {
+            shape,
+            velocity: self.vector(&f("velocity"), o.velocity.unwrap_or_default())?,
+            stiffness,
+            friction: self.non_negative(&f("friction"), o.friction.unwrap_or(0.0))?,
+        })
     }
 
     fn dirichlet(&self, i: usize, d: &DirichletSection) -> Result<Dirichlet, SceneError> {

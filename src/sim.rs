@@ -1,6 +1,7 @@
 //! The step loop: owns the model, the state and the solver data, and advances time.
 
 use crate::assembly::{Assembly, DofMap};
+use crate::physics::contact::{ContactForces, ContactStep};
 use crate::physics::Model;
 use crate::solver::timestep::{Inertia, StepPotential};
 use crate::solver::{
@@ -60,12 +61,14 @@ pub struct Energies {
     pub elastic: f64,
     /// Potential of the dead loads, −f·u.
     pub potential: f64,
+    /// Penalty energy stored in contact with obstacles.
+    pub contact: f64,
 }
 
 impl Energies {
-    /// Kinetic + elastic + load potential.
+    /// Kinetic + elastic + load potential + contact penalty.
     pub fn total(&self) -> f64 {
-        self.kinetic + self.elastic + self.potential
+        self.kinetic + self.elastic + self.potential + self.contact
     }
 }
 
@@ -78,6 +81,35 @@ pub struct StepReport {
     pub energies: Energies,
     /// Wall time of the whole step (s).
     pub t_step: f64,
+    /// Solves the step took (1 unless Newton failed and the step was halved).
+    pub substeps: u32,
+}
+
+/// How often a failing step may be halved (down to dt/16).
+pub const MAX_HALVINGS: u32 = 4;
+
+impl StepReport {
+    /// The report of two consecutive substeps as one step.
+    fn merge(&self, next: &StepReport) -> StepReport {
+        let (a, b) = (&self.newton, &next.newton);
+        StepReport {
+            newton: NewtonReport {
+                iterations: a.iterations + b.iterations,
+                factorizations: a.factorizations + b.factorizations,
+                linear_iterations: a.linear_iterations + b.linear_iterations,
+                residual: a.residual.max(b.residual),
+                force_scale: b.force_scale,
+                roundoff_floor: b.roundoff_floor,
+                energy: b.energy,
+                t_assembly: a.t_assembly + b.t_assembly,
+                t_factorization: a.t_factorization + b.t_factorization,
+                t_solve: a.t_solve + b.t_solve,
+            },
+            energies: next.energies,
+            t_step: self.t_step + next.t_step,
+            substeps: self.substeps + next.substeps,
+        }
+    }
 }
 
 /// Errors while setting up or stepping.
@@ -94,12 +126,13 @@ pub enum SimError {
         max: [f64; 3],
     },
     /// Newton failed in a step.
-    #[error("step {step} (t = {time:.6} s): {source}")]
+    // The cause is part of the message (not a `#[source]`), so that `to_string()` tells the
+    // whole story and error chains do not print it twice.
+    #[error("step {step} (t = {time:.6} s) failed even at dt/{}: {cause}", 1u32 << MAX_HALVINGS)]
     Step {
         step: u64,
         time: f64,
-        #[source]
-        source: NewtonError,
+        cause: NewtonError,
     },
     /// Building the problem failed.
     #[error("set-up failed: {0}")]
@@ -125,6 +158,12 @@ pub struct Simulation {
     previous: Vec<f64>,
     predictor: Vec<f64>,
     damping_stiffness: Vec<f64>,
+    /// Per node, the CSC value indices of its 3 × 3 block (only built with contact).
+    block_slots: Vec<[u32; 9]>,
+    /// Lagged normal force per (boundary node, contact plane) of the current step (N).
+    lagged: Vec<f64>,
+    /// Contact forces on the ice after the last step (N, 3 per node; empty without contact).
+    contact_forces: ContactForces,
 }
 
 impl Simulation {
@@ -166,6 +205,14 @@ impl Simulation {
             scratch: vec![0.0; assembly.dofs().num_free()],
             previous: vec![0.0; n],
             predictor: vec![0.0; n],
+            block_slots: match &model.contact {
+                Some(_) => (0..model.num_nodes())
+                    .map(|i| assembly.node_block_slots(i))
+                    .collect(),
+                None => Vec::new(),
+            },
+            lagged: Vec::new(),
+            contact_forces: ContactForces::default(),
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
             } else {
@@ -189,11 +236,49 @@ impl Simulation {
         &self.linear
     }
 
-    /// Advances one step of `settings.dt`. On failure the state is left unchanged.
+    /// Advances one step of `settings.dt`. If Newton fails, the step is retried as two half
+    /// steps, recursively, down to `dt / 2^MAX_HALVINGS`; the step then reports how many
+    /// substeps it took. On failure the state is left unchanged.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
         let start = Instant::now();
-        let h = self.settings.dt;
-        let t_new = self.state.time + h;
+        let (t0, u0, v0) = (self.state.time, self.state.u.clone(), self.state.v.clone());
+        let t_end = t0 + self.settings.dt;
+        let result = self.advance(self.settings.dt, t_end, 0);
+        if result.is_err() {
+            (self.state.time, self.state.u, self.state.v) = (t0, u0, v0);
+        }
+        let mut report = result.map_err(|(source, time)| SimError::Step {
+            step: self.state.step + 1,
+            time,
+            cause: source,
+        })?;
+        self.state.step += 1;
+        report.t_step = start.elapsed().as_secs_f64();
+        report.energies = self.energies();
+        Ok(report)
+    }
+
+    /// Advances by `h` to `t_end` (passed so that halves land exactly on the full step's end
+    /// time), halving on failure up to `MAX_HALVINGS` times.
+    fn advance(
+        &mut self,
+        h: f64,
+        t_end: f64,
+        depth: u32,
+    ) -> Result<StepReport, (NewtonError, f64)> {
+        match self.try_step(h, t_end) {
+            Ok(report) => Ok(report),
+            Err(_) if depth < MAX_HALVINGS => {
+                let first = self.advance(0.5 * h, t_end - 0.5 * h, depth + 1)?;
+                let second = self.advance(0.5 * h, t_end, depth + 1)?;
+                Ok(first.merge(&second))
+            }
+            Err(e) => Err((e, t_end)),
+        }
+    }
+
+    /// One backward-Euler (or static) solve of length `h` ending at `t_new`.
+    fn try_step(&mut self, h: f64, t_new: f64) -> Result<StepReport, NewtonError> {
         let dynamic = self.settings.analysis == Analysis::Dynamic;
         self.previous.copy_from_slice(&self.state.u);
         let mut u = self.state.u.clone();
@@ -214,6 +299,22 @@ impl Simulation {
             self.stiffness_at_previous(damping.stiffness);
         }
         let force_floor = self.force_scale(h, dynamic);
+        let contact = self.model.contact.as_ref().map(|c| {
+            // Friction uses the normal forces at the start of the step.
+            self.lagged = c.normal_forces(
+                &self.model.mesh.rest,
+                &self.previous,
+                &c.planes(self.state.time),
+            );
+            ContactStep {
+                contact: c,
+                rest: &self.model.mesh.rest,
+                planes: c.planes(t_new),
+                dt: dynamic.then_some(h),
+                previous: &self.previous,
+                lagged: &self.lagged,
+            }
+        });
         let mut potential = StepPotential {
             model: &self.model,
             assembly: &self.assembly,
@@ -226,6 +327,9 @@ impl Simulation {
             }),
             element_energy: &mut self.element_energy,
             scratch: &mut self.scratch,
+            contact,
+            block_slots: &self.block_slots,
+            project: false,
         };
         let newton = minimize(
             &mut potential,
@@ -235,25 +339,27 @@ impl Simulation {
             &self.settings.newton,
             force_floor,
             &mut self.workspace,
-        )
-        .map_err(|source| SimError::Step {
-            step: self.state.step + 1,
-            time: t_new,
-            source,
-        })?;
+        )?;
         if dynamic {
             for ((v, un), u0) in self.state.v.iter_mut().zip(&u).zip(&self.previous) {
                 *v = (un - u0) / h;
             }
         }
+        if let Some(contact) = &potential.contact {
+            let n = u.len();
+            let mut forces = ContactForces {
+                normal: vec![0.0; n],
+                friction: vec![0.0; n],
+            };
+            contact.evaluate(&u, None, None, Some(&mut forces));
+            self.contact_forces = forces;
+        }
         self.state.u = u;
         self.state.time = t_new;
-        self.state.step += 1;
-        let energies = self.energies();
         Ok(StepReport {
             newton,
-            energies,
-            t_step: start.elapsed().as_secs_f64(),
+            substeps: 1,
+            ..Default::default()
         })
     }
 
@@ -265,6 +371,10 @@ impl Simulation {
             inertia: None,
             element_energy: &mut self.element_energy,
             scratch: &mut self.scratch,
+            contact: None,
+            block_slots: &[],
+            // β K must be positive semi-definite to damp.
+            project: true,
         };
         let mut gradient = vec![0.0; self.previous.len()];
         potential.evaluate(&self.previous, &mut gradient, &mut self.damping_stiffness);
@@ -312,10 +422,22 @@ impl Simulation {
             .zip(u)
             .map(|(f, u)| f * u)
             .sum::<f64>();
+        let contact = self.model.contact.as_ref().map_or(0.0, |c| {
+            let step = ContactStep {
+                contact: c,
+                rest: &self.model.mesh.rest,
+                planes: c.planes(self.state.time),
+                dt: None,
+                previous: u,
+                lagged: &[],
+            };
+            step.evaluate(u, None, None, None)
+        });
         Energies {
             kinetic,
             elastic,
             potential,
+            contact,
         }
     }
 
@@ -324,6 +446,11 @@ impl Simulation {
         self.model
             .elasticity
             .stresses(&self.model.mesh.tets, &self.state.u)
+    }
+
+    /// Contact forces on the ice after the last step (N, 3 per node), if the model has contact.
+    pub fn contact_forces(&self) -> Option<&ContactForces> {
+        self.model.contact.as_ref().map(|_| &self.contact_forces)
     }
 
     /// Current positions X + u (m).

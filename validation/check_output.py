@@ -109,8 +109,8 @@ def check_hdf5(path):
                 "shared_topology": bool(shared), "fields": fields,
             })
 
-        cols = ["step", "time", "dt", "newton_iterations", "linear_iterations", "factorizations", "residual",
-                "energy", "kinetic_energy", "elastic_energy", "potential_energy",
+        cols = ["step", "time", "dt", "newton_iterations", "linear_iterations", "factorizations", "substeps", "residual",
+                "energy", "kinetic_energy", "elastic_energy", "potential_energy", "contact_energy",
                 "t_assembly", "t_factorization", "t_solve", "t_step"]
         lens = {c: f["stats"][c].shape[0] for c in cols if c in f["stats"]}
         check(len(lens) == len(cols), f"/stats columns missing: {set(cols) - set(lens)}")

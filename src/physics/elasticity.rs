@@ -34,7 +34,7 @@ impl Elasticity {
         tet.map(|v| Vector3::new(u[3 * v], u[3 * v + 1], u[3 * v + 2]))
     }
 
-    /// Energy, gradient and optionally stiffness of element `e` for displacements `u`.
+    /// Energy, gradient and optionally the exact stiffness of element `e` for displacements `u`.
     pub fn element(
         &self,
         tets: &[[usize; 4]],
@@ -43,14 +43,30 @@ impl Elasticity {
         with_hessian: bool,
         out: &mut ElementEval,
     ) {
+        self.element_with(tets, u, e, with_hessian, false, out);
+    }
+
+    /// As [`Elasticity::element`]; with `project` the stiffness is made positive semi-definite
+    /// (see `fem::constitutive`).
+    pub fn element_with(
+        &self,
+        tets: &[[usize; 4]],
+        u: &[f64],
+        e: usize,
+        with_hessian: bool,
+        project: bool,
+        out: &mut ElementEval,
+    ) {
         let offset = Matrix3::identity() * self.eigenstrain[e];
+        let local = Self::local(u, &tets[e]);
         element_eval(
             self.model,
             &self.material,
             &self.rest[e],
-            &Self::local(u, &tets[e]),
+            &local,
             &offset,
             with_hessian,
+            project,
             out,
         );
     }

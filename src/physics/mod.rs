@@ -1,10 +1,12 @@
 //! The physical model of a scene: elasticity, mass, loads, damping and boundary conditions.
 //! A scene builds only the terms it enables; a term that is off costs nothing.
 
+pub mod contact;
 pub mod dirichlet;
 pub mod elasticity;
 pub mod loads;
 
+pub use contact::{Contact, Obstacle};
 pub use dirichlet::Dirichlet;
 pub use elasticity::Elasticity;
 pub use loads::Traction;
@@ -52,6 +54,8 @@ pub struct Model {
     pub damping: Option<Rayleigh>,
     /// Dirichlet conditions.
     pub dirichlet: Vec<Dirichlet>,
+    /// Contact with rigid obstacles, if the scene has any (none: no contact work at all).
+    pub contact: Option<Contact>,
 }
 
 impl Model {
@@ -80,6 +84,7 @@ impl Model {
             external_force,
             damping,
             dirichlet,
+            contact: None,
         })
     }
 

@@ -13,8 +13,7 @@ use faer::matrix_free::conjugate_gradient::{
 use faer::matrix_free::InitialGuessStatus;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
-    LltRef,
-    factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::{Conj, MatMut, MatRef, Par, Side};
 use std::time::Instant;
@@ -178,12 +177,25 @@ impl LinearSolver {
     /// Cholesky factorisation, or the Jacobi preconditioner for CG. Returns its time (s), or
     /// `None` when the values are bit for bit those of the current factor (a linear model at a
     /// fixed step has the same matrix every step), which is then kept.
-    pub fn factorize(&mut self, assembly: &Assembly, values: &[f64]) -> Result<Option<f64>, LinearError> {
+    pub fn factorize(
+        &mut self,
+        assembly: &Assembly,
+        values: &[f64],
+    ) -> Result<Option<f64>, LinearError> {
         let start = Instant::now();
         match self {
-            LinearSolver::Cholesky { symbolic, l_values, work, factored, .. } => {
+            LinearSolver::Cholesky {
+                symbolic,
+                l_values,
+                work,
+                factored,
+                ..
+            } => {
                 let same = factored.len() == values.len()
-                    && factored.iter().zip(values).all(|(a, b)| a.to_bits() == b.to_bits());
+                    && factored
+                        .iter()
+                        .zip(values)
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
                 if same {
                     return Ok(None);
                 }
@@ -224,7 +236,12 @@ impl LinearSolver {
         let n = b.len();
         let start = Instant::now();
         match self {
-            LinearSolver::Cholesky { symbolic, l_values, work, .. } => {
+            LinearSolver::Cholesky {
+                symbolic,
+                l_values,
+                work,
+                ..
+            } => {
                 x.copy_from_slice(b);
                 LltRef::new(symbolic, l_values).solve_in_place_with_conj(
                     Conj::No,
@@ -232,9 +249,17 @@ impl LinearSolver {
                     Par::Seq,
                     MemStack::new(work),
                 );
-                Ok(LinearStats { t_solve: start.elapsed().as_secs_f64(), iterations: 1 })
+                Ok(LinearStats {
+                    t_solve: start.elapsed().as_secs_f64(),
+                    iterations: 1,
+                })
             }
-            LinearSolver::Cg { tolerance, max_iterations, inv_diag, work } => {
+            LinearSolver::Cg {
+                tolerance,
+                max_iterations,
+                inv_diag,
+                work,
+            } => {
                 x.fill(0.0);
                 // faer 0.24.4 mis-handles `InitialGuessStatus::Zero`; a zeroed x with
                 // `MaybeNonZero` is equivalent and works.
@@ -257,7 +282,10 @@ impl LinearSolver {
                 );
                 let t_solve = start.elapsed().as_secs_f64();
                 match info {
-                    Ok(info) => Ok(LinearStats { t_solve, iterations: info.iter_count }),
+                    Ok(info) => Ok(LinearStats {
+                        t_solve,
+                        iterations: info.iter_count,
+                    }),
                     Err(faer::matrix_free::conjugate_gradient::CgError::NoConvergence {
                         rel_residual,
                         ..

@@ -21,6 +21,11 @@ pub trait Potential {
     fn evaluate(&mut self, u: &[f64], gradient: &mut [f64], hessian: &mut [f64]) -> f64;
     /// Potential and its gradient over all dofs (N), without the Hessian.
     fn gradient(&mut self, u: &[f64], gradient: &mut [f64]) -> f64;
+    /// Switches to a positive semi-definite approximation of the Hessian from now on; returns
+    /// whether anything changed (false if already projected or nothing to project).
+    fn project_hessian(&mut self) -> bool {
+        false
+    }
 }
 
 /// A chord iteration (reusing the last factorisation) must cut the residual at least this
@@ -52,6 +57,8 @@ pub struct NewtonReport {
     pub residual: f64,
     /// Force scale the residual was judged against (N).
     pub force_scale: f64,
+    /// Round-off floor of the residual at the solution (N), see [`roundoff_floor`].
+    pub roundoff_floor: f64,
     /// Final potential (J).
     pub energy: f64,
     /// Assembly time (s).
@@ -75,6 +82,9 @@ pub enum NewtonError {
         residual: f64,
         target: f64,
     },
+    /// The line search found no decrease of the potential along the Newton direction.
+    #[error("the line search found no descent along the Newton direction (iteration {iteration}, residual {residual:e} N)")]
+    LineSearch { iteration: usize, residual: f64 },
     /// The potential became NaN or infinite.
     #[error("the state became non-finite (NaN or infinity) during Newton iteration {iteration}")]
     NonFinite { iteration: usize },
@@ -109,8 +119,9 @@ impl NewtonWorkspace {
 }
 
 /// Minimises `potential` over the free dofs of `u` (constrained dofs keep their values).
-/// `force_floor` (N) is a force scale of the problem (external and inertial forces) below which
-/// the residual is not judged; the scale used is the larger of it and the first residual.
+/// `force_floor` (N) is a force scale of the problem (external and inertial forces per node);
+/// the residual is judged against it (or the support reactions when it is zero), and never
+/// below the round-off floor of [`roundoff_floor`].
 pub fn minimize(
     potential: &mut impl Potential,
     u: &mut [f64],
@@ -122,9 +133,15 @@ pub fn minimize(
 ) -> Result<NewtonReport, NewtonError> {
     let dofs = assembly.dofs();
     let mut report = NewtonReport::default();
-    let free_max = |g: &[f64]| dofs.free_dofs().iter().map(|&d| g[d].abs()).fold(0.0, f64::max);
+    let free_max = |g: &[f64]| {
+        dofs.free_dofs()
+            .iter()
+            .map(|&d| g[d].abs())
+            .fold(0.0, f64::max)
+    };
     let mut refresh = true;
     let mut previous_residual = f64::INFINITY;
+    let mut floor = 0.0;
     for iteration in 0..=params.max_iterations {
         let start = Instant::now();
         let mut energy = if refresh {
@@ -137,17 +154,36 @@ pub fn minimize(
         if !energy.is_finite() || !residual.is_finite() {
             return Err(NewtonError::NonFinite { iteration });
         }
-        if iteration == 0 {
-            report.force_scale = force_floor.max(residual);
-        }
+        // Judge the residual against the per-node loads of the problem (`force_floor`: dead
+        // and inertial loads), or, when there are none (a body moved only by its supports),
+        // against the support reactions; never against the first residual, which after an
+        // impact predictor can be 1e9 times larger than any force in the solution. Reactions
+        // are not used otherwise: they sum the load of many nodes, and on the soft inertial
+        // modes of a small step a residual of that size would be a visible error.
+        report.force_scale = if force_floor > 0.0 {
+            force_floor
+        } else {
+            (0..work.gradient.len())
+                .filter(|&d| dofs.free(d).is_none())
+                .map(|d| work.gradient[d].abs())
+                .fold(0.0, f64::max)
+        };
         report.residual = residual;
         report.energy = energy;
-        let target = params.tolerance * report.force_scale;
+        report.roundoff_floor = floor;
+        if refresh {
+            floor = roundoff_floor(assembly, &work.hessian, u);
+        }
+        let target = (params.tolerance * report.force_scale).max(floor);
         if residual <= target {
             return Ok(report);
         }
         if iteration == params.max_iterations {
-            return Err(NewtonError::NotConverged { iterations: iteration, residual, target });
+            return Err(NewtonError::NotConverged {
+                iterations: iteration,
+                residual,
+                target,
+            });
         }
         if !refresh && residual > CHORD_CONTRACTION * previous_residual {
             // The chord stalled: take the true Hessian at this iterate.
@@ -157,7 +193,18 @@ pub fn minimize(
             report.t_assembly += start.elapsed().as_secs_f64();
         }
         if refresh {
-            if let Some(t) = linear.factorize(assembly, &work.hessian)? {
+            // The exact Hessian first; if it is indefinite (compressed corotated elements),
+            // its positive semi-definite projection for the rest of this solve.
+            let t = match linear.factorize(assembly, &work.hessian) {
+                Err(LinearError::NotPositiveDefinite { .. }) if potential.project_hessian() => {
+                    let start = Instant::now();
+                    energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
+                    report.t_assembly += start.elapsed().as_secs_f64();
+                    linear.factorize(assembly, &work.hessian)?
+                }
+                other => other?,
+            };
+            if let Some(t) = t {
                 report.t_factorization += t;
                 report.factorizations += 1;
             }
@@ -172,7 +219,12 @@ pub fn minimize(
         // Backtracking (Armijo) line search on the potential. Near convergence the decrease
         // is below the round-off of the potential itself, so a step that changes the energy
         // by less than that round-off is accepted as it is.
-        let slope: f64 = work.rhs.iter().zip(&work.direction).map(|(r, d)| -r * d).sum();
+        let slope: f64 = work
+            .rhs
+            .iter()
+            .zip(&work.direction)
+            .map(|(r, d)| -r * d)
+            .sum();
         let roundoff = 1e-13 * energy.abs().max(f64::MIN_POSITIVE);
         let mut alpha = 1.0;
         let start = Instant::now();
@@ -187,10 +239,10 @@ pub fn minimize(
             }
             alpha *= 0.5;
             if alpha < 1e-6 {
-                // No descent along the direction: take the full step and let the residual
-                // test judge it (happens only at round-off level).
-                alpha = 1.0;
-                break;
+                return Err(NewtonError::LineSearch {
+                    iteration,
+                    residual,
+                });
             }
         }
         report.t_assembly += start.elapsed().as_secs_f64();
@@ -210,4 +262,18 @@ pub fn minimize(
         previous_residual = residual;
     }
     unreachable!("the loop returns at iteration max_iterations")
+}
+
+/// The smallest residual (N) double precision can resolve at `u`: forces are stiffness times
+/// displacement, and a displacement of magnitude |u| is stored to ε|u|, so the residual cannot
+/// be trusted below ε · max diag(K) · max|u|; ten times that is the floor Newton accepts. It
+/// matters when the body has moved far (a falling cube: 5 cm of displacement leaves ~5e-8 N of
+/// noise on ice) and is negligible for the small displacements of a supported body.
+pub fn roundoff_floor(assembly: &Assembly, hessian: &[f64], u: &[f64]) -> f64 {
+    let dofs = assembly.dofs();
+    let max_diag = (0..dofs.num_free())
+        .map(|f| hessian[assembly.diagonal_slot(f)].abs())
+        .fold(0.0, f64::max);
+    let max_u = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    10.0 * f64::EPSILON * max_diag * max_u
 }

@@ -14,7 +14,9 @@
 
 use super::newton::Potential;
 use crate::assembly::Assembly;
+use crate::physics::contact::ContactStep;
 use crate::physics::Model;
+use nalgebra::Matrix3;
 
 /// Inertia and damping data of a dynamic step.
 pub struct Inertia<'a> {
@@ -42,6 +44,12 @@ pub struct StepPotential<'a> {
     pub element_energy: &'a mut Vec<f64>,
     /// Scratch for the damping product, length = free dofs.
     pub scratch: &'a mut Vec<f64>,
+    /// Contact for this step, if the model has obstacles.
+    pub contact: Option<ContactStep<'a>>,
+    /// CSC value indices of each node's 3 × 3 block (for contact), indexed by node.
+    pub block_slots: &'a [[u32; 9]],
+    /// Whether element stiffnesses are projected to be positive semi-definite.
+    pub project: bool,
 }
 
 impl StepPotential<'_> {
@@ -59,6 +67,22 @@ impl StepPotential<'_> {
             if let Some(g) = gradient.as_deref_mut() {
                 g[d] -= f;
             }
+        }
+        if let Some(contact) = &self.contact {
+            let slots = self.block_slots;
+            energy += match hessian.as_deref_mut() {
+                Some(hs) => {
+                    let mut add = |node: usize, block: &Matrix3<f64>| {
+                        for (k, s) in slots[node].iter().enumerate() {
+                            if *s != u32::MAX {
+                                hs[*s as usize] += block[(k / 3, k % 3)];
+                            }
+                        }
+                    };
+                    contact.evaluate(u, gradient.as_deref_mut(), Some(&mut add), None)
+                }
+                None => contact.evaluate(u, gradient.as_deref_mut(), None, None),
+            };
         }
         let Some(inertia) = &self.inertia else {
             return energy;
@@ -113,6 +137,10 @@ impl StepPotential<'_> {
 }
 
 impl Potential for StepPotential<'_> {
+    fn project_hessian(&mut self) -> bool {
+        !std::mem::replace(&mut self.project, true)
+    }
+
     fn energy(&mut self, u: &[f64]) -> f64 {
         self.elastic_energy(u) + self.add_other_terms(u, None, None)
     }
@@ -120,10 +148,11 @@ impl Potential for StepPotential<'_> {
     fn evaluate(&mut self, u: &[f64], gradient: &mut [f64], hessian: &mut [f64]) -> f64 {
         gradient.fill(0.0);
         hessian.fill(0.0);
+        let project = self.project;
         let el = &self.model.elasticity;
         let tets = &self.model.mesh.tets;
         self.assembly.assemble(
-            |e, with_h, out| el.element(tets, u, e, with_h, out),
+            |e, with_h, out| el.element_with(tets, u, e, with_h, project, out),
             self.element_energy,
             gradient,
             Some(hessian),
@@ -134,10 +163,11 @@ impl Potential for StepPotential<'_> {
 
     fn gradient(&mut self, u: &[f64], gradient: &mut [f64]) -> f64 {
         gradient.fill(0.0);
+        let project = self.project;
         let el = &self.model.elasticity;
         let tets = &self.model.mesh.tets;
         self.assembly.assemble(
-            |e, with_h, out| el.element(tets, u, e, with_h, out),
+            |e, with_h, out| el.element_with(tets, u, e, with_h, project, out),
             self.element_energy,
             gradient,
             None,
