@@ -85,26 +85,17 @@ pub struct StepReport {
     pub substeps: u32,
 }
 
+/// Re-solves of a step with the friction normal force updated from its end.
+pub const MAX_FRICTION_UPDATES: usize = 4;
+
 /// How often a failing step may be halved (down to dt/16).
 pub const MAX_HALVINGS: u32 = 4;
 
 impl StepReport {
     /// The report of two consecutive substeps as one step.
     fn merge(&self, next: &StepReport) -> StepReport {
-        let (a, b) = (&self.newton, &next.newton);
         StepReport {
-            newton: NewtonReport {
-                iterations: a.iterations + b.iterations,
-                factorizations: a.factorizations + b.factorizations,
-                linear_iterations: a.linear_iterations + b.linear_iterations,
-                residual: a.residual.max(b.residual),
-                force_scale: b.force_scale,
-                roundoff_floor: b.roundoff_floor,
-                energy: b.energy,
-                t_assembly: a.t_assembly + b.t_assembly,
-                t_factorization: a.t_factorization + b.t_factorization,
-                t_solve: a.t_solve + b.t_solve,
-            },
+            newton: self.newton.then(&next.newton),
             energies: next.energies,
             t_step: self.t_step + next.t_step,
             substeps: self.substeps + next.substeps,
@@ -160,8 +151,6 @@ pub struct Simulation {
     damping_stiffness: Vec<f64>,
     /// Per node, the CSC value indices of its 3 × 3 block (only built with contact).
     block_slots: Vec<[u32; 9]>,
-    /// Lagged normal force per (boundary node, contact plane) of the current step (N).
-    lagged: Vec<f64>,
     /// Contact forces on the ice after the last step (N, 3 per node; empty without contact).
     contact_forces: ContactForces,
 }
@@ -211,7 +200,6 @@ impl Simulation {
                     .collect(),
                 None => Vec::new(),
             },
-            lagged: Vec::new(),
             contact_forces: ContactForces::default(),
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
@@ -299,21 +287,17 @@ impl Simulation {
             self.stiffness_at_previous(damping.stiffness);
         }
         let force_floor = self.force_scale(h, dynamic);
+        let rest = &self.model.mesh.rest;
+        let t_start = self.state.time;
         let contact = self.model.contact.as_ref().map(|c| {
-            // Friction uses the normal forces at the start of the step.
-            self.lagged = c.normal_forces(
-                &self.model.mesh.rest,
+            ContactStep::new(
+                c,
+                rest,
                 &self.previous,
-                &c.planes(self.state.time),
-            );
-            ContactStep {
-                contact: c,
-                rest: &self.model.mesh.rest,
-                planes: c.planes(t_new),
-                dt: dynamic.then_some(h),
-                previous: &self.previous,
-                lagged: &self.lagged,
-            }
+                t_start,
+                t_new,
+                dynamic.then_some(h),
+            )
         });
         let mut potential = StepPotential {
             model: &self.model,
@@ -331,7 +315,7 @@ impl Simulation {
             block_slots: &self.block_slots,
             project: false,
         };
-        let newton = minimize(
+        let mut newton = minimize(
             &mut potential,
             &mut u,
             &self.assembly,
@@ -340,6 +324,33 @@ impl Simulation {
             force_floor,
             &mut self.workspace,
         )?;
+        // Friction used the normal force of the start of the step; re-solve with that of the
+        // end until it settles (to 1e-4 of the largest), warm-started from the last solution.
+        for _ in 0..MAX_FRICTION_UPDATES {
+            let Some(c) = potential.contact.as_mut().filter(|c| c.has_friction()) else {
+                break;
+            };
+            let updated = c.normal_forces(&u);
+            let scale = updated.iter().fold(0.0f64, |m, v| m.max(*v));
+            let change = updated
+                .iter()
+                .zip(&c.lagged)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            if change <= 1e-4 * scale {
+                break;
+            }
+            c.lagged = updated;
+            let more = minimize(
+                &mut potential,
+                &mut u,
+                &self.assembly,
+                &mut self.linear,
+                &self.settings.newton,
+                force_floor,
+                &mut self.workspace,
+            )?;
+            newton = newton.then(&more);
+        }
         if dynamic {
             for ((v, un), u0) in self.state.v.iter_mut().zip(&u).zip(&self.previous) {
                 *v = (un - u0) / h;
@@ -423,15 +434,8 @@ impl Simulation {
             .map(|(f, u)| f * u)
             .sum::<f64>();
         let contact = self.model.contact.as_ref().map_or(0.0, |c| {
-            let step = ContactStep {
-                contact: c,
-                rest: &self.model.mesh.rest,
-                planes: c.planes(self.state.time),
-                dt: None,
-                previous: u,
-                lagged: &[],
-            };
-            step.evaluate(u, None, None, None)
+            let t = self.state.time;
+            ContactStep::new(c, &self.model.mesh.rest, u, t, t, None).evaluate(u, None, None, None)
         });
         Energies {
             kinetic,
@@ -446,6 +450,12 @@ impl Simulation {
         self.model
             .elasticity
             .stresses(&self.model.mesh.tets, &self.state.u)
+    }
+
+    /// Number of entries held by contact bookkeeping (block slots, output
+    /// forces); zero for a model without obstacles.
+    pub fn contact_structures_len(&self) -> usize {
+        self.block_slots.len() + self.contact_forces.normal.len()
     }
 
     /// Contact forces on the ice after the last step (N, 3 per node), if the model has contact.

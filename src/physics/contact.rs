@@ -1,17 +1,22 @@
 //! Penalty contact of the ice with rigid obstacles, with smoothed Coulomb friction.
 //!
-//! Every boundary node i carries the rest area share Aᵢ (a third of each boundary triangle
-//! around it). Against a plane with point p and unit normal n (pointing out of the obstacle),
-//! the gap is g = (xᵢ − p)·n and a penetrating node stores the energy ½ k Aᵢ g², i.e. a contact
-//! pressure k·depth with k in N/m³. Its gradient k Aᵢ g n and Hessian k Aᵢ n nᵀ enter Newton's
-//! system, so a stiff penalty stays stable at large steps.
+//! Against a plane with point p and unit normal n (pointing out of the obstacle), a boundary
+//! node i has the gap g = (xᵢ − p)·n and, when penetrating, stores the energy ½ k Aᵢ g²: a
+//! contact pressure k·depth (k in N/m³) on the node's area share Aᵢ — a third of each boundary
+//! triangle around it, projected on the plane and counted only where the triangle faces it, so
+//! that a flat face resting on a plane carries exactly its area and side faces carry nothing.
+//! The areas are those of the rest configuration (obstacles translate, so they are constants):
+//! the penalty is then a fixed conservative energy with exact gradient k Aᵢ g n and Hessian
+//! k Aᵢ n nᵀ, and a stiff penalty stays stable at large steps. (A fragment that tips over keeps
+//! its rest areas; fine for the small rotations of ice in a container.)
 //!
 //! Friction (dynamic steps only) is the smoothed Coulomb potential of incremental potential
 //! contact (Li et al. 2020): with the tangential slip of the step y = (I − n nᵀ)(Δuᵢ − v_obs h),
 //! D = α λ f₀(|y|), whose force has magnitude α λ f₁(|y|) ≤ α λ — exactly α λ once the slip
 //! exceeds ε = ε_v h, growing smoothly from zero below (stick, with creep slower than ε_v). The
-//! normal force λ = k Aᵢ max(0, −g) is lagged: taken at the start of the step, which keeps the
-//! step a minimisation.
+//! normal force λ = k Aᵢ max(0, −g) is lagged: the step is solved with λ from the start of the
+//! step, then re-solved with λ from its end until λ settles (a few rounds at most), so friction
+//! acts with the normal force of the end of the step while each solve stays a minimisation.
 
 use super::Region;
 use crate::mesh::TetMesh;
@@ -100,8 +105,12 @@ pub struct Contact {
     pub obstacles: Vec<Obstacle>,
     /// Boundary nodes.
     pub nodes: Vec<usize>,
-    /// Rest area share of each boundary node (m²).
+    /// Rest area share of each boundary node (m²), all faces around it.
     pub area: Vec<f64>,
+    /// Boundary triangles (outward), as indices into `nodes`.
+    pub faces: Vec<[usize; 3]>,
+    /// Area share per (boundary node, plane) (m²), see [`Contact::facing_areas`].
+    pub areas: Vec<f64>,
     /// Friction smoothing velocity ε_v (m/s): below it the friction force ramps up from zero.
     pub smoothing_velocity: f64,
 }
@@ -135,13 +144,30 @@ impl Contact {
             }
         }
         let nodes: Vec<usize> = (0..mesh.num_nodes()).filter(|&i| area[i] > 0.0).collect();
+        let mut index = vec![usize::MAX; mesh.num_nodes()];
+        for (k, &i) in nodes.iter().enumerate() {
+            index[i] = k;
+        }
+        let faces = mesh
+            .boundary_faces()
+            .iter()
+            .map(|f| f.nodes.map(|i| index[i]))
+            .collect();
         let area = nodes.iter().map(|&i| area[i]).collect();
-        Contact {
+        let mut contact = Contact {
             obstacles,
             nodes,
             area,
+            faces,
+            areas: Vec::new(),
             smoothing_velocity,
-        }
+        };
+        contact.areas = contact.facing_areas(
+            &mesh.rest,
+            &vec![0.0; 3 * mesh.num_nodes()],
+            &contact.planes(0.0),
+        );
+        contact
     }
 
     /// All contact planes at time `t` (s).
@@ -153,21 +179,25 @@ impl Contact {
         planes
     }
 
-    /// Normal force magnitude (N) of every (boundary node, plane) pair for displacements `u`
-    /// and the planes at their positions — the lagged normal force of the next step.
-    pub fn normal_forces(&self, rest: &[Vector3<f64>], u: &[f64], planes: &[Plane]) -> Vec<f64> {
-        let mut out = Vec::with_capacity(self.nodes.len() * planes.len());
-        for (k, &i) in self.nodes.iter().enumerate() {
-            for p in planes {
-                let g = p.gap(rest, u, i);
-                out.push(if g < 0.0 {
-                    -p.stiffness * self.area[k] * g
-                } else {
-                    0.0
-                });
+    /// Area share (m²) of every (boundary node, plane) pair at displacements `u`: a third of
+    /// each adjacent boundary triangle's area, times the cosine between its inward normal and
+    /// the plane normal where positive (the triangle faces the plane), else nothing.
+    pub fn facing_areas(&self, rest: &[Vector3<f64>], u: &[f64], planes: &[Plane]) -> Vec<f64> {
+        let np = planes.len();
+        let mut areas = vec![0.0; self.nodes.len() * np];
+        for f in &self.faces {
+            let [a, b, c] = f.map(|k| rest[self.nodes[k]] + displacement(u, self.nodes[k]));
+            let area_normal = 0.5 * (b - a).cross(&(c - a)); // outward, |.| = area
+            for (j, p) in planes.iter().enumerate() {
+                let facing = -area_normal.dot(&p.normal);
+                if facing > 0.0 {
+                    for &k in f {
+                        areas[k * np + j] += facing / 3.0;
+                    }
+                }
             }
         }
-        out
+        areas
     }
 }
 
@@ -216,8 +246,12 @@ pub struct ContactStep<'a> {
     pub dt: Option<f64>,
     /// Displacement at the start of the step (m).
     pub previous: &'a [f64],
-    /// Lagged normal force per (boundary node, plane) (N).
-    pub lagged: &'a [f64],
+    /// Lagged normal force per (boundary node, plane) (N), for friction.
+    pub lagged: Vec<f64>,
+    /// (Boundary node, plane) pairs whose penalty stiffness enters the Hessian although they
+    /// do not penetrate yet, because a Newton step was about to push them through (see
+    /// [`ContactStep::anticipate`]). Empty until then.
+    pub anticipated: Vec<bool>,
 }
 
 /// Per-node contact forces on the ice (N), for output.
@@ -229,7 +263,77 @@ pub struct ContactForces {
     pub friction: Vec<f64>,
 }
 
-impl ContactStep<'_> {
+impl<'a> ContactStep<'a> {
+    /// The contact of a step from `t_start` to `t_end` (s) starting at displacement `previous`
+    /// (m), with the friction normal force taken there; `dt` is `None` for a static step (no
+    /// friction).
+    pub fn new(
+        contact: &'a Contact,
+        rest: &'a [Vector3<f64>],
+        previous: &'a [f64],
+        t_start: f64,
+        t_end: f64,
+        dt: Option<f64>,
+    ) -> Self {
+        let mut step = ContactStep {
+            contact,
+            rest,
+            planes: contact.planes(t_start),
+            dt,
+            previous,
+            lagged: Vec::new(),
+            anticipated: Vec::new(),
+        };
+        step.lagged = step.normal_forces(previous);
+        step.planes = contact.planes(t_end);
+        step
+    }
+
+    /// Normal force magnitude k Aᵢ max(0, −g) (N) of every (boundary node, plane) pair at `u`.
+    pub fn normal_forces(&self, u: &[f64]) -> Vec<f64> {
+        let np = self.planes.len();
+        let mut out = Vec::with_capacity(self.contact.nodes.len() * np);
+        for (k, &i) in self.contact.nodes.iter().enumerate() {
+            for (j, p) in self.planes.iter().enumerate() {
+                let g = p.gap(self.rest, u, i);
+                out.push(if g < 0.0 {
+                    -p.stiffness * self.contact.areas[k * np + j] * g
+                } else {
+                    0.0
+                });
+            }
+        }
+        out
+    }
+
+    /// Whether any obstacle has friction (then the lagged normal force matters).
+    pub fn has_friction(&self) -> bool {
+        self.dt.is_some() && self.planes.iter().any(|p| p.friction > 0.0)
+    }
+
+    /// Marks the pairs that do not penetrate at `u` but would at `trial` (the full Newton
+    /// step), so that the next Hessian holds their penalty stiffness: without it Newton sees a
+    /// node resting at zero gap, or falling towards the floor, as free, steps it centimetres
+    /// into the obstacle, and the line search must cut the step by the stiffness ratio (1e-8).
+    /// Returns whether any pair was newly marked.
+    pub fn anticipate(&mut self, u: &[f64], trial: &[f64]) -> bool {
+        let np = self.planes.len();
+        if self.anticipated.is_empty() {
+            self.anticipated = vec![false; self.contact.nodes.len() * np];
+        }
+        let mut changed = false;
+        for (k, &i) in self.contact.nodes.iter().enumerate() {
+            for (j, p) in self.planes.iter().enumerate() {
+                let marked = &mut self.anticipated[k * np + j];
+                if !*marked && p.gap(self.rest, trial, i) < 0.0 && p.gap(self.rest, u, i) >= 0.0 {
+                    *marked = true;
+                    changed = true;
+                }
+            }
+        }
+        changed
+    }
+
     /// Contact energy (J) at `u`; adds its gradient and, through `add_block(node, 3×3)`, its
     /// Hessian blocks.
     pub fn evaluate(
@@ -247,11 +351,13 @@ impl ContactStep<'_> {
             let mut h_node = Matrix3::zeros();
             for (j, p) in self.planes.iter().enumerate() {
                 let gap = p.gap(self.rest, u, i);
+                let ka = p.stiffness * c.areas[k * np + j];
+                if gap < 0.0 || self.anticipated.get(k * np + j).is_some_and(|a| *a) {
+                    h_node += ka * p.normal * p.normal.transpose();
+                }
                 if gap < 0.0 {
-                    let ka = p.stiffness * c.area[k];
                     energy += 0.5 * ka * gap * gap;
                     g_node += ka * gap * p.normal;
-                    h_node += ka * p.normal * p.normal.transpose();
                     if let Some(f) = forces.as_deref_mut() {
                         for a in 0..3 {
                             f.normal[3 * i + a] -= ka * gap * p.normal[a];

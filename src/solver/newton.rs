@@ -26,6 +26,16 @@ pub trait Potential {
     fn project_hessian(&mut self) -> bool {
         false
     }
+    /// Given the current iterate `u` and the full Newton step `trial`, lets the potential add
+    /// to its Hessian the stiffness of constraints the step would activate (contact); returns
+    /// whether the Hessian changed, in which case Newton recomputes the step.
+    fn anticipate(&mut self, _u: &[f64], _trial: &[f64]) -> bool {
+        false
+    }
+    /// Forgets what [`Potential::anticipate`] added: each iteration starts from the true
+    /// Hessian, or Newton would converge only linearly towards states where an anticipated
+    /// contact stays open.
+    fn forget_anticipated(&mut self) {}
 }
 
 /// A chord iteration (reusing the last factorisation) must cut the residual at least this
@@ -67,6 +77,24 @@ pub struct NewtonReport {
     pub t_factorization: f64,
     /// Linear solve time (s).
     pub t_solve: f64,
+}
+
+impl NewtonReport {
+    /// Two consecutive solves as one: work and times add, the state is the second's.
+    pub fn then(&self, next: &NewtonReport) -> NewtonReport {
+        NewtonReport {
+            iterations: self.iterations + next.iterations,
+            factorizations: self.factorizations + next.factorizations,
+            linear_iterations: self.linear_iterations + next.linear_iterations,
+            residual: self.residual.max(next.residual),
+            force_scale: next.force_scale,
+            roundoff_floor: next.roundoff_floor,
+            energy: next.energy,
+            t_assembly: self.t_assembly + next.t_assembly,
+            t_factorization: self.t_factorization + next.t_factorization,
+            t_solve: self.t_solve + next.t_solve,
+        }
+    }
 }
 
 /// Newton failures.
@@ -145,6 +173,7 @@ pub fn minimize(
     for iteration in 0..=params.max_iterations {
         let start = Instant::now();
         let mut energy = if refresh {
+            potential.forget_anticipated();
             potential.evaluate(u, &mut work.gradient, &mut work.hessian)
         } else {
             potential.gradient(u, &mut work.gradient)
@@ -188,6 +217,7 @@ pub fn minimize(
         if !refresh && residual > CHORD_CONTRACTION * previous_residual {
             // The chord stalled: take the true Hessian at this iterate.
             refresh = true;
+            potential.forget_anticipated();
             let start = Instant::now();
             energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
             report.t_assembly += start.elapsed().as_secs_f64();
@@ -212,10 +242,31 @@ pub fn minimize(
         for (r, &d) in work.rhs.iter_mut().zip(dofs.free_dofs()) {
             *r = -work.gradient[d];
         }
-        let stats = linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?;
-        report.iterations += 1;
+        let mut stats = linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?;
         report.linear_iterations += stats.iterations;
         report.t_solve += stats.t_solve;
+        // Contacts the step would create: put their stiffness into the Hessian and solve again
+        // (a few rounds at most; each marks pairs for good within this solve).
+        for _ in 0..3 {
+            work.trial.copy_from_slice(u);
+            for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
+                work.trial[d] += dx;
+            }
+            if !potential.anticipate(u, &work.trial) {
+                break;
+            }
+            let start = Instant::now();
+            energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
+            report.t_assembly += start.elapsed().as_secs_f64();
+            if let Some(t) = linear.factorize(assembly, &work.hessian)? {
+                report.t_factorization += t;
+                report.factorizations += 1;
+            }
+            stats = linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?;
+            report.linear_iterations += stats.iterations;
+            report.t_solve += stats.t_solve;
+        }
+        report.iterations += 1;
         // Backtracking (Armijo) line search on the potential. Near convergence the decrease
         // is below the round-off of the potential itself, so a step that changes the energy
         // by less than that round-off is accepted as it is.

@@ -137,6 +137,18 @@ impl StepPotential<'_> {
 }
 
 impl Potential for StepPotential<'_> {
+    fn anticipate(&mut self, u: &[f64], trial: &[f64]) -> bool {
+        self.contact
+            .as_mut()
+            .is_some_and(|c| c.anticipate(u, trial))
+    }
+
+    fn forget_anticipated(&mut self) {
+        if let Some(c) = self.contact.as_mut() {
+            c.anticipated.clear();
+        }
+    }
+
     fn project_hessian(&mut self) -> bool {
         !std::mem::replace(&mut self.project, true)
     }

@@ -1,0 +1,187 @@
+//! Contact with rigid obstacles: resting penetration, friction on an incline, a cube dropped
+//! into the container, and no contact work in scenes without obstacles.
+
+mod common;
+use common::*;
+use icefem::fem::ElasticModel;
+use icefem::mesh::box_mesh;
+use icefem::physics::contact::{default_stiffness, Shape};
+use icefem::physics::{Contact, Elasticity, Model, Obstacle};
+use icefem::sim::{Analysis, Simulation};
+use nalgebra::Vector3;
+
+/// A 10 cm ice cube standing on the floor z = 0 under `gravity`, with friction `alpha`.
+fn cube_on_floor(
+    gravity: [f64; 3],
+    alpha: f64,
+    stiffness: Option<f64>,
+    dt: f64,
+    smoothing: f64,
+) -> Simulation {
+    let mesh = box_mesh([0.0; 3], [0.1; 3], [3, 3, 3], 6).unwrap();
+    let floor = Obstacle {
+        shape: Shape::HalfSpace {
+            point: Vector3::zeros(),
+            normal: Vector3::z(),
+        },
+        velocity: Vector3::zeros(),
+        stiffness: stiffness.unwrap_or_else(|| default_stiffness(&mesh, ICE.young())),
+        friction: alpha,
+    };
+    let contact = Contact::new(&mesh, vec![floor], smoothing);
+    let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
+    let mut model =
+        Model::new(mesh, elasticity, Vector3::from(gravity), &[], None, vec![]).unwrap();
+    model.contact = Some(contact);
+    Simulation::new(model, settings(Analysis::Dynamic, dt)).unwrap()
+}
+
+/// Mean of a nodal quantity over the nodes selected by `pick` (by rest position).
+fn mean_over(
+    sim: &Simulation,
+    pick: impl Fn(&Vector3<f64>) -> bool,
+    value: impl Fn(usize) -> f64,
+) -> f64 {
+    let nodes: Vec<usize> = (0..sim.model.num_nodes())
+        .filter(|&i| pick(&sim.model.mesh.rest[i]))
+        .collect();
+    nodes.iter().map(|&i| value(i)).sum::<f64>() / nodes.len() as f64
+}
+
+#[test]
+fn resting_block_penetrates_by_weight_over_stiffness_and_does_not_drift() {
+    let mut sim = cube_on_floor([0.0, 0.0, -9.81], 0.5, None, 1.0 / 30.0, 1e-4);
+    let k = sim.model.contact.as_ref().unwrap().obstacles[0].stiffness;
+    let weight = sim.model.total_mass() * 9.81;
+    let expected = weight / (k * 0.1 * 0.1);
+    let contact = sim.model.contact.clone().unwrap();
+    // Area-weighted mean penetration of the bottom nodes: Σ Aᵢ dᵢ / Σ Aᵢ = Σ fᵢ / (k A) = m g / (k A)
+    // once the block is in equilibrium.
+    let penetration = |sim: &Simulation| {
+        let (mut num, mut den) = (0.0, 0.0);
+        for (k, &i) in contact.nodes.iter().enumerate() {
+            if sim.model.mesh.rest[i].z < 1e-12 {
+                // Area share facing the floor (the only plane: index k · 1 + 0).
+                num += contact.areas[k] * (-sim.state.u[3 * i + 2]);
+                den += contact.areas[k];
+            }
+        }
+        num / den
+    };
+    let mut at_500 = 0.0;
+    for n in 1..=1000 {
+        sim.step().unwrap();
+        if n == 500 {
+            at_500 = penetration(&sim);
+        }
+    }
+    let d = penetration(&sim);
+    eprintln!("penetration {d:e} m, expected m g / (k A) = {expected:e} m");
+    assert!(
+        (d - expected).abs() < 0.01 * expected,
+        "penetration {d:e} vs {expected:e}"
+    );
+    // No drift between step 500 and 1000: 1e-6 of the penetration, and no sideways creep.
+    assert!(
+        (d - at_500).abs() < 1e-6 * expected,
+        "drift {:e}",
+        d - at_500
+    );
+    let lateral = (0..sim.model.num_nodes())
+        .map(|i| sim.state.u[3 * i].abs().max(sim.state.u[3 * i + 1].abs()))
+        .fold(0.0, f64::max);
+    assert!(lateral < 1e-9, "lateral creep {lateral:e} m");
+}
+
+#[test]
+fn block_on_incline_sticks_below_the_friction_angle_and_slides_above() {
+    let alpha = 0.3;
+    let g = 9.81;
+    // The incline is the floor with gravity tilted by θ about y.
+    let incline = |theta: f64| [g * theta.sin(), 0.0, -g * theta.cos()];
+    // tan θ = 0.2 < α: sticks. Creep is bounded by the smoothing velocity ε_v (1e-6 m/s) × 2 s.
+    let theta = 0.2f64.atan();
+    let mut sim = cube_on_floor(incline(theta), alpha, None, 1.0 / 30.0, 1e-6);
+    for _ in 0..60 {
+        sim.step().unwrap();
+    }
+    let slip = mean_over(&sim, |p| p.z < 1e-12, |i| sim.state.u[3 * i]);
+    eprintln!("stick: slip after 2 s {slip:e} m");
+    assert!(
+        slip.abs() < 2e-6,
+        "slipped {slip:e} m below the friction angle"
+    );
+    // tan θ = 0.5 > α: slides with a = g (sin θ − α cos θ).
+    let theta = 0.5f64.atan();
+    let a_exact = g * (theta.sin() - alpha * theta.cos());
+    let dt = 0.01;
+    let mut sim = cube_on_floor(incline(theta), alpha, None, dt, 1e-4);
+    let mut velocities = Vec::new();
+    for _ in 0..200 {
+        sim.step().unwrap();
+        velocities.push(mean_over(&sim, |_| true, |i| sim.state.v[3 * i]));
+    }
+    // Slope of v(t) over the second second (the first steps settle the contact, whose normal
+    // force friction lags by a step).
+    let a = (velocities[199] - velocities[99]) / (100.0 * dt);
+    eprintln!("slide: a = {a} m/s², expected {a_exact} m/s²");
+    assert!(
+        (a - a_exact).abs() < 0.02 * a_exact,
+        "a = {a}, expected {a_exact}"
+    );
+}
+
+#[test]
+fn cube_dropped_into_container_comes_to_rest_inside_without_energy_gain() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/drop_into_container.toml");
+    let scene = icefem::scene::Scene::load(&path).unwrap();
+    let mut sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
+    let inner = match &sim.model.contact.as_ref().unwrap().obstacles[0].shape {
+        Shape::Container { inner } => *inner,
+        other => panic!("expected a container, got {other:?}"),
+    };
+    let mut energy = sim.energies().total();
+    let steps = icefem::run::step_count(scene.end_time, scene.settings.dt);
+    for _ in 0..steps {
+        let report = sim.step().unwrap();
+        let e = report.energies.total();
+        // Penalty contact is conservative and friction and backward Euler dissipate: the
+        // energy may only fall, up to round-off of the sums (1e-12 relative).
+        assert!(
+            e <= energy + 1e-12 * energy.abs(),
+            "energy rose {energy} → {e}"
+        );
+        energy = e;
+        // No node through a wall or the floor beyond a micrometre (penalty depths here are
+        // ~1e-9 m; an escaping node would be centimetres out).
+        for p in sim.positions() {
+            for a in 0..2 {
+                assert!(
+                    p[a] > inner.min[a] - 1e-6 && p[a] < inner.max[a] + 1e-6,
+                    "node escaped: {p:?}"
+                );
+            }
+            assert!(p[2] > inner.min.z - 1e-6, "node through the floor: {p:?}");
+        }
+    }
+    let vmax = sim.state.v.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    eprintln!("after {steps} steps: max |v| = {vmax:e} m/s");
+    assert!(vmax < 1e-6, "not at rest: max |v| = {vmax:e} m/s");
+}
+
+#[test]
+fn scene_without_obstacles_builds_no_contact_structures() {
+    let mesh = box_mesh([0.0; 3], [0.1; 3], [2, 2, 2], 6).unwrap();
+    let sim = simulation(
+        mesh,
+        ICE,
+        ElasticModel::Corotated,
+        [0.0, 0.0, -9.81],
+        vec![],
+        settings(Analysis::Dynamic, 0.01),
+    );
+    assert!(sim.model.contact.is_none());
+    assert!(sim.contact_forces().is_none());
+    assert_eq!(sim.contact_structures_len(), 0);
+}
