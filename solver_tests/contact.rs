@@ -185,3 +185,80 @@ fn scene_without_obstacles_builds_no_contact_structures() {
     assert!(sim.contact_forces().is_none());
     assert_eq!(sim.contact_structures_len(), 0);
 }
+
+#[test]
+fn stacked_cubes_rest_on_each_other_through_ice_contact() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/stacked_cubes.toml");
+    let scene = icefem::scene::Scene::load(&path).unwrap();
+    let mut sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
+    let ice = sim
+        .model
+        .ice_contact
+        .clone()
+        .expect("two parts: ice contact on");
+    assert_eq!(ice.parts, 2);
+    let steps = icefem::run::step_count(scene.end_time, scene.settings.dt);
+    let mut energy = sim.energies().total();
+    for _ in 0..steps {
+        let before = sim.state.u.clone();
+        let report = sim.step().unwrap();
+        let e = report.energies.total();
+        // Backward Euler lowers the energy of the exact step solution; the converged one may
+        // differ by the work of the remaining residual, max|r| · ‖Δu‖₁ (here the energy itself
+        // is only ~1e-10 J, so that term matters), plus round-off of the sums.
+        let du: f64 = sim
+            .state
+            .u
+            .iter()
+            .zip(&before)
+            .map(|(a, b)| (a - b).abs())
+            .sum();
+        let en = report.energies;
+        let allowance = report.newton.residual * du
+            + 1e-12 * (en.kinetic.abs() + en.elastic.abs() + en.potential.abs() + en.contact.abs());
+        assert!(
+            e <= energy + allowance,
+            "energy rose {energy} → {e} (allowance {allowance:e})"
+        );
+        energy = e;
+    }
+    // At rest, and the lower cube carries the upper one's weight through ice–ice contact.
+    let n = sim.model.num_nodes();
+    let vmax = sim.state.v.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(vmax < 1e-6, "not at rest: {vmax:e} m/s");
+    let upper: Vec<usize> = (0..n).filter(|&i| ice.part[i] == 1).collect();
+    let weight: f64 = upper.iter().map(|&i| sim.model.mass[i]).sum::<f64>() * 9.81;
+    let lift: f64 = upper
+        .iter()
+        .map(|&i| sim.contact_forces().unwrap().normal[3 * i + 2])
+        .sum();
+    // Equilibrium to the Newton tolerance (1e-9 of the loads) — 1e-6 leaves room for the last
+    // steps' residual motion.
+    assert!(
+        (lift - weight).abs() < 1e-6 * weight,
+        "contact lift {lift} N vs weight {weight} N"
+    );
+    // No interpenetration beyond the penalty depth: the deepest node–face gap is the local
+    // contact pressure over k. The mean pressure is weight / overlap area; at the lower cube's
+    // edge (the upper one overhangs it) the pressure concentrates, so allow 10× the mean depth
+    // (measured: 0.57×).
+    let candidates = ice.candidates(
+        &sim.model.mesh.rest,
+        &sim.state.u,
+        &sim.state.v,
+        scene.settings.dt,
+    );
+    let mut deepest: f64 = 0.0;
+    ice.for_each_closest(
+        &sim.model.mesh.rest,
+        &sim.state.u,
+        &candidates,
+        |_, g, _| deepest = deepest.min(g),
+    );
+    let mean_depth = weight / (ice.stiffness * 0.035 * 0.035);
+    eprintln!("deepest gap {deepest:e} m, mean penalty depth {mean_depth:e} m");
+    assert!(
+        deepest > -10.0 * mean_depth,
+        "interpenetration {deepest:e} m"
+    );
+}

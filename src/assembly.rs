@@ -103,6 +103,12 @@ pub struct Assembly {
 impl Assembly {
     /// Builds the pattern of the free system for `mesh` with the given dof map.
     pub fn new(mesh: &TetMesh, dofs: DofMap) -> Self {
+        Self::with_couplings(mesh, dofs, &[])
+    }
+
+    /// As [`Assembly::new`], with the 3 × 3 blocks between the node pairs in `couplings` added
+    /// to the pattern (contact between nodes that share no element).
+    pub fn with_couplings(mesh: &TetMesh, dofs: DofMap, couplings: &[(usize, usize)]) -> Self {
         let n = mesh.num_nodes();
         let adjacency = mesh.node_to_tets();
         // Node neighbours (including the node itself), sorted.
@@ -119,6 +125,16 @@ impl Assembly {
                 v
             })
             .collect();
+        for &(a, b) in couplings {
+            neighbours[a].push(b);
+            neighbours[b].push(a);
+        }
+        if !couplings.is_empty() {
+            for v in neighbours.iter_mut() {
+                v.sort_unstable();
+                v.dedup();
+            }
+        }
         let nf = dofs.num_free();
         let mut col_ptr = Vec::with_capacity(nf + 1);
         let mut row_idx = Vec::new();

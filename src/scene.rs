@@ -23,6 +23,7 @@
 use crate::fem::{ElasticModel, Material};
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
 use crate::physics::contact::{default_stiffness, Shape};
+use crate::physics::ice_contact::IceContact;
 use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Rayleigh, Region, Traction};
 use crate::sim::{Analysis, StepSettings};
 use crate::solver::{FillOrdering, LinearSolverKind, NewtonParams};
@@ -106,6 +107,8 @@ pub struct MeshSection {
     /// Built-in box generator.
     #[serde(rename = "box")]
     pub box_: Option<BoxSection>,
+    /// Several separate boxes (separate bodies in contact with each other).
+    pub boxes: Option<Vec<BoxSection>>,
     /// Gmsh `.msh` file, relative to the scene file.
     pub file: Option<String>,
     /// Factor applied to file coordinates to get metres (e.g. 0.001 for mm). Default 1.
@@ -495,6 +498,11 @@ impl Validator<'_> {
                 source,
             })?;
         model.contact = contact;
+        // Separate parts touch each other: ice–ice contact, with the default penalty.
+        model.ice_contact = IceContact::new(
+            &model.mesh,
+            default_stiffness(&model.mesh, material.young()),
+        );
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),
             None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),
@@ -515,28 +523,46 @@ impl Validator<'_> {
             path: self.path.into(),
             source,
         };
-        match (&m.box_, &m.file) {
-            (Some(b), None) => {
+        let boxes: Vec<&BoxSection> = match (&m.box_, &m.boxes) {
+            (Some(b), None) => vec![b],
+            (None, Some(list)) if !list.is_empty() => list.iter().collect(),
+            (None, Some(_)) => return Err(self.invalid("mesh.boxes", "must list at least one box")),
+            (Some(_), Some(_)) => {
+                return Err(self.invalid("mesh", "give `box` or `boxes`, not both"))
+            }
+            (None, None) => Vec::new(),
+        };
+        match (boxes.is_empty(), &m.file) {
+            (false, None) => {
                 if m.scale.is_some() {
                     return Err(self.invalid("mesh.scale", "applies to mesh files only"));
                 }
-                for a in 0..3 {
-                    self.positive(&format!("mesh.box.size[{a}]"), b.size[a])?;
-                    self.finite(&format!("mesh.box.origin[{a}]"), b.origin[a])?;
-                    if b.cells[a] == 0 {
-                        return Err(self.invalid(&format!("mesh.box.cells[{a}]"), "must be ≥ 1"));
+                let mut parts = Vec::with_capacity(boxes.len());
+                for (k, b) in boxes.iter().enumerate() {
+                    let field = if m.boxes.is_some() {
+                        format!("mesh.boxes[{k}]")
+                    } else {
+                        "mesh.box".into()
+                    };
+                    for a in 0..3 {
+                        self.positive(&format!("{field}.size[{a}]"), b.size[a])?;
+                        self.finite(&format!("{field}.origin[{a}]"), b.origin[a])?;
+                        if b.cells[a] == 0 {
+                            return Err(self.invalid(&format!("{field}.cells[{a}]"), "must be ≥ 1"));
+                        }
                     }
+                    let tpc = b.tets_per_cell.unwrap_or(6);
+                    if tpc != 5 && tpc != 6 {
+                        return Err(self.invalid(
+                            &format!("{field}.tets_per_cell"),
+                            format!("must be 5 or 6, got {tpc}"),
+                        ));
+                    }
+                    parts.push(box_mesh(b.origin, b.size, b.cells, tpc).map_err(mesh_err)?);
                 }
-                let tpc = b.tets_per_cell.unwrap_or(6);
-                if tpc != 5 && tpc != 6 {
-                    return Err(self.invalid(
-                        "mesh.box.tets_per_cell",
-                        format!("must be 5 or 6, got {tpc}"),
-                    ));
-                }
-                box_mesh(b.origin, b.size, b.cells, tpc).map_err(mesh_err)
+                TetMesh::concat(parts).map_err(mesh_err)
             }
-            (None, Some(file)) => {
+            (true, Some(file)) => {
                 let scale = self.positive("mesh.scale", m.scale.unwrap_or(1.0))?;
                 let file = self.path.parent().unwrap_or(Path::new("")).join(file);
                 let (nodes, tets) =
@@ -549,7 +575,7 @@ impl Validator<'_> {
             }
             _ => Err(self.invalid(
                 "mesh",
-                "give exactly one of `box` (built-in generator) or `file` (Gmsh .msh)",
+                "give exactly one of `box`/`boxes` (built-in generator) or `file` (Gmsh .msh)",
             )),
         }
     }

@@ -2,8 +2,9 @@
 
 use crate::assembly::{Assembly, DofMap};
 use crate::physics::contact::{ContactForces, ContactStep};
+use crate::physics::ice_contact::{Candidate, IceContact};
 use crate::physics::Model;
-use crate::solver::timestep::{Inertia, StepPotential};
+use crate::solver::timestep::{IceStep, Inertia, StepPotential};
 use crate::solver::{
     minimize, FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams,
     NewtonReport, NewtonWorkspace, Potential,
@@ -153,6 +154,12 @@ pub struct Simulation {
     block_slots: Vec<[u32; 9]>,
     /// Contact forces on the ice after the last step (N, 3 per node; empty without contact).
     contact_forces: ContactForces,
+    /// Node pairs coupled in the pattern by ice–ice contact (sorted, unique).
+    couplings: Vec<(usize, usize)>,
+    /// Ice–ice contact candidates of the current step.
+    candidates: Vec<Candidate>,
+    /// CSC value indices of each candidate's 12 × 12 block.
+    candidate_slots: Vec<Vec<u32>>,
 }
 
 impl Simulation {
@@ -201,6 +208,9 @@ impl Simulation {
                 None => Vec::new(),
             },
             contact_forces: ContactForces::default(),
+            couplings: Vec::new(),
+            candidates: Vec::new(),
+            candidate_slots: Vec::new(),
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
             } else {
@@ -231,6 +241,9 @@ impl Simulation {
         let start = Instant::now();
         let (t0, u0, v0) = (self.state.time, self.state.u.clone(), self.state.v.clone());
         let t_end = t0 + self.settings.dt;
+        if self.model.ice_contact.is_some() {
+            self.prepare_ice_contact()?;
+        }
         let result = self.advance(self.settings.dt, t_end, 0);
         if result.is_err() {
             (self.state.time, self.state.u, self.state.v) = (t0, u0, v0);
@@ -244,6 +257,72 @@ impl Simulation {
         report.t_step = start.elapsed().as_secs_f64();
         report.energies = self.energies();
         Ok(report)
+    }
+
+    /// Finds the ice–ice candidate pairs of the coming step and makes the sparsity pattern
+    /// couple exactly their nodes: the pattern, slot map, colouring and symbolic factorisation
+    /// are rebuilt when that set changes (and only then). Keeping the pattern a function of the
+    /// step's start state (never a history-dependent superset) keeps resumed runs bit-identical.
+    fn prepare_ice_contact(&mut self) -> Result<(), SimError> {
+        let Some(term) = &self.model.ice_contact else {
+            return Ok(());
+        };
+        self.candidates = term.candidates(
+            &self.model.mesh.rest,
+            &self.state.u,
+            &self.state.v,
+            self.settings.dt,
+        );
+        let mut couplings: Vec<(usize, usize)> = self
+            .candidates
+            .iter()
+            .flat_map(|c| c.face.map(|f| (c.node.min(f), c.node.max(f))))
+            .collect();
+        couplings.sort_unstable();
+        couplings.dedup();
+        if couplings != self.couplings {
+            let dofs = self.assembly.dofs().clone();
+            self.assembly = Assembly::with_couplings(&self.model.mesh, dofs, &couplings);
+            let s = &self.settings;
+            self.linear = LinearSolver::new(
+                s.linear,
+                s.ordering,
+                &self.assembly,
+                s.cg_tolerance,
+                s.cg_max_iterations,
+            )?;
+            self.workspace = NewtonWorkspace::new(&self.assembly);
+            if self.model.contact.is_some() {
+                self.block_slots = (0..self.model.num_nodes())
+                    .map(|i| self.assembly.node_block_slots(i))
+                    .collect();
+            }
+            if !self.damping_stiffness.is_empty() {
+                self.damping_stiffness = vec![0.0; self.assembly.nnz()];
+            }
+            self.couplings = couplings;
+        }
+        let assembly = &self.assembly;
+        self.candidate_slots = self
+            .candidates
+            .iter()
+            .map(|c| {
+                let nodes = IceContact::pair_nodes(c);
+                (0..144)
+                    .map(|rc| {
+                        let (r, col) = (rc / 12, rc % 12);
+                        let (dr, dc) = (3 * nodes[r / 3] + r % 3, 3 * nodes[col / 3] + col % 3);
+                        match (assembly.dofs().free(dr), assembly.dofs().free(dc)) {
+                            (Some(fr), Some(fc)) => {
+                                assembly.slot(fr, fc).map_or(u32::MAX, |s| s as u32)
+                            }
+                            _ => u32::MAX,
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        Ok(())
     }
 
     /// Advances by `h` to `t_end` (passed so that halves land exactly on the full step's end
@@ -314,6 +393,12 @@ impl Simulation {
             contact,
             block_slots: &self.block_slots,
             project: false,
+            ice: self.model.ice_contact.as_ref().map(|term| IceStep {
+                term,
+                candidates: &self.candidates,
+                slots: &self.candidate_slots,
+                anticipated: Vec::new(),
+            }),
         };
         let mut newton = minimize(
             &mut potential,
@@ -356,13 +441,24 @@ impl Simulation {
                 *v = (un - u0) / h;
             }
         }
-        if let Some(contact) = &potential.contact {
+        if potential.contact.is_some() || potential.ice.is_some() {
             let n = u.len();
             let mut forces = ContactForces {
                 normal: vec![0.0; n],
                 friction: vec![0.0; n],
             };
-            contact.evaluate(&u, None, None, Some(&mut forces));
+            if let Some(contact) = &potential.contact {
+                contact.evaluate(&u, None, None, Some(&mut forces));
+            }
+            if let Some(ice) = &potential.ice {
+                ice.add(
+                    &self.model.mesh.rest,
+                    &u,
+                    None,
+                    None,
+                    Some(&mut forces.normal),
+                );
+            }
             self.contact_forces = forces;
         }
         self.state.u = u;
@@ -386,6 +482,7 @@ impl Simulation {
             block_slots: &[],
             // β K must be positive semi-definite to damp.
             project: true,
+            ice: None,
         };
         let mut gradient = vec![0.0; self.previous.len()];
         potential.evaluate(&self.previous, &mut gradient, &mut self.damping_stiffness);
@@ -436,6 +533,14 @@ impl Simulation {
         let contact = self.model.contact.as_ref().map_or(0.0, |c| {
             let t = self.state.time;
             ContactStep::new(c, &self.model.mesh.rest, u, t, t, None).evaluate(u, None, None, None)
+        }) + self.model.ice_contact.as_ref().map_or(0.0, |term| {
+            let ice = IceStep {
+                term,
+                candidates: &self.candidates,
+                slots: &[],
+                anticipated: Vec::new(),
+            };
+            ice.add(&self.model.mesh.rest, u, None, None, None)
         });
         Energies {
             kinetic,
@@ -460,7 +565,8 @@ impl Simulation {
 
     /// Contact forces on the ice after the last step (N, 3 per node), if the model has contact.
     pub fn contact_forces(&self) -> Option<&ContactForces> {
-        self.model.contact.as_ref().map(|_| &self.contact_forces)
+        (self.model.contact.is_some() || self.model.ice_contact.is_some())
+            .then_some(&self.contact_forces)
     }
 
     /// Current positions X + u (m).

@@ -76,6 +76,18 @@ impl TetMesh {
         Self::new(rest.iter().map(|p| Vector3::from(*p)).collect(), tets)
     }
 
+    /// The meshes side by side as one mesh of several parts (nodes renumbered, not merged).
+    pub fn concat(parts: Vec<TetMesh>) -> Result<Self, MeshError> {
+        let mut rest = Vec::new();
+        let mut tets = Vec::new();
+        for part in parts {
+            let offset = rest.len();
+            tets.extend(part.tets.iter().map(|t| t.map(|v| v + offset)));
+            rest.extend(part.rest);
+        }
+        TetMesh::new(rest, tets)
+    }
+
     /// Number of nodes.
     pub fn num_nodes(&self) -> usize {
         self.rest.len()

@@ -4,6 +4,7 @@
 pub mod contact;
 pub mod dirichlet;
 pub mod elasticity;
+pub mod ice_contact;
 pub mod loads;
 
 pub use contact::{Contact, Obstacle};
@@ -56,6 +57,8 @@ pub struct Model {
     pub dirichlet: Vec<Dirichlet>,
     /// Contact with rigid obstacles, if the scene has any (none: no contact work at all).
     pub contact: Option<Contact>,
+    /// Contact between separate parts of the mesh, if it has more than one.
+    pub ice_contact: Option<ice_contact::IceContact>,
 }
 
 impl Model {
@@ -85,6 +88,7 @@ impl Model {
             damping,
             dirichlet,
             contact: None,
+            ice_contact: None,
         })
     }
 

@@ -15,6 +15,7 @@
 use super::newton::Potential;
 use crate::assembly::Assembly;
 use crate::physics::contact::ContactStep;
+use crate::physics::ice_contact::{Candidate, IceContact};
 use crate::physics::Model;
 use nalgebra::Matrix3;
 
@@ -50,6 +51,95 @@ pub struct StepPotential<'a> {
     pub block_slots: &'a [[u32; 9]],
     /// Whether element stiffnesses are projected to be positive semi-definite.
     pub project: bool,
+    /// Ice–ice contact pairs of this step, if the mesh has several parts.
+    pub ice: Option<IceStep<'a>>,
+}
+
+/// The ice–ice contact candidates of a step and where their 12 × 12 blocks go.
+pub struct IceStep<'a> {
+    /// The term.
+    pub term: &'a IceContact,
+    /// Candidate pairs.
+    pub candidates: &'a [Candidate],
+    /// For each candidate, the CSC value index of each entry of its 12 × 12 block (row-major),
+    /// `u32::MAX` where a dof is constrained.
+    pub slots: &'a [Vec<u32>],
+    /// Candidates whose stiffness enters the Hessian before they penetrate (see
+    /// `ContactStep::anticipate`).
+    pub anticipated: Vec<bool>,
+}
+
+impl IceStep<'_> {
+    /// Marks candidates that do not penetrate at `u` but would at `trial`; returns whether any
+    /// was newly marked.
+    pub fn anticipate(
+        &mut self,
+        rest: &[nalgebra::Vector3<f64>],
+        u: &[f64],
+        trial: &[f64],
+    ) -> bool {
+        if self.anticipated.is_empty() {
+            self.anticipated = vec![false; self.candidates.len()];
+        }
+        let mut now = vec![false; self.candidates.len()];
+        self.term
+            .for_each_closest(rest, u, self.candidates, |m, g, _| now[m] = g < 0.0);
+        let mut changed = false;
+        let anticipated = &mut self.anticipated;
+        self.term
+            .for_each_closest(rest, trial, self.candidates, |m, g, _| {
+                if g < 0.0 && !now[m] && !anticipated[m] {
+                    anticipated[m] = true;
+                    changed = true;
+                }
+            });
+        changed
+    }
+
+    /// Contact energy (J) at `u`, adding gradient, Hessian and, if asked, the forces on the ice.
+    pub fn add(
+        &self,
+        rest: &[nalgebra::Vector3<f64>],
+        u: &[f64],
+        mut gradient: Option<&mut [f64]>,
+        mut hessian: Option<&mut [f64]>,
+        mut forces: Option<&mut [f64]>,
+    ) -> f64 {
+        let mut energy = 0.0;
+        let anticipated = &self.anticipated;
+        self.term
+            .for_each_closest(rest, u, self.candidates, |m, gap, dg| {
+                let c = &self.candidates[m];
+                let ka = self.term.stiffness * c.area;
+                let nodes = IceContact::pair_nodes(c);
+                if gap < 0.0 {
+                    energy += 0.5 * ka * gap * gap;
+                    for (k, dgk) in dg.iter().enumerate() {
+                        let d = 3 * nodes[k / 3] + k % 3;
+                        if let Some(gr) = gradient.as_deref_mut() {
+                            gr[d] += ka * gap * dgk;
+                        }
+                        if let Some(f) = forces.as_deref_mut() {
+                            f[d] -= ka * gap * dgk;
+                        }
+                    }
+                }
+                let active = gap < 0.0 || anticipated.get(m).is_some_and(|a| *a);
+                if let (Some(hs), Some(slots), true) =
+                    (hessian.as_deref_mut(), self.slots.get(m), active)
+                {
+                    for r in 0..12 {
+                        for col in 0..12 {
+                            let s = slots[12 * r + col];
+                            if s != u32::MAX {
+                                hs[s as usize] += ka * dg[r] * dg[col];
+                            }
+                        }
+                    }
+                }
+            });
+        energy
+    }
 }
 
 impl StepPotential<'_> {
@@ -83,6 +173,15 @@ impl StepPotential<'_> {
                 }
                 None => contact.evaluate(u, gradient.as_deref_mut(), None, None),
             };
+        }
+        if let Some(ice) = &self.ice {
+            energy += ice.add(
+                &model.mesh.rest,
+                u,
+                gradient.as_deref_mut(),
+                hessian.as_deref_mut(),
+                None,
+            );
         }
         let Some(inertia) = &self.inertia else {
             return energy;
@@ -138,14 +237,24 @@ impl StepPotential<'_> {
 
 impl Potential for StepPotential<'_> {
     fn anticipate(&mut self, u: &[f64], trial: &[f64]) -> bool {
-        self.contact
+        let obstacles = self
+            .contact
             .as_mut()
-            .is_some_and(|c| c.anticipate(u, trial))
+            .is_some_and(|c| c.anticipate(u, trial));
+        let rest = &self.model.mesh.rest;
+        let ice = self
+            .ice
+            .as_mut()
+            .is_some_and(|ice| ice.anticipate(rest, u, trial));
+        obstacles || ice
     }
 
     fn forget_anticipated(&mut self) {
         if let Some(c) = self.contact.as_mut() {
             c.anticipated.clear();
+        }
+        if let Some(ice) = self.ice.as_mut() {
+            ice.anticipated.clear();
         }
     }
 
