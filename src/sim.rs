@@ -400,32 +400,27 @@ impl Simulation {
                 anticipated: Vec::new(),
             }),
         };
-        let mut newton = minimize(
-            &mut potential,
-            &mut u,
-            &self.assembly,
-            &mut self.linear,
-            &self.settings.newton,
-            force_floor,
-            &mut self.workspace,
-        )?;
-        // Friction used the normal force of the start of the step; re-solve with that of the
-        // end until it settles (to 1e-4 of the largest), warm-started from the last solution.
-        for _ in 0..MAX_FRICTION_UPDATES {
-            let Some(c) = potential.contact.as_mut().filter(|c| c.has_friction()) else {
-                break;
-            };
-            let updated = c.normal_forces(&u);
-            let scale = updated.iter().fold(0.0f64, |m, v| m.max(*v));
-            let change = updated
-                .iter()
-                .zip(&c.lagged)
-                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-            if change <= 1e-4 * scale {
-                break;
+        // Friction uses the normal force of the start of the step; after each solve it is
+        // re-lagged to the solution's and the step re-solved (warm-started) until it settles
+        // to 1e-4 of the largest.
+        let mut newton: Option<NewtonReport> = None;
+        for _ in 0..=MAX_FRICTION_UPDATES {
+            if newton.is_some() {
+                let Some(c) = potential.contact.as_mut().filter(|c| c.has_friction()) else {
+                    break;
+                };
+                let updated = c.normal_forces(&u);
+                let scale = updated.iter().fold(0.0f64, |m, v| m.max(*v));
+                let change = updated
+                    .iter()
+                    .zip(&c.lagged)
+                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                if change <= 1e-4 * scale {
+                    break;
+                }
+                c.lagged = updated;
             }
-            c.lagged = updated;
-            let more = minimize(
+            let report = minimize(
                 &mut potential,
                 &mut u,
                 &self.assembly,
@@ -434,8 +429,9 @@ impl Simulation {
                 force_floor,
                 &mut self.workspace,
             )?;
-            newton = newton.then(&more);
+            newton = Some(newton.map_or(report, |n| n.then(&report)));
         }
+        let newton = newton.unwrap_or_default();
         if dynamic {
             for ((v, un), u0) in self.state.v.iter_mut().zip(&u).zip(&self.previous) {
                 *v = (un - u0) / h;

@@ -222,6 +222,27 @@ impl StepPotential<'_> {
         energy
     }
 
+    /// Potential at `u`; overwrites `gradient` and adds the Hessian into `hessian` if given.
+    fn assemble_all(
+        &mut self,
+        u: &[f64],
+        gradient: &mut [f64],
+        mut hessian: Option<&mut [f64]>,
+    ) -> f64 {
+        gradient.fill(0.0);
+        let project = self.project;
+        let el = &self.model.elasticity;
+        let tets = &self.model.mesh.tets;
+        self.assembly.assemble(
+            |e, with_h, out| el.element_with(tets, u, e, with_h, project, out),
+            self.element_energy,
+            gradient,
+            hessian.as_deref_mut(),
+        );
+        let elastic: f64 = self.element_energy.iter().sum();
+        elastic + self.add_other_terms(u, Some(gradient), hessian)
+    }
+
     /// Elastic energy Σ Wₑ (J) at `u`.
     pub fn elastic_energy(&mut self, u: &[f64]) -> f64 {
         let el = &self.model.elasticity;
@@ -267,33 +288,11 @@ impl Potential for StepPotential<'_> {
     }
 
     fn evaluate(&mut self, u: &[f64], gradient: &mut [f64], hessian: &mut [f64]) -> f64 {
-        gradient.fill(0.0);
         hessian.fill(0.0);
-        let project = self.project;
-        let el = &self.model.elasticity;
-        let tets = &self.model.mesh.tets;
-        self.assembly.assemble(
-            |e, with_h, out| el.element_with(tets, u, e, with_h, project, out),
-            self.element_energy,
-            gradient,
-            Some(hessian),
-        );
-        let elastic: f64 = self.element_energy.iter().sum();
-        elastic + self.add_other_terms(u, Some(gradient), Some(hessian))
+        self.assemble_all(u, gradient, Some(hessian))
     }
 
     fn gradient(&mut self, u: &[f64], gradient: &mut [f64]) -> f64 {
-        gradient.fill(0.0);
-        let project = self.project;
-        let el = &self.model.elasticity;
-        let tets = &self.model.mesh.tets;
-        self.assembly.assemble(
-            |e, with_h, out| el.element_with(tets, u, e, with_h, project, out),
-            self.element_energy,
-            gradient,
-            None,
-        );
-        let elastic: f64 = self.element_energy.iter().sum();
-        elastic + self.add_other_terms(u, Some(gradient), None)
+        self.assemble_all(u, gradient, None)
     }
 }
