@@ -262,3 +262,84 @@ fn stacked_cubes_rest_on_each_other_through_ice_contact() {
         "interpenetration {deepest:e} m"
     );
 }
+
+/// A 3 cm block on a 4 cm cube, gravity tilted by θ about y; the floor holds the lower cube
+/// (α = 0.9), the upper block rests on it with ice–ice friction `alpha`. The block overhangs the
+/// cube by 1 cm upslope and is narrower: side faces of the two bodies must not be coplanar,
+/// where node-to-face contact cannot tell the side face from the top one (see README).
+fn stacked_on_incline(theta: f64, alpha: f64, dt: f64) -> Simulation {
+    let g = 9.81;
+    let text = format!(
+        r#"
+[mesh]
+boxes = [
+    {{ origin = [0.03, 0.03, 0.0], size = [0.04, 0.04, 0.04], cells = [2, 2, 2] }},
+    {{ origin = [0.02, 0.035, 0.04], size = [0.03, 0.03, 0.04], cells = [2, 2, 2] }},
+]
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[physics]
+gravity = [{gx}, 0.0, {gz}]
+ice_friction = {alpha}
+friction_smoothing_velocity = 1e-5
+[[obstacle]]
+type = "halfspace"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+friction = 0.9
+[time]
+dt = {dt}
+end_time = 1.0
+"#,
+        gx = g * theta.sin(),
+        gz = -g * theta.cos(),
+    );
+    let scene = icefem::scene::Scene::parse(&text, std::path::Path::new("incline.toml")).unwrap();
+    Simulation::new(scene.model, scene.settings).unwrap()
+}
+
+#[test]
+fn ice_on_ice_friction_sticks_and_slides_like_coulomb() {
+    let g = 9.81;
+    let upper_mean_x = |sim: &Simulation, field: &[f64]| {
+        let ice = sim.model.ice_contact.as_ref().unwrap();
+        let nodes: Vec<usize> = (0..sim.model.num_nodes())
+            .filter(|&i| ice.part[i] == 1)
+            .collect();
+        nodes.iter().map(|&i| field[3 * i]).sum::<f64>() / nodes.len() as f64
+    };
+    // tan θ = 0.2 < α = 0.5: the upper cube stays on the lower one.
+    let mut sim = stacked_on_incline(0.2f64.atan(), 0.5, 0.01);
+    for _ in 0..30 {
+        sim.step().unwrap();
+    }
+    let slip = upper_mean_x(&sim, &sim.state.u) - {
+        let ice = sim.model.ice_contact.as_ref().unwrap();
+        let nodes: Vec<usize> = (0..sim.model.num_nodes())
+            .filter(|&i| ice.part[i] == 0)
+            .collect();
+        nodes.iter().map(|&i| sim.state.u[3 * i]).sum::<f64>() / nodes.len() as f64
+    };
+    eprintln!("ice on ice, stick: relative slip after 0.3 s {slip:e} m");
+    // Creep below the friction angle is bounded by ε_v t = 3e-6 m.
+    assert!(slip.abs() < 3e-6, "upper cube slipped {slip:e} m");
+    // tan θ = 0.3 > α = 0.1: it slides with a = g (sin θ − α cos θ) while the floor holds the
+    // lower cube (0.9 > 0.3).
+    let (theta, alpha, dt) = (0.3f64.atan(), 0.1, 0.005);
+    let mut sim = stacked_on_incline(theta, alpha, dt);
+    let mut v = Vec::new();
+    for _ in 0..25 {
+        sim.step().unwrap();
+        v.push(upper_mean_x(&sim, &sim.state.v));
+    }
+    // Over 0.05 … 0.125 s (by then it has slid 1.5 cm, still on the cube).
+    let a = (v[24] - v[9]) / (15.0 * dt);
+    let expected = g * (theta.sin() - alpha * theta.cos());
+    eprintln!("ice on ice, slide: a = {a} m/s², expected {expected} m/s²");
+    assert!(
+        (a - expected).abs() < 0.02 * expected,
+        "a = {a}, expected {expected}"
+    );
+}

@@ -159,6 +159,8 @@ pub struct PhysicsSection {
     /// Friction smoothing velocity ε_v (m/s): slower relative sliding counts as sticking.
     /// Default 1e-4.
     pub friction_smoothing_velocity: Option<f64>,
+    /// Coulomb friction coefficient between separate pieces of ice. Default 0.
+    pub ice_friction: Option<f64>,
 }
 
 /// `[physics.damping]`: D = α M + β K.
@@ -499,9 +501,15 @@ impl Validator<'_> {
             })?;
         model.contact = contact;
         // Separate parts touch each other: ice–ice contact, with the default penalty.
+        let ice_friction = self.non_negative(
+            "physics.ice_friction",
+            raw.physics.ice_friction.unwrap_or(0.0),
+        )?;
         model.ice_contact = IceContact::new(
             &model.mesh,
             default_stiffness(&model.mesh, material.young()),
+            ice_friction,
+            smoothing,
         );
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),

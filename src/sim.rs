@@ -4,7 +4,7 @@ use crate::assembly::{Assembly, DofMap};
 use crate::physics::contact::{ContactForces, ContactStep};
 use crate::physics::ice_contact::{Candidate, IceContact};
 use crate::physics::Model;
-use crate::solver::timestep::{IceStep, Inertia, StepPotential};
+use crate::solver::timestep::{IceFriction, IceStep, Inertia, StepPotential};
 use crate::solver::{
     minimize, FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams,
     NewtonReport, NewtonWorkspace, Potential,
@@ -393,11 +393,23 @@ impl Simulation {
             contact,
             block_slots: &self.block_slots,
             project: false,
-            ice: self.model.ice_contact.as_ref().map(|term| IceStep {
-                term,
-                candidates: &self.candidates,
-                slots: &self.candidate_slots,
-                anticipated: Vec::new(),
+            ice: self.model.ice_contact.as_ref().map(|term| {
+                let mut ice = IceStep {
+                    term,
+                    candidates: &self.candidates,
+                    slots: &self.candidate_slots,
+                    anticipated: Vec::new(),
+                    friction: None,
+                };
+                if dynamic && term.friction > 0.0 {
+                    let frames = ice.friction_frames(rest, &self.previous);
+                    ice.friction = Some(IceFriction {
+                        dt: h,
+                        previous: &self.previous,
+                        frames,
+                    });
+                }
+                ice
             }),
         };
         // Friction uses the normal force of the start of the step; after each solve it is
@@ -406,19 +418,23 @@ impl Simulation {
         let mut newton: Option<NewtonReport> = None;
         for _ in 0..=MAX_FRICTION_UPDATES {
             if newton.is_some() {
-                let Some(c) = potential.contact.as_mut().filter(|c| c.has_friction()) else {
-                    break;
-                };
-                let updated = c.normal_forces(&u);
-                let scale = updated.iter().fold(0.0f64, |m, v| m.max(*v));
-                let change = updated
-                    .iter()
-                    .zip(&c.lagged)
-                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-                if change <= 1e-4 * scale {
+                let mut change: f64 = 0.0;
+                if let Some(c) = potential.contact.as_mut().filter(|c| c.has_friction()) {
+                    let updated = c.normal_forces(&u);
+                    let scale = updated.iter().fold(0.0f64, |m, v| m.max(*v));
+                    let diff = updated
+                        .iter()
+                        .zip(&c.lagged)
+                        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                    change = if scale > 0.0 { diff / scale } else { 0.0 };
+                    c.lagged = updated;
+                }
+                if let Some(ice) = potential.ice.as_mut() {
+                    change = change.max(ice.relag(rest, &u));
+                }
+                if change <= 1e-4 {
                     break;
                 }
-                c.lagged = updated;
             }
             let report = minimize(
                 &mut potential,
@@ -447,13 +463,7 @@ impl Simulation {
                 contact.evaluate(&u, None, None, Some(&mut forces));
             }
             if let Some(ice) = &potential.ice {
-                ice.add(
-                    &self.model.mesh.rest,
-                    &u,
-                    None,
-                    None,
-                    Some(&mut forces.normal),
-                );
+                ice.add(&self.model.mesh.rest, &u, None, None, Some(&mut forces));
             }
             self.contact_forces = forces;
         }
@@ -531,6 +541,7 @@ impl Simulation {
             ContactStep::new(c, &self.model.mesh.rest, u, t, t, None).evaluate(u, None, None, None)
         }) + self.model.ice_contact.as_ref().map_or(0.0, |term| {
             let ice = IceStep {
+                friction: None,
                 term,
                 candidates: &self.candidates,
                 slots: &[],

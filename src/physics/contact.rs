@@ -218,7 +218,7 @@ impl Plane {
 
 /// Smoothed friction profile: f₀ (potential), f₁ = f₀′ (force fraction) and f₁′, for slip s ≥ 0
 /// and smoothing length ε.
-fn friction_profile(s: f64, eps: f64) -> (f64, f64, f64) {
+pub(crate) fn friction_profile(s: f64, eps: f64) -> (f64, f64, f64) {
     if s < eps {
         let r = s / eps;
         (

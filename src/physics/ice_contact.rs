@@ -9,6 +9,11 @@
 //! changes g only at second order because p − q ∥ n), so the force couples all four nodes and
 //! the 12 × 12 Jacobian k Aₚ ∇g ∇gᵀ is exact up to the O(g) curvature of the normal.
 //!
+//! Friction between the pieces is the smoothed Coulomb potential of the obstacles (see
+//! `contact`), on the slip of the node relative to the foot point, y = T (Δuₚ − Σ βᵢ Δuᵢ), with
+//! the normal n, the weights β and the normal force λ frozen per step (re-lagged to the end of
+//! the step like the obstacles'): its 12-dof gradient and Hessian follow from y being linear in u.
+//!
 //! The broad phase runs once per step: triangle boxes, grown by a margin covering the step's
 //! motion, go into a uniform grid, and each boundary node of another part is looked up in it.
 //! The candidate (node, triangle) pairs are fixed for the step.
@@ -26,6 +31,10 @@ pub struct IceContact {
     pub parts: usize,
     /// Penalty stiffness k (N/m³).
     pub stiffness: f64,
+    /// Coulomb friction coefficient between pieces of ice.
+    pub friction: f64,
+    /// Friction smoothing velocity ε_v (m/s), as for obstacles.
+    pub smoothing_velocity: f64,
     /// Boundary nodes and their rest area shares (m²).
     nodes: Vec<(usize, f64)>,
     /// Boundary triangles (outward), global node indices.
@@ -84,7 +93,12 @@ fn position(rest: &[Vector3<f64>], u: &[f64], i: usize) -> Vector3<f64> {
 
 impl IceContact {
     /// The term for `mesh`, or `None` if the mesh is one part (then nothing is paid).
-    pub fn new(mesh: &TetMesh, stiffness: f64) -> Option<Self> {
+    pub fn new(
+        mesh: &TetMesh,
+        stiffness: f64,
+        friction: f64,
+        smoothing_velocity: f64,
+    ) -> Option<Self> {
         let (part, parts) = parts(mesh);
         if parts < 2 {
             return None;
@@ -110,6 +124,8 @@ impl IceContact {
             part,
             parts,
             stiffness,
+            friction,
+            smoothing_velocity,
             nodes,
             faces,
             edge,

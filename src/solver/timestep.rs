@@ -14,10 +14,10 @@
 
 use super::newton::Potential;
 use crate::assembly::Assembly;
-use crate::physics::contact::ContactStep;
+use crate::physics::contact::{friction_profile, ContactForces, ContactStep};
 use crate::physics::ice_contact::{Candidate, IceContact};
 use crate::physics::Model;
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Inertia and damping data of a dynamic step.
 pub struct Inertia<'a> {
@@ -67,9 +67,127 @@ pub struct IceStep<'a> {
     /// Candidates whose stiffness enters the Hessian before they penetrate (see
     /// `ContactStep::anticipate`).
     pub anticipated: Vec<bool>,
+    /// Friction of the step (dynamic steps with ice friction only).
+    pub friction: Option<IceFriction<'a>>,
+}
+
+/// A normal (unit), the foot-point weights (βₐ, β_b, β_c) and the normal force λ (N) of a
+/// penetrating ice–ice pair, frozen for friction.
+pub type FrictionFrame = (Vector3<f64>, [f64; 3], f64);
+
+/// Ice–ice friction data frozen for a step.
+pub struct IceFriction<'a> {
+    /// Time step (s).
+    pub dt: f64,
+    /// Displacement at the start of the step (m).
+    pub previous: &'a [f64],
+    /// Per candidate, its frame if it penetrates.
+    pub frames: Vec<Option<FrictionFrame>>,
 }
 
 impl IceStep<'_> {
+    /// Friction frames of the pairs penetrating at `u`.
+    pub fn friction_frames(&self, rest: &[Vector3<f64>], u: &[f64]) -> Vec<Option<FrictionFrame>> {
+        let mut frames = vec![None; self.candidates.len()];
+        self.term
+            .for_each_closest(rest, u, self.candidates, |m, g, dg| {
+                if g < 0.0 {
+                    let n = Vector3::new(dg[0], dg[1], dg[2]);
+                    let beta = [1, 2, 3]
+                        .map(|k| -n.dot(&Vector3::new(dg[3 * k], dg[3 * k + 1], dg[3 * k + 2])));
+                    frames[m] = Some((n, beta, -self.term.stiffness * self.candidates[m].area * g));
+                }
+            });
+        frames
+    }
+
+    /// Re-lags the friction frames to `u`; returns the largest change of a normal force relative
+    /// to the largest normal force (0 without friction).
+    pub fn relag(&mut self, rest: &[Vector3<f64>], u: &[f64]) -> f64 {
+        if self.friction.is_none() {
+            return 0.0;
+        }
+        let new = self.friction_frames(rest, u);
+        let lam = |f: &Option<FrictionFrame>| f.map_or(0.0, |x| x.2);
+        let scale = new.iter().map(lam).fold(0.0f64, f64::max);
+        let Some(fr) = self.friction.as_mut() else {
+            return 0.0;
+        };
+        let change = new
+            .iter()
+            .zip(&fr.frames)
+            .map(|(a, b)| (lam(a) - lam(b)).abs())
+            .fold(0.0f64, f64::max);
+        fr.frames = new;
+        if scale > 0.0 {
+            change / scale
+        } else {
+            0.0
+        }
+    }
+
+    /// Friction energy (J), adding gradient, Hessian and forces.
+    fn add_friction(
+        &self,
+        u: &[f64],
+        mut gradient: Option<&mut [f64]>,
+        mut hessian: Option<&mut [f64]>,
+        mut forces: Option<&mut [f64]>,
+    ) -> f64 {
+        let Some(fr) = &self.friction else { return 0.0 };
+        let mut energy = 0.0;
+        let eps = self.term.smoothing_velocity * fr.dt;
+        for (m, frame) in fr.frames.iter().enumerate() {
+            let Some((n, beta, lambda)) = frame else {
+                continue;
+            };
+            let nodes = IceContact::pair_nodes(&self.candidates[m]);
+            let w = [1.0, -beta[0], -beta[1], -beta[2]];
+            let rel: Vector3<f64> = (0..4)
+                .map(|k| {
+                    let i = nodes[k];
+                    w[k] * Vector3::from_fn(|a, _| u[3 * i + a] - fr.previous[3 * i + a])
+                })
+                .sum();
+            let tangent = Matrix3::identity() - n * n.transpose();
+            let y = tangent * rel;
+            let s = y.norm();
+            let (f0, f1, f1_prime) = friction_profile(s, eps);
+            let scale = self.term.friction * lambda;
+            energy += scale * f0;
+            // f₁(s)/s → 2/ε as s → 0.
+            let f1_over_s = if s > 1e-14 * eps { f1 / s } else { 2.0 / eps };
+            let g_y = scale * f1_over_s * y;
+            let mut h_y = scale * f1_over_s * tangent;
+            if s > 1e-14 * eps {
+                let yhat = y / s;
+                h_y += scale * (f1_prime - f1_over_s) * yhat * yhat.transpose();
+            }
+            for k in 0..4 {
+                for a in 0..3 {
+                    let d = 3 * nodes[k] + a;
+                    if let Some(g) = gradient.as_deref_mut() {
+                        g[d] += w[k] * g_y[a];
+                    }
+                    if let Some(f) = forces.as_deref_mut() {
+                        f[d] -= w[k] * g_y[a];
+                    }
+                }
+            }
+            if let (Some(hs), Some(slots)) = (hessian.as_deref_mut(), self.slots.get(m)) {
+                for r in 0..12 {
+                    for col in 0..12 {
+                        let slot = slots[12 * r + col];
+                        if slot != u32::MAX {
+                            hs[slot as usize] += w[r / 3] * w[col / 3] * h_y[(r % 3, col % 3)];
+                        }
+                    }
+                }
+            }
+        }
+        energy
+    }
+
     /// Marks candidates that do not penetrate at `u` but would at `trial`; returns whether any
     /// was newly marked.
     pub fn anticipate(
@@ -103,7 +221,7 @@ impl IceStep<'_> {
         u: &[f64],
         mut gradient: Option<&mut [f64]>,
         mut hessian: Option<&mut [f64]>,
-        mut forces: Option<&mut [f64]>,
+        mut forces: Option<&mut ContactForces>,
     ) -> f64 {
         let mut energy = 0.0;
         let anticipated = &self.anticipated;
@@ -120,7 +238,7 @@ impl IceStep<'_> {
                             gr[d] += ka * gap * dgk;
                         }
                         if let Some(f) = forces.as_deref_mut() {
-                            f[d] -= ka * gap * dgk;
+                            f.normal[d] -= ka * gap * dgk;
                         }
                     }
                 }
@@ -138,7 +256,7 @@ impl IceStep<'_> {
                     }
                 }
             });
-        energy
+        energy + self.add_friction(u, gradient, hessian, forces.map(|f| &mut f.friction[..]))
     }
 }
 
