@@ -106,12 +106,13 @@ def mem_available() -> int:
     return 0
 
 
-def run_process(cmd: list[str], timeout: float) -> dict:
+def run_process(cmd: list[str], timeout: float, env: dict | None = None) -> dict:
     """Runs cmd; returns stdout, stderr, status, wall time, child CPU, background cores."""
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         b0 = cpu_busy_seconds()
         t0 = time.monotonic()
-        proc = subprocess.Popen(cmd, stdout=out, stderr=err, cwd=ROOT)
+        proc = subprocess.Popen(cmd, stdout=out, stderr=err, cwd=ROOT,
+                                env=None if env is None else {**os.environ, **env})
         timed_out = False
         while True:
             pid, status, ru = os.wait4(proc.pid, os.WNOHANG)
@@ -141,12 +142,13 @@ def run_process(cmd: list[str], timeout: float) -> dict:
         )
 
 
-def measured(cmd: list[str], timeout: float, parse, what: str, deadline: float) -> dict:
+def measured(cmd: list[str], timeout: float, parse, what: str, deadline: float,
+             env: dict | None = None) -> dict:
     """Runs a measurement, retrying (after waiting for quiet) if other processes disturbed it."""
     best = None
     for attempt in range(3):
         wait_quiet(min(180.0, max(0.0, deadline - time.monotonic() - 60)))
-        r = run_process(cmd, timeout)
+        r = run_process(cmd, timeout, env)
         if r["timed_out"]:
             return dict(error=f"stopped after {timeout:.0f} s (wall-time cap)", wall=r["wall"])
         if r["code"] != 0:
@@ -445,8 +447,10 @@ def write_report(path: Path, results: list, meta: dict) -> None:
             c.append(f"{s(pe['t_assembly'])} / {s(pe.get('t_assembly_q1'))}")
             c.append(s(pe["t_spsolve"]) if "t_spsolve" in pe else res["spsolve_why"])
             if "cholmod_total" in pe:
+                p1 = res.get("peer1t", {})
                 c.append(f"{s(pe['t_cholmod_analyse'])} + {s(pe['t_cholmod_factor'])} + "
-                         f"{s(pe['t_cholmod_solve'])} = **{s(pe['cholmod_total'])}**")
+                         f"{s(pe['t_cholmod_solve'])} = **{s(pe['cholmod_total'])}**"
+                         + (f" (1 BLAS thread: {s(p1['cholmod_total'])})" if "cholmod_total" in p1 else ""))
             else:
                 c.append(res["cholmod_why"])
             c.append(f"{s(pe['t_amg_setup'])} + {s(pe['t_amg_solve'])} = **{s(pe['amg_total'])}** "
@@ -461,7 +465,9 @@ def write_report(path: Path, results: list, meta: dict) -> None:
         else:
             c.append("–")
         if "cholmod_total" in pe and "direct" in ch:
-            c.append(f"**{pe['cholmod_total'] / ch['direct']:.2f}**")
+            p1 = res.get("peer1t", {})
+            c.append(f"**{pe['cholmod_total'] / ch['direct']:.2f}**"
+                     + (f" (1 thread: {p1['cholmod_total'] / ch['direct']:.2f})" if "cholmod_total" in p1 else ""))
         else:
             c.append("–")
         L.append("| " + " | ".join(c) + " |")
@@ -500,8 +506,10 @@ def write_report(path: Path, results: list, meta: dict) -> None:
              "scikit-fem assembles the linear bilinear form.")
     L.append("5. CHOLMOD (analyse + factor + solve of A) ÷ icefem (symbolic + one numeric "
              "factorisation + one solve, from the Cholesky run). Above 1: icefem is faster; below "
-             "1: CHOLMOD is faster. Both factor the same matrix pattern class (icefem's pattern "
-             "keeps structural zeros, see note 6).")
+             "1: CHOLMOD is faster. CHOLMOD's supernodal factorisation calls the multithreaded OpenBLAS "
+             "(2 threads here) while icefem factors sequentially (faer `Par::Seq`); *(1 thread)* is "
+             "CHOLMOD in a separate process with `OPENBLAS_NUM_THREADS=1` (1-pt assembly + "
+             "CHOLMOD only, same medians). icefem's pattern keeps structural zeros (note 6).")
     L.append("")
     L.append("Peer details: scipy `spsolve` is SuperLU (COLAMD), run only up to 2e4 dofs. CHOLMOD "
              "through scikit-sparse `analyze` (default ordering: AMD, METIS tried when the fill is "
@@ -578,6 +586,11 @@ def write_report(path: Path, results: list, meta: dict) -> None:
                  f"{sci(r.get('q1_vs_default'))} | {g('t_system')} | – | – | – | – | – | – | – | – | – | "
                  f"{mb(r['peak_rss'])} | {r['_runs']} | {r['_background_max']:.2f} |")
     L.append("")
+    one = [(res, res.get("peer1t", {})) for res in results if "cholmod_total" in res.get("peer1t", {})]
+    if one:
+        L.append("CHOLMOD with one BLAS thread (`OPENBLAS_NUM_THREADS=1`), analyse / factor / solve (s): "
+                 + "; ".join(f"{r['tets']:.0f} tets: {s(r['t_cholmod_analyse'])} / {s(r['t_cholmod_factor'])} / "
+                             f"{s(r['t_cholmod_solve'])} ({r['_runs']} runs)" for _, r in one) + ".\n")
     L.append("6. scikit-fem drops exact zeros from K (`eliminate_zeros`: some off-diagonal entries of "
              "the 3×3 node blocks vanish on this structured mesh); icefem's pattern keeps full 3×3 "
              "blocks, hence nnz(K) > nnz(A). Both store both triangles.")
@@ -643,6 +656,8 @@ def main() -> int:
             notes.append(f"{n} tets, peer: {res['peer_why']}")
         else:
             jobs.append("peer")
+            if plan["cholmod"]:
+                jobs.append("peer1t")  # CHOLMOD with one BLAS thread (icefem factors sequentially)
         rows: dict[str, list] = {j: [] for j in jobs}
         failed: set[str] = set()
         for rep in range(plan["repeats"]):
@@ -679,6 +694,13 @@ def main() -> int:
                             + (f", CHOLMOD {r['cholmod_total']:.3g} s" if "cholmod_total" in r else "")
                             + (f", pyamg {r['amg_total']:.3g} s ({r['amg_iterations']} it.)" if "amg_total" in r else "")
                             + f", {r['peak_rss'] / 1e6:.0f} MB, background {r['_background']:.2f}")
+                elif job == "peer1t":
+                    cmd = [python, str(PEER), "--single", str(n), "--cholmod-only"]
+                    r = measured(cmd, TIMEOUT["peer"], parse_peer, f"peer CHOLMOD 1 thread {n}", deadline,
+                                 env={"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"})
+                    if "error" not in r:
+                        log(f"  CHOLMOD, 1 BLAS thread: {r.get('cholmod_total', float('nan')):.3g} s, "
+                            f"background {r['_background']:.2f}")
                 else:
                     r = companion(icefem, job, cells, workdir, f"icefem run {job} {n}", deadline)
                     if "error" not in r:
