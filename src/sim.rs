@@ -198,7 +198,7 @@ impl Simulation {
         let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
         Ok(Simulation {
             element_energy: vec![0.0; model.mesh.num_tets()],
-            scratch: vec![0.0; assembly.dofs().num_free()],
+            scratch: vec![0.0; 2 * assembly.dofs().num_free()],
             previous: vec![0.0; n],
             predictor: vec![0.0; n],
             block_slots: match &model.contact {

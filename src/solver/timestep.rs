@@ -43,8 +43,8 @@ pub struct StepPotential<'a> {
     pub inertia: Option<Inertia<'a>>,
     /// Per-element energy buffer (J), length = number of elements.
     pub element_energy: &'a mut Vec<f64>,
-    /// Scratch for the damping product, length = free dofs.
-    pub scratch: &'a mut Vec<f64>,
+    /// Scratch for the damping product, length = 2 × free dofs.
+    pub scratch: &'a mut [f64],
     /// Contact for this step, if the model has obstacles.
     pub contact: Option<ContactStep<'a>>,
     /// CSC value indices of each node's 3 × 3 block (for contact), indexed by node.
@@ -319,16 +319,16 @@ impl StepPotential<'_> {
             }
         }
         if let Some(k) = inertia.beta_stiffness {
-            let delta: Vec<f64> = dofs
-                .free_dofs()
-                .iter()
-                .map(|&d| u[d] - inertia.previous[d])
-                .collect();
-            self.assembly.multiply(k, &delta, self.scratch);
+            // Δu and βKₙΔu in the two halves of the scratch buffer: no allocation per call.
+            let (delta, product) = self.scratch.split_at_mut(dofs.num_free());
+            for (x, &d) in delta.iter_mut().zip(dofs.free_dofs()) {
+                *x = u[d] - inertia.previous[d];
+            }
+            self.assembly.multiply(k, delta, product);
             for (i, &d) in dofs.free_dofs().iter().enumerate() {
-                energy += 0.5 * delta[i] * self.scratch[i] / h;
+                energy += 0.5 * delta[i] * product[i] / h;
                 if let Some(g) = gradient.as_deref_mut() {
-                    g[d] += self.scratch[i] / h;
+                    g[d] += product[i] / h;
                 }
             }
             if let Some(hs) = hessian {
