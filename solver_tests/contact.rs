@@ -1,14 +1,19 @@
 //! Contact with rigid obstacles: resting penetration, friction on an incline, a cube dropped
-//! into the container, and no contact work in scenes without obstacles.
+//! into the container, triangle-mesh obstacles (flat, tilted, moving, tipping over an edge),
+//! and no contact work in scenes without obstacles.
 
 mod common;
 use common::*;
 use icefem::fem::ElasticModel;
 use icefem::mesh::box_mesh;
+use icefem::mesh::surface::TriSurface;
 use icefem::physics::contact::{default_stiffness, Shape};
+use icefem::physics::obstacle_mesh::ObstacleSurface;
 use icefem::physics::{Contact, Elasticity, Model, Obstacle};
 use icefem::sim::{Analysis, Simulation};
+use nalgebra::Rotation3;
 use nalgebra::Vector3;
+use std::sync::Arc;
 
 /// A 10 cm ice cube standing on the floor z = 0 under `gravity`, with friction `alpha`.
 fn cube_on_floor(
@@ -18,13 +23,41 @@ fn cube_on_floor(
     dt: f64,
     smoothing: f64,
 ) -> Simulation {
-    let mesh = box_mesh([0.0; 3], [0.1; 3], [3, 3, 3], 6).unwrap();
+    let floor = Shape::HalfSpace {
+        point: Vector3::zeros(),
+        normal: Vector3::z(),
+    };
+    cube_on(
+        floor,
+        Rotation3::identity(),
+        Vector3::zeros(),
+        gravity,
+        alpha,
+        stiffness,
+        dt,
+        smoothing,
+    )
+}
+
+/// The 10 cm cube rotated by `rotation` about the origin, on `shape` moving with `velocity`.
+#[allow(clippy::too_many_arguments)]
+fn cube_on(
+    shape: Shape,
+    rotation: Rotation3<f64>,
+    velocity: Vector3<f64>,
+    gravity: [f64; 3],
+    alpha: f64,
+    stiffness: Option<f64>,
+    dt: f64,
+    smoothing: f64,
+) -> Simulation {
+    let mut mesh = box_mesh([0.0; 3], [0.1; 3], [3, 3, 3], 6).unwrap();
+    for p in &mut mesh.rest {
+        *p = rotation * *p;
+    }
     let floor = Obstacle {
-        shape: Shape::HalfSpace {
-            point: Vector3::zeros(),
-            normal: Vector3::z(),
-        },
-        velocity: Vector3::zeros(),
+        shape,
+        velocity,
         stiffness: stiffness.unwrap_or_else(|| default_stiffness(&mesh, ICE.young())),
         friction: alpha,
     };
@@ -342,4 +375,238 @@ fn ice_on_ice_friction_sticks_and_slides_like_coulomb() {
         (a - expected).abs() < 0.02 * expected,
         "a = {a}, expected {expected}"
     );
+}
+
+/// A square of half-width `half` (m) in the plane z = 0, as two triangles facing +z, rotated
+/// by `rotation`.
+fn square(half: f64, rotation: Rotation3<f64>) -> Shape {
+    let vertices = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
+        .map(|[x, y]| rotation * Vector3::new(half * x, half * y, 0.0))
+        .to_vec();
+    let surface = TriSurface {
+        vertices,
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+    };
+    Shape::Mesh {
+        surface: Arc::new(ObstacleSurface::new(&surface)),
+    }
+}
+
+#[test]
+fn mesh_floor_gives_the_half_space_answer() {
+    // The same floor as a half-space and as two triangles: every node's plane is then the
+    // half-space's, so the motions agree to round-off (the cube lands, bounces, settles).
+    let g = [1.0, 0.5, -9.81];
+    let mut half = cube_on_floor(g, 0.3, None, 0.01, 1e-4);
+    let mut mesh = cube_on(
+        square(1.0, Rotation3::identity()),
+        Rotation3::identity(),
+        Vector3::zeros(),
+        g,
+        0.3,
+        None,
+        0.01,
+        1e-4,
+    );
+    let mut worst: f64 = 0.0;
+    for _ in 0..50 {
+        half.step().unwrap();
+        mesh.step().unwrap();
+        let scale = half.state.u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let diff = half
+            .state
+            .u
+            .iter()
+            .zip(&mesh.state.u)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        worst = worst.max(diff / scale);
+    }
+    eprintln!("mesh floor vs half-space: max relative difference {worst:e}");
+    // Round-off of the closest-point arithmetic only (1e-10 leaves 3 orders for the Newton
+    // iterates to amplify it through the stiff contact).
+    assert!(worst < 1e-10, "relative difference {worst:e}");
+}
+
+#[test]
+fn block_slides_down_a_tilted_mesh_incline_like_coulomb() {
+    // Cube and triangle incline both tilted by θ about y, gravity vertical: the normals are no
+    // longer axis-aligned. tan θ = 0.5 > α = 0.3: a = g (sin θ − α cos θ) down the slope.
+    let (g, alpha, dt) = (9.81, 0.3, 0.01);
+    let theta = 0.5f64.atan();
+    let r = Rotation3::from_axis_angle(&Vector3::y_axis(), -theta);
+    let mut sim = cube_on(
+        square(10.0, r),
+        r,
+        Vector3::zeros(),
+        [0.0, 0.0, -g],
+        alpha,
+        None,
+        dt,
+        1e-4,
+    );
+    let down_slope = r * -Vector3::x();
+    let mut v = Vec::new();
+    for _ in 0..200 {
+        sim.step().unwrap();
+        v.push(mean_over(
+            &sim,
+            |_| true,
+            |i| {
+                Vector3::new(
+                    sim.state.v[3 * i],
+                    sim.state.v[3 * i + 1],
+                    sim.state.v[3 * i + 2],
+                )
+                .dot(&down_slope)
+            },
+        ));
+    }
+    let a = (v[199] - v[99]) / (100.0 * dt);
+    let expected = g * (theta.sin() - alpha * theta.cos());
+    eprintln!("tilted mesh incline: a = {a} m/s², expected {expected} m/s²");
+    assert!(
+        (a - expected).abs() < 0.02 * expected,
+        "a = {a}, expected {expected}"
+    );
+}
+
+#[test]
+fn moving_mesh_floor_carries_the_block_with_it() {
+    // A triangle floor rising at 0.2 m/s lifts the cube: after 1 s the cube moves with it and
+    // presses on it by its weight, m g / (k A) deep, like a resting cube.
+    let lift = 0.2;
+    let mut sim = cube_on(
+        square(1.0, Rotation3::identity()),
+        Rotation3::identity(),
+        Vector3::new(0.0, 0.0, lift),
+        [0.0, 0.0, -9.81],
+        0.3,
+        None,
+        1.0 / 30.0,
+        1e-4,
+    );
+    for _ in 0..30 {
+        sim.step().unwrap();
+    }
+    let vz = mean_over(&sim, |_| true, |i| sim.state.v[3 * i + 2]);
+    let k = sim.model.contact.as_ref().unwrap().obstacles[0].stiffness;
+    let expected = sim.model.total_mass() * 9.81 / (k * 0.01);
+    let floor_z = lift * sim.state.time;
+    let depth = floor_z - mean_over(&sim, |p| p.z < 1e-12, |i| sim.state.u[3 * i + 2]);
+    eprintln!("rising floor: v_z = {vz} m/s, depth {depth:e} m (m g / (k A) = {expected:e} m)");
+    // Backward Euler damps the landing transient: 1e-6 of the speed after 30 steps.
+    assert!((vz - lift).abs() < 1e-6 * lift, "v_z = {vz}");
+    // The bottom nodes' plain mean weights edge nodes like interior ones (the area-weighted
+    // mean is exact, see the resting test): 5 %.
+    assert!(
+        (depth - expected).abs() < 0.05 * expected,
+        "depth {depth:e} vs {expected:e}"
+    );
+}
+
+#[test]
+fn cube_tips_over_a_mesh_table_edge_without_entering_it() {
+    // A table (closed box surface, top at z = 0, x ≤ 1/30 m) under a cube that overhangs it
+    // by 6.7 cm: the cube pivots on the table's edge. The edge is an obstacle feature whose
+    // plane turns with the cube; no node may enter the table. The edge lies under a row of
+    // cube nodes: contact is node against surface, so an obstacle edge between nodes would cut
+    // into the ice face (see README, limitations).
+    let edge = 0.1 / 3.0;
+    let table = icefem::bench::open_box_surface(&icefem::physics::Region {
+        min: Vector3::new(-0.5, -0.5, -0.5),
+        max: Vector3::new(edge, 0.5, 0.0),
+    });
+    // The open box's normals point into it; a table is that box seen from outside, closed.
+    let mut vertices = table.vertices.clone();
+    let mut triangles: Vec<[usize; 3]> =
+        table.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect();
+    let top = vertices.len();
+    vertices.extend(
+        [[-0.5, -0.5], [edge, -0.5], [edge, 0.5], [-0.5, 0.5]]
+            .map(|[x, y]| Vector3::new(x, y, 0.0)),
+    );
+    triangles.extend([[top, top + 1, top + 2], [top, top + 2, top + 3]]);
+    let surface = ObstacleSurface::new(&TriSurface {
+        vertices,
+        triangles,
+    });
+    let shape = Shape::Mesh {
+        surface: Arc::new(surface.clone()),
+    };
+    let mut sim = cube_on(
+        shape,
+        Rotation3::identity(),
+        Vector3::zeros(),
+        [0.0, 0.0, -9.81],
+        0.5,
+        None,
+        0.01,
+        1e-4,
+    );
+    let mut deepest: f64 = 0.0;
+    let mut energy = sim.energies().total();
+    for _ in 0..25 {
+        let report = sim.step().unwrap();
+        for p in sim.positions() {
+            if let Some(q) = surface.closest(Vector3::from(p), 0.01) {
+                deepest = deepest.min(q.gap);
+            }
+        }
+        let e = report.energies.total();
+        assert!(
+            e <= energy + 1e-9 * energy.abs().max(1.0),
+            "energy rose {energy} → {e}"
+        );
+        energy = e;
+    }
+    let tilt = {
+        let p = sim.positions();
+        let right = mean_over(&sim, |x| x.x > 0.1 - 1e-12, |i| p[i][2]);
+        let left = mean_over(&sim, |x| x.x < 1e-12, |i| p[i][2]);
+        (left - right) / 0.1
+    };
+    eprintln!("table edge: deepest node {deepest:e} m, tilt {tilt}");
+    // It tipped (the overhanging side dropped), and the penalty depth stays far below a
+    // micrometre (weight / (k · edge area) ~ 1e-9 m).
+    assert!(tilt > 0.05, "cube did not tip: {tilt}");
+    assert!(deepest > -1e-6, "node {deepest:e} m inside the table");
+}
+
+#[test]
+fn cube_slides_down_the_obj_ramp_scene_and_stops_on_the_floor() {
+    // scenes/slide_down_ramp.toml: a rigid wedge read from ramp.obj in a container. The cube
+    // lands on the slope, slides off its foot (x = 0.2 m) onto the floor and comes to rest;
+    // no node ever enters the wedge.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/slide_down_ramp.toml");
+    let scene = icefem::scene::Scene::load(&path).unwrap();
+    let mut sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
+    let ramp = sim.model.contact.as_ref().unwrap().obstacles[0]
+        .surface()
+        .expect("obstacle 0 is the OBJ ramp")
+        .clone();
+    assert_eq!(ramp.triangles.len(), 8, "5 faces of the prism, quads split");
+    let mut deepest: f64 = 0.0;
+    for _ in 0..icefem::run::step_count(scene.end_time, scene.settings.dt) {
+        sim.step().unwrap();
+        for p in sim.positions() {
+            if let Some(q) = ramp.closest(Vector3::from(p), 0.01) {
+                deepest = deepest.min(q.gap);
+            }
+        }
+    }
+    let p = sim.positions();
+    let x_min = p.iter().map(|x| x[0]).fold(f64::INFINITY, f64::min);
+    let z_min = p.iter().map(|x| x[2]).fold(f64::INFINITY, f64::min);
+    let vmax = sim.state.v.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    eprintln!(
+        "ramp: deepest {deepest:e} m, final x_min {x_min} m, z_min {z_min:e} m, |v| {vmax:e}"
+    );
+    // Penalty depths are ~1e-10 m here; a node through the wedge would be millimetres in.
+    assert!(deepest > -1e-6, "node {deepest:e} m inside the ramp");
+    assert!(x_min > 0.2, "cube still on the ramp: x_min = {x_min}");
+    assert!(
+        z_min.abs() < 1e-6,
+        "not resting on the floor: z_min = {z_min:e}"
+    );
+    assert!(vmax < 1e-4, "not at rest: {vmax:e} m/s");
 }

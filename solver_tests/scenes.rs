@@ -172,6 +172,57 @@ fn missing_and_bad_mesh_files_are_named() {
 }
 
 #[test]
+fn mesh_obstacle_errors_name_field_and_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = dir.path().join("scene.toml");
+    let with = |extra: &str| format!("{GOOD}\n[[obstacle]]\n{extra}\n");
+    let err = |text: &str| Scene::parse(text, &scene_path).unwrap_err().to_string();
+    // Missing file, missing `file`, keys of another obstacle type, bad scale.
+    let e = err(&with("type = \"mesh\"\nfile = \"nowhere.obj\""));
+    assert!(
+        e.contains("scene.toml") && e.contains("obstacle[0].file") && e.contains("nowhere.obj"),
+        "{e}"
+    );
+    let e = err(&with("type = \"mesh\""));
+    assert!(
+        e.contains("obstacle[0].file") && e.contains("missing"),
+        "{e}"
+    );
+    let e = err(&with(
+        "type = \"halfspace\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nfile = \"a.obj\"",
+    ));
+    assert!(e.contains("obstacle[0].file") && e.contains("mesh"), "{e}");
+    std::fs::write(
+        dir.path().join("tri.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let e = err(&with("type = \"mesh\"\nfile = \"tri.obj\"\nscale = -1.0"));
+    assert!(e.contains("obstacle[0].scale"), "{e}");
+    // A closed surface with inward normals (a tetrahedron wound the wrong way) is refused.
+    std::fs::write(
+        dir.path().join("inward.obj"),
+        "v 0 0 -1\nv 1 0 -1\nv 0 1 -1\nv 0 0 0\nf 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
+    )
+    .unwrap();
+    let e = err(&with("type = \"mesh\"\nfile = \"inward.obj\""));
+    assert!(
+        e.contains("obstacle[0].file") && e.contains("inward"),
+        "{e}"
+    );
+    // The open triangle loads, moved by `translate`.
+    let scene = Scene::parse(
+        &with("type = \"mesh\"\nfile = \"tri.obj\"\ntranslate = [0.0, 0.0, -1.0]"),
+        &scene_path,
+    )
+    .unwrap();
+    let surface = scene.model.contact.as_ref().unwrap().obstacles[0]
+        .surface()
+        .unwrap();
+    assert_eq!(surface.vertices[1], nalgebra::Vector3::new(1.0, 0.0, -1.0));
+}
+
+#[test]
 fn static_scene_without_supports_is_a_clear_error() {
     let text = GOOD
         .replace(

@@ -1,12 +1,18 @@
-//! Benchmark problems: an ice cube on box meshes of a chosen size, clamped at its base, under
-//! gravity, stepped with backward Euler at dt = 1/30 s. Used by `icefem bench`.
+//! Benchmark problems, used by `icefem bench`: an ice cube on box meshes of a chosen size,
+//! clamped at its base, under gravity, stepped with backward Euler at dt = 1/30 s; and, for
+//! the cost of contact, two such cubes stacked in a container.
 
 use crate::fem::{ElasticModel, Material};
-use crate::mesh::box_mesh;
-use crate::physics::{Dirichlet, Elasticity, Model, Region};
+use crate::mesh::surface::TriSurface;
+use crate::mesh::{box_mesh, TetMesh};
+use crate::physics::contact::{default_stiffness, Shape};
+use crate::physics::ice_contact::IceContact;
+use crate::physics::obstacle_mesh::ObstacleSurface;
+use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Region};
 use crate::sim::{Analysis, SimError, Simulation, StepSettings};
 use crate::solver::{FillOrdering, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Timings of one benchmark size (seconds unless noted).
@@ -64,12 +70,7 @@ pub fn run_size(
     let c = cells_for(tets);
     let mesh =
         box_mesh([0.0; 3], [0.1; 3], [c, c, c], 6).map_err(|e| SimError::Setup(e.to_string()))?;
-    let material = Material {
-        lambda: 8.64e10,
-        mu: 3.70e10,
-        density: 916.0,
-    };
-    let elasticity = Elasticity::new(&mesh, material, ElasticModel::Corotated);
+    let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
     let base = Dirichlet {
         region: Region {
             min: Vector3::repeat(-1.0),
@@ -89,19 +90,7 @@ pub fn run_size(
         vec![base],
     )
     .map_err(|e| SimError::Setup(e.to_string()))?;
-    let settings = StepSettings {
-        analysis: Analysis::Dynamic,
-        dt: 1.0 / 30.0,
-        newton: NewtonParams {
-            tolerance: 1e-9,
-            step_tolerance: 1e-15 * 0.1 * 3f64.sqrt(),
-            max_iterations: 50,
-        },
-        linear,
-        ordering,
-        cg_tolerance: 1e-10,
-        cg_max_iterations: 100_000,
-    };
+    let settings = frame_steps(linear, ordering);
     let t_model = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let mut sim = Simulation::new(model, settings)?;
@@ -136,6 +125,153 @@ pub fn run_size(
         newton_iterations: col(4) as usize,
         linear_iterations: col(5) as usize,
         peak_memory: peak_memory(),
+    })
+}
+
+/// The paper's ice (Lamé parameters in Pa, density in kg/m³).
+const ICE: Material = Material {
+    lambda: 8.64e10,
+    mu: 3.70e10,
+    density: 916.0,
+};
+
+/// Backward Euler at one step per frame (1/30 s) with a tight Newton tolerance.
+fn frame_steps(linear: LinearSolverKind, ordering: FillOrdering) -> StepSettings {
+    StepSettings {
+        analysis: Analysis::Dynamic,
+        dt: 1.0 / 30.0,
+        newton: NewtonParams {
+            tolerance: 1e-9,
+            step_tolerance: 1e-15 * 0.1 * 3f64.sqrt(),
+            max_iterations: 50,
+        },
+        linear,
+        ordering,
+        cg_tolerance: 1e-10,
+        cg_max_iterations: 100_000,
+    }
+}
+
+/// Per-step cost of contact against the elastic assembly (seconds, medians over the steps).
+#[derive(Clone, Debug, Default)]
+pub struct ContactCost {
+    /// Tetrahedra.
+    pub tets: usize,
+    /// Boundary nodes tested against the obstacles.
+    pub boundary_nodes: usize,
+    /// Ice–ice candidate (node, triangle) pairs of the last step.
+    pub candidates: usize,
+    /// Newton iterations per step.
+    pub newton_iterations: usize,
+    /// Broad phase: ice–ice candidates and pattern update.
+    pub t_broad: f64,
+    /// Narrow phase: all contact gaps, forces and Jacobians (obstacles and ice–ice).
+    pub t_narrow: f64,
+    /// Elastic assembly (assembly time without the narrow phase).
+    pub t_elastic: f64,
+    /// Whole step.
+    pub t_step: f64,
+}
+
+/// An open-top box of inner size `inner` as a triangle surface whose normals point into the
+/// box (the side the ice is on): floor and four walls, two triangles each.
+pub fn open_box_surface(inner: &Region) -> TriSurface {
+    let (lo, hi) = (inner.min, inner.max);
+    let corner = |i: usize| {
+        Vector3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    };
+    // Quads (counter-clockwise seen from inside the box).
+    let quads = [
+        [0, 1, 3, 2],
+        [0, 4, 5, 1],
+        [2, 3, 7, 6],
+        [0, 2, 6, 4],
+        [1, 5, 7, 3],
+    ];
+    TriSurface {
+        vertices: (0..8).map(corner).collect(),
+        triangles: quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect(),
+    }
+}
+
+/// Two 10 cm ice cubes of ≈ `tets`/2 tets each, the upper one resting on the lower, in a
+/// container (five planes, or the same box as a triangle mesh when `mesh_container`), with
+/// friction 0.3 everywhere; `steps` steps at 1/30 s.
+pub fn contact_cost(
+    tets: usize,
+    steps: usize,
+    mesh_container: bool,
+) -> Result<ContactCost, SimError> {
+    let setup = |e: crate::mesh::MeshError| SimError::Setup(e.to_string());
+    let c = cells_for(tets / 2);
+    let lower = box_mesh([0.0; 3], [0.1; 3], [c, c, c], 6).map_err(setup)?;
+    let upper = box_mesh([0.02, 0.01, 0.1], [0.1; 3], [c, c, c], 6).map_err(setup)?;
+    let mesh = TetMesh::concat(vec![lower, upper]).map_err(setup)?;
+    let inner = Region {
+        min: Vector3::new(-0.01, -0.01, 0.0),
+        max: Vector3::new(0.13, 0.12, 0.3),
+    };
+    let stiffness = default_stiffness(&mesh, ICE.young());
+    let shape = if mesh_container {
+        Shape::Mesh {
+            surface: Arc::new(ObstacleSurface::new(&open_box_surface(&inner))),
+        }
+    } else {
+        Shape::Container { inner }
+    };
+    let container = Obstacle {
+        shape,
+        velocity: Vector3::zeros(),
+        stiffness,
+        friction: 0.3,
+    };
+    let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
+    let contact = Contact::new(&mesh, vec![container], 1e-4);
+    let ice = IceContact::new(&mesh, stiffness, 0.3, 1e-4);
+    let mut model = Model::new(
+        mesh,
+        elasticity,
+        Vector3::new(0.0, 0.0, -9.81),
+        &[],
+        None,
+        vec![],
+    )
+    .map_err(setup)?;
+    model.contact = Some(contact);
+    model.ice_contact = ice;
+    let boundary_nodes = model.contact.as_ref().map_or(0, |c| c.nodes.len());
+    let mut sim = Simulation::new(
+        model,
+        frame_steps(LinearSolverKind::Cholesky, FillOrdering::Auto),
+    )?;
+    let mut rows: Vec<[f64; 5]> = Vec::new();
+    for _ in 0..steps {
+        let r = sim.step()?;
+        rows.push([
+            r.t_contact_broad,
+            r.t_contact_narrow,
+            r.newton.t_assembly - r.t_contact_narrow,
+            r.t_step,
+            r.newton.iterations as f64,
+        ]);
+    }
+    let col = |k: usize| median(rows.iter().map(|r| r[k]).collect());
+    Ok(ContactCost {
+        tets: sim.model.mesh.num_tets(),
+        boundary_nodes,
+        candidates: sim.ice_candidates(),
+        newton_iterations: col(4) as usize,
+        t_broad: col(0),
+        t_narrow: col(1),
+        t_elastic: col(2),
+        t_step: col(3),
     })
 }
 

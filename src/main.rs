@@ -63,6 +63,10 @@ enum Command {
         /// Internal: run one size in this process and print one result line.
         #[arg(long, hide = true)]
         single: Option<usize>,
+        /// Instead: the per-step cost of contact (broad and narrow phase) against the elastic
+        /// assembly, for two cubes stacked in a container (planes, then a triangle mesh).
+        #[arg(long)]
+        contact: bool,
     },
     /// Print what an icefem HDF5 file holds.
     Info {
@@ -96,7 +100,14 @@ fn main() {
             solver,
             ordering,
             single,
-        } => bench_command(&tets, steps, repeats, solver, ordering, single),
+            contact,
+        } => {
+            if contact {
+                contact_bench(&tets, steps, repeats)
+            } else {
+                bench_command(&tets, steps, repeats, solver, ordering, single)
+            }
+        }
         Command::Info { file } => icefem::output::describe(&file)
             .map(|text| print!("{text}"))
             .map_err(Into::into),
@@ -150,6 +161,54 @@ impl From<OrderingArg> for FillOrdering {
 }
 
 const BENCH_FIELDS: usize = 14;
+
+/// `icefem bench --contact`: prints a table of contact cost per step.
+fn contact_bench(sizes: &[usize], steps: usize, repeats: usize) -> Result<()> {
+    println!("icefem bench --contact: two corotated ice cubes stacked (offset) in a container, friction 0.3, gravity, backward Euler dt = 1/30 s, Cholesky");
+    println!(
+        "{} threads; medians of {repeats} runs of the per-step medians over {steps} steps\n",
+        rayon::current_num_threads()
+    );
+    println!("| tets | container | boundary nodes | ice–ice pairs | Newton it./step | broad phase/step (ms) | narrow phase/step (ms) | elastic assembly/step (ms) | contact / elastic | step (ms) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for &tets in sizes {
+        for mesh_container in [false, true] {
+            let mut runs = Vec::new();
+            for _ in 0..repeats.max(1) {
+                runs.push(bench::contact_cost(tets, steps.max(1), mesh_container)?);
+            }
+            let median = |f: &dyn Fn(&bench::ContactCost) -> f64| {
+                let mut v: Vec<f64> = runs.iter().map(f).collect();
+                v.sort_by(f64::total_cmp);
+                v[v.len() / 2]
+            };
+            let r = &runs[0];
+            let (broad, narrow, elastic) = (
+                median(&|c| c.t_broad),
+                median(&|c| c.t_narrow),
+                median(&|c| c.t_elastic),
+            );
+            println!(
+                "| {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.1} |",
+                r.tets,
+                if mesh_container {
+                    "triangle mesh"
+                } else {
+                    "planes"
+                },
+                r.boundary_nodes,
+                r.candidates,
+                r.newton_iterations,
+                1e3 * broad,
+                1e3 * narrow,
+                1e3 * elastic,
+                (broad + narrow) / elastic,
+                1e3 * median(&|c| c.t_step),
+            );
+        }
+    }
+    Ok(())
+}
 
 fn bench_command(
     sizes: &[usize],

@@ -21,15 +21,18 @@
 //! ```
 
 use crate::fem::{ElasticModel, Material};
+use crate::mesh::surface::TriSurface;
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
 use crate::physics::contact::{default_stiffness, Shape};
 use crate::physics::ice_contact::IceContact;
+use crate::physics::obstacle_mesh::ObstacleSurface;
 use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Rayleigh, Region, Traction};
 use crate::sim::{Analysis, StepSettings};
 use crate::solver::{FillOrdering, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// A scene that could not be read or is not valid.
 #[derive(Debug, thiserror::Error)]
@@ -57,6 +60,14 @@ pub enum SceneError {
         path: PathBuf,
         #[source]
         source: gmsh::GmshError,
+    },
+    /// An obstacle's surface file could not be read or is not valid.
+    #[error("scene file {path}: field `{field}`: {source}")]
+    SurfaceFile {
+        path: PathBuf,
+        field: String,
+        #[source]
+        source: crate::mesh::surface::SurfaceError,
     },
     /// The mesh is not valid.
     #[error("scene file {path}: field `mesh`: {source}")]
@@ -216,14 +227,21 @@ pub struct EigenstrainSection {
     pub value: f64,
 }
 
-/// `[[obstacle]]`: a rigid obstacle, `type = "halfspace"` (with `point`, `normal`) or
-/// `type = "container"` (open-top box with inner corners `min`, `max`).
+/// `[[obstacle]]`: a rigid obstacle, `type = "halfspace"` (with `point`, `normal`),
+/// `type = "container"` (open-top box with inner corners `min`, `max`) or `type = "mesh"`
+/// (a triangle surface from `file`, OBJ or Gmsh, times `scale`, moved by `translate`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObstacleSection {
-    /// "halfspace" or "container".
+    /// "halfspace", "container" or "mesh".
     #[serde(rename = "type")]
     pub kind: String,
+    /// Mesh: surface file (.obj or .msh), relative to the scene file.
+    pub file: Option<PathBuf>,
+    /// Mesh: factor applied to the file's coordinates (to metres). Default 1.
+    pub scale: Option<f64>,
+    /// Mesh: translation applied after scaling (m). Default 0.
+    pub translate: Option<[f64; 3]>,
     /// Half-space: a point on its surface (m).
     pub point: Option<[f64; 3]>,
     /// Half-space: normal pointing out of the obstacle (normalised here).
@@ -234,7 +252,7 @@ pub struct ObstacleSection {
     pub max: Option<[f64; 3]>,
     /// Rigid velocity (m/s). Default 0.
     pub velocity: Option<[f64; 3]>,
-    /// Penalty stiffness (N/m³). Default 100 E / h (h: mean boundary edge length).
+    /// Penalty stiffness (N/m³). Default 10 E / h (h: mean boundary edge length of the ice).
     pub stiffness: Option<f64>,
     /// Coulomb friction coefficient. Default 0.
     pub friction: Option<f64>,
@@ -626,14 +644,29 @@ impl Validator<'_> {
     ) -> Result<Obstacle, SceneError> {
         let field = format!("obstacle[{i}]");
         let f = |name: &str| format!("{field}.{name}");
+        let misplaced = [
+            ("point", o.point.is_some(), "halfspace"),
+            ("normal", o.normal.is_some(), "halfspace"),
+            ("min", o.min.is_some(), "container"),
+            ("max", o.max.is_some(), "container"),
+            ("file", o.file.is_some(), "mesh"),
+            ("scale", o.scale.is_some(), "mesh"),
+            ("translate", o.translate.is_some(), "mesh"),
+        ];
+        if let Some((name, _, owner)) = misplaced
+            .iter()
+            .find(|(_, given, owner)| *given && *owner != o.kind)
+        {
+            return Err(self.invalid(
+                &f(name),
+                format!(
+                    "belongs to type = \"{owner}\" obstacles, not \"{}\"",
+                    o.kind
+                ),
+            ));
+        }
         let shape = match o.kind.as_str() {
             "halfspace" => {
-                if o.min.is_some() || o.max.is_some() {
-                    return Err(self.invalid(
-                        &f("min"),
-                        "`min`/`max` belong to containers; a half-space takes `point` and `normal`",
-                    ));
-                }
                 let point = o.point.ok_or_else(|| {
                     self.invalid(&f("point"), "missing (a point on the surface, m)")
                 })?;
@@ -650,12 +683,6 @@ impl Validator<'_> {
                 }
             }
             "container" => {
-                if o.point.is_some() || o.normal.is_some() {
-                    return Err(self.invalid(
-                        &f("point"),
-                        "`point`/`normal` belong to half-spaces; a container takes `min` and `max`",
-                    ));
-                }
                 let min = o
                     .min
                     .ok_or_else(|| self.invalid(&f("min"), "missing (inner lower corner, m)"))?;
@@ -668,10 +695,36 @@ impl Validator<'_> {
                 }
                 Shape::Container { inner }
             }
+            "mesh" => {
+                let file = o.file.as_ref().ok_or_else(|| {
+                    self.invalid(&f("file"), "missing (surface mesh, .obj or .msh)")
+                })?;
+                let scale = self.positive(&f("scale"), o.scale.unwrap_or(1.0))?;
+                let shift = self.vector(&f("translate"), o.translate.unwrap_or_default())?;
+                let file = self.path.parent().unwrap_or(Path::new("")).join(file);
+                let mut surface =
+                    TriSurface::read(&file, scale).map_err(|source| SceneError::SurfaceFile {
+                        path: self.path.into(),
+                        field: f("file"),
+                        source,
+                    })?;
+                for v in &mut surface.vertices {
+                    *v += shift;
+                }
+                if surface.is_closed() && surface.enclosed_volume() < 0.0 {
+                    return Err(self.invalid(
+                        &f("file"),
+                        format!("{}: the surface is closed but its triangles face inward (negative enclosed volume {:e} m³); reverse their order so normals point out of the obstacle", file.display(), surface.enclosed_volume()),
+                    ));
+                }
+                Shape::Mesh {
+                    surface: Arc::new(ObstacleSurface::new(&surface)),
+                }
+            }
             other => {
                 return Err(self.invalid(
                     &f("type"),
-                    format!("must be \"halfspace\" or \"container\", got {other:?}"),
+                    format!("must be \"halfspace\", \"container\" or \"mesh\", got {other:?}"),
                 ))
             }
         };

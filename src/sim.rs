@@ -84,6 +84,11 @@ pub struct StepReport {
     pub t_step: f64,
     /// Solves the step took (1 unless Newton failed and the step was halved).
     pub substeps: u32,
+    /// Contact broad phase: ice–ice candidate search and pattern update (s).
+    pub t_contact_broad: f64,
+    /// Contact narrow phase: gaps, forces and Jacobians of all contact pairs, inside the
+    /// assembly time of `newton` (s).
+    pub t_contact_narrow: f64,
 }
 
 /// Re-solves of a step with the friction normal force updated from its end.
@@ -100,6 +105,8 @@ impl StepReport {
             energies: next.energies,
             t_step: self.t_step + next.t_step,
             substeps: self.substeps + next.substeps,
+            t_contact_broad: self.t_contact_broad + next.t_contact_broad,
+            t_contact_narrow: self.t_contact_narrow + next.t_contact_narrow,
         }
     }
 }
@@ -229,6 +236,10 @@ impl Simulation {
     pub fn assembly(&self) -> &Assembly {
         &self.assembly
     }
+    /// Number of ice–ice candidate pairs of the last step (for statistics).
+    pub fn ice_candidates(&self) -> usize {
+        self.candidates.len()
+    }
     /// The linear solver (for statistics).
     pub fn linear_solver(&self) -> &LinearSolver {
         &self.linear
@@ -244,6 +255,7 @@ impl Simulation {
         if self.model.ice_contact.is_some() {
             self.prepare_ice_contact()?;
         }
+        let t_contact_broad = start.elapsed().as_secs_f64();
         let result = self.advance(self.settings.dt, t_end, 0);
         if result.is_err() {
             (self.state.time, self.state.u, self.state.v) = (t0, u0, v0);
@@ -255,6 +267,7 @@ impl Simulation {
         })?;
         self.state.step += 1;
         report.t_step = start.elapsed().as_secs_f64();
+        report.t_contact_broad = t_contact_broad;
         report.energies = self.energies();
         Ok(report)
     }
@@ -369,13 +382,16 @@ impl Simulation {
         let rest = &self.model.mesh.rest;
         let t_start = self.state.time;
         let contact = self.model.contact.as_ref().map(|c| {
+            // Mesh obstacles look for nodes as far as the step can carry them, and an edge.
+            let vmax = self.state.v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let reach = c.edge + 2.0 * h * vmax * 3f64.sqrt();
             ContactStep::new(
                 c,
                 rest,
                 &self.previous,
-                t_start,
-                t_new,
+                (t_start, t_new),
                 dynamic.then_some(h),
+                reach,
             )
         });
         let mut potential = StepPotential {
@@ -411,14 +427,20 @@ impl Simulation {
                 }
                 ice
             }),
+            t_contact: 0.0,
         };
         // Friction uses the normal force of the start of the step; after each solve it is
         // re-lagged to the solution's and the step re-solved (warm-started) until it settles
-        // to 1e-4 of the largest.
+        // to 1e-4 of the largest. Mesh obstacles' planes are re-picked the same way.
         let mut newton: Option<NewtonReport> = None;
         for _ in 0..=MAX_FRICTION_UPDATES {
             if newton.is_some() {
                 let mut change: f64 = 0.0;
+                if let Some(c) = potential.contact.as_mut() {
+                    if c.reselect_node_planes(&u) {
+                        change = f64::INFINITY;
+                    }
+                }
                 if let Some(c) = potential.contact.as_mut().filter(|c| c.has_friction()) {
                     let updated = c.normal_forces(&u);
                     let scale = updated.iter().fold(0.0f64, |m, v| m.max(*v));
@@ -472,6 +494,7 @@ impl Simulation {
         Ok(StepReport {
             newton,
             substeps: 1,
+            t_contact_narrow: potential.t_contact,
             ..Default::default()
         })
     }
@@ -489,6 +512,7 @@ impl Simulation {
             // β K must be positive semi-definite to damp.
             project: true,
             ice: None,
+            t_contact: 0.0,
         };
         let mut gradient = vec![0.0; self.previous.len()];
         potential.evaluate(&self.previous, &mut gradient, &mut self.damping_stiffness);
@@ -538,7 +562,8 @@ impl Simulation {
             .sum::<f64>();
         let contact = self.model.contact.as_ref().map_or(0.0, |c| {
             let t = self.state.time;
-            ContactStep::new(c, &self.model.mesh.rest, u, t, t, None).evaluate(u, None, None, None)
+            ContactStep::new(c, &self.model.mesh.rest, u, (t, t), None, c.edge)
+                .evaluate(u, None, None, None)
         }) + self.model.ice_contact.as_ref().map_or(0.0, |term| {
             let ice = IceStep {
                 friction: None,

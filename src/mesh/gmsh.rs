@@ -1,9 +1,10 @@
-//! Reader for Gmsh `.msh` meshes made of linear tetrahedra.
+//! Reader for Gmsh `.msh` meshes: the linear tetrahedra of a body ([`read_msh`]) or the
+//! linear triangles of an obstacle surface ([`read_msh_triangles`]).
 //!
 //! Format 4.1 (ASCII and binary) is parsed by the `mshio` crate. mshio does not read
 //! format 2.2, so that one (ASCII and binary) is parsed by hand here. Both paths produce a
-//! [`RawMesh`] (nodes and tets by their Gmsh tags), which [`compact`] turns into the
-//! 0-based arrays the solver uses.
+//! `RawMesh` (nodes and the wanted elements by their Gmsh tags), which `compact` turns
+//! into the 0-based arrays the solver uses. Which elements are wanted is a `Kind`.
 //!
 //! Test fixtures live in `solver_tests/data/msh/`; `make_fixtures.py` there regenerates them.
 
@@ -30,43 +31,94 @@ pub enum GmshError {
 /// (compacted, in order of first appearance by ascending original node tag). Other element types (points, lines, triangles, ...) are ignored.
 #[allow(clippy::type_complexity)] // the signature other modules were promised
 pub fn read_msh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[usize; 4]>), GmshError> {
+    read_elements(path, &TETRAHEDRA)
+}
+
+/// Reads the linear triangles (Gmsh element type 2) of a Gmsh mesh file, formats 2.2 and 4.1,
+/// ASCII and binary: an obstacle's surface mesh. Returns node positions (m) and 0-based
+/// triangles indexing into them, each with its nodes in the file's order (so the right-hand
+/// rule gives the normal Gmsh meshed the surface with), triangles in file order. Only nodes
+/// referenced by a triangle are kept, compacted as in [`read_msh`]. Points, lines and volume
+/// elements (tetrahedra, ...) are ignored. Higher-order triangles and quadrangles of any order
+/// are an error: reading their corners only, or dropping them, would change the surface.
+#[allow(clippy::type_complexity)] // the same shape as read_msh
+pub fn read_msh_triangles(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[usize; 3]>), GmshError> {
+    read_elements(path, &TRIANGLES)
+}
+
+/// Reads the elements of `kind` from the file at `path`; errors name the file.
+fn read_elements<const N: usize>(path: &Path, kind: &Kind<N>) -> Result<Mesh<N>, GmshError> {
     let bytes = std::fs::read(path).map_err(|source| GmshError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    parse(&bytes).map_err(|message| GmshError::Format {
+    parse(&bytes, kind).map_err(|message| GmshError::Format {
         path: path.to_path_buf(),
         message,
     })
 }
 
-/// Parses a whole `.msh` file. Errors are plain messages; [`read_msh`] adds the path.
-fn parse(bytes: &[u8]) -> Result<Mesh, String> {
+/// Parses a whole `.msh` file. Errors are plain messages; [`read_elements`] adds the path.
+fn parse<const N: usize>(bytes: &[u8], kind: &Kind<N>) -> Result<Mesh<N>, String> {
     let header = read_header(bytes)?;
     let raw = match header.version.as_str() {
-        "2.2" => parse_v22(bytes, header.binary)?,
-        "4.1" => parse_v41(bytes, &header)?,
+        "2.2" => parse_v22(bytes, header.binary, kind)?,
+        "4.1" => parse_v41(bytes, &header, kind)?,
         other => {
             return Err(format!(
                 "unsupported Gmsh format version {other} (supported: 2.2 and 4.1, ASCII or binary)"
             ))
         }
     };
-    compact(raw)
+    compact(raw, kind)
 }
 
-/// What [`read_msh`] returns: node positions and 0-based tets.
-type Mesh = (Vec<[f64; 3]>, Vec<[usize; 4]>);
+/// What a read returns: node positions and 0-based elements of `N` nodes (4: [`read_msh`]'s
+/// tets, 3: [`read_msh_triangles`]'s triangles).
+type Mesh<const N: usize = 4> = (Vec<[f64; 3]>, Vec<[usize; N]>);
 
-/// Nodes and linear tets as the file gives them, by Gmsh tag.
-#[derive(Default)]
-struct RawMesh {
+/// Which elements a read collects: the linear elements of one Gmsh type, `N` nodes each.
+struct Kind<const N: usize> {
+    /// Singular name for messages ("tetrahedron").
+    name: &'static str,
+    /// The error when the file has no such elements.
+    none: &'static str,
+    /// Whether an element of this Gmsh type (and this tag, for messages) is collected;
+    /// `Err` for types that can be neither collected nor safely ignored.
+    keep: fn(i64, u64) -> Result<bool, String>,
+}
+
+/// Linear tetrahedra, for [`read_msh`].
+const TETRAHEDRA: Kind<4> = Kind {
+    name: "tetrahedron",
+    none: NO_TETS,
+    keep: is_linear_tet,
+};
+
+/// Linear triangles, for [`read_msh_triangles`].
+const TRIANGLES: Kind<3> = Kind {
+    name: "triangle",
+    none: NO_TRIANGLES,
+    keep: is_linear_triangle,
+};
+
+/// Nodes and the wanted elements as the file gives them, by Gmsh tag.
+struct RawMesh<const N: usize> {
     nodes: HashMap<u64, [f64; 3]>,
-    /// (element tag, node tags) of each linear tet, in file order.
-    tets: Vec<(u64, [u64; 4])>,
+    /// (element tag, node tags) of each wanted element, in file order.
+    elements: Vec<(u64, [u64; N])>,
 }
 
-impl RawMesh {
+impl<const N: usize> Default for RawMesh<N> {
+    fn default() -> Self {
+        RawMesh {
+            nodes: HashMap::new(),
+            elements: Vec::new(),
+        }
+    }
+}
+
+impl<const N: usize> RawMesh<N> {
     fn add_node(&mut self, tag: u64, position: [f64; 3]) -> Result<(), String> {
         match self.nodes.insert(tag, position) {
             Some(_) => Err(format!("node {tag} is defined twice")),
@@ -77,13 +129,18 @@ impl RawMesh {
 
 const NO_TETS: &str = "the file has no tetrahedra (Gmsh element type 4)";
 
-/// Keeps only the nodes used by tets and renumbers them 0.. in ascending tag order, so the
-/// result depends neither on the element order nor on the file format.
-fn compact(raw: RawMesh) -> Result<Mesh, String> {
-    if raw.tets.is_empty() {
-        return Err(NO_TETS.to_string());
+const NO_TRIANGLES: &str = "the file has no triangles (Gmsh element type 2): an obstacle \
+    surface needs linear triangles. Mesh the surfaces (2D) and save them; if the model has \
+    physical groups, Gmsh saves only their elements, so add a physical surface or set \
+    Mesh.SaveAll = 1";
+
+/// Keeps only the nodes used by the elements and renumbers them 0.. in ascending tag order,
+/// so the result depends neither on the element order nor on the file format.
+fn compact<const N: usize>(raw: RawMesh<N>, kind: &Kind<N>) -> Result<Mesh<N>, String> {
+    if raw.elements.is_empty() {
+        return Err(kind.none.to_string());
     }
-    let mut used: Vec<u64> = raw.tets.iter().flat_map(|(_, nodes)| *nodes).collect();
+    let mut used: Vec<u64> = raw.elements.iter().flat_map(|(_, nodes)| *nodes).collect();
     used.sort_unstable();
     used.dedup();
 
@@ -93,7 +150,7 @@ fn compact(raw: RawMesh) -> Result<Mesh, String> {
             Some(position) => positions.push(*position),
             None => {
                 let element = raw
-                    .tets
+                    .elements
                     .iter()
                     .find(|(_, nodes)| nodes.contains(tag))
                     .map_or(0, |(element, _)| *element);
@@ -102,13 +159,13 @@ fn compact(raw: RawMesh) -> Result<Mesh, String> {
         }
     }
     let index: HashMap<u64, usize> = used.iter().enumerate().map(|(i, &t)| (t, i)).collect();
-    // Every tag in a tet is in `used`, hence in `index`: the lookup cannot fail.
-    let tets = raw
-        .tets
+    // Every tag in an element is in `used`, hence in `index`: the lookup cannot fail.
+    let elements = raw
+        .elements
         .iter()
         .map(|(_, nodes)| nodes.map(|tag| index[&tag]))
         .collect();
-    Ok((positions, tets))
+    Ok((positions, elements))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -143,6 +200,41 @@ fn is_linear_tet(element_type: i64, element_tag: u64) -> Result<bool, String> {
 
 /// Gmsh types of hexahedra, prisms and pyramids of every order.
 const OTHER_VOLUME_ELEMENTS: [i64; 9] = [5, 6, 7, 12, 13, 14, 17, 18, 19];
+
+/// Gmsh element type of the 3-node (linear) triangle.
+const LINEAR_TRIANGLE: i64 = 2;
+
+/// Gmsh element types of higher-order triangles (6, 9, 10, 12, 15, ... nodes, complete and
+/// incomplete). Their corners alone are a different surface, so they are an error.
+const HIGHER_ORDER_TRIANGLES: [i64; 17] = [
+    9, 20, 21, 22, 23, 24, 25, 42, 43, 44, 45, 46, 52, 53, 54, 55, 56,
+];
+
+/// Gmsh element types of quadrangles of every order (4, 8, 9, 12, 16, ... nodes) and of
+/// polygons (34).
+const QUADRANGLES_AND_POLYGONS: [i64; 20] = [
+    3, 10, 16, 34, 36, 37, 38, 39, 40, 41, 47, 48, 49, 50, 51, 57, 58, 59, 60, 61,
+];
+
+/// Whether an element of this type is kept (a linear triangle); errors for higher-order
+/// triangles and for quadrangles (dropping those would leave holes in the surface). Volume
+/// elements, lines and points are not part of a surface and are skipped.
+fn is_linear_triangle(element_type: i64, element_tag: u64) -> Result<bool, String> {
+    if HIGHER_ORDER_TRIANGLES.contains(&element_type) {
+        return Err(format!(
+            "element {element_tag} is a higher-order triangle (Gmsh element type {element_type}); \
+             only linear triangles (type 2) are supported: mesh the surface with \
+             Mesh.ElementOrder = 1"
+        ));
+    }
+    if QUADRANGLES_AND_POLYGONS.contains(&element_type) {
+        return Err(format!(
+            "element {element_tag} is a quadrangle or polygon (Gmsh element type {element_type}); \
+             only linear triangles (type 2) are supported: mesh the surface without recombination"
+        ));
+    }
+    Ok(element_type == LINEAR_TRIANGLE)
+}
 
 /// Nodes per element for the Gmsh element types a binary 2.2 file may hold; binary element
 /// blocks have no line structure, so skipping an element needs its size.
@@ -217,7 +309,11 @@ fn read_header(bytes: &[u8]) -> Result<Header, String> {
 // ---------------------------------------------------------------------------------------
 // Format 4.1, through mshio
 
-fn parse_v41(bytes: &[u8], header: &Header) -> Result<RawMesh, String> {
+fn parse_v41<const N: usize>(
+    bytes: &[u8],
+    header: &Header,
+    kind: &Kind<N>,
+) -> Result<RawMesh<N>, String> {
     // mshio panics (unimplemented!) on size_t sizes it has no parser for, and
     // force_node_tag_maps patches an 8-byte field; Gmsh always writes 8.
     if header.binary && header.data_size != 8 {
@@ -228,7 +324,7 @@ fn parse_v41(bytes: &[u8], header: &Header) -> Result<RawMesh, String> {
     }
     // mshio 0.4 underflows (panics in debug builds) on a section announcing zero entries.
     if section_count_is_zero(bytes, b"$Elements", header.binary) {
-        return Err(NO_TETS.to_string());
+        return Err(kind.none.to_string());
     }
     if section_count_is_zero(bytes, b"$Nodes", header.binary) {
         return Err("the file has no nodes".to_string());
@@ -267,11 +363,14 @@ fn parse_v41(bytes: &[u8], header: &Header) -> Result<RawMesh, String> {
     {
         let element_type = block.element_type as i64;
         for element in block.elements {
-            if is_linear_tet(element_type, element.element_tag)? {
-                let nodes = <[u64; 4]>::try_from(element.nodes.as_slice()).map_err(|_| {
-                    format!("tetrahedron {} does not have 4 nodes", element.element_tag)
+            if (kind.keep)(element_type, element.element_tag)? {
+                let nodes = <[u64; N]>::try_from(element.nodes.as_slice()).map_err(|_| {
+                    format!(
+                        "{} {} does not have {N} nodes",
+                        kind.name, element.element_tag
+                    )
                 })?;
-                mesh.tets.push((element.element_tag, nodes));
+                mesh.elements.push((element.element_tag, nodes));
             }
         }
     }
@@ -362,7 +461,11 @@ enum ByteOrder {
     Big,
 }
 
-fn parse_v22(bytes: &[u8], binary: bool) -> Result<RawMesh, String> {
+fn parse_v22<const N: usize>(
+    bytes: &[u8],
+    binary: bool,
+    kind: &Kind<N>,
+) -> Result<RawMesh<N>, String> {
     let mut cursor = Cursor::new(bytes);
     let mut order = ByteOrder::Little;
     let mut mesh = RawMesh::default();
@@ -385,7 +488,7 @@ fn parse_v22(bytes: &[u8], binary: bool) -> Result<RawMesh, String> {
                 cursor.expect_line("$EndNodes")?;
             }
             b"$Elements" => {
-                read_elements_v22(&mut cursor, binary, order, &mut mesh)
+                read_elements_v22(&mut cursor, binary, order, &mut mesh, kind)
                     .map_err(|e| format!("in $Elements: {e}"))?;
                 cursor.expect_line("$EndElements")?;
             }
@@ -398,11 +501,11 @@ fn parse_v22(bytes: &[u8], binary: bool) -> Result<RawMesh, String> {
 }
 
 /// `$Nodes`: a count line, then per node `tag x y z` (a text line, or int + 3 doubles).
-fn read_nodes_v22(
+fn read_nodes_v22<const N: usize>(
     cursor: &mut Cursor,
     binary: bool,
     order: ByteOrder,
-    mesh: &mut RawMesh,
+    mesh: &mut RawMesh<N>,
 ) -> Result<(), String> {
     let count = cursor.count_line()?;
     for _ in 0..count {
@@ -428,11 +531,12 @@ fn read_nodes_v22(
 /// `$Elements`: a count line, then the elements. ASCII: one line
 /// `tag type ntags tag... node...` each. Binary: blocks, each a header
 /// `type count ntags` followed by `count` records `tag tag... node...`, all ints.
-fn read_elements_v22(
+fn read_elements_v22<const N: usize>(
     cursor: &mut Cursor,
     binary: bool,
     order: ByteOrder,
-    mesh: &mut RawMesh,
+    mesh: &mut RawMesh<N>,
+    kind: &Kind<N>,
 ) -> Result<(), String> {
     let total = cursor.count_line()?;
     if !binary {
@@ -447,18 +551,17 @@ fn read_elements_v22(
                 return Err(bad());
             };
             let tag = u64::try_from(tag).map_err(|_| bad())?;
-            if is_linear_tet(element_type, tag)? {
+            if (kind.keep)(element_type, tag)? {
                 let nodes = usize::try_from(ntags)
                     .ok()
                     .and_then(|n| rest.get(n..))
                     .ok_or_else(bad)?;
-                let [a, b, c, d] = nodes[..] else {
-                    return Err(bad());
-                };
-                mesh.tets.push((
-                    tag,
-                    [node_tag(a)?, node_tag(b)?, node_tag(c)?, node_tag(d)?],
-                ));
+                let nodes = <[i64; N]>::try_from(nodes).map_err(|_| bad())?;
+                let mut element = [0; N];
+                for (node, &number) in element.iter_mut().zip(&nodes) {
+                    *node = node_tag(number)?;
+                }
+                mesh.elements.push((tag, element));
             }
         }
         return Ok(());
@@ -483,12 +586,12 @@ fn read_elements_v22(
         for _ in 0..count {
             let tag = u64::try_from(cursor.i32(order)?).map_err(|_| "negative element tag")?;
             cursor.take(tag_bytes)?; // physical/elementary tags: not needed
-            if is_linear_tet(i64::from(element_type), tag)? {
-                let mut tet = [0; 4];
-                for node in &mut tet {
+            if (kind.keep)(i64::from(element_type), tag)? {
+                let mut element = [0; N];
+                for node in &mut element {
                     *node = node_tag(i64::from(cursor.i32(order)?))?;
                 }
-                mesh.tets.push((tag, tet));
+                mesh.elements.push((tag, element));
             } else {
                 cursor.take(4 * nodes)?;
             }
@@ -950,6 +1053,135 @@ mod tests {
         assert_format_error(&v22, "node 4 is defined twice");
         let v41 = V41_ONE_TET.replace("1\n2\n3\n4\n0 0 0", "1\n2\n3\n3\n0 0 0");
         assert_format_error(&v41, "node");
+    }
+
+    // read_msh_triangles: the same parsers, collecting linear triangles instead.
+
+    fn read_triangles(name: &str) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+        read_msh_triangles(&fixture(name)).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// Volume enclosed by a triangle surface (divergence theorem), signed by orientation.
+    fn enclosed_volume(nodes: &[[f64; 3]], triangles: &[[usize; 3]]) -> f64 {
+        let triple = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
+            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0])
+        };
+        triangles
+            .iter()
+            .map(|t| triple(nodes[t[0]], nodes[t[1]], nodes[t[2]]) / 6.0)
+            .sum()
+    }
+
+    #[test]
+    fn box_fixture_triangles_close_the_box_in_every_format() {
+        // Gmsh saved the boundary triangles along with the tets: they enclose the box, and
+        // every encoding gives the same triangles on the same (surface-only) nodes.
+        let (nodes, triangles) = read_triangles(FOUR_FORMATS[0]);
+        assert!(nodes.len() <= BOX_NODES);
+        assert!(triangles.iter().flatten().all(|&i| i < nodes.len()));
+        let volume = enclosed_volume(&nodes, &triangles);
+        // Positive: Gmsh oriented this box's boundary triangles outward.
+        assert!((volume - BOX_VOLUME).abs() < 1e-12, "{volume}");
+        for name in &FOUR_FORMATS[1..] {
+            let (other_nodes, other_triangles) = read_triangles(name);
+            assert_eq!(other_triangles, triangles, "{name}");
+            assert_same_positions(&other_nodes, &nodes);
+        }
+        for name in [
+            "box_sparse_v41_binary.msh",
+            "box_sparse_v22_ascii.msh",
+            "box_reversed_v41_ascii.msh",
+            "box_meshio_v41_ascii.msh",
+            "box_meshio_v22_binary.msh",
+        ] {
+            let (other_nodes, other_triangles) = read_triangles(name);
+            assert_eq!(other_triangles.len(), triangles.len(), "{name}");
+            let other_volume = enclosed_volume(&other_nodes, &other_triangles);
+            assert!(
+                (other_volume - volume).abs() < 1e-12,
+                "{name}: {other_volume}"
+            );
+        }
+    }
+
+    #[test]
+    fn hand_written_meshes_read_triangles_and_ignore_tets() {
+        // The one triangle is on nodes 1, 2 and 9; the tet and the point are skipped.
+        for content in [
+            V22_ONE_TET,
+            V41_ONE_TET
+                .replace("3 1 4 1\n1 1 2 3 4\n", "2 1 2 1\n1 1 2 4\n")
+                .as_str(),
+        ] {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("mesh.msh");
+            std::fs::write(&path, content).unwrap();
+            let (nodes, triangles) = read_msh_triangles(&path).unwrap();
+            assert_eq!(nodes.len(), 3);
+            assert_eq!(triangles, [[0, 1, 2]]);
+            assert_eq!(nodes[0], [0.0, 0.0, 0.0]);
+            assert_eq!(nodes[1], [1.0, 0.0, 0.0]);
+        }
+        for big_endian in [false, true] {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("mesh.msh");
+            std::fs::write(&path, v22_binary(big_endian, 4)).unwrap();
+            let (nodes, triangles) = read_msh_triangles(&path).unwrap();
+            assert_eq!(nodes, [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [5.0, 5.0, 5.0]]);
+            assert_eq!(triangles, [[0, 1, 2]], "big endian: {big_endian}");
+        }
+    }
+
+    /// Reads `content` as triangles and asserts a Format error naming the file and `needle`.
+    fn assert_triangle_error(content: &str, needle: &str) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("surface.msh");
+        std::fs::write(&path, content).unwrap();
+        match read_msh_triangles(&path) {
+            Err(error @ GmshError::Format { .. }) => {
+                let message = error.to_string();
+                assert!(message.contains(needle), "{message:?} lacks {needle:?}");
+                assert!(message.contains(&path.display().to_string()), "{message:?}");
+            }
+            other => panic!("expected a format error with {needle:?}, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn triangle_errors() {
+        let no_triangles = V22_ONE_TET
+            .replace("$Elements\n3\n", "$Elements\n2\n")
+            .replace("2 2 2 0 1 1 2 9\n", "");
+        assert_triangle_error(
+            &no_triangles,
+            "the file has no triangles (Gmsh element type 2)",
+        );
+        let v41_empty = V41_ONE_TET.replace("1 1 1 1\n3 1 4 1\n1 1 2 3 4\n", "0 0 1 1\n");
+        assert_triangle_error(&v41_empty, "the file has no triangles");
+        // The tet reader still ignores triangles and the triangle reader tets.
+        let (_dir, result) = read_text(&no_triangles);
+        assert_eq!(result.unwrap().1, [[0, 1, 2, 3]]);
+
+        let p2 = V22_ONE_TET.replace("2 2 2 0 1 1 2 9", "2 9 2 0 1 1 2 9 1 2 3");
+        assert_triangle_error(
+            &p2,
+            "element 2 is a higher-order triangle (Gmsh element type 9)",
+        );
+        let p2_v41 = V41_ONE_TET.replace("3 1 4 1\n1 1 2 3 4\n", "2 1 9 1\n1 1 2 3 4 1 2\n");
+        assert_triangle_error(&p2_v41, "only linear triangles (type 2)");
+        let quad = V22_ONE_TET.replace("2 2 2 0 1 1 2 9", "2 3 2 0 1 1 2 9 3");
+        assert_triangle_error(&quad, "quadrangle");
+        let undefined = V22_ONE_TET.replace("2 2 2 0 1 1 2 9", "2 2 2 0 1 1 2 8");
+        assert_triangle_error(&undefined, "element 2 refers to undefined node 8");
+        let short = V22_ONE_TET.replace("2 2 2 0 1 1 2 9", "2 2 2 0 1 1 2");
+        assert_triangle_error(&short, "bad element line");
+        // Higher-order tets are not triangles: ignored like any volume element.
+        let p2_tet = V22_ONE_TET.replace("3 4 2 0 1 1 2 3 4", "3 11 2 0 1 1 2 3 4 1 2 3 4 1 2");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("mesh.msh");
+        std::fs::write(&path, p2_tet).unwrap();
+        assert_eq!(read_msh_triangles(&path).unwrap().1, [[0, 1, 2]]);
     }
 
     #[test]

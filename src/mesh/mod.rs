@@ -6,6 +6,7 @@
 
 pub mod generate;
 pub mod gmsh;
+pub mod surface;
 
 pub use generate::box_mesh;
 

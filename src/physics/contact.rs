@@ -18,9 +18,11 @@
 //! step, then re-solved with λ from its end until λ settles (a few rounds at most), so friction
 //! acts with the normal force of the end of the step while each solve stays a minimisation.
 
+use super::obstacle_mesh::ObstacleSurface;
 use super::Region;
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
+use std::sync::Arc;
 
 /// Shape of a rigid obstacle at t = 0 (it moves rigidly with its velocity).
 #[derive(Clone, Debug, PartialEq)]
@@ -33,6 +35,10 @@ pub enum Shape {
     /// An open-top box container whose inner space is `inner`: a floor at `inner.min.z` and
     /// four walls; the ice lives inside. The top (`inner.max.z`) is open.
     Container { inner: Region },
+    /// A rigid triangle surface (closed and outward oriented, or open with the ice on the side
+    /// its normals point to). Each boundary node within reach gets its own plane, through the
+    /// closest surface point, per step (see `obstacle_mesh`).
+    Mesh { surface: Arc<ObstacleSurface> },
 }
 
 /// One obstacle with its contact parameters.
@@ -86,14 +92,24 @@ impl Obstacle {
                     out.push(plane(inner.max, -e));
                 }
             }
+            Shape::Mesh { .. } => {}
         }
     }
 
-    /// Number of contact planes.
+    /// Number of contact planes shared by all nodes (a mesh obstacle has one per node instead).
     pub fn num_planes(&self) -> usize {
         match self.shape {
             Shape::HalfSpace { .. } => 1,
             Shape::Container { .. } => 5,
+            Shape::Mesh { .. } => 0,
+        }
+    }
+
+    /// The surface of a mesh obstacle.
+    pub fn surface(&self) -> Option<&ObstacleSurface> {
+        match &self.shape {
+            Shape::Mesh { surface } => Some(surface),
+            _ => None,
         }
     }
 }
@@ -107,10 +123,15 @@ pub struct Contact {
     pub nodes: Vec<usize>,
     /// Rest area share of each boundary node (m²), all faces around it.
     pub area: Vec<f64>,
-    /// Boundary triangles (outward), as indices into `nodes`.
-    pub faces: Vec<[usize; 3]>,
-    /// Area share per (boundary node, plane) (m²), see [`Contact::facing_areas`].
+    /// Area share per (boundary node, plane) (m²), see [`Contact::facing_area`].
     pub areas: Vec<f64>,
+    /// Outward area vector of each boundary triangle at rest (m²).
+    face_areas: Vec<Vector3<f64>>,
+    /// Boundary triangles around each boundary node (indices into `faces`).
+    node_faces: Vec<Vec<u32>>,
+    /// Mean boundary edge length (m): how far from a mesh obstacle a resting node is looked
+    /// for, besides the motion of the step.
+    pub edge: f64,
     /// Friction smoothing velocity ε_v (m/s): below it the friction force ramps up from zero.
     pub smoothing_velocity: f64,
 }
@@ -135,38 +156,50 @@ pub fn default_stiffness(mesh: &TetMesh, young: f64) -> f64 {
 impl Contact {
     /// Contact of `mesh`'s boundary with `obstacles`.
     pub fn new(mesh: &TetMesh, obstacles: Vec<Obstacle>, smoothing_velocity: f64) -> Self {
-        let mut area = vec![0.0; mesh.num_nodes()];
-        for f in mesh.boundary_faces() {
-            let [a, b, c] = f.nodes.map(|i| mesh.rest[i]);
-            let share = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
-            for &v in &f.nodes {
-                area[v] += share;
+        let boundary = mesh.boundary_faces();
+        let mut index = vec![usize::MAX; mesh.num_nodes()];
+        let mut nodes = Vec::new();
+        for f in &boundary {
+            for &i in &f.nodes {
+                if index[i] == usize::MAX {
+                    index[i] = 0;
+                    nodes.push(i);
+                }
             }
         }
-        let nodes: Vec<usize> = (0..mesh.num_nodes()).filter(|&i| area[i] > 0.0).collect();
-        let mut index = vec![usize::MAX; mesh.num_nodes()];
+        nodes.sort_unstable();
         for (k, &i) in nodes.iter().enumerate() {
             index[i] = k;
         }
-        let faces = mesh
-            .boundary_faces()
-            .iter()
-            .map(|f| f.nodes.map(|i| index[i]))
-            .collect();
-        let area = nodes.iter().map(|&i| area[i]).collect();
+        let mut area = vec![0.0; nodes.len()];
+        let mut node_faces = vec![Vec::new(); nodes.len()];
+        let mut face_areas = Vec::with_capacity(boundary.len());
+        let mut edge = 0.0;
+        for (f, face) in boundary.iter().enumerate() {
+            let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
+            let area_vector = 0.5 * (b - a).cross(&(c - a)); // outward, |.| = area
+            face_areas.push(area_vector);
+            edge += ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0;
+            for &i in &face.nodes {
+                area[index[i]] += area_vector.norm() / 3.0;
+                node_faces[index[i]].push(f as u32);
+            }
+        }
         let mut contact = Contact {
             obstacles,
             nodes,
             area,
-            faces,
             areas: Vec::new(),
+            face_areas,
+            node_faces,
+            edge: edge / boundary.len().max(1) as f64,
             smoothing_velocity,
         };
-        contact.areas = contact.facing_areas(
-            &mesh.rest,
-            &vec![0.0; 3 * mesh.num_nodes()],
-            &contact.planes(0.0),
-        );
+        let planes = contact.planes(0.0);
+        contact.areas = (0..contact.nodes.len())
+            .flat_map(|k| planes.iter().map(move |p| (k, p.normal)))
+            .map(|(k, n)| contact.facing_area(k, &n))
+            .collect();
         contact
     }
 
@@ -179,25 +212,22 @@ impl Contact {
         planes
     }
 
-    /// Area share (m²) of every (boundary node, plane) pair at displacements `u`: a third of
-    /// each adjacent boundary triangle's area, times the cosine between its inward normal and
-    /// the plane normal where positive (the triangle faces the plane), else nothing.
-    pub fn facing_areas(&self, rest: &[Vector3<f64>], u: &[f64], planes: &[Plane]) -> Vec<f64> {
-        let np = planes.len();
-        let mut areas = vec![0.0; self.nodes.len() * np];
-        for f in &self.faces {
-            let [a, b, c] = f.map(|k| rest[self.nodes[k]] + displacement(u, self.nodes[k]));
-            let area_normal = 0.5 * (b - a).cross(&(c - a)); // outward, |.| = area
-            for (j, p) in planes.iter().enumerate() {
-                let facing = -area_normal.dot(&p.normal);
-                if facing > 0.0 {
-                    for &k in f {
-                        areas[k * np + j] += facing / 3.0;
-                    }
-                }
-            }
-        }
-        areas
+    /// Rest area share (m²) of boundary node `k` facing a plane with normal `normal`: a third
+    /// of each adjacent boundary triangle's area, times the cosine between its inward normal
+    /// and the plane normal where positive (the triangle faces the plane), else nothing.
+    fn facing_area(&self, k: usize, normal: &Vector3<f64>) -> f64 {
+        self.node_faces[k]
+            .iter()
+            .map(|&f| (-self.face_areas[f as usize].dot(normal)).max(0.0) / 3.0)
+            .sum()
+    }
+
+    /// Number of mesh obstacles.
+    fn num_mesh_obstacles(&self) -> usize {
+        self.obstacles
+            .iter()
+            .filter(|o| o.surface().is_some())
+            .count()
     }
 }
 
@@ -235,21 +265,31 @@ pub(crate) fn friction_profile(s: f64, eps: f64) -> (f64, f64, f64) {
 pub type BlockSink<'a> = &'a mut dyn FnMut(usize, &Matrix3<f64>);
 
 /// The contact data fixed during one step.
+///
+/// Every boundary node k has contact pairs numbered k·stride + j: first the planes shared by
+/// all nodes (half-spaces, container walls), then one plane per mesh obstacle, chosen per node.
 pub struct ContactStep<'a> {
     /// The term.
     pub contact: &'a Contact,
     /// Rest positions (m).
     pub rest: &'a [Vector3<f64>],
-    /// Planes at the end of the step.
+    /// Shared planes at the end of the step.
     pub planes: Vec<Plane>,
+    /// Per (boundary node, mesh obstacle): the node's plane and its facing area share (m²),
+    /// `None` when the obstacle is out of reach.
+    pub node_planes: Vec<Option<(Plane, f64)>>,
+    /// Time at the end of the step (s).
+    time: f64,
+    /// How far from a mesh obstacle nodes are given a plane (m).
+    reach: f64,
     /// Time step (s) — friction acts only in dynamic steps.
     pub dt: Option<f64>,
     /// Displacement at the start of the step (m).
     pub previous: &'a [f64],
-    /// Lagged normal force per (boundary node, plane) (N), for friction.
+    /// Lagged normal force per contact pair (N), for friction.
     pub lagged: Vec<f64>,
-    /// (Boundary node, plane) pairs whose penalty stiffness enters the Hessian although they
-    /// do not penetrate yet, because a Newton step was about to push them through (see
+    /// Contact pairs whose penalty stiffness enters the Hessian although they do not penetrate
+    /// yet, because a Newton step was about to push them through (see
     /// [`ContactStep::anticipate`]). Empty until then.
     pub anticipated: Vec<bool>,
 }
@@ -266,49 +306,132 @@ pub struct ContactForces {
 impl<'a> ContactStep<'a> {
     /// The contact of a step from `t_start` to `t_end` (s) starting at displacement `previous`
     /// (m), with the friction normal force taken there; `dt` is `None` for a static step (no
-    /// friction).
+    /// friction). Mesh obstacles give a plane to every node within `reach` (m) of them: the
+    /// caller passes the distance a node can travel in the step plus a margin.
     pub fn new(
         contact: &'a Contact,
         rest: &'a [Vector3<f64>],
         previous: &'a [f64],
-        t_start: f64,
-        t_end: f64,
+        (t_start, t_end): (f64, f64),
         dt: Option<f64>,
+        reach: f64,
     ) -> Self {
         let mut step = ContactStep {
             contact,
             rest,
             planes: contact.planes(t_start),
+            node_planes: Vec::new(),
+            time: t_start,
+            reach,
             dt,
             previous,
             lagged: Vec::new(),
             anticipated: Vec::new(),
         };
+        step.node_planes = step.select_node_planes(previous);
         step.lagged = step.normal_forces(previous);
         step.planes = contact.planes(t_end);
+        step.time = t_end;
+        for (plane, _) in step.node_planes.iter_mut().flatten() {
+            plane.offset = t_end * plane.velocity.dot(&plane.normal);
+        }
         step
     }
 
-    /// Normal force magnitude k Aᵢ max(0, −g) (N) of every (boundary node, plane) pair at `u`.
-    pub fn normal_forces(&self, u: &[f64]) -> Vec<f64> {
-        let np = self.planes.len();
-        let mut out = Vec::with_capacity(self.contact.nodes.len() * np);
-        for (k, &i) in self.contact.nodes.iter().enumerate() {
-            for (j, p) in self.planes.iter().enumerate() {
-                let g = p.gap(self.rest, u, i);
-                out.push(if g < 0.0 {
-                    -p.stiffness * self.contact.areas[k * np + j] * g
-                } else {
-                    0.0
-                });
+    /// Pairs per boundary node.
+    fn stride(&self) -> usize {
+        self.planes.len() + self.contact.num_mesh_obstacles()
+    }
+
+    /// Calls `f(pair, plane, area)` for each plane of boundary node `k`.
+    fn for_each_plane(&self, k: usize, mut f: impl FnMut(usize, &Plane, f64)) {
+        let (np, stride) = (self.planes.len(), self.stride());
+        for (j, p) in self.planes.iter().enumerate() {
+            f(k * stride + j, p, self.contact.areas[k * np + j]);
+        }
+        let nm = stride - np;
+        for m in 0..nm {
+            if let Some((p, area)) = &self.node_planes[k * nm + m] {
+                f(k * stride + np + m, p, *area);
             }
+        }
+    }
+
+    /// Each boundary node's plane from each mesh obstacle at displacement `u` and the current
+    /// time: through the closest surface point within reach, with its facing area.
+    fn select_node_planes(&self, u: &[f64]) -> Vec<Option<(Plane, f64)>> {
+        let c = self.contact;
+        let mut out = Vec::with_capacity(c.nodes.len() * c.num_mesh_obstacles());
+        for (k, &i) in c.nodes.iter().enumerate() {
+            let x = self.rest[i] + displacement(u, i);
+            for o in &c.obstacles {
+                let Some(surface) = o.surface() else { continue };
+                // The surface moved by v t: query in its frame at t = 0.
+                let found = surface.closest(x - self.time * o.velocity, self.reach);
+                out.push(found.map(|q| {
+                    let plane = Plane {
+                        point: q.point,
+                        offset: self.time * o.velocity.dot(&q.normal),
+                        normal: q.normal,
+                        stiffness: o.stiffness,
+                        friction: o.friction,
+                        velocity: o.velocity,
+                    };
+                    (plane, c.facing_area(k, &q.normal))
+                }));
+            }
+        }
+        out
+    }
+
+    /// Re-picks the mesh-obstacle planes at `u` (the end of a solved step); returns whether a
+    /// plane changed for a node that penetrates at `u` with either plane, so that the step must
+    /// be solved again.
+    pub fn reselect_node_planes(&mut self, u: &[f64]) -> bool {
+        if self.node_planes.is_empty() {
+            return false;
+        }
+        let new = self.select_node_planes(u);
+        let nm = self.contact.num_mesh_obstacles();
+        let penetrates = |entry: &Option<(Plane, f64)>, i: usize| {
+            entry.is_some_and(|(p, a)| a > 0.0 && p.gap(self.rest, u, i) < 0.0)
+        };
+        let changed = new
+            .iter()
+            .zip(&self.node_planes)
+            .enumerate()
+            .any(|(n, (a, b))| {
+                let i = self.contact.nodes[n / nm];
+                let same = match (a, b) {
+                    (Some((pa, _)), Some((pb, _))) => {
+                        pa.point == pb.point && pa.normal == pb.normal
+                    }
+                    (None, None) => true,
+                    _ => false,
+                };
+                !same && (penetrates(a, i) || penetrates(b, i))
+            });
+        self.node_planes = new;
+        changed
+    }
+
+    /// Normal force magnitude k Aᵢ max(0, −g) (N) of every contact pair at `u`.
+    pub fn normal_forces(&self, u: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.contact.nodes.len() * self.stride()];
+        for (k, &i) in self.contact.nodes.iter().enumerate() {
+            self.for_each_plane(k, |pair, p, area| {
+                let g = p.gap(self.rest, u, i);
+                if g < 0.0 {
+                    out[pair] = -p.stiffness * area * g;
+                }
+            });
         }
         out
     }
 
     /// Whether any obstacle has friction (then the lagged normal force matters).
     pub fn has_friction(&self) -> bool {
-        self.dt.is_some() && self.planes.iter().any(|p| p.friction > 0.0)
+        self.dt.is_some() && self.contact.obstacles.iter().any(|o| o.friction > 0.0)
     }
 
     /// Marks the pairs that do not penetrate at `u` but would at `trial` (the full Newton
@@ -317,21 +440,43 @@ impl<'a> ContactStep<'a> {
     /// into the obstacle, and the line search must cut the step by the stiffness ratio (1e-8).
     /// Returns whether any pair was newly marked.
     pub fn anticipate(&mut self, u: &[f64], trial: &[f64]) -> bool {
-        let np = self.planes.len();
-        if self.anticipated.is_empty() {
-            self.anticipated = vec![false; self.contact.nodes.len() * np];
-        }
+        let mut marked = std::mem::take(&mut self.anticipated);
+        marked.resize(self.contact.nodes.len() * self.stride(), false);
         let mut changed = false;
         for (k, &i) in self.contact.nodes.iter().enumerate() {
-            for (j, p) in self.planes.iter().enumerate() {
-                let marked = &mut self.anticipated[k * np + j];
-                if !*marked && p.gap(self.rest, trial, i) < 0.0 && p.gap(self.rest, u, i) >= 0.0 {
-                    *marked = true;
+            self.for_each_plane(k, |pair, p, _| {
+                if !marked[pair]
+                    && p.gap(self.rest, trial, i) < 0.0
+                    && p.gap(self.rest, u, i) >= 0.0
+                {
+                    marked[pair] = true;
                     changed = true;
                 }
-            }
+            });
         }
+        self.anticipated = marked;
         changed
+    }
+
+    /// Adds k Aᵢ g n for the anticipated pairs at a positive gap g at `u` (see
+    /// `Potential::add_anticipated_gradient`); returns whether there was any.
+    pub fn add_anticipated_gradient(&self, u: &[f64], gradient: &mut [f64]) -> bool {
+        if !self.anticipated.contains(&true) {
+            return false;
+        }
+        let mut any = false;
+        for (k, &i) in self.contact.nodes.iter().enumerate() {
+            self.for_each_plane(k, |pair, p, area| {
+                let gap = p.gap(self.rest, u, i);
+                if gap >= 0.0 && self.anticipated[pair] {
+                    for a in 0..3 {
+                        gradient[3 * i + a] += p.stiffness * area * gap * p.normal[a];
+                    }
+                    any = true;
+                }
+            });
+        }
+        any
     }
 
     /// Contact energy (J) at `u`; adds its gradient and, through `add_block(node, 3×3)`, its
@@ -344,15 +489,14 @@ impl<'a> ContactStep<'a> {
         mut forces: Option<&mut ContactForces>,
     ) -> f64 {
         let c = self.contact;
-        let np = self.planes.len();
         let mut energy = 0.0;
         for (k, &i) in c.nodes.iter().enumerate() {
             let mut g_node = Vector3::zeros();
             let mut h_node = Matrix3::zeros();
-            for (j, p) in self.planes.iter().enumerate() {
+            self.for_each_plane(k, |pair, p, area| {
                 let gap = p.gap(self.rest, u, i);
-                let ka = p.stiffness * c.areas[k * np + j];
-                if gap < 0.0 || self.anticipated.get(k * np + j).is_some_and(|a| *a) {
+                let ka = p.stiffness * area;
+                if gap < 0.0 || self.anticipated.get(pair).is_some_and(|a| *a) {
                     h_node += ka * p.normal * p.normal.transpose();
                 }
                 if gap < 0.0 {
@@ -364,10 +508,10 @@ impl<'a> ContactStep<'a> {
                         }
                     }
                 }
-                let Some(h) = self.dt else { continue };
-                let lambda = self.lagged[k * np + j];
+                let Some(h) = self.dt else { return };
+                let lambda = self.lagged.get(pair).copied().unwrap_or(0.0);
                 if lambda <= 0.0 || p.friction <= 0.0 {
-                    continue;
+                    return;
                 }
                 let tangent = Matrix3::identity() - p.normal * p.normal.transpose();
                 let du = displacement(u, i) - displacement(self.previous, i);
@@ -392,7 +536,7 @@ impl<'a> ContactStep<'a> {
                     h_fric += scale * (f1_prime - f1_over_s) * yhat * yhat.transpose();
                 }
                 h_node += h_fric;
-            }
+            });
             if let Some(g) = gradient.as_deref_mut() {
                 for a in 0..3 {
                     g[3 * i + a] += g_node[a];

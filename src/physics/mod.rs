@@ -6,6 +6,7 @@ pub mod dirichlet;
 pub mod elasticity;
 pub mod ice_contact;
 pub mod loads;
+pub mod obstacle_mesh;
 
 pub use contact::{Contact, Obstacle};
 pub use dirichlet::Dirichlet;

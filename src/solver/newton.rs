@@ -36,6 +36,15 @@ pub trait Potential {
     /// Hessian, or Newton would converge only linearly towards states where an anticipated
     /// contact stays open.
     fn forget_anticipated(&mut self) {}
+    /// Adds to `gradient` the gradient the anticipated contacts would have at `u` if they were
+    /// already active (k A g n for a pair still at a positive gap g); returns whether there was
+    /// any. Newton puts it into the right-hand side only: with the stiffness of a contact in
+    /// the Hessian but not its force, a node approaching an obstacle would creep towards it by
+    /// (load / penalty stiffness) per iteration; with both, the step lands it on the obstacle,
+    /// pressed in to equilibrium, as the active contact's quadratic model predicts.
+    fn add_anticipated_gradient(&self, _u: &[f64], _gradient: &mut [f64]) -> bool {
+        false
+    }
 }
 
 /// A chord iteration (reusing the last factorisation) must cut the residual at least this
@@ -125,6 +134,8 @@ pub struct NewtonWorkspace {
     rhs: Vec<f64>,
     direction: Vec<f64>,
     trial: Vec<f64>,
+    /// A second direction (free dofs), for the anticipated-contact step.
+    landing: Vec<f64>,
 }
 
 impl NewtonWorkspace {
@@ -138,6 +149,7 @@ impl NewtonWorkspace {
             rhs: vec![0.0; nf],
             direction: vec![0.0; nf],
             trial: vec![0.0; n],
+            landing: vec![0.0; nf],
         }
     }
     /// Gradient over all dofs at the last evaluated iterate (N).
@@ -266,16 +278,35 @@ pub fn minimize(
             report.linear_iterations += stats.iterations;
             report.t_solve += stats.t_solve;
         }
+        // Slope of the potential along the direction (J per unit step).
+        let slope_along = |g: &[f64], dir: &[f64]| -> f64 {
+            dofs.free_dofs()
+                .iter()
+                .zip(dir)
+                .map(|(&d, x)| g[d] * x)
+                .sum()
+        };
+        // Anticipated contacts: solve again with their force in the right-hand side too, and
+        // take that step if it still descends.
+        work.trial.copy_from_slice(&work.gradient);
+        if potential.add_anticipated_gradient(u, &mut work.trial) {
+            let mut rhs = std::mem::take(&mut work.rhs);
+            for (r, &d) in rhs.iter_mut().zip(dofs.free_dofs()) {
+                *r = -work.trial[d];
+            }
+            let landing = linear.solve(assembly, &work.hessian, &rhs, &mut work.landing)?;
+            report.linear_iterations += landing.iterations;
+            report.t_solve += landing.t_solve;
+            work.rhs = rhs;
+            if slope_along(&work.gradient, &work.landing) < 0.0 {
+                std::mem::swap(&mut work.direction, &mut work.landing);
+            }
+        }
         report.iterations += 1;
         // Backtracking (Armijo) line search on the potential. Near convergence the decrease
         // is below the round-off of the potential itself, so a step that changes the energy
         // by less than that round-off is accepted as it is.
-        let slope: f64 = work
-            .rhs
-            .iter()
-            .zip(&work.direction)
-            .map(|(r, d)| -r * d)
-            .sum();
+        let slope = slope_along(&work.gradient, &work.direction);
         let roundoff = 1e-13 * energy.abs().max(f64::MIN_POSITIVE);
         let mut alpha = 1.0;
         let start = Instant::now();

@@ -53,6 +53,8 @@ pub struct StepPotential<'a> {
     pub project: bool,
     /// Ice–ice contact pairs of this step, if the mesh has several parts.
     pub ice: Option<IceStep<'a>>,
+    /// Wall time spent evaluating contact (obstacles and ice–ice narrow phase) (s).
+    pub t_contact: f64,
 }
 
 /// The ice–ice contact candidates of a step and where their 12 × 12 blocks go.
@@ -214,6 +216,33 @@ impl IceStep<'_> {
         changed
     }
 
+    /// Adds k Aₚ g ∇g for the anticipated pairs at a positive gap g at `u` (see
+    /// `Potential::add_anticipated_gradient`); returns whether there was any.
+    pub fn add_anticipated_gradient(
+        &self,
+        rest: &[nalgebra::Vector3<f64>],
+        u: &[f64],
+        gradient: &mut [f64],
+    ) -> bool {
+        if !self.anticipated.contains(&true) {
+            return false;
+        }
+        let mut any = false;
+        self.term
+            .for_each_closest(rest, u, self.candidates, |m, gap, dg| {
+                if gap >= 0.0 && self.anticipated[m] {
+                    let c = &self.candidates[m];
+                    let ka = self.term.stiffness * c.area;
+                    let nodes = IceContact::pair_nodes(c);
+                    for (k, dgk) in dg.iter().enumerate() {
+                        gradient[3 * nodes[k / 3] + k % 3] += ka * gap * dgk;
+                    }
+                    any = true;
+                }
+            });
+        any
+    }
+
     /// Contact energy (J) at `u`, adding gradient, Hessian and, if asked, the forces on the ice.
     pub fn add(
         &self,
@@ -276,6 +305,7 @@ impl StepPotential<'_> {
                 g[d] -= f;
             }
         }
+        let contact_start = std::time::Instant::now();
         if let Some(contact) = &self.contact {
             let slots = self.block_slots;
             energy += match hessian.as_deref_mut() {
@@ -300,6 +330,9 @@ impl StepPotential<'_> {
                 hessian.as_deref_mut(),
                 None,
             );
+        }
+        if self.contact.is_some() || self.ice.is_some() {
+            self.t_contact += contact_start.elapsed().as_secs_f64();
         }
         let Some(inertia) = &self.inertia else {
             return energy;
@@ -385,6 +418,19 @@ impl Potential for StepPotential<'_> {
             .ice
             .as_mut()
             .is_some_and(|ice| ice.anticipate(rest, u, trial));
+        obstacles || ice
+    }
+
+    fn add_anticipated_gradient(&self, u: &[f64], gradient: &mut [f64]) -> bool {
+        let rest = &self.model.mesh.rest;
+        let obstacles = self
+            .contact
+            .as_ref()
+            .is_some_and(|c| c.add_anticipated_gradient(u, gradient));
+        let ice = self
+            .ice
+            .as_ref()
+            .is_some_and(|ice| ice.add_anticipated_gradient(rest, u, gradient));
         obstacles || ice
     }
 
