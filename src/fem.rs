@@ -272,8 +272,75 @@ fn corotated(
     (energy, P)
 }
 
+/// Energy density, stress and (added into `tangent`) the tangent of unfrozen water with bulk
+/// modulus `bulk` (Pa) and no shear stiffness, for the elastic displacement gradient `He`.
+/// Linear: Ψ = K/2 tr(ε)². Corotated: Ψ = K/2 (J − 1)² with J = det Fe, the exact volume
+/// ratio — a shear-free corotated law, K/2 (Σsᵢ − 3)², would let an element collapse to zero
+/// volume at zero energy. With `project` the indefinite (J − 1) ∂²J term is left out.
+fn water(
+    model: ElasticModel,
+    bulk: f64,
+    He: &Matrix3<f64>,
+    tangent: Option<&mut Tangent>,
+    project: bool,
+) -> (f64, Matrix3<f64>) {
+    match model {
+        ElasticModel::Linear => {
+            let tr = He.trace();
+            if let Some(t) = tangent {
+                for a in 0..3 {
+                    for b in 0..3 {
+                        t[(a + 3 * a, b + 3 * b)] += bulk;
+                    }
+                }
+            }
+            (0.5 * bulk * tr * tr, Matrix3::identity() * (bulk * tr))
+        }
+        ElasticModel::Corotated => {
+            let F = Matrix3::identity() + He;
+            let f = [
+                F.column(0).into_owned(),
+                F.column(1).into_owned(),
+                F.column(2).into_owned(),
+            ];
+            // ∂J/∂fₖ = f_{k+1} × f_{k+2} (columns cyclic): the cofactor matrix.
+            let cof = [f[1].cross(&f[2]), f[2].cross(&f[0]), f[0].cross(&f[1])];
+            let j1 = det_minus_one(He);
+            let P = Matrix3::from_columns(&cof) * (bulk * j1);
+            if let Some(t) = tangent {
+                let g =
+                    SMatrix::<f64, 9, 1>::from_iterator(cof.iter().flat_map(|c| c.iter().copied()));
+                *t += bulk * g * g.transpose();
+                if !project {
+                    // ∂²J/∂fₖ∂f_{k+1} = −[f_{k+2}]ₓ and its transpose for the reverse pair.
+                    for k in 0..3 {
+                        let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
+                        let block = -f[k2].cross_matrix() * (bulk * j1);
+                        for a in 0..3 {
+                            for b in 0..3 {
+                                t[(a + 3 * k, b + 3 * k1)] += block[(a, b)];
+                                t[(b + 3 * k1, a + 3 * k)] += block[(a, b)];
+                            }
+                        }
+                    }
+                }
+            }
+            (0.5 * bulk * j1 * j1, P)
+        }
+    }
+}
+
+/// det(I + H) − 1 = tr H + ½((tr H)² − tr H²) + det H, without the cancellation of forming
+/// the determinant first: at the 1e-7 strains of water under gravity, det − 1 would keep only
+/// 9 digits, and its force error would stall Newton above the tolerance.
+fn det_minus_one(H: &Matrix3<f64>) -> f64 {
+    let tr = H.trace();
+    tr + 0.5 * (tr * tr - (H * H).trace()) + H.determinant()
+}
+
 /// Evaluates one element: energy `V Ψ`, gradient `V P ∇Nᵢ` and, if `with_hessian`, the stiffness
-/// `V Bᵀ (dP/dF) B`.
+/// `V Bᵀ (dP/dF) B`. The law is `mat`'s (scaled ice while freezing) plus, if `water_bulk` > 0,
+/// the water term of [`water`] with that bulk modulus (Pa).
 ///
 /// The strain offset ε* (eigenstrain, plastic strain) enters as σ = C : (ε − ε*) in the linear
 /// model, and multiplicatively, `Fe = F (I + ε*)⁻¹`, in the corotated one — the same to first
@@ -284,6 +351,7 @@ fn corotated(
 pub fn element_eval(
     model: ElasticModel,
     mat: &Material,
+    water_bulk: f64,
     rest: &ElementRest,
     u: &[Vector3<f64>; 4],
     offset: &Matrix3<f64>,
@@ -293,17 +361,24 @@ pub fn element_eval(
 ) {
     let H = rest.displacement_gradient(u);
     let mut tangent = Tangent::zeros();
+    let law = |He: &Matrix3<f64>, mut t: Option<&mut Tangent>| {
+        let (psi, P) = constitutive(model, mat, He, t.as_deref_mut(), project);
+        if water_bulk > 0.0 {
+            let (psi_w, P_w) = water(model, water_bulk, He, t, project);
+            (psi + psi_w, P + P_w)
+        } else {
+            (psi, P)
+        }
+    };
     let t = with_hessian.then_some(&mut tangent);
     let (psi, P) = match model {
         // σ = C:(sym H − ε*); the tangent does not depend on ε*.
-        ElasticModel::Linear => constitutive(model, mat, &(H - offset), t, project),
-        ElasticModel::Corotated if offset.iter().all(|v| *v == 0.0) => {
-            constitutive(model, mat, &H, t, project)
-        }
+        ElasticModel::Linear => law(&(H - offset), t),
+        ElasticModel::Corotated if offset.iter().all(|v| *v == 0.0) => law(&H, t),
         ElasticModel::Corotated => {
             let A = offset_inverse(offset);
             // Fe − I = (I + H) A − I = (H − ε*) A, formed without cancellation.
-            let (psi, Pe) = constitutive(model, mat, &((H - offset) * A), t, project);
+            let (psi, Pe) = law(&((H - offset) * A), t);
             if with_hessian {
                 // vec(dF A) = (Aᵀ ⊗ I) vec(dF) and vec(Pe Aᵀ) = (A ⊗ I) vec(Pe).
                 let mut K = Tangent::zeros();
@@ -347,24 +422,49 @@ pub fn element_eval(
     }
 }
 
+/// Elastic strain of an element and the rotation of its frame: linear, ε = sym(H) − ε* in the
+/// world frame (R = I); corotated, S − I of Fe = F (I + ε*)⁻¹ = R S, in the element's frame.
+/// Plasticity's return mapping acts on this strain.
+pub fn elastic_strain(
+    model: ElasticModel,
+    rest: &ElementRest,
+    u: &[Vector3<f64>; 4],
+    offset: &Matrix3<f64>,
+) -> (Matrix3<f64>, Matrix3<f64>) {
+    let H = rest.displacement_gradient(u);
+    match model {
+        ElasticModel::Linear => (0.5 * (H + H.transpose()) - offset, Matrix3::identity()),
+        ElasticModel::Corotated => {
+            let He = (H - offset) * offset_inverse(offset);
+            let R = polar_rotation(&(Matrix3::identity() + He));
+            (corotated_strain(&R, &He), R)
+        }
+    }
+}
+
 /// Cauchy stress of an element in the world frame (Pa), Voigt order xx yy zz yz xz xy.
 /// Linear: σ = C:(ε − ε*). Corotated: σ = R (C:(S − I)) Rᵀ for Fe = F (I + ε*)⁻¹ = R S.
+/// Water adds its pressure: −K tr(ε) (linear) or −K (J − 1) (corotated) on the diagonal.
 pub fn element_stress(
     model: ElasticModel,
     mat: &Material,
+    water_bulk: f64,
     rest: &ElementRest,
     u: &[Vector3<f64>; 4],
     offset: &Matrix3<f64>,
 ) -> [f64; 6] {
-    let H = rest.displacement_gradient(u);
-    let sigma = match model {
-        ElasticModel::Linear => mat.hooke(&(0.5 * (H + H.transpose()) - offset)),
-        ElasticModel::Corotated => {
-            let He = (H - offset) * offset_inverse(offset);
-            let R = polar_rotation(&(Matrix3::identity() + He));
-            R * mat.hooke(&corotated_strain(&R, &He)) * R.transpose()
-        }
-    };
+    let (strain, R) = elastic_strain(model, rest, u, offset);
+    let mut sigma = R * mat.hooke(&strain) * R.transpose();
+    if water_bulk > 0.0 {
+        let volume_change = match model {
+            ElasticModel::Linear => strain.trace(),
+            ElasticModel::Corotated => {
+                let He = (rest.displacement_gradient(u) - offset) * offset_inverse(offset);
+                det_minus_one(&He)
+            }
+        };
+        sigma += Matrix3::identity() * (water_bulk * volume_change);
+    }
     to_voigt(&sigma)
 }
 
@@ -417,6 +517,18 @@ mod tests {
 
     /// Gradient and Hessian against central finite differences of the energy / gradient.
     fn check_derivatives(model: ElasticModel, offset: Matrix3<f64>, strain: f64) {
+        check_law_derivatives(model, &ICE, 0.0, offset, strain);
+    }
+
+    /// Gradient and Hessian of `mat` plus water of bulk modulus `water` against finite
+    /// differences.
+    fn check_law_derivatives(
+        model: ElasticModel,
+        mat: &Material,
+        water: f64,
+        offset: Matrix3<f64>,
+        strain: f64,
+    ) {
         let (rest, x0) = tet();
         // A generic deformation: a rotation of a shear plus stretch of relative size `strain`,
         // given as displacements x − X.
@@ -424,7 +536,7 @@ mod tests {
         let R = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.9).into_inner();
         let x = x0.map(|p| R * (p + G * p) - p);
         let mut e = ElementEval::default();
-        element_eval(model, &ICE, &rest, &x, &offset, true, false, &mut e);
+        element_eval(model, mat, water, &rest, &x, &offset, true, false, &mut e);
         let h = 1e-9;
         let scale = e.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
         let hscale = e.hessian.iter().map(|g| g.abs()).fold(0.0, f64::max);
@@ -434,8 +546,12 @@ mod tests {
             xp[d / 3][d % 3] += h;
             xm[d / 3][d % 3] -= h;
             let (mut ep, mut em) = (ElementEval::default(), ElementEval::default());
-            element_eval(model, &ICE, &rest, &xp, &offset, false, false, &mut ep);
-            element_eval(model, &ICE, &rest, &xm, &offset, false, false, &mut em);
+            element_eval(
+                model, mat, water, &rest, &xp, &offset, false, false, &mut ep,
+            );
+            element_eval(
+                model, mat, water, &rest, &xm, &offset, false, false, &mut em,
+            );
             let fd = (ep.energy - em.energy) / (2.0 * h);
             // Energy differences lose ~8 digits to cancellation at h = 1e-9: 1e-5 relative.
             assert!(
@@ -451,6 +567,28 @@ mod tests {
                     e.hessian[c * 12 + d]
                 );
             }
+        }
+    }
+
+    #[test]
+    fn water_derivatives_match_finite_differences() {
+        // Half-frozen: half the ice's Lamé constants plus half the water's bulk modulus, with
+        // the expansion offset, stretched and compressed.
+        let half = Material {
+            lambda: 0.5 * ICE.lambda,
+            mu: 0.5 * ICE.mu,
+            density: ICE.density,
+        };
+        for model in [ElasticModel::Linear, ElasticModel::Corotated] {
+            check_law_derivatives(model, &half, 1.1e9, Matrix3::identity() * 0.0145, 0.02);
+            check_law_derivatives(model, &half, 1.1e9, Matrix3::identity() * -0.03, 0.01);
+            // Pure water (no shear stiffness at all).
+            let none = Material {
+                lambda: 0.0,
+                mu: 0.0,
+                density: ICE.density,
+            };
+            check_law_derivatives(model, &none, 2.2e9, Matrix3::zeros(), 0.02);
         }
     }
 
@@ -487,6 +625,7 @@ mod tests {
         element_eval(
             ElasticModel::Corotated,
             &ICE,
+            0.0,
             &rest,
             &x,
             &offset,
@@ -497,7 +636,7 @@ mod tests {
         let gmax = out.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
         // Forces of a 2 % strain would be ~1e7 N here; round-off leaves ~1e-16 of that.
         assert!(gmax < 1e-6, "{gmax}");
-        let s = element_stress(ElasticModel::Corotated, &ICE, &rest, &x, &offset);
+        let s = element_stress(ElasticModel::Corotated, &ICE, 0.0, &rest, &x, &offset);
         assert!(s.iter().all(|v| v.abs() < 1e-2), "{s:?}");
     }
 

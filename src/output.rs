@@ -22,9 +22,13 @@
 //!
 //! # Crash safety
 //!
-//! Every frame ends with a file flush, then the `complete` attribute, then a
-//! second flush. A process killed at any point therefore leaves a file in
-//! which every frame carrying `complete = 1` is fully on disk; [`OutputWriter::resume`]
+//! Frames are committed in batches: a file flush, then the `complete` attribute
+//! on every frame written since the last commit, then a second flush. A commit
+//! happens after the first frame, whenever [`COMMIT_INTERVAL`] has passed since
+//! the last one, and when the writer finishes or is dropped — so a run writing a
+//! frame every few milliseconds does not spend its time flushing, and a killed
+//! run loses at most the last interval. A process killed at any point leaves a
+//! file in which every frame carrying `complete = 1` is fully on disk; [`OutputWriter::resume`]
 //! discards whatever came after it. (H5Fflush hands the data to the OS; it
 //! does not fsync, so this protects against a killed process, not against a
 //! power loss.) The file is created with the default (oldest-compatible)
@@ -368,7 +372,14 @@ pub struct OutputWriter {
     stats_rows: usize,
     /// Rows not yet written to `/stats`.
     pending_stats: Vec<StepStats>,
+    /// Frames written but not yet marked complete.
+    uncommitted: Vec<String>,
+    /// When the last commit happened (`None`: never).
+    last_commit: Option<std::time::Instant>,
 }
+
+/// Longest wall time between two commits of written frames (see the module docs).
+pub const COMMIT_INTERVAL: std::time::Duration = std::time::Duration::from_millis(500);
 
 impl OutputWriter {
     /// Creates (truncating) the file at `path` and writes the run header:
@@ -422,6 +433,8 @@ impl OutputWriter {
             n_elems: header.tets.len(),
             stats_rows: 0,
             pending_stats: Vec::new(),
+            uncommitted: Vec::new(),
+            last_commit: None,
         })
     }
 
@@ -442,8 +455,8 @@ impl OutputWriter {
             .ok_or_else(|| invalid(&self.path, "writer already finished"))
     }
 
-    /// Appends one frame as group `/frames/NNNNNN`, flushes pending stats,
-    /// then marks the frame `complete = 1` and flushes the file.
+    /// Appends one frame as group `/frames/NNNNNN` and writes pending stats; the
+    /// frame is marked `complete = 1` at the next commit (see the module docs).
     ///
     /// All inputs are validated before anything is written, so an
     /// `InvalidInput` error leaves the file untouched.
@@ -519,13 +532,13 @@ impl OutputWriter {
             }
         }
         self.flush_stats()?;
-        // First flush: all datasets reach the file before the marker exists,
-        // so no crash can leave a "complete" frame with missing data.
-        file.flush()
-            .ctx(&path, || format!("flushing /frames/{name}"))?;
-        write_attr(&path, &g, "complete", &1u8)?;
-        file.flush()
-            .ctx(&path, || format!("flushing /frames/{name} completion"))?;
+        self.uncommitted.push(name.to_string());
+        if self
+            .last_commit
+            .is_none_or(|t| t.elapsed() >= COMMIT_INTERVAL)
+        {
+            self.commit(file)?;
+        }
 
         if frame.topology_changed {
             self.topology_rest_path = format!("/frames/{name}/rest_positions");
@@ -623,6 +636,27 @@ impl OutputWriter {
         Ok(())
     }
 
+    /// Marks every uncommitted frame complete: a first flush puts all their
+    /// datasets in the file before any marker exists, so no crash can leave a
+    /// "complete" frame with missing data; a second flush writes the markers.
+    fn commit(&mut self, file: &File) -> Result<(), OutputError> {
+        self.last_commit = Some(std::time::Instant::now());
+        if self.uncommitted.is_empty() {
+            return Ok(());
+        }
+        let path = self.path.clone();
+        file.flush()
+            .ctx(&path, || "flushing frames before commit".into())?;
+        for name in std::mem::take(&mut self.uncommitted) {
+            let g = file
+                .group(&format!("frames/{name}"))
+                .ctx(&path, || format!("opening /frames/{name} to commit it"))?;
+            write_attr(&path, &g, "complete", &1u8)?;
+        }
+        file.flush()
+            .ctx(&path, || "flushing frame completion".into())
+    }
+
     /// Writes pending stats rows to `/stats` (without H5Fflush).
     fn flush_stats(&mut self) -> Result<(), OutputError> {
         if self.pending_stats.is_empty() {
@@ -672,6 +706,7 @@ impl OutputWriter {
         self.flush_stats()?;
         let path = self.path.clone();
         if let Some(file) = self.file.take() {
+            self.commit(&file)?;
             file.flush().ctx(&path, || "flushing before close".into())?;
             file.close().ctx(&path, || "closing the file".into())?;
         }
@@ -731,6 +766,8 @@ impl OutputWriter {
             n_elems: rf.tets.len(),
             stats_rows,
             pending_stats: Vec::new(),
+            uncommitted: Vec::new(),
+            last_commit: None,
         };
         Ok((writer, rf))
     }
@@ -742,8 +779,8 @@ impl Drop for OutputWriter {
         // emptied the buffer on the normal path.
         if self.file.is_some() {
             let _ = self.flush_stats();
-            if let Some(f) = &self.file {
-                let _ = f.flush();
+            if let Some(f) = self.file.clone() {
+                let _ = self.commit(&f);
             }
         }
     }
@@ -942,8 +979,13 @@ fn read_string_attr(path: &Path, loc: &hdf5::Location, name: &str) -> Result<Str
     })
 }
 
+/// Datasets with fewer values than this are stored contiguous and uncompressed:
+/// for a few kilobytes, chunk indexes and deflate cost more time (and often
+/// bytes) than they save — a 200-tet run would spend most of its time in zlib.
+const COMPRESS_MIN_VALUES: usize = 4096;
+
 /// Writes a row-major `rows × cols` f64 matrix (1-D when `cols == 1`),
-/// chunked and compressed when non-empty.
+/// chunked and compressed when it holds at least `COMPRESS_MIN_VALUES` values.
 fn write_matrix(
     path: &Path,
     g: &Group,
@@ -956,7 +998,7 @@ fn write_matrix(
     if cols == 1 {
         let view = ArrayView1::from(data);
         let mut b = g.new_dataset_builder();
-        if rows > 0 {
+        if rows >= COMPRESS_MIN_VALUES {
             b = compress(b.chunk(rows.min(FRAME_CHUNK_VALUES)));
         }
         b.with_data(view).create(name).ctx(path, ctx)?;
@@ -964,7 +1006,7 @@ fn write_matrix(
         let view = ArrayView2::from_shape((rows, cols), data)
             .map_err(|e| invalid(path, format!("{name}: {e}")))?;
         let mut b = g.new_dataset_builder();
-        if rows > 0 {
+        if rows * cols >= COMPRESS_MIN_VALUES {
             let chunk_rows = (FRAME_CHUNK_VALUES / cols).clamp(1, rows);
             b = compress(b.chunk((chunk_rows, cols)));
         }
@@ -999,7 +1041,7 @@ fn write_tets(path: &Path, g: &Group, name: &str, tets: &[[usize; 4]]) -> Result
     let view = ArrayView2::from_shape((tets.len(), 4), &flat)
         .map_err(|e| invalid(path, format!("{name}: {e}")))?;
     let mut b = g.new_dataset_builder();
-    if !tets.is_empty() {
+    if 4 * tets.len() >= COMPRESS_MIN_VALUES {
         b = compress(b.chunk(((FRAME_CHUNK_VALUES / 4).min(tets.len()), 4)));
     }
     b.with_data(view).create(name).ctx(path, || {
@@ -1836,6 +1878,9 @@ mod tests {
             }
             write(&mut w, k, &frame_data(k, &p, &t), false);
         }
+        // Frames are committed in batches; commit the two as the interval would.
+        let file = w.file.clone().unwrap();
+        w.commit(&file).unwrap();
         for step in 11..=17 {
             w.append_stats(&stats(step)).unwrap();
         }

@@ -229,6 +229,31 @@ fn write_frame(
             data: friction,
         });
     }
+    let el = &sim.model.elasticity;
+    let mut element_fields = vec![Field {
+        name: "eigenstrain",
+        cols: 1,
+        data: eigenstrain,
+    }];
+    if !el.freeze_state.is_empty() {
+        element_fields.push(Field {
+            name: "freeze_state",
+            cols: 1,
+            data: &el.freeze_state,
+        });
+    }
+    let plastic: Vec<f64> = el
+        .plastic_strain
+        .iter()
+        .flat_map(crate::fem::to_voigt)
+        .collect();
+    if !plastic.is_empty() {
+        element_fields.push(Field {
+            name: "plastic_strain",
+            cols: 6,
+            data: &plastic,
+        });
+    }
     writer.write_frame(&Frame {
         step: sim.state.step,
         time: sim.state.time,
@@ -238,13 +263,14 @@ fn write_frame(
         tets: &sim.model.mesh.tets,
         topology_changed: first,
         stress: &stress,
-        element_fields: &[Field {
-            name: "eigenstrain",
-            cols: 1,
-            data: eigenstrain,
-        }],
+        element_fields: &element_fields,
         node_fields: &node_fields,
     })
+}
+
+/// Symmetric tensor from Voigt order xx yy zz yz xz xy (the inverse of `fem::to_voigt`).
+fn from_voigt(v: &[f64]) -> nalgebra::Matrix3<f64> {
+    nalgebra::Matrix3::new(v[0], v[5], v[4], v[5], v[1], v[3], v[4], v[3], v[2])
 }
 
 fn restore(
@@ -283,10 +309,22 @@ fn restore(
     sim.state.v = frame.velocities.iter().flatten().copied().collect();
     sim.state.time = frame.time;
     sim.state.step = frame.step;
+    let tets = sim.model.mesh.num_tets();
     if let Some((_, 1, e)) = frame.element_fields.iter().find(|f| f.0 == "eigenstrain") {
-        if e.len() == sim.model.mesh.num_tets() {
+        if e.len() == tets {
             sim.model.elasticity.eigenstrain = e.clone();
         }
+    }
+    sim.model.apply_schedule(frame.time);
+    if sim.model.plasticity.is_some() {
+        let p = frame
+            .element_fields
+            .iter()
+            .find(|f| f.0 == "plastic_strain" && f.1 == 6 && f.2.len() == 6 * tets)
+            .ok_or_else(|| {
+                bad("the last complete frame has no element field `plastic_strain`".into())
+            })?;
+        sim.model.elasticity.plastic_strain = p.2.chunks(6).map(from_voigt).collect();
     }
     Ok(())
 }

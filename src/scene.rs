@@ -24,8 +24,10 @@ use crate::fem::{ElasticModel, Material};
 use crate::mesh::surface::TriSurface;
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
 use crate::physics::contact::{default_stiffness, Shape};
+use crate::physics::freezing::{Freezing, Water};
 use crate::physics::ice_contact::IceContact;
 use crate::physics::obstacle_mesh::ObstacleSurface;
+use crate::physics::plasticity::Plasticity;
 use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Rayleigh, Region, Traction};
 use crate::sim::{Analysis, StepSettings};
 use crate::solver::{FillOrdering, LinearSolverKind, NewtonParams};
@@ -101,6 +103,10 @@ pub struct SceneFile {
     /// Rigid obstacles the ice touches (penalty contact with friction).
     #[serde(default)]
     pub obstacle: Vec<ObstacleSection>,
+    /// Freezing schedule (off if absent).
+    pub freezing: Option<FreezingSection>,
+    /// Plasticity (off if absent).
+    pub plasticity: Option<PlasticitySection>,
     /// Time stepping.
     pub time: TimeSection,
     /// Solver settings.
@@ -256,6 +262,43 @@ pub struct ObstacleSection {
     pub stiffness: Option<f64>,
     /// Coulomb friction coefficient. Default 0.
     pub friction: Option<f64>,
+}
+
+/// `[freezing]`: a front from the cooling faces of a box (default: the mesh's bounding box).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FreezingSection {
+    /// Cooling faces: any of "walls" (±x, ±y), "bottom" (−z), "top" (+z), or single faces
+    /// "-x", "+x", "-y", "+y", "-z", "+z".
+    pub cooling: Vec<String>,
+    /// Front speed (m/s).
+    pub front_speed: f64,
+    /// Time an element takes to freeze once the front reaches it (s). Default 0.
+    pub transition_time: Option<f64>,
+    /// When the front leaves the cooling faces (s). Default 0.
+    pub start_time: Option<f64>,
+    /// Volume ratio ice / water. Default 1.09.
+    pub expansion_ratio: Option<f64>,
+    /// "bulk" (default: pressure only, bulk modulus `water_bulk_modulus`) or "inactive".
+    pub water: Option<String>,
+    /// Bulk modulus of water (Pa). Default 2.2e9.
+    pub water_bulk_modulus: Option<f64>,
+    /// Regularising shear modulus of unfrozen water (Pa). Default 1e-4 of the ice's μ.
+    pub water_shear_modulus: Option<f64>,
+    /// Box whose faces cool: lower corner (m). Default: the mesh's bounding box.
+    pub min: Option<[f64; 3]>,
+    /// Box whose faces cool: upper corner (m).
+    pub max: Option<[f64; 3]>,
+}
+
+/// `[plasticity]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlasticitySection {
+    /// Elastic limit γ: the deviatoric elastic strain norm above which ice yields.
+    pub elastic_limit: f64,
+    /// Cap on the plastic strain norm. Default: none.
+    pub max_plastic_strain: Option<f64>,
 }
 
 /// `[time]`.
@@ -518,6 +561,18 @@ impl Validator<'_> {
                 source,
             })?;
         model.contact = contact;
+        if let Some(f) = &raw.freezing {
+            model.freezing =
+                Some(self.freezing(f, &model.mesh, &model.elasticity.eigenstrain, &material)?);
+        }
+        if let Some(p) = &raw.plasticity {
+            let elastic_limit = self.positive("plasticity.elastic_limit", p.elastic_limit)?;
+            let cap = p
+                .max_plastic_strain
+                .map(|c| self.positive("plasticity.max_plastic_strain", c))
+                .transpose()?;
+            model.plasticity = Some(Plasticity { elastic_limit, cap });
+        }
         // Separate parts touch each other: ice–ice contact, with the default penalty.
         let ice_friction = self.non_negative(
             "physics.ice_friction",
@@ -738,6 +793,89 @@ impl Validator<'_> {
             stiffness,
             friction: self.non_negative(&f("friction"), o.friction.unwrap_or(0.0))?,
         })
+    }
+
+    fn freezing(
+        &self,
+        f: &FreezingSection,
+        mesh: &TetMesh,
+        eigenstrain: &[f64],
+        ice: &crate::fem::Material,
+    ) -> Result<Freezing, SceneError> {
+        let mut cooling = [false; 6];
+        for name in &f.cooling {
+            let faces: &[usize] = match name.as_str() {
+                "walls" => &[0, 1, 2, 3],
+                "bottom" | "-z" => &[4],
+                "top" | "+z" => &[5],
+                "-x" => &[0],
+                "+x" => &[1],
+                "-y" => &[2],
+                "+y" => &[3],
+                other => {
+                    return Err(self.invalid(
+                        "freezing.cooling",
+                        format!("unknown face {other:?}: use \"walls\", \"bottom\", \"top\" or one of \"-x\", \"+x\", \"-y\", \"+y\", \"-z\", \"+z\""),
+                    ))
+                }
+            };
+            for &k in faces {
+                cooling[k] = true;
+            }
+        }
+        if !cooling.contains(&true) {
+            return Err(self.invalid("freezing.cooling", "name at least one cooling face"));
+        }
+        let region = match (f.min, f.max) {
+            (None, None) => {
+                let (min, max) = mesh.bounding_box();
+                Region { min, max }
+            }
+            (Some(min), Some(max)) => self.region("freezing", min, max)?,
+            _ => return Err(self.invalid("freezing.min", "give both `min` and `max`, or neither")),
+        };
+        let speed = self.positive("freezing.front_speed", f.front_speed)?;
+        let transition =
+            self.non_negative("freezing.transition_time", f.transition_time.unwrap_or(0.0))?;
+        let start = self.non_negative("freezing.start_time", f.start_time.unwrap_or(0.0))?;
+        let ratio = f.expansion_ratio.unwrap_or(1.09);
+        if !(ratio > 0.5 && ratio < 2.0) {
+            return Err(self.invalid(
+                "freezing.expansion_ratio",
+                format!("must be in (0.5, 2) (ice/water volume, 1.09 for water), got {ratio}"),
+            ));
+        }
+        let water = match f.water.as_deref().unwrap_or("bulk") {
+            "bulk" => Water::Bulk {
+                modulus: self.positive(
+                    "freezing.water_bulk_modulus",
+                    f.water_bulk_modulus.unwrap_or(2.2e9),
+                )?,
+            },
+            "inactive" => {
+                if f.water_bulk_modulus.is_some() {
+                    return Err(
+                        self.invalid("freezing.water_bulk_modulus", "only for water = \"bulk\"")
+                    );
+                }
+                Water::Inactive
+            }
+            other => {
+                return Err(self.invalid(
+                    "freezing.water",
+                    format!("must be \"bulk\" or \"inactive\", got {other:?}"),
+                ))
+            }
+        };
+        let mut freezing = Freezing::from_front(
+            mesh, &region, cooling, speed, start, transition, ratio, water,
+        );
+        freezing.base_eigenstrain = eigenstrain.to_vec();
+        freezing.water_shear = self.non_negative(
+            "freezing.water_shear_modulus",
+            f.water_shear_modulus.unwrap_or(1e-4 * ice.mu),
+        )?;
+        Ok(freezing)
     }
 
     fn dirichlet(&self, i: usize, d: &DirichletSection) -> Result<Dirichlet, SceneError> {

@@ -84,7 +84,8 @@ pub struct StepReport {
     pub t_step: f64,
     /// Solves the step took (1 unless Newton failed and the step was halved).
     pub substeps: u32,
-    /// Contact broad phase: ice–ice candidate search and pattern update (s).
+    /// Contact broad phase: ice–ice candidate search and pattern update, and the choice of
+    /// each node's plane on mesh obstacles (s).
     pub t_contact_broad: f64,
     /// Contact narrow phase: gaps, forces and Jacobians of all contact pairs, inside the
     /// assembly time of `newton` (s).
@@ -182,6 +183,11 @@ impl Simulation {
                 });
             }
         }
+        let mut model = model;
+        model.apply_schedule(0.0);
+        if model.plasticity.is_some() && model.elasticity.plastic_strain.is_empty() {
+            model.elasticity.plastic_strain = vec![Default::default(); model.mesh.num_tets()];
+        }
         let constrained = model.constrained_dofs();
         if settings.analysis == Analysis::Static && !constrained.iter().any(|c| *c) {
             return Err(SimError::NoDirichlet);
@@ -251,6 +257,7 @@ impl Simulation {
     pub fn step(&mut self) -> Result<StepReport, SimError> {
         let start = Instant::now();
         let (t0, u0, v0) = (self.state.time, self.state.u.clone(), self.state.v.clone());
+        let plastic0 = self.model.elasticity.plastic_strain.clone();
         let t_end = t0 + self.settings.dt;
         if self.model.ice_contact.is_some() {
             self.prepare_ice_contact()?;
@@ -259,6 +266,8 @@ impl Simulation {
         let result = self.advance(self.settings.dt, t_end, 0);
         if result.is_err() {
             (self.state.time, self.state.u, self.state.v) = (t0, u0, v0);
+            self.model.elasticity.plastic_strain = plastic0;
+            self.model.apply_schedule(t0);
         }
         let mut report = result.map_err(|(source, time)| SimError::Step {
             step: self.state.step + 1,
@@ -267,7 +276,7 @@ impl Simulation {
         })?;
         self.state.step += 1;
         report.t_step = start.elapsed().as_secs_f64();
-        report.t_contact_broad = t_contact_broad;
+        report.t_contact_broad += t_contact_broad;
         report.energies = self.energies();
         Ok(report)
     }
@@ -360,6 +369,7 @@ impl Simulation {
     /// One backward-Euler (or static) solve of length `h` ending at `t_new`.
     fn try_step(&mut self, h: f64, t_new: f64) -> Result<StepReport, NewtonError> {
         let dynamic = self.settings.analysis == Analysis::Dynamic;
+        self.model.apply_schedule(t_new);
         self.previous.copy_from_slice(&self.state.u);
         let mut u = self.state.u.clone();
         if dynamic {
@@ -381,6 +391,7 @@ impl Simulation {
         let force_floor = self.force_scale(h, dynamic);
         let rest = &self.model.mesh.rest;
         let t_start = self.state.time;
+        let selection = Instant::now();
         let contact = self.model.contact.as_ref().map(|c| {
             // Mesh obstacles look for nodes as far as the step can carry them, and an edge.
             let vmax = self.state.v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -394,6 +405,7 @@ impl Simulation {
                 reach,
             )
         });
+        let mut t_contact_broad = selection.elapsed().as_secs_f64();
         let mut potential = StepPotential {
             model: &self.model,
             assembly: &self.assembly,
@@ -437,9 +449,11 @@ impl Simulation {
             if newton.is_some() {
                 let mut change: f64 = 0.0;
                 if let Some(c) = potential.contact.as_mut() {
+                    let reselection = Instant::now();
                     if c.reselect_node_planes(&u) {
                         change = f64::INFINITY;
                     }
+                    t_contact_broad += reselection.elapsed().as_secs_f64();
                 }
                 if let Some(c) = potential.contact.as_mut().filter(|c| c.has_friction()) {
                     let updated = c.normal_forces(&u);
@@ -489,12 +503,15 @@ impl Simulation {
             }
             self.contact_forces = forces;
         }
+        let t_contact_narrow = potential.t_contact;
+        self.model.update_plastic_strain(&u);
         self.state.u = u;
         self.state.time = t_new;
         Ok(StepReport {
             newton,
             substeps: 1,
-            t_contact_narrow: potential.t_contact,
+            t_contact_narrow,
+            t_contact_broad,
             ..Default::default()
         })
     }
@@ -519,10 +536,12 @@ impl Simulation {
         self.damping_stiffness.iter_mut().for_each(|k| *k *= beta);
     }
 
-    /// A force scale of the step (N): the largest dead load or momentum change M v / h on a
-    /// free dof. Newton's residual is judged relative to it.
+    /// A force scale of the step (N): the largest dead load, momentum change M v / h on a free
+    /// dof, or load of the strain offsets (expansion, plastic strain). Newton's residual is
+    /// judged relative to it.
     fn force_scale(&self, h: f64, dynamic: bool) -> f64 {
         let dofs = self.assembly.dofs();
+        let offsets = self.model.elasticity.offset_force_scale();
         dofs.free_dofs()
             .iter()
             .map(|&d| {
@@ -533,7 +552,7 @@ impl Simulation {
                 };
                 self.model.external_force[d].abs().max(inertial)
             })
-            .fold(0.0, f64::max)
+            .fold(offsets, f64::max)
     }
 
     /// Energies of the current state.

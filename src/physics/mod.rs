@@ -4,9 +4,11 @@
 pub mod contact;
 pub mod dirichlet;
 pub mod elasticity;
+pub mod freezing;
 pub mod ice_contact;
 pub mod loads;
 pub mod obstacle_mesh;
+pub mod plasticity;
 
 pub use contact::{Contact, Obstacle};
 pub use dirichlet::Dirichlet;
@@ -60,6 +62,10 @@ pub struct Model {
     pub contact: Option<Contact>,
     /// Contact between separate parts of the mesh, if it has more than one.
     pub ice_contact: Option<ice_contact::IceContact>,
+    /// Freezing schedule, if the scene freezes (none: every element is ice throughout).
+    pub freezing: Option<freezing::Freezing>,
+    /// Plasticity, if on (none: no plastic state at all).
+    pub plasticity: Option<plasticity::Plasticity>,
 }
 
 impl Model {
@@ -90,7 +96,25 @@ impl Model {
             dirichlet,
             contact: None,
             ice_contact: None,
+            freezing: None,
+            plasticity: None,
         })
+    }
+
+    /// Sets the time-dependent material state (freeze states, expansion) for time `t` (s).
+    pub fn apply_schedule(&mut self, t: f64) {
+        if let Some(f) = &self.freezing {
+            f.apply(t, &mut self.elasticity);
+        }
+    }
+
+    /// Return mapping of the plastic strains for converged displacements `u` (m); returns the
+    /// largest plastic strain norm (0 without plasticity).
+    pub fn update_plastic_strain(&mut self, u: &[f64]) -> f64 {
+        match &self.plasticity {
+            Some(p) => p.update(&mut self.elasticity, &self.mesh.tets, u),
+            None => 0.0,
+        }
     }
 
     /// Number of nodes.

@@ -1,0 +1,136 @@
+//! Freezing: a front moving in from the cooling surfaces sets each element's freeze state,
+//! which blends its material from water to ice and grows its expansion eigenstrain.
+//!
+//! The front leaves the cooling faces of a box (by default the mesh's bounding box: the water
+//! body) at `start_time` with speed `front_speed`; it reaches an element's centroid at
+//! t_a = start + d / speed, d being the distance from the centroid to the nearest cooling
+//! face. The element then freezes over `transition_time`: state s = clamp((t − t_a) / t_tr, 0, 1)
+//! (a step at t_a when t_tr = 0). Its expansion is ε_exp = s e_max I with
+//! e_max = ratio^(1/3) − 1 (water → ice: 1.09 in volume, e_max ≈ 0.0291), a strain offset that
+//! never moves the rest mesh, so the element stiffness and its Jacobian stay exact. Its
+//! stiffness is (1 − s) water + s ice (see `Elasticity::material_of`).
+//!
+//! Water carries pressure only (bulk modulus 2.2e9 Pa, energy K/2 (J − 1)²), or nothing
+//! ("inactive"). Both get a small regularising shear modulus (default 1e-4 of the ice's): a
+//! shear-free tet mesh has zero-energy modes that only inertia controls, m/h² ≈ 1e-2 N/m for
+//! a gram of water at a frame-sized step against 1e9 N/m of ice, and Newton then proposes
+//! steps of metres. At 1e-4 of the ice's stiffness the water's shear stresses stay 1e-4 of
+//! the ice's, far below anything that matters for the ice, and the mesh of the liquid keeps
+//! its shape.
+
+use super::elasticity::Elasticity;
+use super::Region;
+use crate::mesh::TetMesh;
+
+/// How unfrozen water behaves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Water {
+    /// Bulk-only: pressure from volume change with this bulk modulus (Pa), no shear stiffness,
+    /// no plasticity, no fracture. Trapped water transmits pressure.
+    Bulk { modulus: f64 },
+    /// No stiffness at all until it freezes (it keeps its mass).
+    Inactive,
+}
+
+/// Which faces of the freezing box cool: −x, +x, −y, +y, −z (bottom), +z (top).
+pub type CoolingFaces = [bool; 6];
+
+/// The freezing schedule of every element.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Freezing {
+    /// Time the front reaches each element's centroid (s); infinite if no face cools.
+    pub arrival: Vec<f64>,
+    /// Time an element takes to freeze once the front arrives (s).
+    pub transition: f64,
+    /// Largest expansion eigenstrain e_max = ratio^(1/3) − 1 (dimensionless).
+    pub expansion: f64,
+    /// The water model.
+    pub water: Water,
+    /// Regularising shear modulus of unfrozen water (Pa).
+    pub water_shear: f64,
+    /// Eigenstrain of each element without freezing (from the scene), added to the expansion.
+    pub base_eigenstrain: Vec<f64>,
+}
+
+impl Freezing {
+    /// A front from the `cooling` faces of `region` at `speed` (m/s) from `start` (s). The
+    /// water's shear regularisation starts at 0; scenes set `water_shear` (default 1e-4 μ).
+    // The arguments are the schedule's independent physical inputs.
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_front(
+        mesh: &TetMesh,
+        region: &Region,
+        cooling: CoolingFaces,
+        speed: f64,
+        start: f64,
+        transition: f64,
+        expansion_ratio: f64,
+        water: Water,
+    ) -> Self {
+        let arrival = mesh
+            .tets
+            .iter()
+            .map(|tet| {
+                let c = tet
+                    .iter()
+                    .map(|&v| mesh.rest[v])
+                    .sum::<nalgebra::Vector3<f64>>()
+                    / 4.0;
+                let distance = (0..6)
+                    .filter(|&f| cooling[f])
+                    .map(|f| {
+                        let a = f / 2;
+                        if f % 2 == 0 {
+                            c[a] - region.min[a]
+                        } else {
+                            region.max[a] - c[a]
+                        }
+                    })
+                    .fold(f64::INFINITY, f64::min)
+                    .max(0.0);
+                start + distance / speed
+            })
+            .collect();
+        Freezing {
+            arrival,
+            transition,
+            expansion: expansion_ratio.cbrt() - 1.0,
+            water,
+            water_shear: 0.0,
+            base_eigenstrain: vec![0.0; mesh.num_tets()],
+        }
+    }
+
+    /// Freeze state of element `e` at time `t` (s), 0 … 1.
+    pub fn state(&self, e: usize, t: f64) -> f64 {
+        let since = t - self.arrival[e];
+        if self.transition > 0.0 {
+            (since / self.transition).clamp(0.0, 1.0)
+        } else if since >= 0.0 {
+            1.0
+        } else {
+            0.0
+        }
+    }
+
+    /// The water's bulk modulus (Pa; 0 for inactive water).
+    pub fn water_bulk(&self) -> f64 {
+        match self.water {
+            Water::Bulk { modulus } => modulus,
+            Water::Inactive => 0.0,
+        }
+    }
+
+    /// Sets every element's freeze state, material blend and eigenstrain for time `t` (s).
+    pub fn apply(&self, t: f64, elasticity: &mut Elasticity) {
+        elasticity.water_bulk = self.water_bulk();
+        elasticity.water_shear = self.water_shear;
+        let n = self.arrival.len();
+        elasticity.freeze_state.resize(n, 0.0);
+        for e in 0..n {
+            let s = self.state(e, t);
+            elasticity.freeze_state[e] = s;
+            elasticity.eigenstrain[e] = self.base_eigenstrain[e] + s * self.expansion;
+        }
+    }
+}
