@@ -26,9 +26,83 @@ output_every = 2
 "#;
 
 fn scene(dir: &Path) -> Scene {
-    let path = dir.join("beam.toml");
-    std::fs::write(&path, SCENE).unwrap();
+    scene_from(dir, SCENE)
+}
+
+fn scene_from(dir: &Path, text: &str) -> Scene {
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, text).unwrap();
     Scene::load(&path).unwrap()
+}
+
+/// Freezing with plasticity: the state a resume must restore includes each element's plastic
+/// strain (the freeze state and expansion follow from the time).
+const FREEZING: &str = r#"
+[mesh]
+box = { size = [0.04, 0.04, 0.04], cells = [2, 2, 2] }
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[physics]
+gravity = [0.0, 0.0, -9.81]
+[[obstacle]]
+type = "container"
+min = [0.0, 0.0, 0.0]
+max = [0.04, 0.04, 0.06]
+friction = 0.3
+[freezing]
+cooling = ["walls", "bottom"]
+front_speed = 0.01
+transition_time = 0.5
+[plasticity]
+elastic_limit = 1e-4
+[time]
+dt = 0.1
+end_time = 2.0
+output_every = 3
+"#;
+
+#[test]
+fn freezing_run_with_plasticity_resumes_bit_identically() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene_from(dir.path(), FREEZING);
+    let never = AtomicBool::new(false);
+    let full = dir.path().join("full.h5");
+    let opts = |path: &Path, end: Option<f64>, resume: bool| RunOptions {
+        output: Some(path.to_path_buf()),
+        end_time: end,
+        resume,
+        ..Default::default()
+    };
+    run(&scene, &opts(&full, None, false), &never, |_| {}).unwrap();
+    let half = dir.path().join("half.h5");
+    run(&scene, &opts(&half, Some(1.0), false), &never, |_| {}).unwrap();
+    run(&scene, &opts(&half, None, true), &never, |_| {}).unwrap();
+    let plastic = |path: &Path| {
+        let file = hdf5::File::open(path).unwrap();
+        let mut frames = file.group("frames").unwrap().member_names().unwrap();
+        frames.sort();
+        let last = frames.last().unwrap();
+        file.dataset(&format!("frames/{last}/plastic_strain"))
+            .unwrap()
+            .read_raw::<f64>()
+            .unwrap()
+    };
+    assert!(
+        plastic(&full).iter().any(|p| *p != 0.0),
+        "no plastic flow to restore"
+    );
+    assert_eq!(
+        last_frame(&full),
+        last_frame(&half),
+        "resumed end state differs"
+    );
+    assert_eq!(
+        plastic(&full),
+        plastic(&half),
+        "resumed plastic strain differs"
+    );
 }
 
 fn last_frame(path: &Path) -> (f64, u64, Vec<Vec<f64>>) {

@@ -211,6 +211,7 @@ fn write_frame(
         data: &sim.state.u,
     }];
     let zeros;
+    let active: Vec<f64>;
     if let Some(forces) = sim.contact_forces() {
         let (normal, friction) = if forces.normal.is_empty() {
             zeros = vec![0.0; sim.state.u.len()];
@@ -227,6 +228,15 @@ fn write_frame(
             name: "contact_friction_force",
             cols: 3,
             data: friction,
+        });
+        active = normal
+            .chunks(3)
+            .map(|f| f64::from(u8::from(f.iter().any(|x| *x != 0.0))))
+            .collect();
+        node_fields.push(Field {
+            name: "contact_active",
+            cols: 1,
+            data: &active,
         });
     }
     let el = &sim.model.elasticity;
