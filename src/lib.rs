@@ -6,6 +6,7 @@
 pub mod assembly;
 pub mod bench;
 pub mod fem;
+pub mod fracture;
 pub mod mesh;
 pub mod output;
 pub mod physics;

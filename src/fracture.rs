@@ -1,0 +1,235 @@
+//! Fracture criterion of O'Brien & Hodgins (1999) as the paper uses it (SPEC §3): the
+//! separation tensor of every node and its largest eigenvalue. (Remeshing comes next.)
+//!
+//! Per element, the stress is split by its eigen-decomposition into a tensile part
+//! σ⁺ = Σ max(0, vᵢ) nᵢnᵢᵀ and a compressive part σ⁻ = Σ min(0, vᵢ) nᵢnᵢᵀ; each part exerts
+//! nodal forces by the elastic force formula, f = −V R σ R∇Nᵢ… in the world frame (σ is the
+//! corotated stress in the element's frame, R its rotation). At node i, with F± = Σₑ f± and
+//! m(a) = a aᵀ/|a| (0 for a = 0),
+//!
+//! ```text
+//! ς = ½ ( −m(F⁺) + Σₑ m(f⁺) + m(F⁻) − Σₑ m(f⁻) )
+//! ```
+//!
+//! Its largest eigenvalue v⁺ is a force (N); its eigenvector the crack normal n. Toughness is
+//! given as a stress (Pa, the paper's 3.0e6 N/m² — ice's tensile strength): the node fractures
+//! when v⁺ exceeds τ A(n), with A(n) = ½ Σₑ Vₑ |n · R∇Nᵢ| the node's share of the plane through
+//! it with normal n. For a uniform uniaxial stress s along n, v⁺ = s A(n) exactly (tested), and
+//! on a grid A(n) is the node's cross-section h_y h_z: v⁺ is the force the node's share of the
+//! plane carries, and the criterion v⁺/A > τ is mesh independent, unlike a force threshold (see
+//! SPEC's calibration note). Only fully frozen elements contribute.
+
+use crate::fem::{elastic_strain, ElasticModel};
+use crate::physics::elasticity::Elasticity;
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+
+/// The separation tensor of one node and what the criterion needs from it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeSeparation {
+    /// ς (N).
+    pub tensor: Matrix3<f64>,
+    /// Largest eigenvalue v⁺ (N).
+    pub largest: f64,
+    /// Its unit eigenvector: the crack normal.
+    pub normal: Vector3<f64>,
+    /// The node's share A(n) of the plane with that normal (m²).
+    pub area: f64,
+}
+
+impl NodeSeparation {
+    /// v⁺ / A(n) (Pa): compared against the toughness.
+    pub fn stress(&self) -> f64 {
+        if self.area > 0.0 {
+            self.largest / self.area
+        } else {
+            0.0
+        }
+    }
+}
+
+/// m(a) = a aᵀ / |a|, 0 for a = 0.
+fn m(a: &Vector3<f64>) -> Matrix3<f64> {
+    let n = a.norm();
+    if n > 0.0 {
+        a * a.transpose() / n
+    } else {
+        Matrix3::zeros()
+    }
+}
+
+/// Tensile and compressive parts of a symmetric tensor.
+fn split(sigma: &Matrix3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
+    let eig = SymmetricEigen::new(*sigma);
+    let (mut plus, mut minus) = (Matrix3::zeros(), Matrix3::zeros());
+    for k in 0..3 {
+        let n = eig.eigenvectors.column(k);
+        let outer = n * n.transpose();
+        let v = eig.eigenvalues[k];
+        if v > 0.0 {
+            plus += v * outer;
+        } else {
+            minus += v * outer;
+        }
+    }
+    (plus, minus)
+}
+
+/// Separation tensors of every node of `tets` at displacements `u` (m).
+pub fn separation(elasticity: &Elasticity, tets: &[[usize; 4]], u: &[f64]) -> Vec<NodeSeparation> {
+    let nodes = u.len() / 3;
+    let mut f_plus = vec![Vector3::zeros(); nodes];
+    let mut f_minus = vec![Vector3::zeros(); nodes];
+    let mut s_plus = vec![Matrix3::zeros(); nodes];
+    let mut s_minus = vec![Matrix3::zeros(); nodes];
+    // Rotated shape-function gradients scaled by the volume, per (element, vertex), for A(n).
+    let mut weighted_grads: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nodes];
+    for (e, tet) in tets.iter().enumerate() {
+        if elasticity.freeze_state.get(e).is_some_and(|s| *s < 1.0) {
+            continue;
+        }
+        let rest = &elasticity.rest[e];
+        let local = Elasticity::local(u, tet);
+        let (strain, r) = elastic_strain(elasticity.model, rest, &local, &elasticity.offset_of(e));
+        let (material, _) = elasticity.material_of(e);
+        let sigma = material.hooke(&strain);
+        let (plus, minus) = split(&sigma);
+        for (k, &i) in tet.iter().enumerate() {
+            let g = match elasticity.model {
+                ElasticModel::Linear => rest.grads[k],
+                ElasticModel::Corotated => r * rest.grads[k],
+            } * rest.volume;
+            let (fp, fm) = (
+                -(r * plus * r.transpose()) * g,
+                -(r * minus * r.transpose()) * g,
+            );
+            f_plus[i] += fp;
+            f_minus[i] += fm;
+            s_plus[i] += m(&fp);
+            s_minus[i] += m(&fm);
+            weighted_grads[i].push(g);
+        }
+    }
+    (0..nodes)
+        .map(|i| {
+            let tensor = 0.5 * (-m(&f_plus[i]) + s_plus[i] + m(&f_minus[i]) - s_minus[i]);
+            let eig = SymmetricEigen::new(tensor);
+            let k = eig.eigenvalues.imax();
+            let normal: Vector3<f64> = eig.eigenvectors.column(k).into_owned();
+            let area = 0.5
+                * weighted_grads[i]
+                    .iter()
+                    .map(|g| normal.dot(g).abs())
+                    .sum::<f64>();
+            NodeSeparation {
+                tensor,
+                largest: eig.eigenvalues[k],
+                normal,
+                area,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::Material;
+    use crate::mesh::box_mesh;
+
+    const ICE: Material = Material {
+        lambda: 8.64e10,
+        mu: 3.70e10,
+        density: 916.0,
+    };
+
+    /// A 4 × 3 × 2 cm box of 4 × 3 × 2 cells (1 cm cubes) under the homogeneous displacement
+    /// u = G x; returns the separation of the interior node at (2, 1, 1) cm and the stress.
+    fn homogeneous(model: ElasticModel, g: Matrix3<f64>) -> (NodeSeparation, Matrix3<f64>) {
+        let mesh = box_mesh([0.0; 3], [0.04, 0.03, 0.02], [4, 3, 2], 6).unwrap();
+        let el = Elasticity::new(&mesh, ICE, model);
+        let u: Vec<f64> = mesh
+            .rest
+            .iter()
+            .flat_map(|x| (g * x).iter().copied().collect::<Vec<_>>())
+            .collect();
+        let sep = separation(&el, &mesh.tets, &u);
+        let node = mesh
+            .rest
+            .iter()
+            .position(|x| (x - Vector3::new(0.02, 0.01, 0.01)).norm() < 1e-12)
+            .unwrap();
+        let eps = 0.5 * (g + g.transpose());
+        (sep[node], ICE.hooke(&eps))
+    }
+
+    #[test]
+    fn uniaxial_tension_gives_the_stress_times_the_node_cross_section() {
+        // Uniaxial stress s along x: ε = diag(s/E, −ν s/E, −ν s/E).
+        let s = 3e6;
+        let (e, nu) = (ICE.young(), ICE.poisson());
+        let g = Matrix3::from_diagonal(&Vector3::new(s / e, -nu * s / e, -nu * s / e));
+        for model in [ElasticModel::Linear, ElasticModel::Corotated] {
+            let (sep, sigma) = homogeneous(model, g);
+            assert!((sigma[(0, 0)] - s).abs() < 1e-9 * s && sigma[(1, 1)].abs() < 1e-9 * s);
+            // Crack normal along the load, v⁺/A = s, and A = the node's cross-section 1 cm².
+            assert!(
+                sep.normal.x.abs() > 1.0 - 1e-9,
+                "{model:?}: normal {}",
+                sep.normal
+            );
+            // Linear: exact; corotated: its stress differs from Hooke's at second order (s/E).
+            let tol = if model == ElasticModel::Linear {
+                1e-9
+            } else {
+                1e-4
+            };
+            assert!(
+                (sep.stress() - s).abs() < tol * s,
+                "{model:?}: {} Pa",
+                sep.stress()
+            );
+            assert!(
+                (sep.area - 1e-4).abs() < 1e-15,
+                "{model:?}: area {}",
+                sep.area
+            );
+            assert!((sep.largest - s * 1e-4).abs() < tol * s * 1e-4);
+        }
+    }
+
+    #[test]
+    fn compression_never_separates() {
+        // Hydrostatic and uniaxial compression: the largest eigenvalue is ≤ 0.
+        for g in [
+            Matrix3::identity() * -1e-3,
+            Matrix3::from_diagonal(&Vector3::new(-1e-3, 0.0, 0.0)),
+        ] {
+            for model in [ElasticModel::Linear, ElasticModel::Corotated] {
+                let (sep, _) = homogeneous(model, g);
+                assert!(
+                    sep.largest <= 1e-9 * 1e8 * 1e-4,
+                    "{model:?}: v⁺ = {}",
+                    sep.largest
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn rigid_rotation_of_a_stressed_body_rotates_the_crack_normal() {
+        // Corotated: stretch along x, then rotate by 90° about z: the crack normal turns to y.
+        let s = 3e6;
+        let (e, nu) = (ICE.young(), ICE.poisson());
+        let stretch = Matrix3::from_diagonal(&Vector3::new(
+            1.0 + s / e,
+            1.0 - nu * s / e,
+            1.0 - nu * s / e,
+        ));
+        let rot =
+            nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
+        let g = rot.into_inner() * stretch - Matrix3::identity();
+        let (sep, _) = homogeneous(ElasticModel::Corotated, g);
+        assert!(sep.normal.y.abs() > 1.0 - 1e-6, "normal {}", sep.normal);
+        assert!((sep.stress() - s).abs() < 1e-4 * s, "{} Pa", sep.stress());
+    }
+}
