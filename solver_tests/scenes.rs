@@ -125,6 +125,49 @@ fn non_physical_values_name_field_and_range() {
             + "[[eigenstrain]]\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nvalue = 0.7\n"),
         Some("eigenstrain[0].value"),
     );
+    // Freezing, plasticity and contact parameters.
+    for (extra, field) in [
+        ("[physics]\nice_stiffness = -1.0", "physics.ice_stiffness"),
+        (
+            "[plasticity]\nelastic_limit = 0.0",
+            "plasticity.elastic_limit",
+        ),
+        (
+            "[plasticity]\nelastic_limit = 1e-3\nmax_plastic_strain = -1.0",
+            "plasticity.max_plastic_strain",
+        ),
+        (
+            "[freezing]\ncooling = [\"sides\"]\nfront_speed = 1e-3",
+            "freezing.cooling",
+        ),
+        (
+            "[freezing]\ncooling = []\nfront_speed = 1e-3",
+            "freezing.cooling",
+        ),
+        (
+            "[freezing]\ncooling = [\"top\"]\nfront_speed = 0.0",
+            "freezing.front_speed",
+        ),
+        (
+            "[freezing]\ncooling = [\"top\"]\nfront_speed = 1e-3\nexpansion_ratio = 3.0",
+            "freezing.expansion_ratio",
+        ),
+        (
+            "[freezing]\ncooling = [\"top\"]\nfront_speed = 1e-3\nwater = \"ice\"",
+            "freezing.water",
+        ),
+        (
+            "[freezing]\ncooling = [\"top\"]\nfront_speed = 1e-3\nmin = [0.0, 0.0, 0.0]",
+            "freezing.min",
+        ),
+    ] {
+        let text = if extra.starts_with("[physics]") {
+            GOOD.replace("[physics]", extra)
+        } else {
+            format!("{GOOD}\n{extra}\n")
+        };
+        error_of(&text, Some(field));
+    }
     // Wrong types and missing sections come from the TOML layer, still with the file name.
     error_of(
         &GOOD.replace("density = 916.0", "density = \"heavy\""),

@@ -178,6 +178,8 @@ pub struct PhysicsSection {
     pub friction_smoothing_velocity: Option<f64>,
     /// Coulomb friction coefficient between separate pieces of ice. Default 0.
     pub ice_friction: Option<f64>,
+    /// Penalty stiffness between separate pieces of ice (N/m³). Default 10 E / h.
+    pub ice_stiffness: Option<f64>,
 }
 
 /// `[physics.damping]`: D = α M + β K.
@@ -573,17 +575,16 @@ impl Validator<'_> {
                 .transpose()?;
             model.plasticity = Some(Plasticity { elastic_limit, cap });
         }
-        // Separate parts touch each other: ice–ice contact, with the default penalty.
+        // Separate parts touch each other: ice–ice contact.
         let ice_friction = self.non_negative(
             "physics.ice_friction",
             raw.physics.ice_friction.unwrap_or(0.0),
         )?;
-        model.ice_contact = IceContact::new(
-            &model.mesh,
-            default_stiffness(&model.mesh, material.young()),
-            ice_friction,
-            smoothing,
-        );
+        let ice_stiffness = match raw.physics.ice_stiffness {
+            Some(k) => self.positive("physics.ice_stiffness", k)?,
+            None => default_stiffness(&model.mesh, material.young()),
+        };
+        model.ice_contact = IceContact::new(&model.mesh, ice_stiffness, ice_friction, smoothing);
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),
             None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),
