@@ -1,5 +1,6 @@
 //! Fracture criterion of O'Brien & Hodgins (1999) as the paper uses it (SPEC §3): the
-//! separation tensor of every node and its largest eigenvalue. (Remeshing comes next.)
+//! separation tensor of every node and its largest eigenvalue, and the conforming node split
+//! along the crack plane (`split`). (Driving both from the time loop comes next.)
 //!
 //! Per element, the stress is split by its eigen-decomposition into a tensile part
 //! σ⁺ = Σ max(0, vᵢ) nᵢnᵢᵀ and a compressive part σ⁻ = Σ min(0, vᵢ) nᵢnᵢᵀ; each part exerts
@@ -18,6 +19,8 @@
 //! on a grid A(n) is the node's cross-section h_y h_z: v⁺ is the force the node's share of the
 //! plane carries, and the criterion v⁺/A > τ is mesh independent, unlike a force threshold (see
 //! SPEC's calibration note). Only fully frozen elements contribute.
+
+pub mod split;
 
 use crate::fem::{elastic_strain, ElasticModel};
 use crate::physics::elasticity::Elasticity;
