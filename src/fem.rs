@@ -488,10 +488,11 @@ pub fn to_voigt(s: &Matrix3<f64>) -> [f64; 6] {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    const ICE: Material = Material {
+    /// The paper's ice, for the unit tests of this crate.
+    pub(crate) const ICE: Material = Material {
         lambda: 8.64e10,
         mu: 3.70e10,
         density: 916.0,

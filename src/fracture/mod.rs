@@ -136,14 +136,8 @@ pub fn separation(elasticity: &Elasticity, tets: &[[usize; 4]], u: &[f64]) -> Ve
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fem::Material;
+    use crate::fem::tests::ICE;
     use crate::mesh::box_mesh;
-
-    const ICE: Material = Material {
-        lambda: 8.64e10,
-        mu: 3.70e10,
-        density: 916.0,
-    };
 
     /// A 4 × 3 × 2 cm box of 4 × 3 × 2 cells (1 cm cubes) under the homogeneous displacement
     /// u = G x; returns the separation of the interior node at (2, 1, 1) cm and the stress.
