@@ -1,5 +1,6 @@
 # Two entry points, each doing all set-up a fresh Debian machine needs:
-#   make demo   — builds icefem and runs scenes/cantilever.toml to cantilever.h5 (+ .xdmf)
+#   make demo   — builds icefem and runs the paper's scene, scenes/freezing_container.toml,
+#                 to freezing_container.h5 (+ .xdmf)
 #   make test   — runs the whole test suite (cargo test --release)
 # The only system library needed is HDF5 (libhdf5-dev), installed with apt-get when missing.
 
@@ -13,7 +14,7 @@ deps:
 		$(SUDO) apt-get update -qq && $(SUDO) DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libhdf5-dev pkg-config; }
 
 demo: deps
-	cargo run --release -- run scenes/cantilever.toml --output cantilever.h5
+	cargo run --release -- run scenes/freezing_container.toml --output freezing_container.h5
 
 test: deps
 	cargo test --release
