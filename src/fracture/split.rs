@@ -332,7 +332,12 @@ mod tests {
         let before = f.clone();
         let corner = f.rest.iter().position(|x| x.norm() < 1e-12).unwrap();
         assert!(f
-            .split_node(corner, &Vector3::new(-1.0, -1.0, -1.0).normalize(), 0.1, 0.2)
+            .split_node(
+                corner,
+                &Vector3::new(-1.0, -1.0, -1.0).normalize(),
+                0.1,
+                0.2
+            )
             .is_none());
         assert_eq!(f, before);
     }
