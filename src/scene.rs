@@ -585,6 +585,7 @@ impl Validator<'_> {
             None => default_stiffness(&model.mesh, material.young()),
         };
         model.ice_contact = IceContact::new(&model.mesh, ice_stiffness, ice_friction, smoothing);
+        model.ice_contact_params = [ice_stiffness, ice_friction, smoothing];
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),
             None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),

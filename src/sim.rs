@@ -245,6 +245,30 @@ impl Simulation {
         })
     }
 
+    /// Continues on a new mesh after a topology change (fracture): `rest`, `tets`, `parent` as
+    /// for [`Model::remeshed`], and the nodal displacements `u` and velocities `v` (3 per node)
+    /// on the new mesh. Pattern, colouring and symbolic factorisation are rebuilt (only here);
+    /// time and step count carry on.
+    pub fn remesh(
+        &mut self,
+        rest: &[nalgebra::Vector3<f64>],
+        tets: Vec<[usize; 4]>,
+        parent: &[usize],
+        u: Vec<f64>,
+        v: Vec<f64>,
+    ) -> Result<(), SimError> {
+        let model = self
+            .model
+            .remeshed(rest, tets, parent)
+            .map_err(|e| SimError::Setup(e.to_string()))?;
+        let (time, step) = (self.state.time, self.state.step);
+        let mut next = Simulation::new(model, self.settings)?;
+        next.model.apply_schedule(time);
+        next.state = State { u, v, time, step };
+        *self = next;
+        Ok(())
+    }
+
     /// The assembled pattern (for statistics).
     pub fn assembly(&self) -> &Assembly {
         &self.assembly

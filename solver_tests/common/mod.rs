@@ -101,3 +101,15 @@ pub fn irregular_box(cells: [usize; 3], size: [f64; 3], jitter: f64, seed: u64) 
     }
     TetMesh::new(mesh.rest, mesh.tets).unwrap()
 }
+
+/// Corotated ice clamped at x = 0 under gravity −z, backward Euler at one step per frame.
+pub fn ice_cantilever(mesh: TetMesh) -> Simulation {
+    simulation(
+        mesh,
+        ICE,
+        ElasticModel::Corotated,
+        [0.0, 0.0, -9.81],
+        vec![clamp_below_x(1e-9)],
+        settings(Analysis::Dynamic, 1.0 / 30.0),
+    )
+}

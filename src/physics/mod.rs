@@ -66,6 +66,13 @@ pub struct Model {
     pub freezing: Option<freezing::Freezing>,
     /// Plasticity, if on (none: no plastic state at all).
     pub plasticity: Option<plasticity::Plasticity>,
+    /// Gravity (m/s²), kept to rebuild the loads after a topology change.
+    pub gravity: Vector3<f64>,
+    /// Surface tractions, kept likewise.
+    pub tractions: Vec<Traction>,
+    /// Ice–ice contact parameters for when the mesh has (or fracture makes) several parts:
+    /// penalty stiffness (N/m³; 0 = the default 10 E / h), friction, smoothing velocity (m/s).
+    pub ice_contact_params: [f64; 3],
 }
 
 impl Model {
@@ -98,7 +105,65 @@ impl Model {
             ice_contact: None,
             freezing: None,
             plasticity: None,
+            gravity,
+            tractions: tractions.to_vec(),
+            ice_contact_params: [0.0, 0.0, 1e-4],
         })
+    }
+
+    /// The model on a new mesh made from this one by splitting elements (fracture): `parent[e]`
+    /// is the element of this model that new element `e` came from, and inherits its
+    /// eigenstrain, plastic strain, freeze state and freezing schedule. Mass and loads are
+    /// rebuilt from the new rest volumes and boundary (total mass is unchanged when the rest
+    /// volume is), contact from the new boundary, and ice–ice contact from the new parts.
+    pub fn remeshed(
+        &self,
+        rest: &[Vector3<f64>],
+        tets: Vec<[usize; 4]>,
+        parent: &[usize],
+    ) -> Result<Model, MeshError> {
+        let rows: Vec<[f64; 3]> = rest.iter().map(|x| [x.x, x.y, x.z]).collect();
+        let mesh = TetMesh::from_arrays(&rows, tets)?;
+        let old = &self.elasticity;
+        let mut elasticity = Elasticity::new(&mesh, old.material, old.model);
+        let inherit = |v: &[f64]| parent.iter().map(|&p| v[p]).collect::<Vec<f64>>();
+        elasticity.eigenstrain = inherit(&old.eigenstrain);
+        if !old.freeze_state.is_empty() {
+            elasticity.freeze_state = inherit(&old.freeze_state);
+        }
+        if !old.plastic_strain.is_empty() {
+            elasticity.plastic_strain = parent.iter().map(|&p| old.plastic_strain[p]).collect();
+        }
+        elasticity.water_bulk = old.water_bulk;
+        elasticity.water_shear = old.water_shear;
+        let mut model = Model::new(
+            mesh,
+            elasticity,
+            self.gravity,
+            &self.tractions,
+            self.damping,
+            self.dirichlet.clone(),
+        )?;
+        model.contact = self
+            .contact
+            .as_ref()
+            .map(|c| Contact::new(&model.mesh, c.obstacles.clone(), c.smoothing_velocity));
+        let [stiffness, friction, smoothing] = self.ice_contact_params;
+        let stiffness = if stiffness > 0.0 {
+            stiffness
+        } else {
+            contact::default_stiffness(&model.mesh, old.material.young())
+        };
+        model.ice_contact =
+            ice_contact::IceContact::new(&model.mesh, stiffness, friction, smoothing);
+        model.ice_contact_params = self.ice_contact_params;
+        model.freezing = self.freezing.as_ref().map(|f| freezing::Freezing {
+            arrival: inherit(&f.arrival),
+            base_eigenstrain: inherit(&f.base_eigenstrain),
+            ..f.clone()
+        });
+        model.plasticity = self.plasticity;
+        Ok(model)
     }
 
     /// Sets the time-dependent material state (freeze states, expansion) for time `t` (s).
