@@ -18,9 +18,9 @@
 //! motion, go into a uniform grid, and each boundary node of another part is looked up in it.
 //! The candidate (node, triangle) pairs are fixed for the step.
 
+use super::grid::BoxGrid;
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
-use std::collections::HashMap;
 
 /// The ice–ice contact term of a mesh with several parts.
 #[derive(Clone, Debug)]
@@ -144,30 +144,18 @@ impl IceContact {
     ) -> Vec<Candidate> {
         let vmax = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let margin = 2.0 * vmax * h + 0.5 * self.edge;
-        let cell = self.edge.max(margin);
-        let key = |p: Vector3<f64>| [0, 1, 2].map(|a| (p[a] / cell).floor() as i64);
-        let mut grid: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+        let mut grid = BoxGrid::new(self.edge.max(margin));
         for (f, face) in self.faces.iter().enumerate() {
             let pts = face.map(|i| position(rest, u, i));
             let lo = pts[0].inf(&pts[1]).inf(&pts[2]).add_scalar(-margin);
             let hi = pts[0].sup(&pts[1]).sup(&pts[2]).add_scalar(margin);
-            let (klo, khi) = (key(lo), key(hi));
-            for x in klo[0]..=khi[0] {
-                for y in klo[1]..=khi[1] {
-                    for z in klo[2]..=khi[2] {
-                        grid.entry([x, y, z]).or_default().push(f);
-                    }
-                }
-            }
+            grid.insert(&lo, &hi, f as u32);
         }
         let mut out = Vec::new();
         for &(node, area) in &self.nodes {
             let p = position(rest, u, node);
-            let Some(list) = grid.get(&key(p)) else {
-                continue;
-            };
-            for &f in list {
-                let face = self.faces[f];
+            for &f in grid.at(&p) {
+                let face = self.faces[f as usize];
                 if self.part[face[0]] == self.part[node] {
                     continue;
                 }

@@ -5,6 +5,7 @@ pub mod contact;
 pub mod dirichlet;
 pub mod elasticity;
 pub mod freezing;
+pub mod grid;
 pub mod ice_contact;
 pub mod loads;
 pub mod obstacle_mesh;

@@ -12,6 +12,7 @@
 //! Triangles go once into a uniform grid (body frame): a query visits only the cells within
 //! the search radius.
 
+use super::grid::BoxGrid;
 use crate::mesh::surface::TriSurface;
 use nalgebra::Vector3;
 use std::collections::HashMap;
@@ -29,10 +30,8 @@ pub struct ObstacleSurface {
     vertex_normals: Vec<Vector3<f64>>,
     /// Pseudo-normal (sum of the adjacent face normals, unit) of each edge, keyed (min, max).
     edge_normals: HashMap<(usize, usize), Vector3<f64>>,
-    /// Grid cell size (m).
-    cell: f64,
-    /// Triangles overlapping each grid cell.
-    grid: HashMap<[i64; 3], Vec<u32>>,
+    /// Triangles by grid cell (cell size: the mean triangle edge).
+    grid: BoxGrid,
 }
 
 impl PartialEq for ObstacleSurface {
@@ -121,58 +120,41 @@ impl ObstacleSurface {
         for n in vertex_normals.iter_mut().chain(edge_normals.values_mut()) {
             *n = n.try_normalize(0.0).unwrap_or_else(Vector3::z);
         }
-        let cell = edge_sum / (3.0 * triangles.len().max(1) as f64);
-        let mut obstacle = ObstacleSurface {
+        let mut grid = BoxGrid::new(edge_sum / (3.0 * triangles.len().max(1) as f64));
+        for (f, t) in triangles.iter().enumerate() {
+            let p = t.map(|i| vertices[i]);
+            grid.insert(
+                &p[0].inf(&p[1]).inf(&p[2]),
+                &p[0].sup(&p[1]).sup(&p[2]),
+                f as u32,
+            );
+        }
+        ObstacleSurface {
             vertices,
             triangles,
             face_normals,
             vertex_normals,
             edge_normals,
-            cell,
-            grid: HashMap::new(),
-        };
-        for (f, t) in obstacle.triangles.iter().enumerate() {
-            let p = t.map(|i| obstacle.vertices[i]);
-            let (lo, hi) = (p[0].inf(&p[1]).inf(&p[2]), p[0].sup(&p[1]).sup(&p[2]));
-            let (klo, khi) = (obstacle.key(lo), obstacle.key(hi));
-            for x in klo[0]..=khi[0] {
-                for y in klo[1]..=khi[1] {
-                    for z in klo[2]..=khi[2] {
-                        obstacle.grid.entry([x, y, z]).or_default().push(f as u32);
-                    }
-                }
-            }
+            grid,
         }
-        obstacle
-    }
-
-    fn key(&self, p: Vector3<f64>) -> [i64; 3] {
-        [0, 1, 2].map(|a| (p[a] / self.cell).floor() as i64)
     }
 
     /// The plane of the surface point closest to `x` (body frame, m), if one lies within
     /// `radius` (m).
     pub fn closest(&self, x: Vector3<f64>, radius: f64) -> Option<ClosestPlane> {
-        let (klo, khi) = (
-            self.key(x.add_scalar(-radius)),
-            self.key(x.add_scalar(radius)),
-        );
         let mut best: Option<(f64, usize, Vector3<f64>, Feature)> = None;
-        for cx in klo[0]..=khi[0] {
-            for cy in klo[1]..=khi[1] {
-                for cz in klo[2]..=khi[2] {
-                    for &f in self.grid.get(&[cx, cy, cz]).into_iter().flatten() {
-                        let f = f as usize;
-                        let t = self.triangles[f].map(|i| self.vertices[i]);
-                        let (q, feature) = closest_on_triangle(x, t);
-                        let d = (x - q).norm_squared();
-                        if d <= radius * radius && best.is_none_or(|b| d < b.0) {
-                            best = Some((d, f, q, feature));
-                        }
-                    }
-                }
+        let (lo, hi) = (x.add_scalar(-radius), x.add_scalar(radius));
+        self.grid.overlapping(&lo, &hi, |f| {
+            let f = f as usize;
+            let t = self.triangles[f].map(|i| self.vertices[i]);
+            let (q, feature) = closest_on_triangle(x, t);
+            let d = (x - q).norm_squared();
+            // Ties go to the lower triangle index, whatever order the grid yields them in.
+            // Strictly closer only: ties go to the first triangle in the grid's (fixed) order.
+            if d <= radius * radius && best.is_none_or(|b| d < b.0) {
+                best = Some((d, f, q, feature));
             }
-        }
+        });
         let (_, f, q, feature) = best?;
         let t = self.triangles[f];
         let pseudo = match feature {
@@ -189,9 +171,7 @@ impl ObstacleSurface {
         };
         let d = x - q;
         let side = if d.dot(&pseudo) < 0.0 { -1.0 } else { 1.0 };
-        let normal = (side * d)
-            .try_normalize(1e-14 * self.cell)
-            .unwrap_or(pseudo);
+        let normal = (side * d).try_normalize(1e-14 * radius).unwrap_or(pseudo);
         Some(ClosestPlane {
             point: q,
             normal,
