@@ -2,9 +2,12 @@
 
 mod common;
 use common::*;
+use icefem::fem::ElasticModel;
 use icefem::fracture::split::Fracturable;
-use icefem::mesh::box_mesh;
-use icefem::sim::Simulation;
+use icefem::fracture::{Fracture, FractureSettings};
+use icefem::mesh::{box_mesh, TetMesh};
+use icefem::physics::{Dirichlet, Region};
+use icefem::sim::{Analysis, Simulation};
 use nalgebra::Vector3;
 
 /// A 6 × 4 × 4 cm ice bar of 1 cm cells clamped at x = 0 under gravity, after 3 steps.
@@ -15,6 +18,15 @@ fn sagging_bar() -> Simulation {
         sim.step().unwrap();
     }
     sim
+}
+
+/// Continues `sim` on the split mesh `f` (no crack-face contact).
+fn continue_on(sim: &mut Simulation, f: &Fracturable) {
+    let model = sim
+        .model
+        .remeshed(&f.rest, f.tets.clone(), &f.parent, &[])
+        .unwrap();
+    sim.remesh(model, f.u.clone(), f.v.clone()).unwrap();
 }
 
 fn fracturable(sim: &Simulation) -> Fracturable {
@@ -41,8 +53,7 @@ fn a_split_node_keeps_mass_and_state_and_the_run_continues() {
         .expect("a split");
     let nodes_before = sim.model.num_nodes();
     let positions_before = sim.positions();
-    sim.remesh(&f.rest, f.tets.clone(), &f.parent, f.u.clone(), f.v.clone())
-        .unwrap();
+    continue_on(&mut sim, &f);
     assert_eq!(
         sim.model.num_nodes(),
         nodes_before + 1 + split.edge_nodes.len()
@@ -70,10 +81,11 @@ fn a_bar_cut_through_separates_and_the_pieces_do_not_interpenetrate() {
         .collect();
     assert_eq!(section.len(), 25);
     for &i in &section {
-        f.split_node(i, &Vector3::x(), 0.2, 0.2).expect("a split");
+        // The last nodes of the section may already be apart (their neighbours' splits left
+        // them joined at a point only, which a split separates): then there is nothing to do.
+        f.split_node(i, &Vector3::x(), 0.2, 0.2);
     }
-    sim.remesh(&f.rest, f.tets.clone(), &f.parent, f.u.clone(), f.v.clone())
-        .unwrap();
+    continue_on(&mut sim, &f);
     assert!((sim.model.total_mass() - mass).abs() < 1e-12 * mass);
     let ice = sim
         .model
@@ -100,14 +112,267 @@ fn a_bar_cut_through_separates_and_the_pieces_do_not_interpenetrate() {
         / free.len() as f64;
     eprintln!("free piece dropped {drop:.4} m in 0.5 s, deepest crossing of the cut {deepest:e} m");
     // Backward Euler's free fall over n steps of h is ½ g h² n (n + 1) = 1.308 m here (n = 15);
-    // without friction the piece falls almost freely: within 1 % below that, never beyond.
+    // without friction the piece falls almost freely: within 1 % below that, never beyond but
+    // for the relaxing of its own sag once cut loose (the mean node drop is not the centre of
+    // mass's; the sag of a 3 cm ice cantilever is below 1e-7 m, the bound allows 1e-6 m).
     let free_fall = 0.5 * 9.81 * (1.0f64 / 30.0).powi(2) * 15.0 * 16.0;
     assert!(
-        drop > 0.99 * free_fall && drop <= free_fall * (1.0 + 1e-9),
+        drop > 0.99 * free_fall && drop <= free_fall + 1e-6,
         "drop {drop} vs {free_fall}"
     );
     assert!(
         deepest <= 0.0,
         "a free node crossed the cut by {deepest:e} m"
     );
+}
+
+/// `mesh` without the tets whose centroid lies in the box [lo, hi] (m), unused nodes dropped.
+fn carve(mesh: TetMesh, lo: [f64; 3], hi: [f64; 3]) -> TetMesh {
+    let inside = |t: &[usize; 4]| {
+        let c = t.iter().map(|&i| mesh.rest[i]).sum::<Vector3<f64>>() / 4.0;
+        (0..3).all(|a| c[a] > lo[a] && c[a] < hi[a])
+    };
+    let kept: Vec<[usize; 4]> = mesh.tets.iter().filter(|t| !inside(t)).copied().collect();
+    let mut index = vec![usize::MAX; mesh.rest.len()];
+    let mut rest = Vec::new();
+    for t in &kept {
+        for &i in t {
+            if index[i] == usize::MAX {
+                index[i] = rest.len();
+                rest.push(mesh.rest[i]);
+            }
+        }
+    }
+    TetMesh::new(rest, kept.iter().map(|t| t.map(|i| index[i])).collect()).unwrap()
+}
+
+/// Rollers on the face x = 0 (plus two lines that stop the rigid motions across it) and the
+/// face x = `length` pulled along x at `speed` (m/s; negative pushes).
+fn pulled(length: f64, speed: f64) -> Vec<Dirichlet> {
+    let plane = |x: f64| Region {
+        min: Vector3::new(x - 1e-9, -1e30, -1e30),
+        max: Vector3::new(x + 1e-9, 1e30, 1e30),
+    };
+    let line = |axis: usize| {
+        let mut r = plane(0.0);
+        r.min[axis] = -1e-9;
+        r.max[axis] = 1e-9;
+        r
+    };
+    let bc = |region, axes, velocity: f64| Dirichlet {
+        region,
+        axes,
+        displacement: Vector3::zeros(),
+        velocity: Vector3::new(velocity, 0.0, 0.0),
+    };
+    vec![
+        bc(plane(0.0), [true, false, false], 0.0),
+        // The line y = 0 (along z) held in y, the line z = 0 (along y) held in z: each free to
+        // stretch along itself, so the section contracts and expands freely.
+        bc(line(1), [false, true, false], 0.0),
+        bc(line(2), [false, false, true], 0.0),
+        bc(plane(length), [true, false, false], speed),
+    ]
+}
+
+fn fracture_settings(toughness: f64) -> FractureSettings {
+    FractureSettings {
+        toughness,
+        max_events_per_step: 8,
+        snap: 0.2,
+        min_quality: 0.1,
+        render_gap: 1e-5,
+    }
+}
+
+/// A 6 × 3 × 3 cm ice bar of 5 mm cells (2592 tets), pulled along x at `speed` (m/s) in steps
+/// of 0.1 ms (quasi-static: the bar's P-wave transit time is 5 µs), with, when `precut`, a
+/// 1 × 1 cm square crack in the middle of the cross-section x = 3 cm (its 3 × 3 central nodes
+/// split along x; symmetric, so pulling does not bend the bar).
+fn pulled_bar(speed: f64, precut: bool, toughness: f64) -> (Simulation, Fracture) {
+    let mesh = box_mesh([0.0; 3], [0.06, 0.03, 0.03], [12, 6, 6], 6).unwrap();
+    let mut sim = simulation(
+        mesh,
+        ICE,
+        ElasticModel::Corotated,
+        [0.0; 3],
+        pulled(0.06, speed),
+        settings(Analysis::Dynamic, 1e-4),
+    );
+    let mut fracture = Fracture::new(fracture_settings(toughness), &sim.model.mesh);
+    if precut {
+        let mut f = fracturable(&sim);
+        let cut: Vec<usize> = (0..f.rest.len())
+            .filter(|&i| {
+                let p = f.rest[i];
+                let central = |c: f64| (c - 0.015).abs() < 0.006;
+                (p.x - 0.03).abs() < 1e-12 && central(p.y) && central(p.z)
+            })
+            .collect();
+        assert_eq!(cut.len(), 9);
+        for i in cut {
+            f.split_node(i, &Vector3::x(), 0.2, 0.2).expect("a split");
+        }
+        let origin = f.parent.clone();
+        fracture.rebuild(&mut sim, f, origin).unwrap();
+    }
+    (sim, fracture)
+}
+
+/// Unit rest normals of the crack faces of `fracture` on `sim`'s mesh.
+#[allow(dead_code)]
+fn crack_normals(sim: &Simulation, fracture: &Fracture) -> Vec<Vector3<f64>> {
+    fracture
+        .faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.nodes.map(|i| sim.model.mesh.rest[i]);
+            (b - a).cross(&(c - a)).normalize()
+        })
+        .collect()
+}
+
+#[test]
+fn a_pulled_bar_breaks_in_two_across_the_load() {
+    // Far from the crack, E ε grows by 1e11 Pa × (1e-3 m/s × 1e-4 s / 0.06 m) = 1.7e5 Pa per
+    // step; more at the crack's edge, where τ = 3e6 Pa is reached first.
+    let (mut sim, mut fracture) = pulled_bar(1e-3, true, 3e6);
+    let (volume, mass) = (sim.model.mesh.volume(), sim.model.total_mass());
+    let mut events = Vec::new();
+    for _ in 0..400 {
+        sim.step().unwrap();
+        events.extend(fracture.after_step(&mut sim).unwrap().events);
+        if sim.model.ice_contact.as_ref().is_some_and(|c| c.parts > 1) {
+            break;
+        }
+    }
+    let parts = sim.model.ice_contact.as_ref().map_or(1, |c| c.parts);
+    let worst = events.iter().map(|e| e.normal.x.abs()).fold(1.0, f64::min);
+    let off_plane = events
+        .iter()
+        .map(|e| (e.rest.x - 0.03).abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "{} splits, {} tets, {} crack faces, {parts} pieces, worst crack normal {:.2}° from x, \
+         farthest split {off_plane:e} m from the crack plane",
+        events.len(),
+        sim.model.mesh.num_tets(),
+        fracture.faces.len(),
+        worst.acos().to_degrees()
+    );
+    assert_eq!(parts, 2);
+    // Every split's plane within 10° of perpendicular to the load, and in the crack's plane.
+    assert!(worst > 10f64.to_radians().cos());
+    assert!(off_plane < 1e-9);
+    // Splitting keeps rest volume and mass (round-off only).
+    assert!((sim.model.mesh.volume() - volume).abs() < 1e-12 * volume);
+    assert!((sim.model.total_mass() - mass).abs() < 1e-12 * mass);
+}
+
+#[test]
+fn pushing_never_splits() {
+    // The intact bar pushed to E ε = 1e11 Pa × 50 × 1e-5 m / 0.06 m ≈ 8e8 Pa of compression
+    // (the P-wave transit takes 5 µs, the steps 0.1 ms: quasi-static): no tensile stress, no split.
+    let (mut sim, mut fracture) = pulled_bar(-1e-1, false, 3e6);
+    for step in 0..50 {
+        sim.step().unwrap();
+        let report = fracture.after_step(&mut sim).unwrap();
+        assert!(report.events.is_empty());
+        // The push starts with a jump of the end's velocity, whose lateral inertia briefly
+        // pulls the section (3.4e4 Pa in the first step, 1.1 % of τ); once that has died out the
+        // separation is round-off (mPa at 1e8 Pa of compression).
+        let bound = if step < 10 { 2e-2 * 3e6 } else { 1.0 };
+        assert!(
+            report.largest_stress < bound,
+            "step {step}: {:e} Pa",
+            report.largest_stress
+        );
+    }
+}
+
+#[test]
+fn a_closed_crack_carries_compression_without_interpenetrating() {
+    // The bar with its internal crack pushed to E ε ≈ 1.7e8 Pa: the crack's faces are pressed
+    // together and carry the load through contact between the split nodes' copies.
+    let (mut sim, _) = pulled_bar(-1e-1, true, 3e6);
+    let r = &sim.model.mesh.rest;
+    let copies: Vec<(usize, usize)> = (0..r.len())
+        .flat_map(|i| {
+            (i + 1..r.len())
+                .filter(move |&j| r[i] == r[j])
+                .map(move |j| (i, j))
+        })
+        .collect();
+    assert_eq!(copies.len(), 9);
+    let steps = 10;
+    for _ in 0..steps {
+        let report = sim.step().unwrap();
+        assert!(report.newton.iterations <= 5);
+    }
+    // The copy j (the higher index) went to the side x < 3 cm: it must stay behind x_i.
+    let x = sim.positions();
+    let overlap = copies
+        .iter()
+        .map(|&(i, j)| x[j][0] - x[i][0])
+        .fold(f64::MIN, f64::max);
+    // Penalty contact lets the faces overlap by pressure / stiffness; the pressure on the
+    // crack is about the bar's stress E ε (twice that allows for its concentration at the
+    // crack's edge). Without contact they would pass through each other freely.
+    let stress = ICE.young() * 1e-1 * 1e-4 * steps as f64 / 0.06;
+    let k = sim.model.ice_contact.as_ref().unwrap().stiffness;
+    eprintln!(
+        "closed crack at {stress:.2e} Pa: overlap {overlap:e} m (pressure / stiffness {:e} m)",
+        stress / k
+    );
+    assert!(
+        overlap < 2.0 * stress / k,
+        "crack faces overlap by {overlap:e} m"
+    );
+}
+
+#[test]
+fn a_notched_plate_cracks_at_the_notch_root_first() {
+    // A 6 × 4 × 0.5 cm plate of 5 mm cells with a notch one cell wide (x from 2.5 to 3 cm) and
+    // 1.5 cm deep cut into its edge y = 0, pulled along x quasi-statically. The notch's root
+    // corners, (2.5 or 3, 1.5) cm, concentrate the stress: the first split is at one of them.
+    let mesh = box_mesh([0.0; 3], [0.06, 0.04, 0.005], [12, 8, 1], 6).unwrap();
+    let mesh = carve(mesh, [0.025, -1.0, -1.0], [0.03, 0.015, 1.0]);
+    let mut sim = simulation(
+        mesh,
+        ICE,
+        ElasticModel::Corotated,
+        [0.0; 3],
+        pulled(0.06, 1e-3),
+        settings(Analysis::Dynamic, 1e-4),
+    );
+    let mut fracture = Fracture::new(fracture_settings(3e6), &sim.model.mesh);
+    let first = (0..200)
+        .find_map(|_| {
+            sim.step().unwrap();
+            fracture
+                .after_step(&mut sim)
+                .unwrap()
+                .events
+                .first()
+                .copied()
+        })
+        .expect("the plate cracks");
+    let root = |x: f64| Vector3::new(x, 0.015, first.rest.z);
+    let distance = (first.rest - root(0.025))
+        .norm()
+        .min((first.rest - root(0.03)).norm());
+    eprintln!(
+        "first split at {:?} cm, {:.2} mm from a root corner, normal {:?}, {:.3e} Pa, t = {:.4} s",
+        first.rest * 100.0,
+        distance * 1e3,
+        first.normal,
+        first.stress,
+        sim.state.time
+    );
+    assert!(
+        distance < 1e-9,
+        "first split {distance:e} m from the notch root"
+    );
+    // Mode I: the crack opens against the pull (the corner's stress tilts it somewhat).
+    assert!(first.normal.x.abs() > 30f64.to_radians().cos());
 }

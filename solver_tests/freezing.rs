@@ -352,6 +352,7 @@ fn paper_scene_freezes_2400_frames_with_bounded_energy() {
                 &sim.model.elasticity,
                 &sim.model.mesh.tets,
                 &sim.state.u,
+                sim.contact_forces().map_or(&[][..], |c| &c.normal[..]),
             )
             .iter()
             .map(|s| s.stress())

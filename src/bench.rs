@@ -234,7 +234,7 @@ pub fn contact_cost(
     };
     let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
     let contact = Contact::new(&mesh, vec![container], 1e-4);
-    let ice = IceContact::new(&mesh, stiffness, 0.3, 1e-4);
+    let ice = IceContact::new(&mesh, stiffness, 0.3, 1e-4, &[]);
     let mut model = Model::new(
         mesh,
         elasticity,

@@ -14,6 +14,10 @@
 //!     tets               i64 [m, 4]        hard link to the previous frame's when topology is unchanged
 //!     stress             f64 [m, 6]  Cauchy stress, Voigt order xx yy zz yz xz xy (Pa)
 //!     <field>            f64 [rows] if cols == 1, else [rows, cols]; attr center = "Cell" | "Node"
+//!     cracks/            fracture runs only: the crack faces as separate triangles
+//!         vertices       f64 [3t, 3] (m), drawn with the rendering gap where a crack is closed
+//!         triangles      i64 [t, 3]  indices into vertices
+//!         crack          i64 [t]     which crack (connected crack surface) each belongs to
 //! /stats/<column>        one resizable chunked 1-D dataset per `StepStats` field, one row per step
 //! ```
 //!
@@ -43,6 +47,8 @@ use std::str::FromStr;
 use hdf5::types::{FloatSize, IntSize, TypeDescriptor, VarLenAscii, VarLenUnicode};
 use hdf5::{Dataset, File, Group, H5Type};
 use ndarray::{ArrayView1, ArrayView2};
+
+use crate::fracture::cracks::CrackSurface;
 
 /// Version of the on-disk layout described in the module docs, stored as
 /// root attribute `format_version`. Bump when the layout changes incompatibly.
@@ -152,6 +158,9 @@ pub struct Frame<'a> {
     pub element_fields: &'a [Field<'a>],
     /// Extra per-node state (e.g. `temperature` n×1).
     pub node_fields: &'a [Field<'a>],
+    /// Crack surfaces (fracture runs), group `cracks`: `vertices` f64 [k, 3] (m),
+    /// `triangles` i64 [t, 3] (indices into `vertices`), `crack` i64 [t] (which crack).
+    pub cracks: Option<&'a CrackSurface>,
 }
 
 /// One row of `/stats` per time step. Times in seconds, energies in joules.
@@ -191,6 +200,19 @@ pub struct StepStats {
     pub t_solve: f64,
     /// Wall-clock time of the whole step (s).
     pub t_step: f64,
+    /// Elements after the step (fracture adds some).
+    pub elements: u64,
+    /// Crack faces after the step (both sides of every crack; 0 without fracture).
+    pub crack_faces: u64,
+    /// Node splits made after the step.
+    pub fracture_events: u32,
+    /// Largest separation stress v⁺ / A(n) after the step, before any split (Pa; 0 without
+    /// fracture).
+    pub separation_stress: f64,
+    /// Wall-clock time of the fracture check and splits after the step (s).
+    pub t_fracture: f64,
+    /// Wall-clock time of rebuilding the simulation on a split mesh (s).
+    pub t_remesh: f64,
 }
 
 /// How one `/stats` column is extracted from a [`StepStats`] row.
@@ -203,7 +225,7 @@ enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-const STATS_COLUMNS: [(&str, StatsColumn); 17] = [
+const STATS_COLUMNS: [(&str, StatsColumn); 23] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -227,6 +249,15 @@ const STATS_COLUMNS: [(&str, StatsColumn); 17] = [
     ("t_factorization", StatsColumn::F64(|s| s.t_factorization)),
     ("t_solve", StatsColumn::F64(|s| s.t_solve)),
     ("t_step", StatsColumn::F64(|s| s.t_step)),
+    ("elements", StatsColumn::U64(|s| s.elements)),
+    ("crack_faces", StatsColumn::U64(|s| s.crack_faces)),
+    ("fracture_events", StatsColumn::U32(|s| s.fracture_events)),
+    (
+        "separation_stress",
+        StatsColumn::F64(|s| s.separation_stress),
+    ),
+    ("t_fracture", StatsColumn::F64(|s| s.t_fracture)),
+    ("t_remesh", StatsColumn::F64(|s| s.t_remesh)),
 ];
 
 /// Everything read back from the last complete frame (owned), to restart a run.
@@ -531,6 +562,15 @@ impl OutputWriter {
                 write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
             }
         }
+        if let Some(c) = frame.cracks {
+            let cg = g
+                .create_group("cracks")
+                .ctx(&path, || format!("creating /frames/{name}/cracks"))?;
+            write_vec3(&path, &cg, "vertices", &c.vertices)?;
+            write_indices(&path, &cg, "triangles", &c.triangles)?;
+            let ids: Vec<[usize; 1]> = c.crack.iter().map(|&k| [k]).collect();
+            write_indices(&path, &cg, "crack", &ids)?;
+        }
         self.flush_stats()?;
         self.uncommitted.push(name.to_string());
         if self
@@ -621,6 +661,27 @@ impl OutputWriter {
                         ),
                     ));
                 }
+            }
+        }
+        if seen.contains(&"cracks") && frame.cracks.is_some() {
+            return Err(invalid(
+                path,
+                "a field is named \"cracks\", like the crack group",
+            ));
+        }
+        if let Some(c) = frame.cracks {
+            let k = c.vertices.len();
+            if c.crack.len() != c.triangles.len()
+                || c.triangles.as_flattened().iter().any(|&i| i >= k)
+            {
+                return Err(invalid(
+                    path,
+                    format!(
+                        "crack surface: {} triangles, {} crack ids, indices must be < {k}",
+                        c.triangles.len(),
+                        c.crack.len()
+                    ),
+                ));
             }
         }
         Ok(())
@@ -1030,23 +1091,41 @@ fn write_vec3(path: &Path, g: &Group, name: &str, v: &[[f64; 3]]) -> Result<(), 
 }
 
 fn write_tets(path: &Path, g: &Group, name: &str, tets: &[[usize; 4]]) -> Result<(), OutputError> {
-    let mut flat = Vec::with_capacity(tets.len() * 4);
-    for &i in tets.as_flattened() {
+    write_indices(path, g, name, tets)
+}
+
+/// Writes rows of N indices as i64 [rows, N] ([rows] when N = 1), compressed when large.
+fn write_indices<const N: usize>(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    rows: &[[usize; N]],
+) -> Result<(), OutputError> {
+    let mut flat = Vec::with_capacity(rows.len() * N);
+    for &i in rows.as_flattened() {
         // Indices were checked against the node count, which is a slice
         // length and so fits in i64 on every supported platform.
-        flat.push(
-            i64::try_from(i).map_err(|_| invalid(path, format!("node index {i} too large")))?,
-        );
+        flat.push(i64::try_from(i).map_err(|_| invalid(path, format!("index {i} too large")))?);
     }
-    let view = ArrayView2::from_shape((tets.len(), 4), &flat)
-        .map_err(|e| invalid(path, format!("{name}: {e}")))?;
+    let ctx = || format!("writing {}/{name} [{}, {N}]", g.name(), rows.len());
     let mut b = g.new_dataset_builder();
-    if 4 * tets.len() >= COMPRESS_MIN_VALUES {
-        b = compress(b.chunk(((FRAME_CHUNK_VALUES / 4).min(tets.len()), 4)));
+    if flat.len() >= COMPRESS_MIN_VALUES {
+        let chunk_rows = (FRAME_CHUNK_VALUES / N).min(rows.len());
+        b = compress(if N == 1 {
+            b.chunk(chunk_rows)
+        } else {
+            b.chunk((chunk_rows, N))
+        });
     }
-    b.with_data(view).create(name).ctx(path, || {
-        format!("writing {}/{name} [{}, 4]", g.name(), tets.len())
-    })?;
+    if N == 1 {
+        b.with_data(ArrayView1::from(&flat))
+            .create(name)
+            .ctx(path, ctx)?;
+    } else {
+        let view = ArrayView2::from_shape((rows.len(), N), &flat)
+            .map_err(|e| invalid(path, format!("{name}: {e}")))?;
+        b.with_data(view).create(name).ctx(path, ctx)?;
+    }
     Ok(())
 }
 
@@ -1549,6 +1628,12 @@ mod tests {
             t_factorization: 0.02,
             t_solve: 0.003,
             t_step: 0.04,
+            elements: 6 + step,
+            crack_faces: 2 * step,
+            fracture_events: 1,
+            separation_stress: 2.5e6,
+            t_fracture: 0.005,
+            t_remesh: 0.0,
         }
     }
 
@@ -1620,6 +1705,7 @@ mod tests {
             stress: &d.stress,
             element_fields: &ef,
             node_fields: &nf,
+            cracks: None,
         })
         .unwrap();
     }
@@ -1833,6 +1919,7 @@ mod tests {
                 stress: &d.stress,
                 element_fields: ef,
                 node_fields: &[],
+                cracks: None,
             });
             assert!(matches!(r, Err(OutputError::InvalidInput { .. })), "{r:?}");
         }
@@ -1850,6 +1937,7 @@ mod tests {
             stress: &d2.stress,
             element_fields: &[],
             node_fields: &[],
+            cracks: None,
         });
         assert!(matches!(r, Err(OutputError::InvalidInput { .. })), "{r:?}");
         assert_eq!(w.frame_count(), 0);

@@ -1,5 +1,7 @@
 //! A whole run: scene → simulation → HDF5 frames, with resume and clean interruption.
 
+use crate::fracture::split::Fracturable;
+use crate::fracture::{Fracture, FractureReport};
 use crate::output::{Field, Frame, OutputError, OutputWriter, RunHeader, StepStats};
 use crate::scene::{Scene, SceneError};
 use crate::sim::{SimError, Simulation, StepReport};
@@ -107,18 +109,13 @@ pub fn run(
         .clone()
         .unwrap_or_else(|| scene.output.clone());
     let mut sim = Simulation::new(scene.model.clone(), settings)?;
-    let rest: Vec<[f64; 3]> = sim
-        .model
-        .mesh
-        .rest
-        .iter()
-        .map(|p| [p.x, p.y, p.z])
-        .collect();
+    let mut fracture = scene.fracture.map(|f| Fracture::new(f, &sim.model.mesh));
     let mut writer = if options.resume {
         let (writer, frame) = OutputWriter::resume(&output)?;
-        restore(&mut sim, &output, &frame, &rest, &scene.text)?;
+        restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?;
         writer
     } else {
+        let rest = rows(&sim.model.mesh.rest);
         let header = RunHeader {
             scene_text: &scene.text,
             scene_path: &scene.path.to_string_lossy(),
@@ -127,7 +124,7 @@ pub fn run(
             tets: &sim.model.mesh.tets,
         };
         let mut writer = OutputWriter::create(&output, &header)?;
-        write_frame(&mut writer, &sim, &rest, true)?;
+        write_frame(&mut writer, &sim, fracture.as_ref(), true)?;
         writer
     };
     let total_steps = step_count(end_time, settings.dt);
@@ -135,19 +132,27 @@ pub fn run(
         output: output.clone(),
         ..Default::default()
     };
+    // Whether the mesh changed since the last frame written.
+    let mut topology_changed = false;
     while sim.state.step < total_steps {
         if interrupt.load(Ordering::SeqCst) {
             summary.interrupted = true;
             break;
         }
         let report = sim.step()?;
+        let cracked = match &mut fracture {
+            Some(f) => f.after_step(&mut sim)?,
+            None => FractureReport::default(),
+        };
+        topology_changed |= !cracked.events.is_empty();
         summary.steps += 1;
         summary.newton_iterations += report.newton.iterations as u64;
         summary.max_residual = summary.max_residual.max(report.newton.residual);
-        writer.append_stats(&stats_row(&sim, &report))?;
+        writer.append_stats(&stats_row(&sim, &report, &cracked, fracture.as_ref()))?;
         let last = sim.state.step == total_steps;
         if sim.state.step % scene.output_every == 0 || last || interrupt.load(Ordering::SeqCst) {
-            write_frame(&mut writer, &sim, &rest, false)?;
+            write_frame(&mut writer, &sim, fracture.as_ref(), topology_changed)?;
+            topology_changed = false;
         }
         progress(&Progress {
             step: sim.state.step,
@@ -163,7 +168,12 @@ pub fn run(
     Ok(summary)
 }
 
-fn stats_row(sim: &Simulation, report: &StepReport) -> StepStats {
+fn stats_row(
+    sim: &Simulation,
+    report: &StepReport,
+    cracked: &FractureReport,
+    fracture: Option<&Fracture>,
+) -> StepStats {
     let n = &report.newton;
     StepStats {
         step: sim.state.step,
@@ -183,7 +193,17 @@ fn stats_row(sim: &Simulation, report: &StepReport) -> StepStats {
         t_factorization: n.t_factorization,
         t_solve: n.t_solve,
         t_step: report.t_step,
+        elements: sim.model.mesh.num_tets() as u64,
+        crack_faces: fracture.map_or(0, |f| f.faces.len() as u64),
+        fracture_events: cracked.events.len() as u32,
+        separation_stress: cracked.largest_stress,
+        t_fracture: cracked.t_check + cracked.t_split,
+        t_remesh: cracked.t_remesh,
     }
+}
+
+fn rows(v: &[nalgebra::Vector3<f64>]) -> Vec<[f64; 3]> {
+    v.iter().map(|p| [p.x, p.y, p.z]).collect()
 }
 
 fn as_rows(v: &[f64]) -> &[[f64; 3]] {
@@ -197,9 +217,10 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
 fn write_frame(
     writer: &mut OutputWriter,
     sim: &Simulation,
-    rest: &[[f64; 3]],
-    first: bool,
+    fracture: Option<&Fracture>,
+    topology_changed: bool,
 ) -> Result<(), OutputError> {
+    let rest = rows(&sim.model.mesh.rest);
     let positions = sim.positions();
     let stress = sim.stresses();
     let eigenstrain = &sim.model.elasticity.eigenstrain;
@@ -264,17 +285,29 @@ fn write_frame(
             data: &plastic,
         });
     }
+    // Which scene element each element lies in: what a resumed fracture run rebuilds from.
+    let origin: Vec<f64> =
+        fracture.map_or(Vec::new(), |f| f.origin.iter().map(|&o| o as f64).collect());
+    if fracture.is_some() {
+        element_fields.push(Field {
+            name: "origin",
+            cols: 1,
+            data: &origin,
+        });
+    }
+    let cracks = fracture.map(|f| f.surface(sim));
     writer.write_frame(&Frame {
         step: sim.state.step,
         time: sim.state.time,
         positions: &positions,
         velocities: as_rows(&sim.state.v),
-        rest_positions: rest,
+        rest_positions: &rest,
         tets: &sim.model.mesh.tets,
-        topology_changed: first,
+        topology_changed,
         stress: &stress,
         element_fields: &element_fields,
         node_fields: &node_fields,
+        cracks: cracks.as_ref(),
     })
 }
 
@@ -285,9 +318,9 @@ fn from_voigt(v: &[f64]) -> nalgebra::Matrix3<f64> {
 
 fn restore(
     sim: &mut Simulation,
+    fracture: Option<&mut Fracture>,
     path: &Path,
     frame: &crate::output::ResumeFrame,
-    rest: &[[f64; 3]],
     scene_text: &str,
 ) -> Result<(), RunError> {
     let bad = |reason: String| RunError::Resume {
@@ -299,9 +332,29 @@ fn restore(
             "it was written from a different scene text (resume needs the same scene)".into(),
         ));
     }
-    if frame.rest_positions.as_slice() != rest || frame.tets != sim.model.mesh.tets {
-        return Err(bad("its mesh differs from the scene's mesh".into()));
+    let rest = rows(&sim.model.mesh.rest);
+    if frame.rest_positions != rest || frame.tets != sim.model.mesh.tets {
+        // A fractured run: rebuild its mesh from the scene's, element by element.
+        let Some(fracture) = fracture else {
+            return Err(bad("its mesh differs from the scene's mesh".into()));
+        };
+        let origin: Vec<usize> = frame
+            .element_fields
+            .iter()
+            .find(|f| f.0 == "origin" && f.1 == 1 && f.2.len() == frame.tets.len())
+            .map(|f| f.2.iter().map(|&o| o as usize).collect())
+            .filter(|o: &Vec<usize>| o.iter().all(|&e| e < sim.model.mesh.num_tets()))
+            .ok_or_else(|| {
+                bad("its mesh was split but the frame has no valid element field `origin`".into())
+            })?;
+        let frame_rest: Vec<nalgebra::Vector3<f64>> =
+            frame.rest_positions.iter().map(|p| (*p).into()).collect();
+        let zeros = vec![0.0; 3 * frame_rest.len()];
+        let mut split = Fracturable::new(frame_rest, frame.tets.clone(), zeros.clone(), zeros);
+        split.parent = origin.clone();
+        fracture.rebuild(sim, split, origin)?;
     }
+    let rest = rows(&sim.model.mesh.rest);
     let n = 3 * rest.len();
     let field = |name: &str| {
         frame

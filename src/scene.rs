@@ -21,6 +21,7 @@
 //! ```
 
 use crate::fem::{ElasticModel, Material};
+use crate::fracture::FractureSettings;
 use crate::mesh::surface::TriSurface;
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
 use crate::physics::contact::{default_stiffness, Shape};
@@ -107,6 +108,8 @@ pub struct SceneFile {
     pub freezing: Option<FreezingSection>,
     /// Plasticity (off if absent).
     pub plasticity: Option<PlasticitySection>,
+    /// Brittle fracture (off if absent).
+    pub fracture: Option<FractureSection>,
     /// Time stepping.
     pub time: TimeSection,
     /// Solver settings.
@@ -303,6 +306,23 @@ pub struct PlasticitySection {
     pub max_plastic_strain: Option<f64>,
 }
 
+/// `[fracture]`: O'Brien–Hodgins node splitting between steps (see `fracture::driver`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FractureSection {
+    /// Toughness as a stress (Pa): a node splits when v⁺ / A(n) exceeds it.
+    pub toughness: f64,
+    /// Most node splits per time step. Default 8.
+    pub max_events_per_step: Option<usize>,
+    /// Fraction of an edge within which a crack snaps to the edge's end, [0, 0.5). Default 0.2.
+    pub snap: Option<f64>,
+    /// Smallest radius ratio a split may create, [0, 1). Default 0.1.
+    pub min_quality: Option<f64>,
+    /// Smallest opening drawn between crack sides in the output (m). Default 1e-3 × the
+    /// mesh's bounding-box diagonal.
+    pub render_gap: Option<f64>,
+}
+
 /// `[time]`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -360,6 +380,8 @@ pub struct Scene {
     pub output_every: u64,
     /// Default output file.
     pub output: PathBuf,
+    /// Fracture, if on.
+    pub fracture: Option<FractureSettings>,
 }
 
 impl Scene {
@@ -575,6 +597,11 @@ impl Validator<'_> {
                 .transpose()?;
             model.plasticity = Some(Plasticity { elastic_limit, cap });
         }
+        let fracture = raw
+            .fracture
+            .as_ref()
+            .map(|f| self.fracture(f, &model.mesh))
+            .transpose()?;
         // Separate parts touch each other: ice–ice contact.
         let ice_friction = self.non_negative(
             "physics.ice_friction",
@@ -584,7 +611,8 @@ impl Validator<'_> {
             Some(k) => self.positive("physics.ice_stiffness", k)?,
             None => default_stiffness(&model.mesh, material.young()),
         };
-        model.ice_contact = IceContact::new(&model.mesh, ice_stiffness, ice_friction, smoothing);
+        model.ice_contact =
+            IceContact::new(&model.mesh, ice_stiffness, ice_friction, smoothing, &[]);
         model.ice_contact_params = [ice_stiffness, ice_friction, smoothing];
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),
@@ -598,6 +626,39 @@ impl Validator<'_> {
             end_time,
             output_every,
             output,
+            fracture,
+        })
+    }
+
+    fn fracture(
+        &self,
+        f: &FractureSection,
+        mesh: &TetMesh,
+    ) -> Result<FractureSettings, SceneError> {
+        let in_range = |field: &str, v: f64, hi: f64| {
+            if v.is_finite() && (0.0..hi).contains(&v) {
+                Ok(v)
+            } else {
+                Err(self.invalid(field, format!("must be in [0, {hi}), got {v}")))
+            }
+        };
+        let max_events_per_step = f.max_events_per_step.unwrap_or(8);
+        if max_events_per_step == 0 {
+            return Err(self.invalid(
+                "fracture.max_events_per_step",
+                "must be ≥ 1 (remove [fracture] to turn fracture off)",
+            ));
+        }
+        let (lo, hi) = mesh.bounding_box();
+        Ok(FractureSettings {
+            toughness: self.positive("fracture.toughness", f.toughness)?,
+            max_events_per_step,
+            snap: in_range("fracture.snap", f.snap.unwrap_or(0.2), 0.5)?,
+            min_quality: in_range("fracture.min_quality", f.min_quality.unwrap_or(0.1), 1.0)?,
+            render_gap: match f.render_gap {
+                Some(g) => self.non_negative("fracture.render_gap", g)?,
+                None => 1e-3 * (hi - lo).norm(),
+            },
         })
     }
 

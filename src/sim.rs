@@ -53,6 +53,20 @@ pub struct State {
     pub step: u64,
 }
 
+/// The state a step started from, kept so that the step can be taken again (after fracture
+/// changed the mesh at its end).
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepStart {
+    /// Displacements (m), 3 per node.
+    pub u: Vec<f64>,
+    /// Velocities (m/s), 3 per node.
+    pub v: Vec<f64>,
+    /// Plastic strain per element (empty without plasticity).
+    pub plastic_strain: Vec<nalgebra::Matrix3<f64>>,
+    /// Time (s).
+    pub time: f64,
+}
+
 /// Energies of a state (J).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Energies {
@@ -175,6 +189,8 @@ pub struct Simulation {
     candidates: Vec<Candidate>,
     /// CSC value indices of each candidate's 12 × 12 block.
     candidate_slots: Vec<Vec<u32>>,
+    /// Where the last step started (none before the first step or after a remesh).
+    start: Option<StepStart>,
 }
 
 impl Simulation {
@@ -231,6 +247,7 @@ impl Simulation {
             couplings: Vec::new(),
             candidates: Vec::new(),
             candidate_slots: Vec::new(),
+            start: None,
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
             } else {
@@ -245,28 +262,35 @@ impl Simulation {
         })
     }
 
-    /// Continues on a new mesh after a topology change (fracture): `rest`, `tets`, `parent` as
-    /// for [`Model::remeshed`], and the nodal displacements `u` and velocities `v` (3 per node)
+    /// Continues with `model` on a new mesh after a topology change (fracture; see
+    /// [`Model::remeshed`]), with the nodal displacements `u` and velocities `v` (3 per node)
     /// on the new mesh. Pattern, colouring and symbolic factorisation are rebuilt (only here);
     /// time and step count carry on.
-    pub fn remesh(
-        &mut self,
-        rest: &[nalgebra::Vector3<f64>],
-        tets: Vec<[usize; 4]>,
-        parent: &[usize],
-        u: Vec<f64>,
-        v: Vec<f64>,
-    ) -> Result<(), SimError> {
-        let model = self
-            .model
-            .remeshed(rest, tets, parent)
-            .map_err(|e| SimError::Setup(e.to_string()))?;
+    pub fn remesh(&mut self, model: Model, u: Vec<f64>, v: Vec<f64>) -> Result<(), SimError> {
         let (time, step) = (self.state.time, self.state.step);
         let mut next = Simulation::new(model, self.settings)?;
         next.model.apply_schedule(time);
         next.state = State { u, v, time, step };
         *self = next;
         Ok(())
+    }
+
+    /// Where the last step started (none before the first step and after a remesh).
+    pub fn step_start(&self) -> Option<&StepStart> {
+        self.start.as_ref()
+    }
+
+    /// Takes the last step again from `start` (the step's start state, on the current mesh
+    /// — after a remesh it must be carried over to the new nodes and elements). On failure
+    /// the state is left at `start`.
+    pub fn retake_step(&mut self, start: StepStart) -> Result<StepReport, SimError> {
+        self.state.u = start.u;
+        self.state.v = start.v;
+        self.state.time = start.time;
+        self.state.step -= 1;
+        self.model.elasticity.plastic_strain = start.plastic_strain;
+        self.model.apply_schedule(start.time);
+        self.step()
     }
 
     /// The assembled pattern (for statistics).
@@ -289,6 +313,12 @@ impl Simulation {
         let start = Instant::now();
         let (t0, u0, v0) = (self.state.time, self.state.u.clone(), self.state.v.clone());
         let plastic0 = self.model.elasticity.plastic_strain.clone();
+        self.start = Some(StepStart {
+            u: u0.clone(),
+            v: v0.clone(),
+            plastic_strain: plastic0.clone(),
+            time: t0,
+        });
         let t_end = t0 + self.settings.dt;
         if self.model.ice_contact.is_some() {
             self.prepare_ice_contact()?;

@@ -1,11 +1,13 @@
 //! Fracture criterion of O'Brien & Hodgins (1999) as the paper uses it (SPEC §3): the
 //! separation tensor of every node and its largest eigenvalue, and the conforming node split
-//! along the crack plane (`split`). (Driving both from the time loop comes next.)
+//! along the crack plane.
 //!
 //! Per element, the stress is split by its eigen-decomposition into a tensile part
 //! σ⁺ = Σ max(0, vᵢ) nᵢnᵢᵀ and a compressive part σ⁻ = Σ min(0, vᵢ) nᵢnᵢᵀ; each part exerts
-//! nodal forces by the elastic force formula, f = −V R σ R∇Nᵢ… in the world frame (σ is the
-//! corotated stress in the element's frame, R its rotation). At node i, with F± = Σₑ f± and
+//! nodal forces by the elastic force formula, f = −V R σ F*⁻ᵀ ∇Nᵢ in the world frame (σ
+//! the corotated stress in the element's frame, R its rotation, F* the natural shape of its
+//! strain offset (`fem::offset_elastic_gradient`); the
+//! linear model has R = I and no offset factor) — exactly the forces the simulation balances. At node i, with F± = Σₑ f± and
 //! m(a) = a aᵀ/|a| (0 for a = 0),
 //!
 //! ```text
@@ -18,11 +20,21 @@
 //! it with normal n. For a uniform uniaxial stress s along n, v⁺ = s A(n) exactly (tested), and
 //! on a grid A(n) is the node's cross-section h_y h_z: v⁺ is the force the node's share of the
 //! plane carries, and the criterion v⁺/A > τ is mesh independent, unlike a force threshold (see
-//! SPEC's calibration note). Only fully frozen elements contribute.
+//! SPEC's calibration note). Only ice fractures: only fully frozen elements contribute, and a
+//! node touching an element that is still (partly) water gets ς = 0 — the water's pressure,
+//! which balances the ice there, is not in the sums, and the unbalanced ice forces would
+//! otherwise read as separation all along the freezing front.
+//!
+//! `driver` applies the criterion between time steps, `split` remeshes, `cracks` extracts the
+//! crack surfaces.
 
+pub mod cracks;
+pub mod driver;
 pub mod split;
 
-use crate::fem::{elastic_strain, ElasticModel};
+pub use driver::{Fracture, FractureEvent, FractureReport, FractureSettings};
+
+use crate::fem::{elastic_strain, offset_elastic_gradient, ElasticModel};
 use crate::physics::elasticity::Elasticity;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
@@ -77,30 +89,70 @@ fn split(sigma: &Matrix3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
     (plus, minus)
 }
 
-/// Separation tensors of every node of `tets` at displacements `u` (m).
-pub fn separation(elasticity: &Elasticity, tets: &[[usize; 4]], u: &[f64]) -> Vec<NodeSeparation> {
+/// Separation tensors of every node of `tets` at displacements `u` (m), with `pressing` the
+/// contact forces on the nodes (N, 3 per node, normal and friction; empty for none).
+///
+/// Contact forces push (and rub), and they are counted with the compressive forces (in F⁻ and
+/// Σ m(f⁻)): a node on a closed crack or on a container wall is then judged like one inside
+/// the ice, where the neighbouring material supplies that push. Leaving them out would read
+/// the unbalanced compression of such a node as separation: m(F⁻) − Σ m(f⁻) is not negative
+/// semi-definite when the f⁻ are not parallel (two unit forces at right angles leave +0.41
+/// along their difference), and in the freezing container, where walls press the ice at
+/// 1e9 Pa, it read as separation stresses of 1e9–1e10 Pa on the wall nodes.
+pub fn separation(
+    elasticity: &Elasticity,
+    tets: &[[usize; 4]],
+    u: &[f64],
+    pressing: &[f64],
+) -> Vec<NodeSeparation> {
     let nodes = u.len() / 3;
     let mut f_plus = vec![Vector3::zeros(); nodes];
     let mut f_minus = vec![Vector3::zeros(); nodes];
     let mut s_plus = vec![Matrix3::zeros(); nodes];
     let mut s_minus = vec![Matrix3::zeros(); nodes];
+    for (i, f) in pressing.chunks_exact(3).enumerate() {
+        let f = Vector3::new(f[0], f[1], f[2]);
+        f_minus[i] += f;
+        s_minus[i] += m(&f);
+    }
     // Rotated shape-function gradients scaled by the volume, per (element, vertex), for A(n).
     let mut weighted_grads: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nodes];
+    let mut touches_water = vec![false; nodes];
+    // Per frozen element: its stress (element frame), rotation and force frame.
+    let mut frozen: Vec<Option<(Matrix3<f64>, Matrix3<f64>, Matrix3<f64>)>> = Vec::new();
     for (e, tet) in tets.iter().enumerate() {
         if elasticity.freeze_state.get(e).is_some_and(|s| *s < 1.0) {
+            for &i in tet {
+                touches_water[i] = true;
+            }
+            frozen.push(None);
             continue;
         }
         let rest = &elasticity.rest[e];
         let local = Elasticity::local(u, tet);
-        let (strain, r) = elastic_strain(elasticity.model, rest, &local, &elasticity.offset_of(e));
+        let offset = elasticity.offset_of(e);
+        let (strain, r) = elastic_strain(elasticity.model, rest, &local, &offset);
+        // The simulation's nodal force of a stress σ (in the element's frame) is −V R σ G ∇Nᵢ,
+        // with G = I (linear) or F*⁻ᵀ (the corotated model's multiplicative offset).
+        let frame = match elasticity.model {
+            ElasticModel::Linear => Matrix3::identity(),
+            ElasticModel::Corotated => {
+                r * offset_elastic_gradient(&offset, &Matrix3::zeros())
+                    .0
+                    .transpose()
+            }
+        };
         let (material, _) = elasticity.material_of(e);
-        let sigma = material.hooke(&strain);
+        frozen.push(Some((material.hooke(&strain), r, frame)));
+    }
+    for (e, tet) in tets.iter().enumerate() {
+        let Some((sigma, r, frame)) = frozen[e] else {
+            continue;
+        };
+        let rest = &elasticity.rest[e];
         let (plus, minus) = split(&sigma);
         for (k, &i) in tet.iter().enumerate() {
-            let g = match elasticity.model {
-                ElasticModel::Linear => rest.grads[k],
-                ElasticModel::Corotated => r * rest.grads[k],
-            } * rest.volume;
+            let g = frame * rest.grads[k] * rest.volume;
             let (fp, fm) = (
                 -(r * plus * r.transpose()) * g,
                 -(r * minus * r.transpose()) * g,
@@ -114,7 +166,11 @@ pub fn separation(elasticity: &Elasticity, tets: &[[usize; 4]], u: &[f64]) -> Ve
     }
     (0..nodes)
         .map(|i| {
-            let tensor = 0.5 * (-m(&f_plus[i]) + s_plus[i] + m(&f_minus[i]) - s_minus[i]);
+            let tensor = if touches_water[i] {
+                Matrix3::zeros()
+            } else {
+                0.5 * (-m(&f_plus[i]) + s_plus[i] + m(&f_minus[i]) - s_minus[i])
+            };
             let eig = SymmetricEigen::new(tensor);
             let k = eig.eigenvalues.imax();
             let normal: Vector3<f64> = eig.eigenvectors.column(k).into_owned();
@@ -149,7 +205,7 @@ mod tests {
             .iter()
             .flat_map(|x| (g * x).iter().copied().collect::<Vec<_>>())
             .collect();
-        let sep = separation(&el, &mesh.tets, &u);
+        let sep = separation(&el, &mesh.tets, &u, &[]);
         let node = mesh
             .rest
             .iter()

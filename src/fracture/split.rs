@@ -31,6 +31,11 @@ pub struct Fracturable {
     pub v: Vec<f64>,
     /// For each tet, the element it came from (its own index before any split).
     pub parent: Vec<usize>,
+    /// Further nodal vector fields (3 per node) carried like `u`, e.g. a step's start state.
+    pub extra: Vec<Vec<f64>>,
+    /// Smallest rest volume an edge split may create (m³; 0 by default): repeated splits in
+    /// one place would otherwise shrink elements without bound.
+    pub min_volume: f64,
 }
 
 /// What a node split did.
@@ -42,6 +47,8 @@ pub struct NodeSplit {
     pub edge_nodes: Vec<usize>,
     /// Crack faces (node triples, as on the positive side) between the two groups.
     pub crack_faces: Vec<[usize; 3]>,
+    /// Copies of nodes around the split where material was left joined at a point only.
+    pub pinched: Vec<usize>,
 }
 
 impl Fracturable {
@@ -54,15 +61,18 @@ impl Fracturable {
             u,
             v,
             parent,
+            extra: Vec::new(),
+            min_volume: 0.0,
         }
     }
 
-    fn position(&self, i: usize) -> Vector3<f64> {
+    /// Current position of node `i` (m).
+    pub fn position(&self, i: usize) -> Vector3<f64> {
         self.rest[i] + Vector3::new(self.u[3 * i], self.u[3 * i + 1], self.u[3 * i + 2])
     }
 
-    /// Adds a node interpolated at fraction `t` from `a` to `b` (rest position, displacement
-    /// and velocity) and returns it.
+    /// Adds a node interpolated at fraction `t` from `a` to `b` (rest position, displacement,
+    /// velocity and the extra fields) and returns it.
     fn interpolated_node(&mut self, a: usize, b: usize, t: f64) -> usize {
         let n = self.rest.len();
         self.rest.push(self.rest[a] * (1.0 - t) + self.rest[b] * t);
@@ -71,6 +81,10 @@ impl Fracturable {
             self.u.push(ua + t * (ub - ua));
             let (va, vb) = (self.v[3 * a + k], self.v[3 * b + k]);
             self.v.push(va + t * (vb - va));
+            for field in &mut self.extra {
+                let (xa, xb) = (field[3 * a + k], field[3 * b + k]);
+                field.push(xa + t * (xb - xa));
+            }
         }
         n
     }
@@ -90,15 +104,24 @@ impl Fracturable {
         p
     }
 
-    /// Smallest rest radius ratio of the two children of every tet with edge (a, b) split at t.
+    /// Smallest rest radius ratio of the two children of every tet with edge (a, b) split at t,
+    /// 0 if a child would be smaller than `min_volume`.
     fn split_quality(&self, a: usize, b: usize, t: f64) -> f64 {
         let p = self.rest[a] * (1.0 - t) + self.rest[b] * t;
         let at =
             |tet: &[usize; 4], from: usize| tet.map(|i| if i == from { p } else { self.rest[i] });
+        let quality = |x: [Vector3<f64>; 4]| {
+            let volume = (x[1] - x[0]).cross(&(x[2] - x[0])).dot(&(x[3] - x[0])) / 6.0;
+            if volume < self.min_volume {
+                0.0
+            } else {
+                radius_ratio(x)
+            }
+        };
         self.tets
             .iter()
             .filter(|tet| tet.contains(&a) && tet.contains(&b))
-            .map(|tet| radius_ratio(at(tet, b)).min(radius_ratio(at(tet, a))))
+            .map(|tet| quality(at(tet, b)).min(quality(at(tet, a))))
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -200,11 +223,72 @@ impl Fracturable {
                 self.tets[e] = self.tets[e].map(|x| if x == node { new_node } else { x });
             }
         }
+        // The split may leave nodes around it where material meets only at the node (or along
+        // an edge): give each such group its own copy.
+        let mut around: Vec<usize> = self
+            .tets
+            .iter()
+            .filter(|t| t.contains(&node) || t.contains(&new_node))
+            .flatten()
+            .copied()
+            .collect();
+        around.sort_unstable();
+        around.dedup();
+        let pinched = self.separate_pinched(&around);
         Some(NodeSplit {
             new_node,
             edge_nodes,
             crack_faces,
+            pinched,
         })
+    }
+
+    /// Duplicates every node of `nodes` whose tets form several groups joined only at the
+    /// node — not through a face containing it — giving each further group its own copy, and
+    /// returns the copies. Such a joint has no area and carries no load; left in place, it
+    /// would hold two pieces of a cut body together (and a node shared along an edge only has
+    /// the same defect at both of the edge's nodes).
+    pub fn separate_pinched(&mut self, nodes: &[usize]) -> Vec<usize> {
+        let mut copies = Vec::new();
+        for &node in nodes {
+            let star: Vec<usize> = (0..self.tets.len())
+                .filter(|&e| self.tets[e].contains(&node))
+                .collect();
+            // Components through faces at the node: two tets share such a face when they
+            // share two nodes besides it.
+            let mut group: Vec<usize> = (0..star.len()).collect();
+            fn root(group: &mut [usize], mut i: usize) -> usize {
+                while group[i] != i {
+                    i = group[i];
+                }
+                i
+            }
+            for a in 0..star.len() {
+                for b in a + 1..star.len() {
+                    let (ta, tb) = (self.tets[star[a]], self.tets[star[b]]);
+                    let shared = ta.iter().filter(|&&i| i != node && tb.contains(&i)).count();
+                    if shared == 2 {
+                        let (ra, rb) = (root(&mut group, a), root(&mut group, b));
+                        group[ra.max(rb)] = ra.min(rb);
+                    }
+                }
+            }
+            let roots: Vec<usize> = (0..star.len()).map(|k| root(&mut group, k)).collect();
+            let mut distinct = roots.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
+            // The group of the first tet keeps the node.
+            for &r in distinct.iter().skip(1) {
+                let copy = self.interpolated_node(node, node, 0.0);
+                for (k, &e) in star.iter().enumerate() {
+                    if roots[k] == r {
+                        self.tets[e] = self.tets[e].map(|x| if x == node { copy } else { x });
+                    }
+                }
+                copies.push(copy);
+            }
+        }
+        copies
     }
 
     /// Rest volume of every tet (m³).

@@ -49,6 +49,27 @@ impl Elasticity {
         }
     }
 
+    /// This elasticity on `mesh`, made from this one's mesh by splitting elements: new element
+    /// `e` inherits the eigenstrain, plastic strain and freeze state of element `parent[e]`.
+    pub fn remeshed(&self, mesh: &TetMesh, parent: &[usize]) -> Self {
+        let inherit = |v: &[f64]| parent.iter().map(|&p| v[p]).collect::<Vec<f64>>();
+        Elasticity {
+            rest: ElementRest::of_mesh(mesh),
+            eigenstrain: inherit(&self.eigenstrain),
+            freeze_state: if self.freeze_state.is_empty() {
+                Vec::new()
+            } else {
+                inherit(&self.freeze_state)
+            },
+            plastic_strain: if self.plastic_strain.is_empty() {
+                Vec::new()
+            } else {
+                parent.iter().map(|&p| self.plastic_strain[p]).collect()
+            },
+            ..*self
+        }
+    }
+
     /// Displacements of the four vertices of `tet` from the global dof vector `u` (m).
     pub fn local(u: &[f64], tet: &[usize; 4]) -> [Vector3<f64>; 4] {
         tet.map(|v| Vector3::new(u[3 * v], u[3 * v + 1], u[3 * v + 2]))

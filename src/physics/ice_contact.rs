@@ -14,6 +14,29 @@
 //! the normal n, the weights β and the normal force λ frozen per step (re-lagged to the end of
 //! the step like the obstacles'): its 12-dof gradient and Hessian follow from y being linear in u.
 //!
+//! The two sides of a crack that has not (yet) cut a piece off belong to one part; they must
+//! still not pass through each other. They touch where they were split apart: every copy of a
+//! split node is paired with its other copies (same rest position), and the pair's gap is
+//! g = (p − q)·m, with m the unit normal from q's side of the crack to p's (the difference of
+//! the two sides' crack-face normals at p and q, taken at the start of the step and frozen for
+//! it). Such a pair is a candidate like a node–triangle pair whose triangle is the point q
+//! (β = (1, 0, 0)). The same holds for the two sides of a crack that has cut a piece off: crack
+//! nodes are never paired with crack faces node-to-triangle. That would not do: a copy sits
+//! exactly on a vertex of the other side's faces, and which face is nearest flips with
+//! round-off where the crack bends, making the energy jump. Copies that have slid apart by more
+//! than an edge length (tangentially) no longer face each other and are not paired.
+//!
+//! A node is paired only with triangles that face it: its outward normal (the area-weighted
+//! mean of its boundary faces', at the start of the step) within 60° of the reversed
+//! triangle's. Otherwise a node on the top of one piece, next to another piece's side face,
+//! lies behind that face's plane and would be pushed as if it had gone in.
+//!
+//! Nor is a node paired with a triangle whose plane it is already behind, at the start of the
+//! step, by more than 1 % of an edge: contact starts from outside, and a node that far behind
+//! a face's plane is beside the other piece's edge, not in it — paired, it would jump into a
+//! deep "penetration" the moment its foot point slid onto the face (a jump of 5e4 J in the
+//! energy, which stalls the line search).
+//!
 //! The broad phase runs once per step: triangle boxes, grown by a margin covering the step's
 //! motion, go into a uniform grid, and each boundary node of another part is looked up in it.
 //! The candidate (node, triangle) pairs are fixed for the step.
@@ -41,6 +64,34 @@ pub struct IceContact {
     faces: Vec<[usize; 3]>,
     /// Mean boundary edge length (m): grid cell size and largest penetration counted.
     edge: f64,
+    /// Copies of split nodes on cracks, paired (see the module docs).
+    copies: Vec<CopyPair>,
+    /// Per boundary face, whether it is a crack face.
+    crack_face: Vec<bool>,
+    /// Per node, whether it lies on a crack face.
+    on_crack: Vec<bool>,
+}
+
+/// Largest cos of the angle between a node's outward normal and the reversed outward normal of
+/// a face it may touch (60°; a box corner's normal is 55° from each of its faces').
+const OPPOSED: f64 = 0.5;
+
+/// Depth behind a face's plane, as a fraction of the mean edge, beyond which a node at the
+/// start of a step is taken to be beside the other piece rather than in it. A real penetration
+/// is the penalty depth, pressure / stiffness: ~1e-5 m at 1e9 Pa, far below 1 % of an edge.
+const GATE: f64 = 1e-2;
+
+/// Two copies of a split node on the two sides of a crack.
+#[derive(Clone, Debug)]
+struct CopyPair {
+    /// The copies.
+    p: usize,
+    q: usize,
+    /// Rest crack area share of p (m²).
+    area: f64,
+    /// Crack faces (outward of their side) at p and at q.
+    faces_p: Vec<[usize; 3]>,
+    faces_q: Vec<[usize; 3]>,
 }
 
 /// A (node, triangle) pair that may touch during a step.
@@ -50,8 +101,60 @@ pub struct Candidate {
     pub node: usize,
     /// Its rest area share (m²).
     pub area: f64,
-    /// The triangle's nodes (global indices).
+    /// The triangle's nodes (global indices); all three the same node for a pair of copies
+    /// of a split node.
     pub face: [usize; 3],
+    /// For a pair of copies: the unit normal m from the other copy's side to the node's
+    /// (frozen for the step); zero otherwise.
+    pub normal: Vector3<f64>,
+}
+
+impl Candidate {
+    /// Whether this pairs two copies of a split node (the "triangle" is a point).
+    pub fn is_copy_pair(&self) -> bool {
+        self.face[0] == self.face[1]
+    }
+}
+
+/// Every two copies of a split node lying on `cracks` (crack faces, outward), once each.
+fn copy_pairs(mesh: &TetMesh, cracks: &[[usize; 3]]) -> Vec<CopyPair> {
+    use std::collections::HashMap;
+    let mut at: HashMap<usize, (f64, Vec<[usize; 3]>)> = HashMap::new();
+    for f in cracks {
+        let [a, b, c] = f.map(|i| mesh.rest[i]);
+        let share = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
+        for &i in f {
+            let entry = at.entry(i).or_default();
+            entry.0 += share;
+            entry.1.push(*f);
+        }
+    }
+    let mut by_position: HashMap<[u64; 3], Vec<usize>> = HashMap::new();
+    for &i in at.keys() {
+        let x = mesh.rest[i];
+        by_position
+            .entry([x.x.to_bits(), x.y.to_bits(), x.z.to_bits()])
+            .or_default()
+            .push(i);
+    }
+    let mut pairs = Vec::new();
+    for group in by_position.values_mut() {
+        group.sort_unstable();
+        for (k, &p) in group.iter().enumerate() {
+            for &q in &group[k + 1..] {
+                pairs.push(CopyPair {
+                    p,
+                    q,
+                    area: 0.5 * (at[&p].0 + at[&q].0),
+                    faces_p: at[&p].1.clone(),
+                    faces_q: at[&q].1.clone(),
+                });
+            }
+        }
+    }
+    // Deterministic order (the hash maps' is not): runs must repeat bit for bit.
+    pairs.sort_unstable_by_key(|c| (c.p, c.q));
+    pairs
 }
 
 /// Connected components of the mesh (nodes joined by tets): part index per node and count.
@@ -92,15 +195,17 @@ fn position(rest: &[Vector3<f64>], u: &[f64], i: usize) -> Vector3<f64> {
 }
 
 impl IceContact {
-    /// The term for `mesh`, or `None` if the mesh is one part (then nothing is paid).
+    /// The term for `mesh` with the given crack faces (node triples, any order), or `None` if
+    /// the mesh is one part without cracks (then nothing is paid).
     pub fn new(
         mesh: &TetMesh,
         stiffness: f64,
         friction: f64,
         smoothing_velocity: f64,
+        cracks: &[[usize; 3]],
     ) -> Option<Self> {
         let (part, parts) = parts(mesh);
-        if parts < 2 {
+        if parts < 2 && cracks.is_empty() {
             return None;
         }
         let boundary = mesh.boundary_faces();
@@ -119,7 +224,24 @@ impl IceContact {
             .filter(|&i| area[i] > 0.0)
             .map(|i| (i, area[i]))
             .collect();
-        let faces = boundary.iter().map(|f| f.nodes).collect();
+        let faces: Vec<[usize; 3]> = boundary.iter().map(|f| f.nodes).collect();
+        let copies = copy_pairs(mesh, cracks);
+        let sorted = |f: &[usize; 3]| {
+            let mut k = *f;
+            k.sort_unstable();
+            k
+        };
+        let crack_keys: std::collections::HashSet<[usize; 3]> = cracks.iter().map(sorted).collect();
+        let crack_face: Vec<bool> = faces
+            .iter()
+            .map(|f| crack_keys.contains(&sorted(f)))
+            .collect();
+        let mut on_crack = vec![false; mesh.num_nodes()];
+        for f in cracks {
+            for &i in f {
+                on_crack[i] = true;
+            }
+        }
         Some(IceContact {
             part,
             parts,
@@ -129,12 +251,15 @@ impl IceContact {
             nodes,
             faces,
             edge,
+            copies,
+            crack_face,
+            on_crack,
         })
     }
 
     /// Candidate pairs for a step from displacement `u` with velocities `v` over `h` seconds:
-    /// node and triangle of different parts whose boxes, grown by the motion of the step plus
-    /// half an edge, overlap.
+    /// node and triangle of different parts, or across a crack (see the module docs), whose
+    /// boxes, grown by the motion of the step plus half an edge, overlap.
     pub fn candidates(
         &self,
         rest: &[Vector3<f64>],
@@ -145,26 +270,73 @@ impl IceContact {
         let vmax = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let margin = 2.0 * vmax * h + 0.5 * self.edge;
         let mut grid = BoxGrid::new(self.edge.max(margin));
+        // Unit normals of the faces and (area-weighted mean) of the boundary nodes, now.
+        let mut face_normal = Vec::with_capacity(self.faces.len());
+        let mut node_normal = vec![Vector3::zeros(); self.part.len()];
         for (f, face) in self.faces.iter().enumerate() {
             let pts = face.map(|i| position(rest, u, i));
             let lo = pts[0].inf(&pts[1]).inf(&pts[2]).add_scalar(-margin);
             let hi = pts[0].sup(&pts[1]).sup(&pts[2]).add_scalar(margin);
             grid.insert(&lo, &hi, f as u32);
+            let cross = (pts[1] - pts[0]).cross(&(pts[2] - pts[0]));
+            for &i in face {
+                node_normal[i] += cross;
+            }
+            face_normal.push(cross.try_normalize(0.0).unwrap_or_default());
         }
         let mut out = Vec::new();
         for &(node, area) in &self.nodes {
             let p = position(rest, u, node);
             for &f in grid.at(&p) {
                 let face = self.faces[f as usize];
-                if self.part[face[0]] == self.part[node] {
+                // Crack against crack is the copies' business (see the module docs); a node
+                // only meets faces that face it.
+                if self.part[face[0]] == self.part[node]
+                    || (self.on_crack[node] && self.crack_face[f as usize])
+                    || node_normal[node].normalize().dot(&face_normal[f as usize]) > -OPPOSED
+                {
                     continue;
                 }
                 let pts = face.map(|i| position(rest, u, i));
                 let lo = pts[0].inf(&pts[1]).inf(&pts[2]).add_scalar(-margin);
                 let hi = pts[0].sup(&pts[1]).sup(&pts[2]).add_scalar(margin);
-                if (0..3).all(|a| p[a] >= lo[a] && p[a] <= hi[a]) {
-                    out.push(Candidate { node, area, face });
+                // A node already well behind the face's plane now is not touching that face
+                // but beside the other piece's edge (see the module docs).
+                let behind = (p - pts[0]).dot(&face_normal[f as usize]) < -GATE * self.edge;
+                if !behind && (0..3).all(|a| p[a] >= lo[a] && p[a] <= hi[a]) {
+                    out.push(Candidate {
+                        node,
+                        area,
+                        face,
+                        normal: Vector3::zeros(),
+                    });
                 }
+            }
+        }
+        // Copies of split nodes, after the node–triangle pairs (which come in runs by node).
+        let outward = |faces: &[[usize; 3]]| -> Vector3<f64> {
+            faces
+                .iter()
+                .map(|f| {
+                    let [a, b, c] = f.map(|i| position(rest, u, i));
+                    (b - a)
+                        .cross(&(c - a))
+                        .try_normalize(0.0)
+                        .unwrap_or_default()
+                })
+                .sum()
+        };
+        for pair in &self.copies {
+            // Copies that slid apart by more than an edge no longer face each other.
+            let d = position(rest, u, pair.p) - position(rest, u, pair.q);
+            let m = (outward(&pair.faces_q) - outward(&pair.faces_p)).try_normalize(0.0);
+            if let Some(normal) = m.filter(|m| (d - d.dot(m) * m).norm() < self.edge) {
+                out.push(Candidate {
+                    node: pair.p,
+                    area: pair.area,
+                    face: [pair.q; 3],
+                    normal,
+                });
             }
         }
         out
@@ -175,6 +347,15 @@ impl IceContact {
     /// edge length behind it (then it is not touching this face).
     pub fn gap(&self, rest: &[Vector3<f64>], u: &[f64], c: &Candidate) -> Option<(f64, [f64; 12])> {
         let p = position(rest, u, c.node);
+        if c.is_copy_pair() {
+            let g = (p - position(rest, u, c.face[0])).dot(&c.normal);
+            let mut grad_g = [0.0; 12];
+            for k in 0..3 {
+                grad_g[k] = c.normal[k];
+                grad_g[3 + k] = -c.normal[k];
+            }
+            return Some((g, grad_g));
+        }
         let [a, b, cc] = c.face.map(|i| position(rest, u, i));
         let cross = (b - a).cross(&(cc - a));
         let area2 = cross.norm();
@@ -206,7 +387,7 @@ impl IceContact {
     /// runs of one node against one other part, and in each run picks the face the node is
     /// closest to (smallest |g| among faces it projects into): a node near an edge of the other
     /// body also lies "behind" the side face there, and only the nearest face tells whether it
-    /// is inside. Calls `f(index into candidates, gap, ∇g)` for each chosen pair.
+    /// is inside. Pairs of copies of a split node each count on their own. Calls `f(index into candidates, gap, ∇g)` for each chosen pair.
     pub fn for_each_closest(
         &self,
         rest: &[Vector3<f64>],
@@ -216,6 +397,13 @@ impl IceContact {
     ) {
         let mut start = 0;
         while start < candidates.len() {
+            if candidates[start].is_copy_pair() {
+                if let Some((g, dg)) = self.gap(rest, u, &candidates[start]) {
+                    f(start, g, &dg);
+                }
+                start += 1;
+                continue;
+            }
             let key = (candidates[start].node, self.part[candidates[start].face[0]]);
             let mut end = start + 1;
             while end < candidates.len()

@@ -116,27 +116,20 @@ impl Model {
     /// is the element of this model that new element `e` came from, and inherits its
     /// eigenstrain, plastic strain, freeze state and freezing schedule. Mass and loads are
     /// rebuilt from the new rest volumes and boundary (total mass is unchanged when the rest
-    /// volume is), contact from the new boundary, and ice–ice contact from the new parts.
+    /// volume is), contact from the new boundary, and ice–ice contact from the new parts and
+    /// the crack faces `cracks` (node triples; their two sides must not interpenetrate).
     pub fn remeshed(
         &self,
         rest: &[Vector3<f64>],
         tets: Vec<[usize; 4]>,
         parent: &[usize],
+        cracks: &[[usize; 3]],
     ) -> Result<Model, MeshError> {
         let rows: Vec<[f64; 3]> = rest.iter().map(|x| [x.x, x.y, x.z]).collect();
         let mesh = TetMesh::from_arrays(&rows, tets)?;
         let old = &self.elasticity;
-        let mut elasticity = Elasticity::new(&mesh, old.material, old.model);
+        let elasticity = old.remeshed(&mesh, parent);
         let inherit = |v: &[f64]| parent.iter().map(|&p| v[p]).collect::<Vec<f64>>();
-        elasticity.eigenstrain = inherit(&old.eigenstrain);
-        if !old.freeze_state.is_empty() {
-            elasticity.freeze_state = inherit(&old.freeze_state);
-        }
-        if !old.plastic_strain.is_empty() {
-            elasticity.plastic_strain = parent.iter().map(|&p| old.plastic_strain[p]).collect();
-        }
-        elasticity.water_bulk = old.water_bulk;
-        elasticity.water_shear = old.water_shear;
         let mut model = Model::new(
             mesh,
             elasticity,
@@ -156,7 +149,7 @@ impl Model {
             contact::default_stiffness(&model.mesh, old.material.young())
         };
         model.ice_contact =
-            ice_contact::IceContact::new(&model.mesh, stiffness, friction, smoothing);
+            ice_contact::IceContact::new(&model.mesh, stiffness, friction, smoothing, cracks);
         model.ice_contact_params = self.ice_contact_params;
         model.freezing = self.freezing.as_ref().map(|f| freezing::Freezing {
             arrival: inherit(&f.arrival),

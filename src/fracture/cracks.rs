@@ -1,0 +1,209 @@
+//! The crack surfaces of a fractured mesh, for output and counting.
+//!
+//! A crack face is a boundary face of the current mesh that does not lie on the boundary of
+//! the scene's mesh. Every current element lies inside the scene element it came from (its
+//! origin: splits only subdivide), so a boundary face of it lies on the original boundary
+//! exactly when it is coplanar with one of its origin's faces that was a boundary face. This
+//! holds however often a crack face has been subdivided since, which pairing the two sides of
+//! a crack by their shared rest positions would not.
+//!
+//! Faces are grouped into cracks (connected components through shared edges, the two sides of
+//! a crack being joined where the crack ends at shared edge nodes). For rendering, crack faces
+//! that are closed or interpenetrate are drawn pulled back into their own element by half a
+//! small gap each, so the two sides of a closed crack do not coincide (the paper's rendering
+//! gap); an open crack is drawn where it is.
+
+use crate::mesh::TetMesh;
+use nalgebra::Vector3;
+use std::collections::HashMap;
+
+/// Boundary planes of the scene's mesh, per scene element.
+#[derive(Clone, Debug)]
+pub struct OriginalBoundary {
+    /// For each scene element, (point, unit outward normal) of its boundary faces.
+    planes: Vec<Vec<(Vector3<f64>, Vector3<f64>)>>,
+    /// Length below which a rest distance counts as zero (m).
+    tolerance: f64,
+}
+
+impl OriginalBoundary {
+    /// Records the boundary of the scene's mesh.
+    pub fn new(mesh: &TetMesh) -> Self {
+        let mut planes = vec![Vec::new(); mesh.num_tets()];
+        for face in mesh.boundary_faces() {
+            let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
+            let normal = (b - a).cross(&(c - a)).normalize();
+            planes[face.tet].push((a, normal));
+        }
+        let (lo, hi) = mesh.bounding_box();
+        OriginalBoundary {
+            planes,
+            // Rest positions of split nodes are convex combinations of scene nodes: coplanar
+            // points are off the plane by round-off only (1e-16 relative per operation).
+            tolerance: 1e-9 * (hi - lo).norm(),
+        }
+    }
+
+    /// Whether the rest triangle `points` of an element lying in scene element `origin` is on
+    /// the scene mesh's boundary.
+    pub fn on_boundary(&self, origin: usize, points: &[Vector3<f64>; 3]) -> bool {
+        self.planes[origin].iter().any(|(p, n)| {
+            points
+                .iter()
+                .all(|x| (x - p).dot(n).abs() <= self.tolerance)
+        })
+    }
+}
+
+/// One crack face.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CrackFace {
+    /// Its nodes, ordered so the normal points out of its element.
+    pub nodes: [usize; 3],
+    /// The element it bounds.
+    pub element: usize,
+    /// Which crack (connected crack surface) it belongs to, 0-based.
+    pub crack: usize,
+}
+
+/// The crack faces of `mesh`, whose element `e` came from scene element `origin[e]`.
+pub fn crack_faces(
+    mesh: &TetMesh,
+    origin: &[usize],
+    original: &OriginalBoundary,
+) -> Vec<CrackFace> {
+    let mut faces: Vec<CrackFace> = mesh
+        .boundary_faces()
+        .into_iter()
+        .filter(|f| !original.on_boundary(origin[f.tet], &f.nodes.map(|i| mesh.rest[i])))
+        .map(|f| CrackFace {
+            nodes: f.nodes,
+            element: f.tet,
+            crack: 0,
+        })
+        .collect();
+    // Cracks: components of faces sharing an edge, nodes identified by rest position (the two
+    // copies of a split node coincide at rest).
+    let mut canonical: HashMap<[u64; 3], usize> = HashMap::new();
+    let mut key_of = |i: usize| {
+        let x = mesh.rest[i];
+        let key = [x.x.to_bits(), x.y.to_bits(), x.z.to_bits()];
+        *canonical.entry(key).or_insert(i)
+    };
+    let mut union = UnionFind::new(faces.len());
+    let mut edge_owner: HashMap<(usize, usize), usize> = HashMap::new();
+    for (k, face) in faces.iter().enumerate() {
+        let c = face.nodes.map(&mut key_of);
+        for j in 0..3 {
+            let (a, b) = (c[j], c[(j + 1) % 3]);
+            let owner = *edge_owner.entry((a.min(b), a.max(b))).or_insert(k);
+            union.join(owner, k);
+        }
+    }
+    let mut ids: HashMap<usize, usize> = HashMap::new();
+    for k in 0..faces.len() {
+        let root = union.root(k);
+        let next = ids.len();
+        faces[k].crack = *ids.entry(root).or_insert(next);
+    }
+    faces
+}
+
+/// Crack faces as triangles for rendering: three own vertices per face (m), displaced where
+/// the crack is closed (see the module docs), and each triangle's crack.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CrackSurface {
+    /// Vertex positions (m), three per triangle.
+    pub vertices: Vec<[f64; 3]>,
+    /// Vertex indices of each triangle.
+    pub triangles: Vec<[usize; 3]>,
+    /// Crack of each triangle.
+    pub crack: Vec<usize>,
+}
+
+impl CrackSurface {
+    /// Triangles of `faces` of a mesh with rest positions `rest` at the current `positions`
+    /// (m); `gap` (m) is the smallest opening drawn between the two sides of a crack.
+    pub fn new(
+        faces: &[CrackFace],
+        rest: &[Vector3<f64>],
+        positions: &[Vector3<f64>],
+        gap: f64,
+    ) -> Self {
+        // Copies of a split node share its rest position.
+        let mut copies: HashMap<[u64; 3], Vec<usize>> = HashMap::new();
+        for face in faces {
+            for &i in &face.nodes {
+                let x = rest[i];
+                let list = copies
+                    .entry([x.x.to_bits(), x.y.to_bits(), x.z.to_bits()])
+                    .or_default();
+                if !list.contains(&i) {
+                    list.push(i);
+                }
+            }
+        }
+        let mut surface = CrackSurface::default();
+        for face in faces {
+            let [a, b, c] = face.nodes.map(|i| positions[i]);
+            let cross = (b - a).cross(&(c - a));
+            let normal = if cross.norm() > 0.0 {
+                cross.normalize()
+            } else {
+                Vector3::zeros()
+            };
+            // Opening: how far the other side's copies of the face's nodes lie beyond it along
+            // its outward normal (largest over its nodes; 0 where the crack ends at shared
+            // nodes, negative where the sides interpenetrate).
+            let mut opening = f64::NEG_INFINITY;
+            for &i in &face.nodes {
+                let x = rest[i];
+                for &j in &copies[&[x.x.to_bits(), x.y.to_bits(), x.z.to_bits()]] {
+                    if j != i {
+                        opening = opening.max((positions[j] - positions[i]).dot(&normal));
+                    }
+                }
+            }
+            if opening == f64::NEG_INFINITY {
+                opening = 0.0; // no copies: the crack is closed at this face
+            }
+            let shift = -0.5 * (gap - opening).max(0.0) * normal;
+            let first = surface.vertices.len();
+            for x in [a, b, c] {
+                let y = x + shift;
+                surface.vertices.push([y.x, y.y, y.z]);
+            }
+            surface.triangles.push([first, first + 1, first + 2]);
+            surface.crack.push(face.crack);
+        }
+        surface
+    }
+}
+
+/// Disjoint sets over 0..n with path halving.
+struct UnionFind {
+    parent: Vec<usize>,
+}
+
+impl UnionFind {
+    fn new(n: usize) -> Self {
+        UnionFind {
+            parent: (0..n).collect(),
+        }
+    }
+
+    fn root(&mut self, mut i: usize) -> usize {
+        while self.parent[i] != i {
+            self.parent[i] = self.parent[self.parent[i]];
+            i = self.parent[i];
+        }
+        i
+    }
+
+    fn join(&mut self, a: usize, b: usize) {
+        let (ra, rb) = (self.root(a), self.root(b));
+        if ra != rb {
+            self.parent[ra.max(rb)] = ra.min(rb);
+        }
+    }
+}

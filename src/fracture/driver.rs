@@ -1,0 +1,336 @@
+//! Fracture between time steps: find the nodes whose separation exceeds the toughness, split
+//! them one at a time, and continue the simulation on the new mesh.
+//!
+//! After every converged step: the separation tensor of every node is evaluated at the step's
+//! displacements; while some node's v⁺/A(n) exceeds the toughness τ and fewer than
+//! `max_events_per_step` splits were made, the worst such node is split along the plane with
+//! its separation eigenvector as normal, and the separation of the new mesh is recomputed
+//! (splitting a node relieves it and its neighbours: the crack faces no longer pull on each
+//! other). A node whose plane cannot split its star (all its tets on one side) is skipped for
+//! the rest of the step. The state is not re-equilibrated between the splits of one step — the
+//! next step does that — so the cap bounds how far one step's cracks run ahead of the
+//! mechanics; what exceeds it is reconsidered after the next step. Only then is the
+//! simulation rebuilt on the new mesh (mass, loads, contact, sparsity pattern, symbolic
+//! factorisation), once per step with splits.
+//!
+//! A split that would cut off a piece smaller than the scene's mean element volume is not
+//! made (the node is skipped): such a chip is below what the mesh resolves, and a free piece
+//! of one or two tiny tets, held only by stiff contact, stalls the Newton solve.
+//!
+//! A node on an existing crack (a crack tip, or a face of one) is split like any other: its
+//! star is one side of the crack only, so the new plane continues the crack from there.
+
+use super::cracks::{crack_faces, CrackFace, CrackSurface, OriginalBoundary};
+use super::separation;
+use super::split::Fracturable;
+use crate::mesh::TetMesh;
+use crate::physics::ice_contact::parts;
+use crate::sim::{SimError, Simulation, StepStart};
+use nalgebra::Vector3;
+use std::time::Instant;
+
+/// Largest angle (rad) between a node's separation plane and the crack it lies on for the
+/// split to continue that crack in the crack's plane (20°).
+pub const CONTINUE_ANGLE: f64 = 20.0 * std::f64::consts::PI / 180.0;
+
+/// Smallest element a split may create, as a fraction of the scene's mean element volume: a
+/// crossing that would cut a smaller one snaps instead (as for poor quality).
+pub const MIN_ELEMENT_FRACTION: f64 = 1e-2;
+
+/// Separation tensors of `sim`'s nodes in the equilibrium its last step found: with the
+/// plastic strains the step was solved with (the return mapping after it relaxes the stress
+/// and unbalances the nodes by up to ~10 % of their forces, which the formula reads as
+/// separation), and the contact forces counted as pressing (see [`separation`]).
+fn equilibrium_separation(sim: &mut Simulation) -> Vec<super::NodeSeparation> {
+    let pressing: Vec<f64> = sim.contact_forces().map_or(Vec::new(), |c| {
+        c.normal
+            .iter()
+            .zip(&c.friction)
+            .map(|(n, f)| n + f)
+            .collect()
+    });
+    let mut solved_with = match sim.step_start() {
+        Some(start) if !start.plastic_strain.is_empty() => start.plastic_strain.clone(),
+        _ => Vec::new(),
+    };
+    let model = &mut sim.model;
+    let swap = !solved_with.is_empty();
+    if swap {
+        std::mem::swap(&mut model.elasticity.plastic_strain, &mut solved_with);
+    }
+    let sep = separation(&model.elasticity, &model.mesh.tets, &sim.state.u, &pressing);
+    if swap {
+        std::mem::swap(&mut model.elasticity.plastic_strain, &mut solved_with);
+    }
+    sep
+}
+
+/// Fracture parameters of a scene (`[fracture]`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FractureSettings {
+    /// Toughness τ as a stress (Pa): a node fractures when v⁺ / A(n) > τ (see `fracture`).
+    pub toughness: f64,
+    /// Most node splits per time step.
+    pub max_events_per_step: usize,
+    /// Fraction of an edge within which a crack plane's crossing snaps to the edge's end,
+    /// in [0, 0.5).
+    pub snap: f64,
+    /// Smallest rest radius ratio (3 × inradius / circumradius, 1 for a regular tet) a split
+    /// may create, in [0, 1).
+    pub min_quality: f64,
+    /// Smallest opening drawn between the two sides of a crack in the crack-surface output
+    /// (m).
+    pub render_gap: f64,
+}
+
+/// One node split.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FractureEvent {
+    /// Rest position of the split node (m).
+    pub rest: Vector3<f64>,
+    /// Crack plane normal (unit, current configuration).
+    pub normal: Vector3<f64>,
+    /// The node's v⁺ / A(n) (Pa).
+    pub stress: f64,
+}
+
+/// What the fracture check after one step did and what it cost.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FractureReport {
+    /// Node splits made, in order.
+    pub events: Vec<FractureEvent>,
+    /// Largest v⁺ / A(n) before any split (Pa).
+    pub largest_stress: f64,
+    /// Wall-clock time of the first separation evaluation (s): the cost of a step without
+    /// fracture.
+    pub t_check: f64,
+    /// Wall-clock time of the splits and the separation re-evaluations between them (s).
+    pub t_split: f64,
+    /// Wall-clock time of rebuilding the simulation on the new meshes (s).
+    pub t_remesh: f64,
+    /// Wall-clock time of taking the step again on the new meshes (s).
+    pub t_resolve: f64,
+    /// Whether taking the step again on a split mesh failed (the split was kept with the
+    /// step's end state, and no further splits were made in this step).
+    pub resolve_failed: bool,
+}
+
+/// Fracture state of a run: the settings, where every element came from, and the crack faces.
+#[derive(Clone, Debug)]
+pub struct Fracture {
+    /// The parameters.
+    pub settings: FractureSettings,
+    /// For each current element, the scene element it lies in.
+    pub origin: Vec<usize>,
+    /// The scene mesh's boundary, to tell crack faces from it.
+    original: OriginalBoundary,
+    /// Crack faces of the current mesh.
+    pub faces: Vec<CrackFace>,
+    /// Smallest rest volume of a piece a split may cut off (m³): the scene's mean element
+    /// volume.
+    min_piece_volume: f64,
+}
+
+impl Fracture {
+    /// Fracture of a run on the scene mesh `mesh` (nothing split yet).
+    pub fn new(settings: FractureSettings, mesh: &TetMesh) -> Self {
+        Fracture {
+            settings,
+            origin: (0..mesh.num_tets()).collect(),
+            original: OriginalBoundary::new(mesh),
+            faces: Vec::new(),
+            min_piece_volume: mesh.volume() / mesh.num_tets() as f64,
+        }
+    }
+
+    /// Continues `sim` on the split mesh `f` (whose `parent`s index `sim`'s elements), whose
+    /// element `e` lies in scene element `origin[e]`: finds its crack faces and rebuilds the
+    /// simulation with them (their sides in contact).
+    pub fn rebuild(
+        &mut self,
+        sim: &mut Simulation,
+        f: Fracturable,
+        origin: Vec<usize>,
+    ) -> Result<(), SimError> {
+        let invalid = |e: crate::mesh::MeshError| SimError::Setup(format!("split mesh: {e}"));
+        let mesh = TetMesh::new(f.rest, f.tets).map_err(invalid)?;
+        self.origin = origin;
+        self.faces = crack_faces(&mesh, &self.origin, &self.original);
+        let cracks: Vec<[usize; 3]> = self.faces.iter().map(|c| c.nodes).collect();
+        let model = sim
+            .model
+            .remeshed(&mesh.rest, mesh.tets, &f.parent, &cracks)
+            .map_err(invalid)?;
+        sim.remesh(model, f.u, f.v)
+    }
+
+    /// Number of distinct cracks.
+    pub fn cracks(&self) -> usize {
+        self.faces.iter().map(|f| f.crack + 1).max().unwrap_or(0)
+    }
+
+    /// The crack faces as triangles at the simulation's current positions.
+    pub fn surface(&self, sim: &Simulation) -> CrackSurface {
+        let positions: Vec<Vector3<f64>> = sim
+            .positions()
+            .iter()
+            .map(|p| Vector3::new(p[0], p[1], p[2]))
+            .collect();
+        CrackSurface::new(
+            &self.faces,
+            &sim.model.mesh.rest,
+            &positions,
+            self.settings.render_gap,
+        )
+    }
+
+    /// The crack normal for splitting `node` of `f` with separation normal `normal`: a node on
+    /// an existing crack whose faces there (area-weighted) are within [`CONTINUE_ANGLE`] of
+    /// the plane continues that crack in its plane. The separation eigenvector at a crack
+    /// front is resolved by one ring of elements only; without this, mesh-scale noise in it
+    /// (10–20° at a bar's corner) kinks a straight crack and chips off single elements.
+    fn continued(&self, f: &Fracturable, node: usize, normal: &Vector3<f64>) -> Vector3<f64> {
+        let star: Vec<usize> = (0..f.tets.len())
+            .filter(|&e| f.tets[e].contains(&node))
+            .collect();
+        let mut sum = Vector3::zeros();
+        for &e in &star {
+            let t = f.tets[e];
+            for face in [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]] {
+                let nodes = face.map(|k| t[k]);
+                if !nodes.contains(&node) {
+                    continue;
+                }
+                let mut key = nodes;
+                key.sort_unstable();
+                let shared = star
+                    .iter()
+                    .any(|&o| o != e && key.iter().all(|i| f.tets[o].contains(i)));
+                let points = nodes.map(|i| f.rest[i]);
+                if shared || self.original.on_boundary(self.origin[f.parent[e]], &points) {
+                    continue;
+                }
+                let [a, b, c] = nodes.map(|i| f.position(i));
+                let area_normal = 0.5 * (b - a).cross(&(c - a));
+                // Both sides of the crack count, oriented alike.
+                sum += area_normal * area_normal.dot(normal).signum();
+            }
+        }
+        if sum.norm() > 0.0 && sum.normalize().dot(normal).abs() > CONTINUE_ANGLE.cos() {
+            sum.normalize()
+        } else {
+            *normal
+        }
+    }
+
+    /// Rest volume of the smallest piece (connected part) of `f` (m³).
+    fn smallest_piece(&self, f: &Fracturable) -> f64 {
+        let rows: Vec<_> = f.rest.clone();
+        let mesh = TetMesh {
+            rest: rows,
+            tets: f.tets.clone(),
+        };
+        let (part, count) = parts(&mesh);
+        let mut volume = vec![0.0; count];
+        for (tet, v) in f.tets.iter().zip(f.volumes()) {
+            volume[part[tet[0]] as usize] += v;
+        }
+        volume.into_iter().fold(f64::INFINITY, f64::min)
+    }
+
+    /// Fractures `sim` after a converged step (see the module docs).
+    pub fn after_step(&mut self, sim: &mut Simulation) -> Result<FractureReport, SimError> {
+        let tau = self.settings.toughness;
+        let mut report = FractureReport::default();
+        let mut skipped: Vec<bool> = Vec::new();
+        while report.events.len() < self.settings.max_events_per_step {
+            let clock = Instant::now();
+            let sep = equilibrium_separation(sim);
+            let model = &sim.model;
+            if report.events.is_empty() && skipped.is_empty() {
+                report.largest_stress = sep.iter().map(|s| s.stress()).fold(0.0, f64::max);
+                report.t_check = clock.elapsed().as_secs_f64();
+            } else {
+                report.t_split += clock.elapsed().as_secs_f64();
+            }
+            skipped.resize(sep.len(), false);
+            let worst = sep
+                .iter()
+                .enumerate()
+                .filter(|(i, s)| !skipped[*i] && s.stress() > tau)
+                .max_by(|a, b| a.1.stress().total_cmp(&b.1.stress()));
+            let Some((node, &s)) = worst else { break };
+            let clock = Instant::now();
+            let mut f = Fracturable::new(
+                model.mesh.rest.clone(),
+                model.mesh.tets.clone(),
+                sim.state.u.clone(),
+                sim.state.v.clone(),
+            );
+            let start = sim.step_start().cloned();
+            f.min_volume = MIN_ELEMENT_FRACTION * self.min_piece_volume;
+            if let Some(start) = &start {
+                f.extra = vec![start.u.clone(), start.v.clone()];
+            }
+            let normal = self.continued(&f, node, &s.normal);
+            let split = f
+                .split_node(node, &normal, self.settings.snap, self.settings.min_quality)
+                .filter(|_| self.smallest_piece(&f) >= self.min_piece_volume);
+            report.t_split += clock.elapsed().as_secs_f64();
+            if split.is_none() {
+                skipped[node] = true;
+                continue;
+            }
+            report.events.push(FractureEvent {
+                rest: f.rest[node],
+                normal,
+                stress: s.stress(),
+            });
+            let origin = f.parent.iter().map(|&p| self.origin[p]).collect();
+            let clock = Instant::now();
+            let end_plastic = |plastic: &[nalgebra::Matrix3<f64>]| -> Vec<nalgebra::Matrix3<f64>> {
+                if plastic.is_empty() {
+                    Vec::new()
+                } else {
+                    f.parent.iter().map(|&p| plastic[p]).collect()
+                }
+            };
+            let start = start.map(|st| StepStart {
+                plastic_strain: end_plastic(&st.plastic_strain),
+                u: f.extra[0].clone(),
+                v: f.extra[1].clone(),
+                time: st.time,
+            });
+            self.rebuild(sim, f, origin)?;
+            report.t_remesh += clock.elapsed().as_secs_f64();
+            if let Some(start) = start {
+                let clock = Instant::now();
+                if !self.retake(sim, start) {
+                    report.resolve_failed = true;
+                    report.t_resolve += clock.elapsed().as_secs_f64();
+                    break;
+                }
+                report.t_resolve += clock.elapsed().as_secs_f64();
+            }
+        }
+        Ok(report)
+    }
+
+    /// Takes the step that ended in `sim`'s current state again from `start` on the split
+    /// mesh; if that fails, keeps the split mesh with the step's end state unchanged (as
+    /// O'Brien & Hodgins do for every split) and returns false.
+    fn retake(&self, sim: &mut Simulation, start: StepStart) -> bool {
+        let (u, v, time) = (sim.state.u.clone(), sim.state.v.clone(), sim.state.time);
+        let plastic = sim.model.elasticity.plastic_strain.clone();
+        if sim.retake_step(start).is_ok() {
+            return true;
+        }
+        sim.state.u = u;
+        sim.state.v = v;
+        sim.state.time = time;
+        sim.state.step += 1;
+        sim.model.elasticity.plastic_strain = plastic;
+        sim.model.apply_schedule(time);
+        false
+    }
+}
