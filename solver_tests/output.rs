@@ -319,3 +319,51 @@ fn killed_process_leaves_a_readable_file_that_resumes() {
     assert_eq!(step, target);
     assert!((time - target as f64 * 0.002).abs() < 1e-9);
 }
+
+#[test]
+fn fractured_run_resumes_bit_identically_on_its_split_mesh() {
+    // scenes/pulled_bar.toml cut short: the bar cracks in steps 6, 7 and 8; the run is cut
+    // after step 7 (mesh split, crack faces in contact) and resumed to step 12.
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/pulled_bar.toml"
+    ))
+    .unwrap()
+    .replace("end_time = 0.004           # 40 steps", "end_time = 0.0012");
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene_from(dir.path(), &text);
+    let never = AtomicBool::new(false);
+    let opts = |path: &Path, end: Option<f64>, resume: bool| RunOptions {
+        output: Some(path.to_path_buf()),
+        end_time: end,
+        resume,
+        ..Default::default()
+    };
+    let full = dir.path().join("full.h5");
+    run(&scene, &opts(&full, None, false), &never, |_| {}).unwrap();
+    let half = dir.path().join("half.h5");
+    run(&scene, &opts(&half, Some(0.0007), false), &never, |_| {}).unwrap();
+    let elements = |path: &Path| stats_column(path, "elements");
+    let at_cut = *elements(&half).last().unwrap();
+    assert!(
+        at_cut > 768.0,
+        "no split before the cut ({at_cut} elements)"
+    );
+    run(&scene, &opts(&half, None, true), &never, |_| {}).unwrap();
+    assert!(
+        elements(&full).last().unwrap() > &at_cut,
+        "no split after the cut"
+    );
+    assert_eq!(
+        last_frame(&full),
+        last_frame(&half),
+        "resumed end state differs"
+    );
+    for column in ["elements", "crack_faces", "fracture_events", "energy"] {
+        assert_eq!(
+            stats_column(&full, column),
+            stats_column(&half, column),
+            "/stats/{column}"
+        );
+    }
+}

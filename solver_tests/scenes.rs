@@ -346,3 +346,33 @@ fn cli_exits_non_zero_with_a_message_on_bad_input() {
         .unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("bad.toml"));
 }
+
+#[test]
+fn fracture_section_defaults_and_errors() {
+    let with = |body: &str| GOOD.replace("[time]", &format!("[fracture]\n{body}\n[time]"));
+    let scene = parse(&with("toughness = 3e6")).unwrap();
+    let f = scene.fracture.expect("fracture on");
+    assert_eq!(
+        (f.toughness, f.max_events_per_step, f.snap, f.min_quality),
+        (3e6, 8, 0.2, 0.1)
+    );
+    // Default rendering gap: 1e-3 × the mesh's bounding-box diagonal.
+    let diagonal = (0.1f64 * 0.1 + 2.0 * 0.02 * 0.02).sqrt();
+    assert!((f.render_gap - 1e-3 * diagonal).abs() < 1e-15);
+    assert!(parse(GOOD).unwrap().fracture.is_none());
+    for (body, field) in [
+        ("toughness = -1.0", "fracture.toughness"),
+        ("toughness = nan", "fracture.toughness"),
+        ("toughness = 3e6\nsnap = 0.5", "fracture.snap"),
+        ("toughness = 3e6\nmin_quality = 1.0", "fracture.min_quality"),
+        (
+            "toughness = 3e6\nmax_events_per_step = 0",
+            "fracture.max_events_per_step",
+        ),
+        ("toughness = 3e6\nrender_gap = -1e-3", "fracture.render_gap"),
+        ("toughness = 3e6\nstrength = 1.0", "strength"),
+        ("snap = 0.1", "toughness"),
+    ] {
+        error_of(&with(body), Some(field));
+    }
+}

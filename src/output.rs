@@ -213,6 +213,8 @@ pub struct StepStats {
     pub t_fracture: f64,
     /// Wall-clock time of rebuilding the simulation on a split mesh (s).
     pub t_remesh: f64,
+    /// Wall-clock time of taking the step again on the split meshes (s).
+    pub t_resolve: f64,
 }
 
 /// How one `/stats` column is extracted from a [`StepStats`] row.
@@ -225,7 +227,7 @@ enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-const STATS_COLUMNS: [(&str, StatsColumn); 23] = [
+const STATS_COLUMNS: [(&str, StatsColumn); 24] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -258,6 +260,7 @@ const STATS_COLUMNS: [(&str, StatsColumn); 23] = [
     ),
     ("t_fracture", StatsColumn::F64(|s| s.t_fracture)),
     ("t_remesh", StatsColumn::F64(|s| s.t_remesh)),
+    ("t_resolve", StatsColumn::F64(|s| s.t_resolve)),
 ];
 
 /// Everything read back from the last complete frame (owned), to restart a run.
@@ -1634,6 +1637,7 @@ mod tests {
             separation_stress: 2.5e6,
             t_fracture: 0.005,
             t_remesh: 0.0,
+            t_resolve: 0.0,
         }
     }
 

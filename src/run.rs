@@ -199,6 +199,7 @@ fn stats_row(
         separation_stress: cracked.largest_stress,
         t_fracture: cracked.t_check + cracked.t_split,
         t_remesh: cracked.t_remesh,
+        t_resolve: cracked.t_resolve,
     }
 }
 

@@ -1,17 +1,21 @@
-//! Fracture between time steps: find the nodes whose separation exceeds the toughness, split
-//! them one at a time, and continue the simulation on the new mesh.
+//! Fracture between time steps: find the node whose separation most exceeds the toughness,
+//! split it, take the step again on the new mesh, and repeat.
 //!
-//! After every converged step: the separation tensor of every node is evaluated at the step's
-//! displacements; while some node's v⁺/A(n) exceeds the toughness τ and fewer than
+//! After every converged step the separation tensor of every node is evaluated in the step's
+//! equilibrium. While some node's v⁺/A(n) exceeds the toughness τ and fewer than
 //! `max_events_per_step` splits were made, the worst such node is split along the plane with
-//! its separation eigenvector as normal, and the separation of the new mesh is recomputed
-//! (splitting a node relieves it and its neighbours: the crack faces no longer pull on each
-//! other). A node whose plane cannot split its star (all its tets on one side) is skipped for
-//! the rest of the step. The state is not re-equilibrated between the splits of one step — the
-//! next step does that — so the cap bounds how far one step's cracks run ahead of the
-//! mechanics; what exceeds it is reconsidered after the next step. Only then is the
-//! simulation rebuilt on the new mesh (mass, loads, contact, sparsity pattern, symbolic
-//! factorisation), once per step with splits.
+//! its separation eigenvector as normal, the simulation is rebuilt on the new mesh (mass,
+//! loads, contact with the crack's sides, sparsity pattern and symbolic factorisation: only
+//! here), and the step is taken again from its start state carried over to the new mesh. The
+//! next worst node is then found in that new equilibrium. Re-solving matters: after a split
+//! the old displacements are no longer in equilibrium, and a node one element away from the
+//! crack, loaded only because the crack has not yet relaxed the stress around it, would
+//! otherwise split next and send the crack off its plane (a bar pulled apart breaks along a
+//! clean plane with it, and chips off corners without). The cap bounds the work of one step;
+//! what exceeds it is reconsidered after the next step. If taking the step again fails, the
+//! split is kept with the step's end state (as O'Brien & Hodgins keep every split) and no
+//! further splits are made in that step. A node whose plane cannot split its star (all its
+//! tets on one side) is skipped for the rest of the step.
 //!
 //! A split that would cut off a piece smaller than the scene's mean element volume is not
 //! made (the node is skipped): such a chip is below what the mesh resolves, and a free piece

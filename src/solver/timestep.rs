@@ -93,11 +93,12 @@ impl IceStep<'_> {
         let mut frames = vec![None; self.candidates.len()];
         self.term
             .for_each_closest(rest, u, self.candidates, |m, g, dg| {
-                if g < 0.0 {
+                if let Some((_, slope, _)) = self.term.penalty(g) {
                     let n = Vector3::new(dg[0], dg[1], dg[2]);
                     let beta = [1, 2, 3]
                         .map(|k| -n.dot(&Vector3::new(dg[3 * k], dg[3 * k + 1], dg[3 * k + 2])));
-                    frames[m] = Some((n, beta, -self.term.stiffness * self.candidates[m].area * g));
+                    let normal_force = -self.term.stiffness * self.candidates[m].area * slope;
+                    frames[m] = Some((n, beta, normal_force));
                 }
             });
         frames
@@ -202,22 +203,23 @@ impl IceStep<'_> {
             self.anticipated = vec![false; self.candidates.len()];
         }
         let mut now = vec![false; self.candidates.len()];
-        self.term
-            .for_each_closest(rest, u, self.candidates, |m, g, _| now[m] = g < 0.0);
+        let term = self.term;
+        term.for_each_closest(rest, u, self.candidates, |m, g, _| {
+            now[m] = term.penalty(g).is_some()
+        });
         let mut changed = false;
         let anticipated = &mut self.anticipated;
-        self.term
-            .for_each_closest(rest, trial, self.candidates, |m, g, _| {
-                if g < 0.0 && !now[m] && !anticipated[m] {
-                    anticipated[m] = true;
-                    changed = true;
-                }
-            });
+        term.for_each_closest(rest, trial, self.candidates, |m, g, _| {
+            if term.penalty(g).is_some() && !now[m] && !anticipated[m] {
+                anticipated[m] = true;
+                changed = true;
+            }
+        });
         changed
     }
 
-    /// Adds k Aₚ g ∇g for the anticipated pairs at a positive gap g at `u` (see
-    /// `Potential::add_anticipated_gradient`); returns whether there was any.
+    /// Adds k Aₚ (g − δ) ∇g for the anticipated pairs still short of the penalty's onset δ at
+    /// `u` (see `Potential::add_anticipated_gradient`); returns whether there was any.
     pub fn add_anticipated_gradient(
         &self,
         rest: &[nalgebra::Vector3<f64>],
@@ -230,12 +232,13 @@ impl IceStep<'_> {
         let mut any = false;
         self.term
             .for_each_closest(rest, u, self.candidates, |m, gap, dg| {
-                if gap >= 0.0 && self.anticipated[m] {
+                if self.term.penalty(gap).is_none() && self.anticipated[m] {
                     let c = &self.candidates[m];
                     let ka = self.term.stiffness * c.area;
                     let nodes = IceContact::pair_nodes(c);
+                    let beyond = gap - self.term.onset();
                     for (k, dgk) in dg.iter().enumerate() {
-                        gradient[3 * nodes[k / 3] + k % 3] += ka * gap * dgk;
+                        gradient[3 * nodes[k / 3] + k % 3] += ka * beyond * dgk;
                     }
                     any = true;
                 }
@@ -259,27 +262,33 @@ impl IceStep<'_> {
                 let c = &self.candidates[m];
                 let ka = self.term.stiffness * c.area;
                 let nodes = IceContact::pair_nodes(c);
-                if gap < 0.0 {
-                    energy += 0.5 * ka * gap * gap;
+                let penalty = self.term.penalty(gap);
+                if let Some((phi, slope, _)) = penalty {
+                    energy += ka * phi;
                     for (k, dgk) in dg.iter().enumerate() {
                         let d = 3 * nodes[k / 3] + k % 3;
                         if let Some(gr) = gradient.as_deref_mut() {
-                            gr[d] += ka * gap * dgk;
+                            gr[d] += ka * slope * dgk;
                         }
                         if let Some(f) = forces.as_deref_mut() {
-                            f.normal[d] -= ka * gap * dgk;
+                            f.normal[d] -= ka * slope * dgk;
                         }
                     }
                 }
-                let active = gap < 0.0 || anticipated.get(m).is_some_and(|a| *a);
+                // Anticipated pairs take the full stiffness (they are about to be pressed).
+                let curvature = match penalty {
+                    Some((_, _, c2)) if !anticipated.get(m).is_some_and(|a| *a) => c2,
+                    None if !anticipated.get(m).is_some_and(|a| *a) => 0.0,
+                    _ => 1.0,
+                };
                 if let (Some(hs), Some(slots), true) =
-                    (hessian.as_deref_mut(), self.slots.get(m), active)
+                    (hessian.as_deref_mut(), self.slots.get(m), curvature > 0.0)
                 {
                     for r in 0..12 {
                         for col in 0..12 {
                             let s = slots[12 * r + col];
                             if s != u32::MAX {
-                                hs[s as usize] += ka * dg[r] * dg[col];
+                                hs[s as usize] += ka * curvature * dg[r] * dg[col];
                             }
                         }
                     }
