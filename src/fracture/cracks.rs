@@ -101,10 +101,10 @@ pub fn crack_faces(
         }
     }
     let mut ids: HashMap<usize, usize> = HashMap::new();
-    for k in 0..faces.len() {
+    for (k, face) in faces.iter_mut().enumerate() {
         let root = union.root(k);
         let next = ids.len();
-        faces[k].crack = *ids.entry(root).or_insert(next);
+        face.crack = *ids.entry(root).or_insert(next);
     }
     faces
 }

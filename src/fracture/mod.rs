@@ -118,14 +118,11 @@ pub fn separation(
     // Rotated shape-function gradients scaled by the volume, per (element, vertex), for A(n).
     let mut weighted_grads: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nodes];
     let mut touches_water = vec![false; nodes];
-    // Per frozen element: its stress (element frame), rotation and force frame.
-    let mut frozen: Vec<Option<(Matrix3<f64>, Matrix3<f64>, Matrix3<f64>)>> = Vec::new();
     for (e, tet) in tets.iter().enumerate() {
         if elasticity.freeze_state.get(e).is_some_and(|s| *s < 1.0) {
             for &i in tet {
                 touches_water[i] = true;
             }
-            frozen.push(None);
             continue;
         }
         let rest = &elasticity.rest[e];
@@ -143,13 +140,7 @@ pub fn separation(
             }
         };
         let (material, _) = elasticity.material_of(e);
-        frozen.push(Some((material.hooke(&strain), r, frame)));
-    }
-    for (e, tet) in tets.iter().enumerate() {
-        let Some((sigma, r, frame)) = frozen[e] else {
-            continue;
-        };
-        let rest = &elasticity.rest[e];
+        let sigma = material.hooke(&strain);
         let (plus, minus) = split(&sigma);
         for (k, &i) in tet.iter().enumerate() {
             let g = frame * rest.grads[k] * rest.volume;
