@@ -275,6 +275,79 @@ pub fn contact_cost(
     })
 }
 
+/// Cost of fracture after one step (seconds): the check every step pays, and one split.
+#[derive(Clone, Debug, Default)]
+pub struct FractureCost {
+    /// Tetrahedra before the split.
+    pub tets: usize,
+    /// The step itself.
+    pub t_step: f64,
+    /// Separation tensors of all nodes (every step pays this).
+    pub t_check: f64,
+    /// The split itself (conforming edge splits, pinch and piece checks).
+    pub t_split: f64,
+    /// Rebuilding the simulation on the split mesh (mass, contact, pattern, symbolic
+    /// factorisation).
+    pub t_remesh: f64,
+    /// Taking the step again on the split mesh.
+    pub t_resolve: f64,
+}
+
+/// A 10 cm ice cube of ≈ `tets` tets, its face x = 0 held in x and the face x = 10 cm pulled
+/// to a strain of 1e-4 in one step of 1/30 s (σ ≈ 1e7 Pa > τ = 3e6 Pa), then one split.
+pub fn fracture_cost(tets: usize) -> Result<FractureCost, SimError> {
+    let setup = |e: crate::mesh::MeshError| SimError::Setup(e.to_string());
+    let c = cells_for(tets);
+    let mesh = box_mesh([0.0; 3], [0.1; 3], [c, c, c], 6).map_err(setup)?;
+    let face = |x: f64, velocity: f64, axes: [bool; 3]| Dirichlet {
+        region: Region {
+            min: Vector3::new(x - 1e-9, -1.0, -1.0),
+            max: Vector3::new(x + 1e-9, 1.0, 1.0),
+        },
+        axes,
+        displacement: Vector3::zeros(),
+        velocity: Vector3::new(velocity, 0.0, 0.0),
+    };
+    let dt = 1.0 / 30.0;
+    let dirichlet = vec![
+        face(0.0, 0.0, [true; 3]),
+        face(0.1, 1e-4 * 0.1 / dt, [true, false, false]),
+    ];
+    let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
+    let model =
+        Model::new(mesh, elasticity, Vector3::zeros(), &[], None, dirichlet).map_err(setup)?;
+    let settings = frame_steps(LinearSolverKind::Cholesky, FillOrdering::Auto);
+    let mut sim = Simulation::new(model, settings)?;
+    let tets = sim.model.mesh.num_tets();
+    let t_step = sim.step()?.t_step;
+    let mut fracture = crate::fracture::Fracture::new(
+        crate::fracture::FractureSettings {
+            toughness: 3e6,
+            max_events_per_step: 1,
+            snap: 0.2,
+            min_quality: 0.1,
+            render_gap: 0.0,
+        },
+        &sim.model.mesh,
+    );
+    let r = fracture.after_step(&mut sim)?;
+    if r.events.len() != 1 {
+        return Err(SimError::Setup(format!(
+            "expected one split, got {} (largest separation {:e} Pa)",
+            r.events.len(),
+            r.largest_stress
+        )));
+    }
+    Ok(FractureCost {
+        tets,
+        t_step,
+        t_check: r.t_check,
+        t_split: r.t_split,
+        t_remesh: r.t_remesh,
+        t_resolve: r.t_resolve,
+    })
+}
+
 /// Peak resident set size of this process (bytes), from /proc/self/status (Linux).
 pub fn peak_memory() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;

@@ -67,6 +67,10 @@ enum Command {
         /// assembly, for two cubes stacked in a container (planes, then a triangle mesh).
         #[arg(long)]
         contact: bool,
+        /// Instead: the cost of the fracture check per step and of one split (remesh and
+        /// re-solve), on a pulled ice cube.
+        #[arg(long)]
+        fracture: bool,
     },
     /// Print what an icefem HDF5 file holds.
     Info {
@@ -101,9 +105,12 @@ fn main() {
             ordering,
             single,
             contact,
+            fracture,
         } => {
             if contact {
                 contact_bench(&tets, steps, repeats)
+            } else if fracture {
+                fracture_bench(&tets, repeats)
             } else {
                 bench_command(&tets, steps, repeats, solver, ordering, single)
             }
@@ -161,6 +168,38 @@ impl From<OrderingArg> for FillOrdering {
 }
 
 const BENCH_FIELDS: usize = 14;
+
+/// `icefem bench --fracture`: prints a table of the fracture check and split costs.
+fn fracture_bench(sizes: &[usize], repeats: usize) -> Result<()> {
+    println!("icefem bench --fracture: a corotated 10 cm ice cube pulled to σ ≈ 1e7 Pa in one step of 1/30 s (τ = 3e6 Pa), then one split; Cholesky");
+    println!(
+        "{} threads; medians of {repeats} runs\n",
+        rayon::current_num_threads()
+    );
+    println!("| tets | step (ms) | fracture check (ms) | split (ms) | remesh (ms) | step re-solved (ms) |");
+    println!("|---|---|---|---|---|---|");
+    for &tets in sizes {
+        let mut runs = Vec::new();
+        for _ in 0..repeats.max(1) {
+            runs.push(bench::fracture_cost(tets)?);
+        }
+        let median = |f: &dyn Fn(&bench::FractureCost) -> f64| {
+            let mut v: Vec<f64> = runs.iter().map(f).collect();
+            v.sort_by(f64::total_cmp);
+            1e3 * v[v.len() / 2]
+        };
+        println!(
+            "| {} | {:.1} | {:.2} | {:.2} | {:.1} | {:.1} |",
+            runs[0].tets,
+            median(&|c| c.t_step),
+            median(&|c| c.t_check),
+            median(&|c| c.t_split),
+            median(&|c| c.t_remesh),
+            median(&|c| c.t_resolve),
+        );
+    }
+    Ok(())
+}
 
 /// `icefem bench --contact`: prints a table of contact cost per step.
 fn contact_bench(sizes: &[usize], steps: usize, repeats: usize) -> Result<()> {

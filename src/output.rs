@@ -1491,7 +1491,7 @@ pub fn describe(path: &Path) -> Result<String, OutputError> {
     let _ = writeln!(s, "  scene path     : {scene_path}");
     let _ = writeln!(
         s,
-        "  mesh           : {} nodes, {} elements",
+        "  initial mesh   : {} nodes, {} elements",
         count(&mesh, "rest_positions"),
         count(&mesh, "tets")
     );
@@ -1544,7 +1544,14 @@ pub fn describe(path: &Path) -> Result<String, OutputError> {
             .ctx(path, || format!("listing /frames/{}", last.name))?;
         for name in names {
             let Ok(ds) = g.dataset(&name) else {
-                let _ = writeln!(s, "    {name:<16} (not a dataset)");
+                let triangles = g
+                    .dataset(&format!("{name}/triangles"))
+                    .ok()
+                    .and_then(|t| t.shape().first().copied());
+                let _ = match triangles {
+                    Some(t) => writeln!(s, "    {name:<16} group: {t} crack triangles"),
+                    None => writeln!(s, "    {name:<16} (not a dataset)"),
+                };
                 continue;
             };
             let dtype = ds
