@@ -353,7 +353,11 @@ fn paper_scene_freezes_2400_frames_with_bounded_energy() {
                 &sim.model.mesh.tets,
                 &sim.state.u,
                 &sim.contact_forces().map_or(Vec::new(), |c| {
-                    c.normal.iter().zip(&c.friction).map(|(n, f)| n + f).collect()
+                    c.normal
+                        .iter()
+                        .zip(&c.friction)
+                        .map(|(n, f)| n + f)
+                        .collect()
                 }),
             )
             .iter()
