@@ -259,7 +259,12 @@ pub fn minimize(
         report.t_solve += stats.t_solve;
         // Contacts the step would create: put their stiffness into the Hessian and solve again
         // (a few rounds at most; each marks pairs for good within this solve).
-        for _ in 0..3 {
+        let rounds = if iteration < ANTICIPATION_ITERATIONS {
+            3
+        } else {
+            0
+        };
+        for _ in 0..rounds {
             work.trial.copy_from_slice(u);
             for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
                 work.trial[d] += dx;
@@ -289,7 +294,9 @@ pub fn minimize(
         // Anticipated contacts: solve again with their force in the right-hand side too, and
         // take that step if it still descends.
         work.trial.copy_from_slice(&work.gradient);
-        if potential.add_anticipated_gradient(u, &mut work.trial) {
+        if iteration < ANTICIPATION_ITERATIONS
+            && potential.add_anticipated_gradient(u, &mut work.trial)
+        {
             let mut rhs = std::mem::take(&mut work.rhs);
             for (r, &d) in rhs.iter_mut().zip(dofs.free_dofs()) {
                 *r = -work.trial[d];
@@ -345,6 +352,13 @@ pub fn minimize(
     }
     unreachable!("the loop returns at iteration max_iterations")
 }
+
+/// Newton iterations during which contacts a step would create are anticipated (see
+/// `Potential::anticipate`). Past them Newton runs plain: anticipation can cycle — a pair that
+/// the full step would press is stiffened, the stiffened step leaves it open, the next full
+/// step presses it again — and two crack sides at rest against each other kept a step at a
+/// 20 N residual for 50 iterations that way.
+const ANTICIPATION_ITERATIONS: usize = 10;
 
 /// The smallest residual (N) double precision can resolve at `u`: forces are stiffness times
 /// displacement, and a displacement of magnitude |u| is stored to ε|u|, so the residual cannot
