@@ -238,9 +238,8 @@ impl Fracture {
 
     /// Rest volume of the smallest piece (connected part) of `f` (m³).
     fn smallest_piece(&self, f: &Fracturable) -> f64 {
-        let rows: Vec<_> = f.rest.clone();
         let mesh = TetMesh {
-            rest: rows,
+            rest: f.rest.clone(),
             tets: f.tets.clone(),
         };
         let (part, count) = parts(&mesh);
@@ -305,15 +304,15 @@ impl Fracture {
             });
             let origin = f.parent.iter().map(|&p| self.origin[p]).collect();
             let clock = Instant::now();
-            let end_plastic = |plastic: &[nalgebra::Matrix3<f64>]| -> Vec<nalgebra::Matrix3<f64>> {
-                if plastic.is_empty() {
-                    Vec::new()
-                } else {
-                    f.parent.iter().map(|&p| plastic[p]).collect()
-                }
-            };
+            // The step's start state on the new mesh: nodal fields were carried through the
+            // split (`extra`), element fields follow the parent element.
             let start = start.map(|st| StepStart {
-                plastic_strain: end_plastic(&st.plastic_strain),
+                plastic_strain: f
+                    .parent
+                    .iter()
+                    .filter_map(|&p| st.plastic_strain.get(p))
+                    .copied()
+                    .collect(),
                 u: f.extra[0].clone(),
                 v: f.extra[1].clone(),
                 time: st.time,
