@@ -3,11 +3,12 @@
 //!
 //! For node p and triangle (a, b, c) with unit normal n (outward of its part) and foot point
 //! q = βₐa + β_b b + β_c c of p on the triangle's plane, the gap is g = (p − q)·n. While
-//! −depth < g < 0 and β is inside the triangle, the node has penetrated the other part and
-//! stores ½ k Aₚ g² (Aₚ: the node's rest boundary-area share). The gap's gradient is exactly
+//! −depth < g < δ and β is inside the triangle, the node touches the other part and stores
+//! k Aₚ φ(g) (Aₚ: the node's rest boundary-area share; φ the C² penalty of
+//! [`IceContact::penalty`], ½ g² shifted by the small onset δ). The gap's gradient is exactly
 //! ∇g = (n, −βₐ n, −β_b n, −β_c n) (moving the triangle moves its plane affinely; its rotation
 //! changes g only at second order because p − q ∥ n), so the force couples all four nodes and
-//! the 12 × 12 Jacobian k Aₚ ∇g ∇gᵀ is exact up to the O(g) curvature of the normal.
+//! the 12 × 12 Jacobian k Aₚ φ″ ∇g ∇gᵀ is exact up to the O(g) curvature of the normal.
 //!
 //! Friction between the pieces is the smoothed Coulomb potential of the obstacles (see
 //! `contact`), on the slip of the node relative to the foot point, y = T (Δuₚ − Σ βᵢ Δuᵢ), with
@@ -45,7 +46,7 @@ use super::grid::BoxGrid;
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
 
-/// The ice–ice contact term of a mesh with several parts.
+/// The ice–ice contact term of a mesh with several parts or with cracks.
 #[derive(Clone, Debug)]
 pub struct IceContact {
     /// Part (connected component) of every node.
