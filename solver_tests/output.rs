@@ -354,6 +354,9 @@ fn fractured_run_resumes_bit_identically_on_its_split_mesh() {
         elements(&full).last().unwrap() > &at_cut,
         "no split after the cut"
     );
+    // The crack surfaces get an XDMF sidecar of their own (triangles with a crack index).
+    let cracks = std::fs::read_to_string(full.with_extension("cracks.xdmf")).unwrap();
+    assert!(cracks.contains("TopologyType=\"Triangle\"") && cracks.contains("Name=\"crack\""));
     assert_eq!(
         last_frame(&full),
         last_frame(&half),

@@ -1316,6 +1316,66 @@ fn xdmf_attribute_type(shape: &[usize]) -> &'static str {
     }
 }
 
+/// The crack surfaces of the frames that have any, as a temporal collection (`icefem_cracks`:
+/// triangles, with the crack index per triangle) for `RUN.cracks.xdmf`; empty without
+/// fracture.
+fn xdmf_cracks(h5_path: &Path, h5_name: &str, frames: &Group) -> Result<String, OutputError> {
+    let mut xml = String::new();
+    let ind = "          ";
+    for entry in list_frames(h5_path, frames)?
+        .into_iter()
+        .filter(|f| f.complete)
+    {
+        let g = frames
+            .group(&entry.name)
+            .ctx(h5_path, || format!("opening /frames/{}", entry.name))?;
+        let Ok(cracks) = g.group("cracks") else {
+            continue;
+        };
+        let (Ok(triangles), Ok(vertices), Ok(crack)) = (
+            cracks.dataset("triangles"),
+            cracks.dataset("vertices"),
+            cracks.dataset("crack"),
+        ) else {
+            continue;
+        };
+        let count = triangles.shape().first().copied().unwrap_or(0);
+        let items = [&triangles, &vertices, &crack].map(|d| xdmf_data_item(d, h5_name, ind));
+        let [Some(t), Some(v), Some(c)] = items else {
+            continue;
+        };
+        if count == 0 {
+            continue;
+        }
+        let time = read_attr::<f64>(h5_path, &g, "time")?;
+        let _ = writeln!(
+            xml,
+            "      <Grid Name=\"cracks_{}\" GridType=\"Uniform\">",
+            entry.name
+        );
+        let _ = writeln!(xml, "        <Time Value=\"{time:e}\"/>");
+        let _ = writeln!(
+            xml,
+            "        <Topology TopologyType=\"Triangle\" NumberOfElements=\"{count}\" NodesPerElement=\"3\">"
+        );
+        xml.push_str(&t);
+        xml.push_str("        </Topology>\n        <Geometry GeometryType=\"XYZ\">\n");
+        xml.push_str(&v);
+        xml.push_str("        </Geometry>\n");
+        xml.push_str(
+            "        <Attribute Name=\"crack\" AttributeType=\"Scalar\" Center=\"Cell\">\n",
+        );
+        xml.push_str(&c);
+        xml.push_str("        </Attribute>\n      </Grid>\n");
+    }
+    if xml.is_empty() {
+        return Ok(xml);
+    }
+    Ok(format!(
+        "    <Grid Name=\"icefem_cracks\" GridType=\"Collection\" CollectionType=\"Temporal\">\n{xml}    </Grid>\n"
+    ))
+}
+
 /// Writes `<file>.xdmf` next to the HDF5 file: an XDMF 3 temporal collection
 /// with one uniform grid per complete frame (incomplete frames are skipped).
 ///
@@ -1440,6 +1500,7 @@ pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
         xml.push_str("      </Grid>\n");
     }
     xml.push_str("    </Grid>\n  </Domain>\n</Xdmf>\n");
+    let cracks = xdmf_cracks(h5_path, &h5_name, &frames)?;
     drop(frames);
     drop(file);
 
@@ -1455,6 +1516,20 @@ pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
     };
     std::fs::write(&tmp, xml).map_err(io("writing the XDMF sidecar"))?;
     std::fs::rename(&tmp, &xdmf_path).map_err(io("renaming the XDMF sidecar into place"))?;
+    if !cracks.is_empty() {
+        // A file of its own: readers that take one grid collection per file (meshio, and
+        // ParaView's default view of it) keep reading the tet mesh from RUN.xdmf.
+        let path = h5_path.with_extension("cracks.xdmf");
+        let io = |source| OutputError::Io {
+            path: path.clone(),
+            context: "writing the crack-surface XDMF sidecar".into(),
+            source,
+        };
+        let xml = format!(
+            "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<Xdmf xmlns:xi=\"http://www.w3.org/2001/XInclude\" Version=\"3.0\">\n  <Domain>\n{cracks}  </Domain>\n</Xdmf>\n"
+        );
+        std::fs::write(&path, xml).map_err(io)?;
+    }
     Ok(xdmf_path)
 }
 
