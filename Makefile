@@ -1,6 +1,7 @@
 # Two entry points, each doing all set-up a fresh Debian machine needs:
-#   make demo   — builds icefem and runs the paper's scene, scenes/freezing_container.toml,
-#                 to freezing_container.h5 (+ .xdmf)
+#   make demo   — builds icefem and runs the paper's scene with fracture,
+#                 scenes/freezing_container_fracture.toml, to freezing_container_fracture.h5
+#                 (+ .xdmf, .cracks.xdmf)
 #   make test   — runs the whole test suite (cargo test --release)
 # The only system library needed is HDF5 (libhdf5-dev), installed with apt-get when missing.
 
@@ -14,7 +15,7 @@ deps:
 		$(SUDO) apt-get update -qq && $(SUDO) DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libhdf5-dev pkg-config; }
 
 demo: deps
-	cargo run --release -- run scenes/freezing_container.toml --output freezing_container.h5
+	cargo run --release -- run scenes/freezing_container_fracture.toml --output freezing_container_fracture.h5
 
 test: deps
 	cargo test --release
