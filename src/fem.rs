@@ -264,8 +264,9 @@ fn corotated(
             // Rotational mode; the denominator is guarded for elements inverted to s_i ≈ −s_j.
             let twist = (bij - bji) * std::f64::consts::FRAC_1_SQRT_2;
             let c2 = (psi[i] + psi[j]) / (s[i] + s[j]).max(1e-6);
-            let c2 = if project { c2.abs() } else { c2 };
-            *t += c2 * twist * twist.transpose();
+            if c2 > 0.0 || !project {
+                *t += c2 * twist * twist.transpose();
+            }
         }
     }
     (energy, P)
