@@ -25,6 +25,16 @@ end_time = 0.02
 output_every = 2
 "#;
 
+/// Run options writing to `path`, optionally cut at `end` (s) or resuming it.
+fn options(path: &Path, end: Option<f64>, resume: bool) -> RunOptions {
+    RunOptions {
+        output: Some(path.to_path_buf()),
+        end_time: end,
+        resume,
+        ..Default::default()
+    }
+}
+
 fn scene(dir: &Path) -> Scene {
     scene_from(dir, SCENE)
 }
@@ -69,16 +79,10 @@ fn freezing_run_with_plasticity_resumes_bit_identically() {
     let scene = scene_from(dir.path(), FREEZING);
     let never = AtomicBool::new(false);
     let full = dir.path().join("full.h5");
-    let opts = |path: &Path, end: Option<f64>, resume: bool| RunOptions {
-        output: Some(path.to_path_buf()),
-        end_time: end,
-        resume,
-        ..Default::default()
-    };
-    run(&scene, &opts(&full, None, false), &never, |_| {}).unwrap();
+    run(&scene, &options(&full, None, false), &never, |_| {}).unwrap();
     let half = dir.path().join("half.h5");
-    run(&scene, &opts(&half, Some(1.0), false), &never, |_| {}).unwrap();
-    run(&scene, &opts(&half, None, true), &never, |_| {}).unwrap();
+    run(&scene, &options(&half, Some(1.0), false), &never, |_| {}).unwrap();
+    run(&scene, &options(&half, None, true), &never, |_| {}).unwrap();
     let plastic = |path: &Path| {
         let file = hdf5::File::open(path).unwrap();
         let mut frames = file.group("frames").unwrap().member_names().unwrap();
@@ -333,23 +337,17 @@ fn fractured_run_resumes_bit_identically_on_its_split_mesh() {
     let dir = tempfile::tempdir().unwrap();
     let scene = scene_from(dir.path(), &text);
     let never = AtomicBool::new(false);
-    let opts = |path: &Path, end: Option<f64>, resume: bool| RunOptions {
-        output: Some(path.to_path_buf()),
-        end_time: end,
-        resume,
-        ..Default::default()
-    };
     let full = dir.path().join("full.h5");
-    run(&scene, &opts(&full, None, false), &never, |_| {}).unwrap();
+    run(&scene, &options(&full, None, false), &never, |_| {}).unwrap();
     let half = dir.path().join("half.h5");
-    run(&scene, &opts(&half, Some(0.0007), false), &never, |_| {}).unwrap();
+    run(&scene, &options(&half, Some(0.0007), false), &never, |_| {}).unwrap();
     let elements = |path: &Path| stats_column(path, "elements");
     let at_cut = *elements(&half).last().unwrap();
     assert!(
         at_cut > 768.0,
         "no split before the cut ({at_cut} elements)"
     );
-    run(&scene, &opts(&half, None, true), &never, |_| {}).unwrap();
+    run(&scene, &options(&half, None, true), &never, |_| {}).unwrap();
     assert!(
         elements(&full).last().unwrap() > &at_cut,
         "no split after the cut"

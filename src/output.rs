@@ -1316,6 +1316,29 @@ fn xdmf_attribute_type(shape: &[usize]) -> &'static str {
     }
 }
 
+/// Opens one time step's `<Grid>` in `xml`: its time, topology (type, element count, nodes per
+/// element, index data item) and geometry (XYZ data item). The caller adds attributes and
+/// closes it.
+fn xdmf_grid_start(
+    xml: &mut String,
+    name: &str,
+    time: f64,
+    (kind, count, nodes): (&str, usize, usize),
+    topology: &str,
+    geometry: &str,
+) {
+    let _ = writeln!(xml, "      <Grid Name=\"{name}\" GridType=\"Uniform\">");
+    let _ = writeln!(xml, "        <Time Value=\"{time:e}\"/>");
+    let _ = writeln!(
+        xml,
+        "        <Topology TopologyType=\"{kind}\" NumberOfElements=\"{count}\" NodesPerElement=\"{nodes}\">"
+    );
+    xml.push_str(topology);
+    xml.push_str("        </Topology>\n        <Geometry GeometryType=\"XYZ\">\n");
+    xml.push_str(geometry);
+    xml.push_str("        </Geometry>\n");
+}
+
 /// The crack surfaces of the frames that have any, as a temporal collection (`icefem_cracks`:
 /// triangles, with the crack index per triangle) for `RUN.cracks.xdmf`; empty without
 /// fracture.
@@ -1348,20 +1371,8 @@ fn xdmf_cracks(h5_path: &Path, h5_name: &str, frames: &Group) -> Result<String, 
             continue;
         }
         let time = read_attr::<f64>(h5_path, &g, "time")?;
-        let _ = writeln!(
-            xml,
-            "      <Grid Name=\"cracks_{}\" GridType=\"Uniform\">",
-            entry.name
-        );
-        let _ = writeln!(xml, "        <Time Value=\"{time:e}\"/>");
-        let _ = writeln!(
-            xml,
-            "        <Topology TopologyType=\"Triangle\" NumberOfElements=\"{count}\" NodesPerElement=\"3\">"
-        );
-        xml.push_str(&t);
-        xml.push_str("        </Topology>\n        <Geometry GeometryType=\"XYZ\">\n");
-        xml.push_str(&v);
-        xml.push_str("        </Geometry>\n");
+        let name = format!("cracks_{}", entry.name);
+        xdmf_grid_start(&mut xml, &name, time, ("Triangle", count, 3), &t, &v);
         xml.push_str(
             "        <Attribute Name=\"crack\" AttributeType=\"Scalar\" Center=\"Cell\">\n",
         );
@@ -1433,21 +1444,16 @@ pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
                 )
             })
         };
-        let _ = writeln!(
-            xml,
-            "      <Grid Name=\"frame_{}\" GridType=\"Uniform\">",
-            entry.name
+        let name = format!("frame_{}", entry.name);
+        let (topology, geometry) = (item(&tets)?, item(&positions)?);
+        xdmf_grid_start(
+            &mut xml,
+            &name,
+            time,
+            ("Tetrahedron", m, 4),
+            &topology,
+            &geometry,
         );
-        let _ = writeln!(xml, "        <Time Value=\"{time:e}\"/>");
-        let _ = writeln!(
-            xml,
-            "        <Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"{m}\" NodesPerElement=\"4\">"
-        );
-        xml.push_str(&item(&tets)?);
-        xml.push_str("        </Topology>\n");
-        xml.push_str("        <Geometry GeometryType=\"XYZ\">\n");
-        xml.push_str(&item(&positions)?);
-        xml.push_str("        </Geometry>\n");
 
         // (xdmf name, dataset, center). Built-ins first, then fields by name.
         let mut attrs: Vec<(String, Dataset, &str)> = Vec::new();

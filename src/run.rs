@@ -343,8 +343,12 @@ fn restore(
             .element_fields
             .iter()
             .find(|f| f.0 == "origin" && f.1 == 1 && f.2.len() == frame.tets.len())
+            .filter(|f| {
+                let scene_tets = sim.model.mesh.num_tets() as f64;
+                f.2.iter()
+                    .all(|&o| o >= 0.0 && o < scene_tets && o.fract() == 0.0)
+            })
             .map(|f| f.2.iter().map(|&o| o as usize).collect())
-            .filter(|o: &Vec<usize>| o.iter().all(|&e| e < sim.model.mesh.num_tets()))
             .ok_or_else(|| {
                 bad("its mesh was split but the frame has no valid element field `origin`".into())
             })?;

@@ -311,12 +311,12 @@ impl Simulation {
     /// substeps it took. On failure the state is left unchanged.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
         let start = Instant::now();
-        let (t0, u0, v0) = (self.state.time, self.state.u.clone(), self.state.v.clone());
-        let plastic0 = self.model.elasticity.plastic_strain.clone();
+        let t0 = self.state.time;
+        // Kept for fracture's retake, and to roll back a failed step.
         self.start = Some(StepStart {
-            u: u0.clone(),
-            v: v0.clone(),
-            plastic_strain: plastic0.clone(),
+            u: self.state.u.clone(),
+            v: self.state.v.clone(),
+            plastic_strain: self.model.elasticity.plastic_strain.clone(),
             time: t0,
         });
         let t_end = t0 + self.settings.dt;
@@ -325,9 +325,14 @@ impl Simulation {
         }
         let t_contact_broad = start.elapsed().as_secs_f64();
         let result = self.advance(self.settings.dt, t_end, 0);
-        if result.is_err() {
-            (self.state.time, self.state.u, self.state.v) = (t0, u0, v0);
-            self.model.elasticity.plastic_strain = plastic0;
+        if let (Err(_), Some(s)) = (&result, &self.start) {
+            self.state.time = t0;
+            self.state.u.clone_from(&s.u);
+            self.state.v.clone_from(&s.v);
+            self.model
+                .elasticity
+                .plastic_strain
+                .clone_from(&s.plastic_strain);
             self.model.apply_schedule(t0);
         }
         let mut report = result.map_err(|(source, time)| SimError::Step {

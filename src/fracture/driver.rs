@@ -29,7 +29,7 @@ use super::cracks::{crack_faces, CrackFace, CrackSurface, OriginalBoundary};
 use super::separation;
 use super::split::Fracturable;
 use crate::mesh::TetMesh;
-use crate::physics::ice_contact::parts;
+use crate::physics::ice_contact::parts_of;
 use crate::sim::{SimError, Simulation, StepStart};
 use nalgebra::Vector3;
 use std::time::Instant;
@@ -238,11 +238,7 @@ impl Fracture {
 
     /// Rest volume of the smallest piece (connected part) of `f` (m³).
     fn smallest_piece(&self, f: &Fracturable) -> f64 {
-        let mesh = TetMesh {
-            rest: f.rest.clone(),
-            tets: f.tets.clone(),
-        };
-        let (part, count) = parts(&mesh);
+        let (part, count) = parts_of(f.rest.len(), &f.tets);
         let mut volume = vec![0.0; count];
         for (tet, v) in f.tets.iter().zip(f.volumes()) {
             volume[part[tet[0]] as usize] += v;

@@ -165,7 +165,12 @@ fn copy_pairs(mesh: &TetMesh, cracks: &[[usize; 3]]) -> Vec<CopyPair> {
 
 /// Connected components of the mesh (nodes joined by tets): part index per node and count.
 pub fn parts(mesh: &TetMesh) -> (Vec<u32>, usize) {
-    let n = mesh.num_nodes();
+    parts_of(mesh.num_nodes(), &mesh.tets)
+}
+
+/// [`parts`] of `nodes` nodes joined by `tets`.
+pub fn parts_of(nodes: usize, tets: &[[usize; 4]]) -> (Vec<u32>, usize) {
+    let n = nodes;
     let mut parent: Vec<usize> = (0..n).collect();
     fn find(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
@@ -174,7 +179,7 @@ pub fn parts(mesh: &TetMesh) -> (Vec<u32>, usize) {
         }
         i
     }
-    for tet in &mesh.tets {
+    for tet in tets {
         for &v in &tet[1..] {
             let (a, b) = (find(&mut parent, tet[0]), find(&mut parent, v));
             if a != b {
