@@ -10,6 +10,7 @@ pub mod fracture;
 pub mod mesh;
 pub mod output;
 pub mod physics;
+pub mod render;
 pub mod run;
 pub mod scene;
 pub mod sim;

@@ -3,6 +3,8 @@
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use icefem::bench;
+use icefem::output::FrameReader;
+use icefem::render::{self, ColorField, RenderOptions, Style, View};
 use icefem::run::{run, Progress, RunOptions};
 use icefem::scene::Scene;
 use icefem::solver::{FillOrdering, LinearSolverKind};
@@ -72,6 +74,40 @@ enum Command {
         #[arg(long)]
         fracture: bool,
     },
+    /// Render frames of a run to PNG (one frame or a numbered sequence) or an animated GIF.
+    Render {
+        /// HDF5 file written by `icefem run` (also one that was cut off).
+        file: PathBuf,
+        /// One frame (index of /frames/NNNNNN); default: the last complete frame.
+        #[arg(long, conflicts_with = "frames")]
+        frame: Option<usize>,
+        /// Frames FIRST:LAST[:STEP] (LAST inclusive; empty parts mean first, last, 1).
+        #[arg(long)]
+        frames: Option<String>,
+        /// Output: a .png (numbered _NNNNNN for several frames) or a .gif (animated).
+        /// Default: RUN_NNNNNN.png for one frame, RUN.gif for several.
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+        #[command(flatten)]
+        look: LookArgs,
+        /// GIF frames per second.
+        #[arg(long, default_value_t = 30.0)]
+        fps: f64,
+    },
+    /// Compose the paper's figure: four frames side by side with their element and crack counts.
+    Figure {
+        /// HDF5 file written by `icefem run`.
+        file: PathBuf,
+        /// Frames of the panels, comma-separated; default 1200,1600,2000,2400 (the paper's), or
+        /// four frames spread over a shorter run.
+        #[arg(long, value_delimiter = ',')]
+        frames: Vec<usize>,
+        /// Output PNG (default RUN_figure.png).
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+        #[command(flatten)]
+        look: LookArgs,
+    },
     /// Print what an icefem HDF5 file holds.
     Info {
         /// HDF5 file written by `icefem run`.
@@ -115,6 +151,20 @@ fn main() {
                 bench_command(&tets, steps, repeats, solver, ordering, single)
             }
         }
+        Command::Render {
+            file,
+            frame,
+            frames,
+            output,
+            look,
+            fps,
+        } => render_command(&file, frame, frames.as_deref(), output, &look, fps),
+        Command::Figure {
+            file,
+            frames,
+            output,
+            look,
+        } => figure_command(&file, frames, output, &look),
         Command::Info { file } => icefem::output::describe(&file)
             .map(|text| print!("{text}"))
             .map_err(Into::into),
@@ -123,6 +173,158 @@ fn main() {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// How pictures look (`render` and `figure`).
+#[derive(clap::Args)]
+struct LookArgs {
+    /// Picture size WIDTHxHEIGHT in pixels (for `figure`: of each panel).
+    #[arg(long, default_value = "800x600", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Camera: iso, front, side, top, or AZIMUTH,ELEVATION in degrees (z up).
+    #[arg(long, default_value = "iso")]
+    view: View,
+    /// Ice surface: glass (translucent, cracks inside show) or solid.
+    #[arg(long, default_value = "glass")]
+    style: Style,
+    /// Colour the surface by freeze, plastic, stress (von Mises) or principal (largest
+    /// principal stress), with a colour bar.
+    #[arg(long)]
+    color_by: Option<ColorField>,
+    /// Colour-bar range MIN,MAX (default: the range over the frames drawn).
+    #[arg(long, value_parser = parse_range, allow_hyphen_values = true)]
+    range: Option<(f64, f64)>,
+}
+
+impl LookArgs {
+    fn options(&self) -> RenderOptions {
+        RenderOptions {
+            width: self.size.0,
+            height: self.size.1,
+            view: self.view,
+            style: self.style,
+            color_by: self.color_by,
+            range: self.range,
+        }
+    }
+}
+
+fn parse_size(s: &str) -> Result<(usize, usize), String> {
+    let bad = || {
+        format!(
+            "size {s:?}: expected WIDTHxHEIGHT, each {} … {} pixels",
+            render::MIN_SIZE,
+            render::MAX_SIZE
+        )
+    };
+    let (w, h) = s.split_once('x').ok_or_else(bad)?;
+    let side = |t: &str| {
+        t.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|v| (render::MIN_SIZE..=render::MAX_SIZE).contains(v))
+    };
+    Ok((side(w).ok_or_else(bad)?, side(h).ok_or_else(bad)?))
+}
+
+fn parse_range(s: &str) -> Result<(f64, f64), String> {
+    let bad = || format!("range {s:?}: expected MIN,MAX with MIN < MAX");
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    match (a.trim().parse::<f64>(), b.trim().parse::<f64>()) {
+        (Ok(a), Ok(b)) if a.is_finite() && b.is_finite() && a < b => Ok((a, b)),
+        _ => Err(bad()),
+    }
+}
+
+/// `RUN.h5` → `RUN<suffix>` beside it.
+fn sibling(file: &Path, suffix: &str) -> PathBuf {
+    let stem = file.file_stem().unwrap_or_default().to_string_lossy();
+    file.with_file_name(format!("{stem}{suffix}"))
+}
+
+/// `icefem render`.
+fn render_command(
+    file: &Path,
+    frame: Option<usize>,
+    frames: Option<&str>,
+    output: Option<PathBuf>,
+    look: &LookArgs,
+    fps: f64,
+) -> Result<()> {
+    if !(fps.is_finite() && fps > 0.0) {
+        anyhow::bail!("--fps must be > 0, got {fps}");
+    }
+    let reader = FrameReader::open(file)?;
+    let available = reader.frame_indices();
+    let list = match (frame, frames) {
+        (Some(f), _) => vec![f],
+        (None, Some(spec)) => render::parse_frame_range(spec, &available)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?,
+        (None, None) => vec![available[available.len() - 1]],
+    };
+    let output = output.unwrap_or_else(|| match list.as_slice() {
+        [one] => sibling(file, &format!("_{one:06}.png")),
+        _ => sibling(file, ".gif"),
+    });
+    let summary = render::render_frames(&reader, &list, look.options(), &output, fps)?;
+    let n = summary.frames.max(1) as f64;
+    match summary.files.as_slice() {
+        [one] => println!("wrote {}", one.display()),
+        files => println!(
+            "wrote {} … {} ({} files)",
+            files[0].display(),
+            files[files.len() - 1].display(),
+            files.len()
+        ),
+    }
+    println!(
+        "{} frames ({}x{}): per frame {:.1} ms reading, {:.1} ms drawing, {:.1} ms encoding",
+        summary.frames,
+        look.size.0,
+        look.size.1,
+        1e3 * summary.t_read / n,
+        1e3 * summary.t_draw / n,
+        1e3 * summary.t_encode / n
+    );
+    Ok(())
+}
+
+/// `icefem figure`.
+fn figure_command(
+    file: &Path,
+    frames: Vec<usize>,
+    output: Option<PathBuf>,
+    look: &LookArgs,
+) -> Result<()> {
+    let reader = FrameReader::open(file)?;
+    let start = Instant::now();
+    let (picture, panels) = render::figure(
+        &reader,
+        &render::FigureOptions {
+            frames,
+            panel: look.options(),
+        },
+    )?;
+    let output = output.unwrap_or_else(|| sibling(file, "_figure.png"));
+    render::save_png(&picture, &output)?;
+    println!(
+        "wrote {} ({}x{}, {:.2} s)",
+        output.display(),
+        picture.width,
+        picture.height,
+        start.elapsed().as_secs_f64()
+    );
+    println!(
+        "| frame | step | time (s) | elements | crack polygons (triangles, both sides) | cracks |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for p in panels {
+        println!(
+            "| {} | {} | {:.1} | {} | {} | {} |",
+            p.frame, p.step, p.time, p.elements, p.crack_polygons, p.cracks
+        );
+    }
+    Ok(())
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]

@@ -44,6 +44,11 @@ impl OriginalBoundary {
         }
     }
 
+    /// Number of scene elements (the valid `origin` values are below it).
+    pub fn num_elements(&self) -> usize {
+        self.planes.len()
+    }
+
     /// Whether the rest triangle `points` of an element lying in scene element `origin` is on
     /// the scene mesh's boundary.
     pub fn on_boundary(&self, origin: usize, points: &[Vector3<f64>; 3]) -> bool {

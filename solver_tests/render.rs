@@ -1,0 +1,373 @@
+//! Pictures from output files: silhouettes against the geometry, crack colour where the
+//! fracture module put cracks, sequences and figures, and clear errors for bad files.
+
+use icefem::mesh::box_mesh;
+use icefem::output::{FrameReader, OutputError, OutputWriter, RunHeader};
+use icefem::render::{self, FigureOptions, RenderOptions, Renderer, Style};
+use icefem::run::{run, RunOptions};
+use icefem::scene::Scene;
+use nalgebra::Vector3;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+/// Writes an icefem file of `frames` frames of a box mesh at rest (positions = rest, scene
+/// text empty: no obstacles); returns the box's corners.
+fn write_box_file(path: &Path, frames: usize) -> (Vector3<f64>, Vector3<f64>) {
+    let (lo, size) = ([0.01, -0.02, 0.0], [0.1, 0.2, 0.05]);
+    let mesh = box_mesh(lo, size, [2, 3, 1], 6).unwrap();
+    let rest: Vec<[f64; 3]> = mesh.rest.iter().map(|x| [x.x, x.y, x.z]).collect();
+    let mut writer = OutputWriter::create(
+        path,
+        &RunHeader {
+            scene_text: "",
+            scene_path: "box.toml",
+            version: "test",
+            rest_positions: &rest,
+            tets: &mesh.tets,
+        },
+    )
+    .unwrap();
+    let velocities = vec![[0.0; 3]; rest.len()];
+    let stress = vec![[0.0; 6]; mesh.tets.len()];
+    for k in 0..frames {
+        writer
+            .write_frame(&icefem::output::Frame {
+                step: k as u64,
+                time: k as f64 * 0.1,
+                positions: &rest,
+                velocities: &velocities,
+                rest_positions: &rest,
+                tets: &mesh.tets,
+                topology_changed: k == 0,
+                stress: &stress,
+                element_fields: &[],
+                node_fields: &[],
+                cracks: None,
+            })
+            .unwrap();
+    }
+    writer.finish().unwrap();
+    let lo = Vector3::from(lo);
+    (lo, lo + Vector3::from(size))
+}
+
+/// Whether the pixel centre `p` is inside the convex polygon `hull` (counter-clockwise or
+/// clockwise), and its distance to the polygon's boundary (pixels).
+fn inside_and_distance(hull: &[[f64; 2]], p: [f64; 2]) -> (bool, f64) {
+    let mut sign = 0.0;
+    let mut inside = true;
+    let mut distance = f64::MAX;
+    for k in 0..hull.len() {
+        let (a, b) = (hull[k], hull[(k + 1) % hull.len()]);
+        let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+        let cross = ex * (p[1] - a[1]) - ey * (p[0] - a[0]);
+        if sign == 0.0 {
+            sign = cross.signum();
+        } else if cross * sign < 0.0 {
+            inside = false;
+        }
+        let t = (((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / (ex * ex + ey * ey)).clamp(0.0, 1.0);
+        let (dx, dy) = (a[0] + t * ex - p[0], a[1] + t * ey - p[1]);
+        distance = distance.min((dx * dx + dy * dy).sqrt());
+    }
+    (inside, distance)
+}
+
+/// Convex hull (monotone chain) of points in the picture plane.
+fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
+    points.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    };
+    let mut hull: Vec<[f64; 2]> = Vec::new();
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
+            Box::new(points.iter())
+        } else {
+            Box::new(points.iter().rev())
+        };
+        for &p in iter {
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+#[test]
+fn silhouette_of_a_box_covers_exactly_its_projected_hull() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("box.h5");
+    let (lo, hi) = write_box_file(&path, 1);
+    let reader = FrameReader::open(&path).unwrap();
+    let frame = reader.read(0).unwrap();
+    for (view, style) in [
+        ("30,20", Style::Solid),
+        ("-120,-35", Style::Glass),
+        ("top", Style::Solid),
+    ] {
+        let options = RenderOptions {
+            width: 240,
+            height: 180,
+            view: view.parse().unwrap(),
+            style,
+            ..Default::default()
+        };
+        let renderer = Renderer::new(&reader, options).unwrap();
+        let picture = renderer.draw_scene(&reader, &frame).unwrap();
+        let empty = render::background(picture.width, picture.height);
+        // The expected silhouette, from the geometry: the convex hull of the box's projected
+        // corners (a box is convex, so its silhouette is that hull).
+        let corners: Vec<[f64; 2]> = (0..8)
+            .map(|k| {
+                let c = Vector3::new(
+                    [lo.x, hi.x][k & 1],
+                    [lo.y, hi.y][(k >> 1) & 1],
+                    [lo.z, hi.z][(k >> 2) & 1],
+                );
+                let [x, y, _] = renderer.camera().project(c);
+                [x, y]
+            })
+            .collect();
+        let hull = convex_hull(corners);
+        let (mut wrong, mut covered) = (0, 0);
+        for y in 0..picture.height {
+            for x in 0..picture.width {
+                let (inside, distance) =
+                    inside_and_distance(&hull, [x as f64 + 0.5, y as f64 + 0.5]);
+                let drawn = picture.pixel(x, y) != empty.pixel(x, y);
+                covered += drawn as usize;
+                // Pixels within 1.5 px of the outline are partly covered (2 × 2 supersampling)
+                // and carry the edge lines (1.2 px wide): either answer is right there.
+                if distance > 1.5 && drawn != inside {
+                    wrong += 1;
+                }
+            }
+        }
+        assert_eq!(
+            wrong, 0,
+            "{view}: {wrong} pixels disagree with the projected hull"
+        );
+        // The fitted camera makes the box fill 90 % of the tighter side: a sizeable mask.
+        assert!(
+            covered > picture.width * picture.height / 5,
+            "{view}: only {covered} pixels drawn"
+        );
+    }
+}
+
+const PULLED_BAR: &str = include_str!("../scenes/pulled_bar.toml");
+
+#[test]
+fn cracks_are_drawn_in_crack_colour_where_the_fracture_put_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = dir.path().join("pulled_bar.toml");
+    std::fs::write(&scene_path, PULLED_BAR).unwrap();
+    let scene = Scene::load(&scene_path).unwrap();
+    let path = dir.path().join("bar.h5");
+    let options = RunOptions {
+        output: Some(path.clone()),
+        ..Default::default()
+    };
+    run(&scene, &options, &AtomicBool::new(false), |_| {}).unwrap();
+
+    let reader = FrameReader::open(&path).unwrap();
+    let indices = reader.frame_indices();
+    let first = reader.read(indices[0]).unwrap();
+    let last = reader.read(*indices.last().unwrap()).unwrap();
+    assert!(first.crack_triangles.is_empty());
+    assert!(
+        last.crack_triangles.len() > 20,
+        "the bar should have cracked"
+    );
+    // The bar is pulled along x, so its crack faces the x axis: look from +x through the
+    // translucent ice, straight at the crack.
+    let options = RenderOptions {
+        width: 320,
+        height: 240,
+        view: "side".parse().unwrap(),
+        style: Style::Glass,
+        ..Default::default()
+    };
+    let renderer = Renderer::new(&reader, options).unwrap();
+    // Crack red: red well above green and blue. Ice and background are white-blue (r ≤ g ≤ b).
+    let reddish = |c: [u8; 3]| c[0] as i32 > c[1] as i32 + 60 && c[0] as i32 > c[2] as i32 + 60;
+
+    let before = renderer.draw_scene(&reader, &first).unwrap();
+    let red_before = before
+        .rgb
+        .chunks_exact(3)
+        .filter(|c| reddish([c[0], c[1], c[2]]))
+        .count();
+    assert_eq!(red_before, 0, "no crack, no red");
+
+    let after = renderer.draw_scene(&reader, &last).unwrap();
+    let (mut hits, mut total) = (0, 0);
+    for (x, _) in &last.crack_triangles {
+        let c = x.iter().map(|p| Vector3::from(*p)).sum::<Vector3<f64>>() / 3.0;
+        let [px, py, _] = renderer.camera().project(c);
+        total += 1;
+        hits += reddish(after.pixel(px as usize, py as usize)) as usize;
+    }
+    // Crack triangles facing the camera cover their centroid's pixel; one whose projection
+    // is under a pixel wide can have its centroid pixel averaged with the ice beside it by
+    // the 2 × 2 supersampling. All of them here are larger: every centroid must be red.
+    assert_eq!(
+        hits, total,
+        "{hits} of {total} crack centroids drawn in crack colour"
+    );
+    let red_after = after
+        .rgb
+        .chunks_exact(3)
+        .filter(|c| reddish([c[0], c[1], c[2]]))
+        .count();
+    assert!(
+        red_after > 100,
+        "the crack covers a region, {red_after} red pixels"
+    );
+}
+
+#[test]
+fn sequences_gifs_and_figures_from_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("box.h5");
+    write_box_file(&path, 5);
+    let reader = FrameReader::open(&path).unwrap();
+    let options = RenderOptions {
+        width: 160,
+        height: 120,
+        ..Default::default()
+    };
+    let pngs = dir.path().join("seq.png");
+    let summary = render::render_frames(&reader, &[1, 2, 3], options, &pngs, 30.0).unwrap();
+    assert_eq!(summary.frames, 3);
+    for k in 1..=3 {
+        let file = render::numbered_path(&pngs, k);
+        assert_eq!(
+            file.file_name().unwrap().to_string_lossy(),
+            format!("seq_{k:06}.png")
+        );
+        let decoder =
+            png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&file).unwrap()));
+        let info = decoder.read_info().unwrap();
+        assert_eq!((info.info().width, info.info().height), (160, 120));
+    }
+    let gif_path = dir.path().join("seq.gif");
+    render::render_frames(&reader, &[0, 1, 2, 3, 4], options, &gif_path, 10.0).unwrap();
+    let mut decoder = gif::DecodeOptions::new()
+        .read_info(std::fs::File::open(&gif_path).unwrap())
+        .unwrap();
+    let mut frames = 0;
+    while decoder.read_next_frame().unwrap().is_some() {
+        frames += 1;
+    }
+    assert_eq!(frames, 5);
+
+    // A run of 5 frames (cut off long before the paper's steps): four panels spread over it.
+    let (picture, panels) = render::figure(
+        &reader,
+        &FigureOptions {
+            frames: Vec::new(),
+            panel: options,
+        },
+    )
+    .unwrap();
+    assert_eq!(
+        panels.iter().map(|p| p.frame).collect::<Vec<_>>(),
+        vec![0, 1, 2, 4]
+    );
+    assert!(panels
+        .iter()
+        .all(|p| p.elements == 36 && p.crack_polygons == 0));
+    assert!(picture.width > 4 * 160 && picture.height > 120);
+}
+
+#[test]
+fn bad_files_and_frames_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    // No frames: the run died before writing one.
+    let empty = dir.path().join("empty.h5");
+    let mesh = box_mesh([0.0; 3], [0.1; 3], [1, 1, 1], 6).unwrap();
+    let rest: Vec<[f64; 3]> = mesh.rest.iter().map(|x| [x.x, x.y, x.z]).collect();
+    let header = RunHeader {
+        scene_text: "",
+        scene_path: "x.toml",
+        version: "test",
+        rest_positions: &rest,
+        tets: &mesh.tets,
+    };
+    drop(OutputWriter::create(&empty, &header).unwrap());
+    let e = FrameReader::open(&empty).err().unwrap();
+    assert!(matches!(e, OutputError::NoCompleteFrame { .. }), "{e}");
+    assert!(e.to_string().contains("empty.h5") && e.to_string().contains("no complete frame"));
+
+    // A frame that is not there.
+    let one = dir.path().join("one.h5");
+    write_box_file(&one, 2);
+    let reader = FrameReader::open(&one).unwrap();
+    let e = reader.read(7).err().unwrap();
+    assert!(
+        e.to_string()
+            .contains("no complete frame 7 (the file has 2 complete frames, 0 … 1)"),
+        "{e}"
+    );
+
+    // HDF5, but not icefem's; and not HDF5 at all.
+    let other = dir.path().join("other.h5");
+    hdf5::File::create(&other)
+        .unwrap()
+        .new_dataset::<f64>()
+        .shape(3)
+        .create("x")
+        .unwrap();
+    let e = FrameReader::open(&other).err().unwrap();
+    assert!(matches!(e, OutputError::NotIcefem { .. }), "{e}");
+    let text = dir.path().join("text.h5");
+    std::fs::write(&text, "not hdf5").unwrap();
+    assert!(matches!(
+        FrameReader::open(&text),
+        Err(OutputError::NotHdf5 { .. })
+    ));
+
+    // The same through the command line: exit code 1 and the message, never a panic.
+    let exe = env!("CARGO_BIN_EXE_icefem");
+    let cases: [(&[&str], &str); 5] = [
+        (&["render", empty.to_str().unwrap()], "no complete frame"),
+        (
+            &["render", one.to_str().unwrap(), "--frame", "7"],
+            "no complete frame 7",
+        ),
+        (
+            &["render", one.to_str().unwrap(), "--frames", "0:5"],
+            "frame 2 is not a complete frame",
+        ),
+        (&["figure", other.to_str().unwrap()], "not icefem output"),
+        (
+            &["render", one.to_str().unwrap(), "--size", "10x10"],
+            "each 64 … 8192 pixels",
+        ),
+    ];
+    for (args, message) in cases {
+        let out = std::process::Command::new(exe).args(args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(stderr.contains(message), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+    // A field the run does not have.
+    let out = std::process::Command::new(exe)
+        .args(["render", one.to_str().unwrap(), "--color-by", "freeze"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("has no freeze_state (the scene has no [freezing])"),
+        "{stderr}"
+    );
+}

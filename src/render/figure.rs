@@ -1,0 +1,193 @@
+//! The paper's figure: four frames side by side with captions (frame, time, element and
+//! crack-polygon counts) and, when colouring by a field, one shared colour bar.
+
+use super::{
+    color_bar, draw_text, to_u8, Picture, RenderError, RenderOptions, Renderer, BAR_STRIP, SKY_TOP,
+};
+use crate::output::{FrameReader, StoredFrame};
+use embedded_graphics::text::Alignment;
+use std::collections::HashSet;
+
+/// The paper's figure shows its animation frames 1200, 1600, 2000 and 2400: time steps of
+/// 1/30 s, so the frames written at these steps (whatever the run's output cadence).
+pub const PAPER_STEPS: [u64; 4] = [1200, 1600, 2000, 2400];
+
+/// What a figure shows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FigureOptions {
+    /// Frame indices, one panel each; empty: the frames written at [`PAPER_STEPS`] if the
+    /// file has them all, else four frames evenly spaced up to its last (a cut-off run).
+    pub frames: Vec<usize>,
+    /// Size, view, style and colouring of each panel (`width × height` is one panel's scene).
+    pub panel: RenderOptions,
+}
+
+/// One panel's caption data.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Panel {
+    /// Frame index.
+    pub frame: usize,
+    /// Time step the frame was written at (the paper's "frame": steps are 1/30 s).
+    pub step: u64,
+    /// Simulated time (s).
+    pub time: f64,
+    /// Tetrahedra in the frame.
+    pub elements: usize,
+    /// Crack polygons (triangles, both sides of each crack).
+    pub crack_polygons: usize,
+    /// Connected crack surfaces.
+    pub cracks: usize,
+}
+
+impl Panel {
+    fn of(frame: &StoredFrame) -> Panel {
+        Panel {
+            frame: frame.index,
+            step: frame.state.step,
+            time: frame.state.time,
+            elements: frame.state.tets.len(),
+            crack_polygons: frame.crack_triangles.len(),
+            cracks: frame
+                .crack_triangles
+                .iter()
+                .map(|(_, c)| c)
+                .collect::<HashSet<_>>()
+                .len(),
+        }
+    }
+}
+
+const MARGIN: usize = 10;
+const TITLE: usize = 26;
+const CAPTION: usize = 40;
+
+/// The frames a figure shows by default (see [`FigureOptions::frames`]), from the complete
+/// frames' indices and the steps they were written at.
+pub fn default_frames(indices: &[usize], steps: &[u64]) -> Vec<usize> {
+    let at_paper_steps: Vec<usize> = PAPER_STEPS
+        .iter()
+        .filter_map(|s| steps.iter().position(|t| t == s).map(|k| indices[k]))
+        .collect();
+    if at_paper_steps.len() == PAPER_STEPS.len() {
+        return at_paper_steps;
+    }
+    let count = indices.len();
+    let mut frames: Vec<usize> = (1..=4)
+        .map(|k| indices[(count * k / 4).max(1) - 1])
+        .collect();
+    frames.dedup();
+    frames
+}
+
+/// Composes the figure of `reader`'s run; returns it with each panel's caption data.
+pub fn figure(
+    reader: &FrameReader,
+    options: &FigureOptions,
+) -> Result<(Picture, Vec<Panel>), RenderError> {
+    let indices = if options.frames.is_empty() {
+        default_frames(&reader.frame_indices(), reader.frame_steps())
+    } else {
+        options.frames.clone()
+    };
+    let frames = indices
+        .iter()
+        .map(|&i| reader.read(i))
+        .collect::<Result<Vec<_>, _>>()?;
+    let panel = options.panel;
+    // The renderer leaves a colour-bar strip beside its scene; widen it by the strip so each
+    // panel's scene is `panel.width` wide, and draw one shared bar instead.
+    let strip = if panel.color_by.is_some() {
+        BAR_STRIP
+    } else {
+        0
+    };
+    let mut renderer = Renderer::new(
+        reader,
+        RenderOptions {
+            width: panel.width + strip,
+            ..panel
+        },
+    )?;
+    if let Some(field) = panel.color_by {
+        let values = frames
+            .iter()
+            .map(|f| field.values(f, reader))
+            .collect::<Result<Vec<_>, _>>()?;
+        renderer.fit_range(values.into_iter().flatten());
+    }
+
+    let n = frames.len();
+    let width = MARGIN + n * (panel.width + MARGIN) + strip;
+    let height = TITLE + panel.height + CAPTION + MARGIN;
+    let mut picture = Picture::filled(width, height, to_u8(SKY_TOP));
+    let name = reader
+        .path()
+        .file_name()
+        .unwrap_or_default()
+        .to_string_lossy();
+    draw_text(
+        &mut picture,
+        &format!("icefem: {name}"),
+        MARGIN,
+        6,
+        Alignment::Left,
+    );
+    let mut panels = Vec::with_capacity(n);
+    for (k, frame) in frames.iter().enumerate() {
+        let x = MARGIN + k * (panel.width + MARGIN);
+        picture.blit(&renderer.draw_scene(reader, frame)?, x, TITLE);
+        let p = Panel::of(frame);
+        let centre = x + panel.width / 2;
+        let letter = (b'a' + (k % 26) as u8) as char;
+        let line1 = format!("({letter}) step {}, t = {:.1} s", p.step, p.time);
+        let line2 = format!(
+            "{} elements, {} crack polygons",
+            p.elements, p.crack_polygons
+        );
+        draw_text(
+            &mut picture,
+            &line1,
+            centre,
+            TITLE + panel.height + 4,
+            Alignment::Center,
+        );
+        draw_text(
+            &mut picture,
+            &line2,
+            centre,
+            TITLE + panel.height + 20,
+            Alignment::Center,
+        );
+        panels.push(p);
+    }
+    if let Some(field) = panel.color_by {
+        let (x, top) = (width - strip + 12, TITLE + panel.height / 6);
+        color_bar(
+            &mut picture,
+            field,
+            renderer.range(),
+            x,
+            top,
+            panel.height * 2 / 3,
+        );
+    }
+    Ok((picture, panels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paper_steps_when_present_else_four_spread_over_the_run() {
+        // Every 10th step written: the paper's steps are frames 120 … 240.
+        let indices: Vec<usize> = (0..=240).collect();
+        let steps: Vec<u64> = (0..=240).map(|f| 10 * f).collect();
+        assert_eq!(default_frames(&indices, &steps), vec![120, 160, 200, 240]);
+        // Cut off at step 999: a quarter of the frames each.
+        let indices: Vec<usize> = (0..1000).collect();
+        let steps: Vec<u64> = (0..1000).collect();
+        assert_eq!(default_frames(&indices, &steps), vec![249, 499, 749, 999]);
+        assert_eq!(default_frames(&[0], &[0]), vec![0]);
+    }
+}
