@@ -1,13 +1,14 @@
 # Two entry points, each doing all set-up a fresh Debian machine needs:
 #   make demo   — builds icefem and runs the paper's scene with fracture,
 #                 scenes/freezing_container_fracture.toml, to freezing_container_fracture.h5
-#                 (+ .xdmf, .cracks.xdmf)
+#                 (+ .xdmf, .cracks.xdmf), then draws the paper's figure from it
+#                 (freezing_container_fracture_figure.png)
 #   make test   — runs the whole test suite (cargo test --release)
 # The only system library needed is HDF5 (libhdf5-dev), installed with apt-get when missing.
 
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: deps demo test bench
+.PHONY: deps demo test bench figures
 
 deps:
 	@pkg-config --exists hdf5 2>/dev/null || { \
@@ -16,6 +17,18 @@ deps:
 
 demo: deps
 	cargo run --release -- run scenes/freezing_container_fracture.toml --output freezing_container_fracture.h5
+	cargo run --release -- figure freezing_container_fracture.h5
+
+# The README's figures (docs/*.png) from the paper's scene without and with fracture (~5 min).
+FIG := target/figures
+figures: deps
+	cargo build --release
+	mkdir -p $(FIG) docs
+	./target/release/icefem run scenes/freezing_container.toml --output $(FIG)/freezing_container.h5
+	./target/release/icefem figure $(FIG)/freezing_container.h5 --size 400x400 --cut y=0.05 --color-by freeze --style solid --output docs/freezing_container_figure.png
+	./target/release/icefem run scenes/freezing_container_fracture.toml --output $(FIG)/freezing_container_fracture.h5
+	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 400x400 --output docs/freezing_container_fracture_figure.png
+	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 400x400 --cut y=0.05 --color-by plastic --style solid --output docs/freezing_container_fracture_plastic.png
 
 test: deps
 	cargo test --release

@@ -107,16 +107,23 @@ fn silhouette_of_a_box_covers_exactly_its_projected_hull() {
     let (lo, hi) = write_box_file(&path, 1);
     let reader = FrameReader::open(&path).unwrap();
     let frame = reader.read(0).unwrap();
-    for (view, style) in [
-        ("30,20", Style::Solid),
-        ("-120,-35", Style::Glass),
-        ("top", Style::Solid),
-    ] {
+    // The box's cells along y end at −0.02, 0.0467, 0.1133, 0.18 m: a cut at y = 0.05 keeps
+    // the tets of the first layer of cells (their centroids are at y ≤ 0.03 or ≥ 0.063),
+    // whose silhouette is that of the box [lo, hi] with hi.y = 0.0467.
+    let first_layer = Vector3::new(hi.x, lo.y + 0.2 / 3.0, hi.z);
+    let cases = [
+        ("30,20", Style::Solid, None, hi),
+        ("-120,-35", Style::Glass, None, hi),
+        ("top", Style::Solid, None, hi),
+        ("30,20", Style::Solid, Some("y=0.05"), first_layer),
+    ];
+    for (view, style, cut, hi) in cases {
         let options = RenderOptions {
             width: 240,
             height: 180,
             view: view.parse().unwrap(),
             style,
+            cut: cut.map(|c| c.parse().unwrap()),
             ..Default::default()
         };
         let renderer = Renderer::new(&reader, options).unwrap();
@@ -154,10 +161,24 @@ fn silhouette_of_a_box_covers_exactly_its_projected_hull() {
             wrong, 0,
             "{view}: {wrong} pixels disagree with the projected hull"
         );
-        // The fitted camera makes the box fill 90 % of the tighter side: a sizeable mask.
+        // And the drawn area is the hull's area, up to the boundary band (perimeter × 1.5 px).
+        let n = hull.len();
+        let area = (0..n)
+            .map(|k| hull[k][0] * hull[(k + 1) % n][1] - hull[(k + 1) % n][0] * hull[k][1])
+            .sum::<f64>()
+            .abs()
+            / 2.0;
+        let perimeter: f64 = (0..n)
+            .map(|k| {
+                ((hull[(k + 1) % n][0] - hull[k][0]).powi(2)
+                    + (hull[(k + 1) % n][1] - hull[k][1]).powi(2))
+                .sqrt()
+            })
+            .sum();
+        assert!(area > 2000.0, "{view}: a sizeable silhouette, {area} px²");
         assert!(
-            covered > picture.width * picture.height / 5,
-            "{view}: only {covered} pixels drawn"
+            (covered as f64 - area).abs() <= 1.5 * perimeter,
+            "{view}: {covered} pixels drawn, hull area {area:.0} px², perimeter {perimeter:.0} px"
         );
     }
 }

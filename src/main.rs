@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use icefem::bench;
 use icefem::output::FrameReader;
-use icefem::render::{self, ColorField, RenderOptions, Style, View};
+use icefem::render::{self, ColorField, Cut, RenderOptions, Style, View};
 use icefem::run::{run, Progress, RunOptions};
 use icefem::scene::Scene;
 use icefem::solver::{FillOrdering, LinearSolverKind};
@@ -194,6 +194,10 @@ struct LookArgs {
     /// Colour-bar range MIN,MAX (default: the range over the frames drawn).
     #[arg(long, value_parser = parse_range, allow_hyphen_values = true)]
     range: Option<(f64, f64)>,
+    /// Cut the ice open: AXIS=VALUE (m, e.g. y=0.05) leaves out the elements between the
+    /// camera and that plane, showing the inside.
+    #[arg(long)]
+    cut: Option<Cut>,
 }
 
 impl LookArgs {
@@ -205,6 +209,7 @@ impl LookArgs {
             style: self.style,
             color_by: self.color_by,
             range: self.range,
+            cut: self.cut,
         }
     }
 }

@@ -1590,6 +1590,7 @@ pub struct FrameReader {
     /// The `step` attribute of each of `frames`.
     steps: Vec<u64>,
     scene_text: String,
+    scene_path: String,
 }
 
 impl FrameReader {
@@ -1600,6 +1601,7 @@ impl FrameReader {
         close_on_exec(&file);
         check_icefem_layout(path, &file)?;
         let scene_text = read_string_attr(path, &file, "scene")?;
+        let scene_path = read_string_attr(path, &file, "scene_path").unwrap_or_default();
         let group = file
             .group("frames")
             .ctx(path, || "opening /frames".into())?;
@@ -1627,6 +1629,7 @@ impl FrameReader {
             frames,
             steps,
             scene_text,
+            scene_path,
         })
     }
 
@@ -1638,6 +1641,11 @@ impl FrameReader {
     /// The scene text the run was started with.
     pub fn scene_text(&self) -> &str {
         &self.scene_text
+    }
+
+    /// Where the run's scene was read from (empty if the file does not say).
+    pub fn scene_path(&self) -> &str {
+        &self.scene_path
     }
 
     /// Indices of the complete frames, ascending.

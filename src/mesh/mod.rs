@@ -220,9 +220,16 @@ impl TetMesh {
     /// Boundary faces (faces that belong to exactly one tet), each oriented with its normal
     /// pointing out of the body, paired with the tet it belongs to. Sorted for determinism.
     pub fn boundary_faces(&self) -> Vec<BoundaryFace> {
+        self.boundary_faces_of(&vec![true; self.tets.len()])
+    }
+
+    /// The boundary faces (as [`TetMesh::boundary_faces`]) of the part of the mesh made of
+    /// the tets `t` with `keep[t]`: the mesh's boundary faces of kept tets, and the faces
+    /// between a kept tet and one that is not (a cut through the mesh).
+    pub fn boundary_faces_of(&self, keep: &[bool]) -> Vec<BoundaryFace> {
         let mut faces: Vec<([usize; 3], [usize; 3], usize)> =
             Vec::with_capacity(self.tets.len() * 4);
-        for (t, tet) in self.tets.iter().enumerate() {
+        for (t, tet) in self.tets.iter().enumerate().filter(|(t, _)| keep[*t]) {
             for f in TET_FACES {
                 let oriented = [tet[f[0]], tet[f[1]], tet[f[2]]];
                 let mut key = oriented;

@@ -7,6 +7,7 @@ use super::{
 use crate::output::{FrameReader, StoredFrame};
 use embedded_graphics::text::Alignment;
 use std::collections::HashSet;
+use std::path::Path;
 
 /// The paper's figure shows its animation frames 1200, 1600, 2000 and 2400: time steps of
 /// 1/30 s, so the frames written at these steps (whatever the run's output cadence).
@@ -120,18 +121,17 @@ pub fn figure(
     let width = MARGIN + n * (panel.width + MARGIN) + strip;
     let height = TITLE + panel.height + CAPTION + MARGIN;
     let mut picture = Picture::filled(width, height, to_u8(SKY_TOP));
-    let name = reader
+    let file = reader
         .path()
         .file_name()
         .unwrap_or_default()
         .to_string_lossy();
-    draw_text(
-        &mut picture,
-        &format!("icefem: {name}"),
-        MARGIN,
-        6,
-        Alignment::Left,
-    );
+    let scene = Path::new(reader.scene_path())
+        .file_name()
+        .unwrap_or_default()
+        .to_string_lossy();
+    let title = format!("icefem: {scene} ({file})");
+    draw_text(&mut picture, &title, MARGIN, 6, Alignment::Left);
     let mut panels = Vec::with_capacity(n);
     for (k, frame) in frames.iter().enumerate() {
         let x = MARGIN + k * (panel.width + MARGIN);

@@ -179,6 +179,37 @@ impl FromStr for Style {
     }
 }
 
+/// A cut through the ice to show its inside: the elements whose rest centroid lies on the
+/// camera's side of the plane `x[axis] = value` are left out (and crack triangles on that
+/// side), so the faces along the cut show the interior's colours.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cut {
+    /// 0, 1, 2 for x, y, z.
+    pub axis: usize,
+    /// Position of the plane (m).
+    pub value: f64,
+}
+
+impl FromStr for Cut {
+    type Err = String;
+    /// `x=0.05`, `y=…` or `z=…` (m).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let bad = || format!("cut {s:?}: expected x=VALUE, y=VALUE or z=VALUE (m)");
+        let (axis, value) = s.split_once('=').ok_or_else(bad)?;
+        let axis = ["x", "y", "z"]
+            .iter()
+            .position(|a| *a == axis.trim())
+            .ok_or_else(bad)?;
+        let value = value
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(bad)?;
+        Ok(Cut { axis, value })
+    }
+}
+
 /// What a picture shows and how.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
@@ -195,6 +226,20 @@ pub struct RenderOptions {
     pub color_by: Option<ColorField>,
     /// Colour-bar range (min, max); default: the range over the frames drawn.
     pub range: Option<(f64, f64)>,
+    /// Leave out the ice between the camera and a plane.
+    pub cut: Option<Cut>,
+}
+
+impl RenderOptions {
+    /// Width of the scene area: the picture less the colour-bar strip, if any (pixels).
+    fn scene_width(&self) -> usize {
+        self.width
+            - if self.color_by.is_some() {
+                BAR_STRIP
+            } else {
+                0
+            }
+    }
 }
 
 impl Default for RenderOptions {
@@ -206,6 +251,7 @@ impl Default for RenderOptions {
             style: Style::Glass,
             color_by: None,
             range: None,
+            cut: None,
         }
     }
 }
@@ -280,12 +326,7 @@ impl Renderer {
                     .flat_map(|o| o.segments.iter().flatten().copied()),
             ),
         );
-        let scene_width = options.width
-            - if options.color_by.is_some() {
-                BAR_STRIP
-            } else {
-                0
-            };
+        let scene_width = options.scene_width();
         let camera = Camera::fit(
             options.view,
             lo,
@@ -407,26 +448,16 @@ impl Renderer {
         let positions: Vec<Vector3<f64>> =
             state.positions.iter().map(|p| Vector3::from(*p)).collect();
 
-        // The outer surface: boundary faces of the current mesh that are not crack faces.
-        let surface: Vec<([usize; 3], usize)> = rest
-            .boundary_faces()
-            .into_iter()
-            .filter(|f| match (&self.original, &origin) {
-                (Some(original), Some(origin)) => {
-                    original.on_boundary(origin[f.tet], &f.nodes.map(|i| rest.rest[i]))
-                }
-                _ => true,
-            })
-            .map(|f| (f.nodes, f.tet))
+        let surface = self.surface(&rest, origin.as_deref());
+        let crack_triangles: Vec<[Vector3<f64>; 3]> = frame
+            .crack_triangles
+            .iter()
+            .map(|(x, _)| x.map(Vector3::from))
+            .filter(|x| !self.is_cut_away(&((x[0] + x[1] + x[2]) / 3.0)))
             .collect();
 
         let camera = self.camera.scaled(SUPERSAMPLE as f64);
-        let scene_width = self.options.width
-            - if self.options.color_by.is_some() {
-                BAR_STRIP
-            } else {
-                0
-            };
+        let scene_width = self.options.scene_width();
         let (w, h) = (scene_width * SUPERSAMPLE, self.options.height * SUPERSAMPLE);
         let mut canvas = sky(w, h);
         let (right, up) = camera.right_up();
@@ -443,8 +474,7 @@ impl Renderer {
         let project = |x: Vector3<f64>| camera.project(x);
 
         // Cracks: opaque, first, so that glass blends over them.
-        for (x, _) in &frame.crack_triangles {
-            let x = x.map(Vector3::from);
+        for &x in &crack_triangles {
             canvas.fill(x.map(project), shade(x, CRACK));
         }
         let color_of = |element: usize| -> Rgb {
@@ -499,6 +529,57 @@ impl Renderer {
         }
         Ok(canvas.downsample(SUPERSAMPLE))
     }
+}
+
+impl Renderer {
+    /// The ice surface to draw: the boundary faces of the (cut) mesh that are not crack
+    /// faces, each with its element. Crack faces are the boundary faces off the scene mesh's
+    /// boundary (fracture runs, with `origin`); the faces along a cut are drawn.
+    fn surface(&self, rest: &TetMesh, origin: Option<&[usize]>) -> Vec<([usize; 3], usize)> {
+        let keep: Vec<bool> = rest
+            .tets
+            .iter()
+            .map(|t| {
+                !self.is_cut_away(&(t.iter().map(|&i| rest.rest[i]).sum::<Vector3<f64>>() / 4.0))
+            })
+            .collect();
+        // Faces of the uncut mesh's boundary; the other faces of the cut part lie on the cut.
+        let mesh_boundary: Option<std::collections::HashSet<[usize; 3]>> =
+            self.options.cut.map(|_| {
+                rest.boundary_faces()
+                    .iter()
+                    .map(|f| sorted(f.nodes))
+                    .collect()
+            });
+        rest.boundary_faces_of(&keep)
+            .into_iter()
+            .filter(|f| {
+                let on_cut = mesh_boundary
+                    .as_ref()
+                    .is_some_and(|b| !b.contains(&sorted(f.nodes)));
+                match (&self.original, origin) {
+                    (Some(original), Some(origin)) if !on_cut => {
+                        original.on_boundary(origin[f.tet], &f.nodes.map(|i| rest.rest[i]))
+                    }
+                    _ => true,
+                }
+            })
+            .map(|f| (f.nodes, f.tet))
+            .collect()
+    }
+
+    /// Whether the point `x` (m) is on the camera's side of the cut plane.
+    fn is_cut_away(&self, x: &Vector3<f64>) -> bool {
+        self.options.cut.is_some_and(|cut| {
+            let towards_eye = -self.camera.forward()[cut.axis];
+            (x[cut.axis] - cut.value) * towards_eye > 0.0
+        })
+    }
+}
+
+fn sorted(mut face: [usize; 3]) -> [usize; 3] {
+    face.sort_unstable();
+    face
 }
 
 /// The backdrop of the scene area, at `SUPERSAMPLE` × the size.
