@@ -21,6 +21,7 @@ pub use raster::Picture;
 pub use sequence::{numbered_path, render_frames, RenderSummary};
 
 use crate::fracture::cracks::OriginalBoundary;
+use crate::mesh::surface::TriSurface;
 use crate::mesh::TetMesh;
 use crate::output::{FrameReader, OutputError, StoredFrame};
 use crate::physics::contact::Shape;
@@ -35,7 +36,7 @@ use embedded_graphics::Drawable;
 use nalgebra::{Matrix3, Vector3};
 use raster::{Canvas, Rgb};
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 /// Failures of rendering. Each names the file concerned.
@@ -318,7 +319,8 @@ impl Renderer {
             )
         };
         let (ice_lo, ice_hi) = bounds(&mut first.state.positions.iter().map(|p| Vector3::from(*p)));
-        let outlines = obstacle_outlines(reader.scene_text(), ice_lo, ice_hi);
+        let scene_path = Path::new(reader.scene_path());
+        let outlines = obstacle_outlines(reader.scene_text(), scene_path, ice_lo, ice_hi);
         let (lo, hi) = bounds(
             &mut [ice_lo, ice_hi].into_iter().chain(
                 outlines
@@ -593,8 +595,8 @@ pub fn background(width: usize, height: usize) -> Picture {
     sky(width * SUPERSAMPLE, height * SUPERSAMPLE).downsample(SUPERSAMPLE)
 }
 
-/// Edges of the surface where it bends by more than [`FEATURE_ANGLE_DEG`], or that bound it
-/// (a crack's mouth), at the current positions.
+/// Edges of a triangle surface where it bends by more than [`FEATURE_ANGLE_DEG`], or that
+/// bound it (a crack's mouth), at `positions`.
 fn feature_edges(
     surface: &[([usize; 3], usize)],
     positions: &[Vector3<f64>],
@@ -622,10 +624,16 @@ fn feature_edges(
         .collect()
 }
 
-/// Outline segments of the scene's rigid obstacles (containers: floor and walls; half-spaces:
-/// a square on the plane around the ice's box `[lo, hi]`). Triangle-mesh obstacles are not
-/// drawn (their files are not in the output).
-fn obstacle_outlines(scene_text: &str, lo: Vector3<f64>, hi: Vector3<f64>) -> Vec<Outline> {
+/// Outline segments of the scene's rigid obstacles: containers' floor, rim and wall edges;
+/// half-spaces as a square on the plane around the ice's box `[lo, hi]`; triangle meshes by
+/// their feature edges, when the surface file is still where the scene (read from
+/// `scene_path`) names it.
+fn obstacle_outlines(
+    scene_text: &str,
+    scene_path: &Path,
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+) -> Vec<Outline> {
     // The scene was validated when the run started; a text that no longer parses (another
     // version) just draws no obstacles.
     let Ok(scene) = toml::from_str::<SceneFile>(scene_text) else {
@@ -636,21 +644,39 @@ fn obstacle_outlines(scene_text: &str, lo: Vector3<f64>, hi: Vector3<f64>) -> Ve
         .iter()
         .filter_map(|o| {
             let v3 = |v: Option<[f64; 3]>| v.map(Vector3::from);
-            let shape = match o.kind.as_str() {
-                "container" => Shape::Container {
-                    inner: Region {
-                        min: v3(o.min)?,
-                        max: v3(o.max)?,
+            let segments = match o.kind.as_str() {
+                "container" => shape_outline(
+                    &Shape::Container {
+                        inner: Region {
+                            min: v3(o.min)?,
+                            max: v3(o.max)?,
+                        },
                     },
-                },
-                "halfspace" => Shape::HalfSpace {
-                    point: v3(o.point)?,
-                    normal: v3(o.normal)?.try_normalize(0.0)?,
-                },
+                    lo,
+                    hi,
+                ),
+                "halfspace" => shape_outline(
+                    &Shape::HalfSpace {
+                        point: v3(o.point)?,
+                        normal: v3(o.normal)?.try_normalize(0.0)?,
+                    },
+                    lo,
+                    hi,
+                ),
+                "mesh" => {
+                    let file = scene_path.parent()?.join(o.file.as_ref()?);
+                    let surface = TriSurface::read(&file, o.scale.unwrap_or(1.0)).ok()?;
+                    let shift = v3(o.translate).unwrap_or_default();
+                    let vertices: Vec<Vector3<f64>> =
+                        surface.vertices.iter().map(|v| v + shift).collect();
+                    let triangles: Vec<([usize; 3], usize)> =
+                        surface.triangles.iter().map(|&t| (t, 0)).collect();
+                    feature_edges(&triangles, &vertices)
+                }
                 _ => return None,
             };
             Some(Outline {
-                segments: shape_outline(&shape, lo, hi),
+                segments,
                 velocity: v3(o.velocity).unwrap_or_default(),
             })
         })
@@ -690,7 +716,7 @@ fn shape_outline(shape: &Shape, lo: Vector3<f64>, hi: Vector3<f64>) -> Vec<[Vect
             };
             (0..4).map(|i| [corner(i), corner(i + 1)]).collect()
         }
-        Shape::Mesh { .. } => Vec::new(),
+        Shape::Mesh { .. } => Vec::new(), // drawn from its file (see `obstacle_outlines`)
     }
 }
 
