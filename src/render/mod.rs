@@ -298,7 +298,7 @@ pub struct Renderer {
 
 impl Renderer {
     /// Prepares pictures of `reader`'s frames: the camera is fitted to the first frame's
-    /// positions and the containers of the stored scene.
+    /// positions and the outlines of the stored scene's obstacles.
     pub fn new(reader: &FrameReader, options: RenderOptions) -> Result<Self, RenderError> {
         let invalid = |message: String| RenderError::Invalid {
             path: reader.path().into(),
@@ -429,19 +429,21 @@ impl Renderer {
         let state = &frame.state;
         let rest = TetMesh::from_arrays(&state.rest_positions, state.tets.clone())
             .map_err(|e| invalid(format!("frame {}: {e}", frame.index)))?;
-        let origin: Option<Vec<usize>> = match (&self.original, frame.element_field("origin")) {
-            (Some(_), Some((1, o))) => Some(o.iter().map(|&v| v as usize).collect()),
+        // Each element's scene element (fracture runs): whole numbers below the scene's count.
+        let origin = match (&self.original, frame.element_field("origin")) {
+            (Some(original), Some((1, o))) => {
+                let valid =
+                    |v: f64| v >= 0.0 && v.fract() == 0.0 && v < original.num_elements() as f64;
+                if o.len() != state.tets.len() || !o.iter().all(|&v| valid(v)) {
+                    return Err(invalid(format!(
+                        "frame {}: origin does not match the tets and the initial mesh",
+                        frame.index
+                    )));
+                }
+                Some(o.iter().map(|&v| v as usize).collect::<Vec<usize>>())
+            }
             _ => None,
         };
-        if let (Some(original), Some(origin)) = (&self.original, &origin) {
-            let scene_elements = original.num_elements();
-            if origin.len() != state.tets.len() || origin.iter().any(|&o| o >= scene_elements) {
-                return Err(invalid(format!(
-                    "frame {}: origin does not match the tets and the initial mesh",
-                    frame.index
-                )));
-            }
-        }
         let values = match self.options.color_by {
             Some(field) => Some(field.values(frame, reader)?),
             None => None,
