@@ -149,6 +149,7 @@ fn frame_steps(linear: LinearSolverKind, ordering: FillOrdering) -> StepSettings
         ordering,
         cg_tolerance: 1e-10,
         cg_max_iterations: 100_000,
+        amg_reuse: true,
     }
 }
 

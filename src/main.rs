@@ -129,6 +129,19 @@ fn main() {
 enum SolverArg {
     Cholesky,
     Cg,
+    Amg,
+    Auto,
+}
+
+impl SolverArg {
+    fn name(self) -> &'static str {
+        match self {
+            SolverArg::Cholesky => "cholesky",
+            SolverArg::Cg => "cg",
+            SolverArg::Amg => "amg",
+            SolverArg::Auto => "auto",
+        }
+    }
 }
 
 impl From<SolverArg> for LinearSolverKind {
@@ -136,6 +149,8 @@ impl From<SolverArg> for LinearSolverKind {
         match s {
             SolverArg::Cholesky => LinearSolverKind::Cholesky,
             SolverArg::Cg => LinearSolverKind::Cg,
+            SolverArg::Amg => LinearSolverKind::Amg,
+            SolverArg::Auto => LinearSolverKind::Auto,
         }
     }
 }
@@ -280,10 +295,7 @@ fn bench_command(
         return Ok(());
     }
     let exe = std::env::current_exe().context("locating the icefem executable")?;
-    let solver_name = match solver {
-        SolverArg::Cholesky => "cholesky",
-        SolverArg::Cg => "cg",
-    };
+    let solver_name = solver.name();
     println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}, ordering {}", ordering.name());
     println!("{} threads; medians of {repeats} runs (fresh process each) of the per-step medians over {steps} steps\n", rayon::current_num_threads());
     println!("| tets | free dofs | nnz(K) | nnz(L) | pattern (s) | symbolic (s) | assembly/step (s) | factor/step (s) | solve/step (s) | step (s) | Newton it. | lin. it. | peak memory (MB) |");

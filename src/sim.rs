@@ -38,6 +38,9 @@ pub struct StepSettings {
     pub cg_tolerance: f64,
     /// CG iteration cap.
     pub cg_max_iterations: usize,
+    /// Multigrid-preconditioned CG keeps its hierarchy across Newton iterations and steps
+    /// until the iterations grow (false: a new set-up at every Hessian refresh).
+    pub amg_reuse: bool,
 }
 
 /// The time-dependent state: everything a step depends on besides the model.
@@ -220,8 +223,10 @@ impl Simulation {
             settings.linear,
             settings.ordering,
             &assembly,
+            &model.mesh.rest,
             settings.cg_tolerance,
             settings.cg_max_iterations,
+            settings.amg_reuse,
         )?;
         let workspace = NewtonWorkspace::new(&assembly);
         let n = 3 * model.num_nodes();
@@ -376,8 +381,10 @@ impl Simulation {
                 s.linear,
                 s.ordering,
                 &self.assembly,
+                &self.model.mesh.rest,
                 s.cg_tolerance,
                 s.cg_max_iterations,
+                s.amg_reuse,
             )?;
             self.workspace = NewtonWorkspace::new(&self.assembly);
             if self.model.contact.is_some() {

@@ -1,8 +1,12 @@
 //! Sparse symmetric positive-definite linear solvers behind one interface: faer's supernodal
-//! Cholesky (symbolic analysis once per pattern, numeric factorisation per call) and
-//! Jacobi-preconditioned conjugate gradients.
+//! Cholesky (symbolic analysis once per pattern, numeric factorisation per call),
+//! Jacobi-preconditioned conjugate gradients, and conjugate gradients preconditioned by
+//! smoothed-aggregation multigrid (whose hierarchy is reused across Newton iterations and
+//! steps while it stays effective).
 
+use super::amg::{Amg, AmgError, AmgInfo};
 use super::ordering::{nested_dissection, FillOrdering};
+use super::pcg::{pcg, symmetric_multiply, PcgFailure, PcgOperators, PcgWork};
 use crate::assembly::Assembly;
 use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -16,6 +20,7 @@ use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::{Conj, MatMut, MatRef, Par, Side};
+use nalgebra::Vector3;
 use std::time::Instant;
 
 /// Which linear solver a Newton iteration uses.
@@ -26,6 +31,35 @@ pub enum LinearSolverKind {
     Cholesky,
     /// Conjugate gradients with a Jacobi (diagonal) preconditioner.
     Cg,
+    /// Conjugate gradients preconditioned by one V-cycle of smoothed-aggregation algebraic
+    /// multigrid ([`super::amg`]).
+    Amg,
+    /// Cholesky below [`AUTO_DIRECT_MAX_DOFS`] free dofs, multigrid-preconditioned CG above.
+    Auto,
+}
+
+/// Largest free-dof count for which `Auto` picks the direct solver. Measured with
+/// `icefem bench` on the corotated ice cube (backward-Euler steps, 2 cores): see the README's
+/// benchmark section for the crossover.
+pub const AUTO_DIRECT_MAX_DOFS: usize = 50_000;
+
+/// A multigrid-preconditioned CG solve is re-set-up on the next Newton refresh when it needed
+/// more than `REFRESH_GROWTH` × (iterations of the first solve after the last set-up) +
+/// [`REFRESH_SLACK`] iterations.
+pub const REFRESH_GROWTH: f64 = 1.5;
+/// Absolute slack of the refresh test, so that a change of one or two iterations at small
+/// counts does not trigger a set-up.
+pub const REFRESH_SLACK: usize = 2;
+
+impl LinearSolverKind {
+    /// The solver actually used for `n` free dofs (`Auto` resolved).
+    pub fn resolve(self, n: usize) -> LinearSolverKind {
+        match self {
+            LinearSolverKind::Auto if n <= AUTO_DIRECT_MAX_DOFS => LinearSolverKind::Cholesky,
+            LinearSolverKind::Auto => LinearSolverKind::Amg,
+            other => other,
+        }
+    }
 }
 
 /// Failures of the linear solve.
@@ -38,12 +72,31 @@ pub enum LinearError {
          unconstrained rigid-body mode (add Dirichlet conditions) or a part of the mesh is detached"
     )]
     NotPositiveDefinite { pivot: usize, n: usize },
+    /// CG met a direction of non-positive curvature: the matrix is not positive definite.
+    #[error("the system matrix is not positive definite (conjugate gradients found negative curvature at iteration {iteration} of a {n}-dof system)")]
+    NegativeCurvature { iteration: usize, n: usize },
+    /// The multigrid set-up failed.
+    #[error("multigrid set-up failed: {0}")]
+    Amg(#[from] AmgError),
     /// CG did not reach its tolerance.
     #[error("conjugate gradients did not converge: relative residual {residual:e} after {iterations} iterations")]
     CgNotConverged { iterations: usize, residual: f64 },
     /// Memory or other failure inside faer.
     #[error("sparse solver failure: {0}")]
     Faer(String),
+}
+
+impl LinearError {
+    /// Whether the failure says the matrix is not positive definite (so Newton may switch to
+    /// the projected Hessian), whichever solver found it.
+    pub fn is_indefinite(&self) -> bool {
+        matches!(
+            self,
+            LinearError::NotPositiveDefinite { .. }
+                | LinearError::NegativeCurvature { .. }
+                | LinearError::Amg(AmgError::CoarseNotPositiveDefinite { .. })
+        )
+    }
 }
 
 /// Time and work of one linear solve.
@@ -77,20 +130,153 @@ pub enum LinearSolver {
         inv_diag: Vec<f64>,
         work: MemBuffer,
     },
+    /// Multigrid-preconditioned CG.
+    Amg(Box<AmgSolver>),
+}
+
+/// CG preconditioned by a smoothed-aggregation hierarchy that is kept across Newton iterations
+/// and steps: within a run the matrix changes slowly, and a hierarchy built for an earlier
+/// matrix is still a good (symmetric positive-definite) preconditioner for the current one.
+/// It is rebuilt on the next [`LinearSolver::factorize`] once a solve needed more than
+/// [`REFRESH_GROWTH`] times the iterations of the first solve after the last set-up.
+pub struct AmgSolver {
+    amg: Amg,
+    tolerance: f64,
+    max_iterations: usize,
+    /// Keep the hierarchy between refreshes (false: set up at every factorisation).
+    reuse: bool,
+    /// Iterations of the first solve after the last set-up.
+    baseline: Option<usize>,
+    /// A set-up is due at the next factorisation.
+    refresh_due: bool,
+    /// The matrix changed since the last set-up.
+    stale: bool,
+    work: PcgWork,
+    /// Set-ups so far.
+    setups: usize,
+    /// Set-up time so far (s).
+    t_setup: f64,
+}
+
+impl AmgSolver {
+    /// Builds the hierarchy for these values.
+    fn setup(&mut self, assembly: &Assembly, values: &[f64]) -> Result<f64, LinearError> {
+        let start = Instant::now();
+        self.amg.setup(assembly, values)?;
+        self.baseline = None;
+        self.refresh_due = false;
+        self.stale = false;
+        self.setups += 1;
+        let t = start.elapsed().as_secs_f64();
+        self.t_setup += t;
+        Ok(t)
+    }
+
+    /// One PCG solve; a stale hierarchy that lets it fail is rebuilt once and the solve
+    /// repeated.
+    fn solve(
+        &mut self,
+        assembly: &Assembly,
+        values: &[f64],
+        b: &[f64],
+        x: &mut [f64],
+    ) -> Result<usize, LinearError> {
+        let n = b.len();
+        loop {
+            let mut ops = AmgOperators {
+                amg: &mut self.amg,
+                assembly,
+                values,
+            };
+            let result = pcg(
+                &mut ops,
+                b,
+                x,
+                self.tolerance,
+                self.max_iterations,
+                &mut self.work,
+            );
+            match result {
+                Ok(iterations) => {
+                    match self.baseline {
+                        None => self.baseline = Some(iterations),
+                        Some(base) => {
+                            if iterations as f64 > REFRESH_GROWTH * base as f64 + REFRESH_SLACK as f64 {
+                                self.refresh_due = true;
+                            }
+                        }
+                    }
+                    return Ok(iterations);
+                }
+                Err(PcgFailure::NegativeCurvature { iteration }) => {
+                    return Err(LinearError::NegativeCurvature { iteration, n })
+                }
+                Err(_) if self.stale => {
+                    self.setup(assembly, values)?;
+                }
+                Err(PcgFailure::NoConvergence { residual }) => {
+                    return Err(LinearError::CgNotConverged {
+                        iterations: self.max_iterations,
+                        residual,
+                    })
+                }
+                Err(PcgFailure::Breakdown { iteration }) => {
+                    return Err(LinearError::Faer(format!(
+                        "the multigrid preconditioner lost positive definiteness at CG iteration {iteration}"
+                    )))
+                }
+            }
+        }
+    }
+}
+
+/// The current matrix (CSC, parallel product) and the hierarchy as PCG's operators.
+struct AmgOperators<'a> {
+    amg: &'a mut Amg,
+    assembly: &'a Assembly,
+    values: &'a [f64],
+}
+
+impl PcgOperators for AmgOperators<'_> {
+    fn apply(&mut self, x: &[f64], y: &mut [f64]) {
+        symmetric_multiply(self.assembly, self.values, x, y);
+    }
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        self.amg.apply(r, z);
+    }
 }
 
 impl LinearSolver {
     /// Prepares a solver for the pattern of `assembly`: the symbolic analysis for Cholesky (done
     /// here once, reused by every [`LinearSolver::solve`]), the workspace for CG.
+    ///
+    /// `coords` are the rest positions of the mesh nodes (m), from which multigrid builds the
+    /// rigid-body modes; `amg_reuse` keeps its hierarchy between refreshes.
     pub fn new(
         kind: LinearSolverKind,
         ordering: FillOrdering,
         assembly: &Assembly,
+        coords: &[Vector3<f64>],
         cg_tolerance: f64,
         cg_max_iterations: usize,
+        amg_reuse: bool,
     ) -> Result<Self, LinearError> {
         let n = assembly.dofs().num_free();
-        match kind {
+        match kind.resolve(n) {
+            LinearSolverKind::Amg | LinearSolverKind::Auto => {
+                Ok(LinearSolver::Amg(Box::new(AmgSolver {
+                    amg: Amg::new(coords),
+                    tolerance: cg_tolerance,
+                    max_iterations: cg_max_iterations,
+                    reuse: amg_reuse,
+                    baseline: None,
+                    refresh_due: false,
+                    stale: false,
+                    work: PcgWork::new(n),
+                    setups: 0,
+                    t_setup: 0.0,
+                })))
+            }
             LinearSolverKind::Cholesky => {
                 let start = Instant::now();
                 let permutation = if ordering.uses_metis(n) {
@@ -150,7 +336,24 @@ impl LinearSolver {
     pub fn symbolic_time(&self) -> f64 {
         match self {
             LinearSolver::Cholesky { t_symbolic, .. } => *t_symbolic,
-            LinearSolver::Cg { .. } => 0.0,
+            LinearSolver::Cg { .. } | LinearSolver::Amg(_) => 0.0,
+        }
+    }
+
+    /// The solver in use (`Auto` resolved).
+    pub fn kind(&self) -> LinearSolverKind {
+        match self {
+            LinearSolver::Cholesky { .. } => LinearSolverKind::Cholesky,
+            LinearSolver::Cg { .. } => LinearSolverKind::Cg,
+            LinearSolver::Amg(_) => LinearSolverKind::Amg,
+        }
+    }
+
+    /// Multigrid statistics: the hierarchy, set-ups so far and their total time (s).
+    pub fn amg_stats(&self) -> Option<(AmgInfo, usize, f64)> {
+        match self {
+            LinearSolver::Amg(s) => Some((s.amg.info(), s.setups, s.t_setup)),
+            _ => None,
         }
     }
 
@@ -169,14 +372,15 @@ impl LinearSolver {
     pub fn factor_nnz(&self) -> Option<usize> {
         match self {
             LinearSolver::Cholesky { l_values, .. } => Some(l_values.len()),
-            LinearSolver::Cg { .. } => None,
+            LinearSolver::Cg { .. } | LinearSolver::Amg(_) => None,
         }
     }
 
     /// Prepares solves with the matrix of `assembly`'s pattern and these values: the numeric
-    /// Cholesky factorisation, or the Jacobi preconditioner for CG. Returns its time (s), or
-    /// `None` when the values are bit for bit those of the current factor (a linear model at a
-    /// fixed step has the same matrix every step), which is then kept.
+    /// Cholesky factorisation, the Jacobi preconditioner for CG, or the multigrid set-up.
+    /// Returns its time (s), or `None` when nothing was computed: the values are bit for bit
+    /// those of the current factor (a linear model at a fixed step has the same matrix every
+    /// step), or the multigrid hierarchy of an earlier matrix is kept.
     pub fn factorize(
         &mut self,
         assembly: &Assembly,
@@ -220,6 +424,13 @@ impl LinearSolver {
                 factored.extend_from_slice(values);
             }
             LinearSolver::Cg { inv_diag, .. } => jacobi_inverse(assembly, values, inv_diag),
+            LinearSolver::Amg(s) => {
+                if s.amg.is_built() && s.reuse && !s.refresh_due {
+                    s.stale = true;
+                    return Ok(None);
+                }
+                s.setup(assembly, values)?;
+            }
         }
         Ok(Some(start.elapsed().as_secs_f64()))
     }
@@ -295,6 +506,13 @@ impl LinearSolver {
                     }),
                     Err(e) => Err(LinearError::Faer(format!("{e:?}"))),
                 }
+            }
+            LinearSolver::Amg(s) => {
+                let iterations = s.solve(assembly, values, b, x)?;
+                Ok(LinearStats {
+                    t_solve: start.elapsed().as_secs_f64(),
+                    iterations,
+                })
             }
         }
     }

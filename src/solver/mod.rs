@@ -1,8 +1,10 @@
 //! Linear solvers and Newton's method.
 
+pub mod amg;
 pub mod linear;
 pub mod newton;
 pub mod ordering;
+pub mod pcg;
 pub mod timestep;
 
 pub use linear::{LinearError, LinearSolver, LinearSolverKind, LinearStats};
