@@ -182,7 +182,7 @@ impl From<OrderingArg> for FillOrdering {
     }
 }
 
-const BENCH_FIELDS: usize = 14;
+const BENCH_FIELDS: usize = 20;
 
 /// `icefem bench --fracture`: prints a table of the fracture check and split costs.
 fn fracture_bench(sizes: &[usize], repeats: usize) -> Result<()> {
@@ -290,6 +290,12 @@ fn bench_command(
             r.newton_iterations as f64,
             r.linear_iterations as f64,
             m,
+            r.t_first_setup,
+            r.t_first_solve,
+            r.first_iterations as f64,
+            r.levels as f64,
+            r.operator_complexity,
+            r.setups as f64,
         ];
         println!("{}", row.map(|v| v.to_string()).join(" "));
         return Ok(());
@@ -298,8 +304,10 @@ fn bench_command(
     let solver_name = solver.name();
     println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}, ordering {}", ordering.name());
     println!("{} threads; medians of {repeats} runs (fresh process each) of the per-step medians over {steps} steps\n", rayon::current_num_threads());
-    println!("| tets | free dofs | nnz(K) | nnz(L) | pattern (s) | symbolic (s) | assembly/step (s) | factor/step (s) | solve/step (s) | step (s) | Newton it. | lin. it. | peak memory (MB) |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| tets | free dofs | nnz(K) | nnz(L) | pattern (s) | symbolic (s) | assembly/step (s) | factor/step (s) | solve/step (s) | step (s) | Newton it. | lin. it. | peak memory (MB) | first system: setup + solve (s) (it.) | AMG levels / op. complexity | set-ups per run |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    // (dofs, step time, first-system time) per size, for the scaling exponents.
+    let mut scaling: Vec<[f64; 3]> = Vec::new();
     for &tets in sizes {
         let mut rows: Vec<[f64; BENCH_FIELDS]> = Vec::new();
         for _ in 0..repeats.max(1) {
@@ -339,8 +347,17 @@ fn bench_command(
             v[v.len() / 2]
         };
         println!(
-            "| {} | {} | {:.2e} | {:.2e} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {} | {} | {:.0} |",
-            med(0), med(1), med(2), med(3), med(5), med(6), med(7), med(8), med(9), med(10), med(11), med(12), med(13) / 1e6
+            "| {} | {} | {:.2e} | {:.2e} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {} | {} | {:.0} | {:.3} + {:.3} = {:.3} ({}) | {} / {:.2} | {} |",
+            med(0), med(1), med(2), med(3), med(5), med(6), med(7), med(8), med(9), med(10), med(11), med(12), med(13) / 1e6,
+            med(14), med(15), med(14) + med(15), med(16), med(17), med(18), med(19)
+        );
+        scaling.push([med(1), med(10), med(14) + med(15)]);
+    }
+    if scaling.len() >= 2 {
+        println!(
+            "\nScaling exponent (least-squares slope of log time against log free dofs): step {:.2}, first system (set-up + solve) {:.2}",
+            bench::loglog_slope(&scaling.iter().map(|r| (r[0], r[1])).collect::<Vec<_>>()),
+            bench::loglog_slope(&scaling.iter().map(|r| (r[0], r[2])).collect::<Vec<_>>()),
         );
     }
     Ok(())

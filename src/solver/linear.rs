@@ -156,6 +156,8 @@ pub struct AmgSolver {
     setups: usize,
     /// Set-up time so far (s).
     t_setup: f64,
+    /// Iterations and time (s) of every solve so far, for statistics.
+    history: Vec<(usize, f64)>,
 }
 
 impl AmgSolver {
@@ -230,6 +232,19 @@ impl AmgSolver {
     }
 }
 
+/// What multigrid-preconditioned CG has done so far.
+#[derive(Clone, Debug)]
+pub struct AmgStats<'a> {
+    /// The current hierarchy.
+    pub hierarchy: AmgInfo,
+    /// Set-ups so far.
+    pub setups: usize,
+    /// Their total time (s).
+    pub t_setup: f64,
+    /// Iterations and time (s) of every solve so far.
+    pub solves: &'a [(usize, f64)],
+}
+
 /// The current matrix (CSC, parallel product) and the hierarchy as PCG's operators.
 struct AmgOperators<'a> {
     amg: &'a mut Amg,
@@ -275,6 +290,7 @@ impl LinearSolver {
                     work: PcgWork::new(n),
                     setups: 0,
                     t_setup: 0.0,
+                    history: Vec::new(),
                 })))
             }
             LinearSolverKind::Cholesky => {
@@ -349,10 +365,15 @@ impl LinearSolver {
         }
     }
 
-    /// Multigrid statistics: the hierarchy, set-ups so far and their total time (s).
-    pub fn amg_stats(&self) -> Option<(AmgInfo, usize, f64)> {
+    /// Multigrid statistics (`None` for the other solvers).
+    pub fn amg_stats(&self) -> Option<AmgStats<'_>> {
         match self {
-            LinearSolver::Amg(s) => Some((s.amg.info(), s.setups, s.t_setup)),
+            LinearSolver::Amg(s) => Some(AmgStats {
+                hierarchy: s.amg.info(),
+                setups: s.setups,
+                t_setup: s.t_setup,
+                solves: &s.history,
+            }),
             _ => None,
         }
     }
@@ -509,8 +530,10 @@ impl LinearSolver {
             }
             LinearSolver::Amg(s) => {
                 let iterations = s.solve(assembly, values, b, x)?;
+                let t_solve = start.elapsed().as_secs_f64();
+                s.history.push((iterations, t_solve));
                 Ok(LinearStats {
-                    t_solve: start.elapsed().as_secs_f64(),
+                    t_solve,
                     iterations,
                 })
             }
