@@ -74,11 +74,15 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Runs `steps` backward-Euler steps of a 10 cm corotated ice cube with ≈ `tets` tets and
 /// reports median per-step timings.
+///
+/// `amg_reuse`: multigrid-preconditioned CG keeps its hierarchy across Newton iterations and
+/// steps (see [`StepSettings::amg_reuse`]).
 pub fn run_size(
     tets: usize,
     steps: usize,
     linear: LinearSolverKind,
     ordering: FillOrdering,
+    amg_reuse: bool,
 ) -> Result<BenchResult, SimError> {
     let start = Instant::now();
     let c = cells_for(tets);
@@ -104,7 +108,10 @@ pub fn run_size(
         vec![base],
     )
     .map_err(|e| SimError::Setup(e.to_string()))?;
-    let settings = frame_steps(linear, ordering);
+    let settings = StepSettings {
+        amg_reuse,
+        ..frame_steps(linear, ordering)
+    };
     let t_model = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let mut sim = Simulation::new(model, settings)?;

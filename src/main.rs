@@ -60,6 +60,9 @@ enum Command {
         /// Cholesky fill-reducing ordering.
         #[arg(long, value_enum, default_value = "auto")]
         ordering: OrderingArg,
+        /// Multigrid: set the hierarchy up at every Hessian refresh instead of reusing it.
+        #[arg(long)]
+        no_amg_reuse: bool,
         /// Internal: run one size in this process and print one result line.
         #[arg(long, hide = true)]
         single: Option<usize>,
@@ -103,6 +106,7 @@ fn main() {
             repeats,
             solver,
             ordering,
+            no_amg_reuse,
             single,
             contact,
             fracture,
@@ -112,7 +116,15 @@ fn main() {
             } else if fracture {
                 fracture_bench(&tets, repeats)
             } else {
-                bench_command(&tets, steps, repeats, solver, ordering, single)
+                bench_command(
+                    &tets,
+                    steps,
+                    repeats,
+                    solver,
+                    ordering,
+                    !no_amg_reuse,
+                    single,
+                )
             }
         }
         Command::Info { file } => icefem::output::describe(&file)
@@ -270,10 +282,17 @@ fn bench_command(
     repeats: usize,
     solver: SolverArg,
     ordering: OrderingArg,
+    amg_reuse: bool,
     single: Option<usize>,
 ) -> Result<()> {
     if let Some(tets) = single {
-        let r = bench::run_size(tets, steps.max(1), solver.into(), ordering.into())?;
+        let r = bench::run_size(
+            tets,
+            steps.max(1),
+            solver.into(),
+            ordering.into(),
+            amg_reuse,
+        )?;
         let m = r.peak_memory.unwrap_or(0) as f64;
         let row = [
             r.tets as f64,
@@ -302,7 +321,7 @@ fn bench_command(
     }
     let exe = std::env::current_exe().context("locating the icefem executable")?;
     let solver_name = solver.name();
-    println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}, ordering {}", ordering.name());
+    println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}{}, ordering {}", if amg_reuse { "" } else { " (no hierarchy reuse)" }, ordering.name());
     println!("{} threads; medians of {repeats} runs (fresh process each) of the per-step medians over {steps} steps\n", rayon::current_num_threads());
     println!("| tets | free dofs | nnz(K) | nnz(L) | pattern (s) | symbolic (s) | assembly/step (s) | factor/step (s) | solve/step (s) | step (s) | Newton it. | lin. it. | peak memory (MB) | first system: setup + solve (s) (it.) | AMG levels / op. complexity | set-ups per run |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
@@ -323,6 +342,7 @@ fn bench_command(
                     "--ordering",
                     ordering.name(),
                 ])
+                .args((!amg_reuse).then_some("--no-amg-reuse"))
                 .output()
                 .context("running a benchmark process")?;
             if !out.status.success() {
