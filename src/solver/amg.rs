@@ -150,49 +150,63 @@ impl BlockCsr {
             .collect()
     }
 
-    /// Builds a matrix row by row in parallel: `row(i, cols, vals)` appends the blocks of row
-    /// `i`. Rows are computed in chunks whose results are concatenated in order.
+    /// Builds a matrix row by row in parallel: `row(scratch, i, cols, vals)` appends the blocks
+    /// of row `i` (and must append the same ones when called again). Two passes — count, then
+    /// fill the exactly sized arrays — so the set-up never holds a matrix twice (concatenating
+    /// per-task pieces would, and the fine-level prolongator is ~0.3 GB at 1e6 dofs).
     fn from_rows<S, I, F>(
         nrows: usize,
         ncols: usize,
         br: usize,
         bc: usize,
-        chunk: usize,
         init: I,
         row: F,
     ) -> BlockCsr
     where
         S: Send,
-        I: Fn() -> S + Sync + Send,
+        I: Fn() -> (S, Vec<u32>, Vec<f64>) + Sync + Send,
         F: Fn(&mut S, usize, &mut Vec<u32>, &mut Vec<f64>) + Sync + Send,
     {
-        let chunks: Vec<(Vec<usize>, Vec<u32>, Vec<f64>)> = (0..nrows.div_ceil(chunk))
+        let bb = br * bc;
+        let counts: Vec<usize> = (0..nrows)
             .into_par_iter()
-            .map_init(init, |scratch, c| {
-                let rows = c * chunk..((c + 1) * chunk).min(nrows);
-                let mut counts = Vec::with_capacity(rows.len());
-                let mut cols = Vec::new();
-                let mut vals = Vec::new();
-                for i in rows {
-                    let before = cols.len();
-                    row(scratch, i, &mut cols, &mut vals);
-                    counts.push(cols.len() - before);
-                }
-                (counts, cols, vals)
+            .with_min_len(MIN_ROWS)
+            .map_init(&init, |(scratch, cols, vals), i| {
+                cols.clear();
+                vals.clear();
+                row(scratch, i, cols, vals);
+                cols.len()
             })
             .collect();
-        let nnzb: usize = chunks.iter().map(|c| c.1.len()).sum();
         let mut ptr = Vec::with_capacity(nrows + 1);
-        let mut col = Vec::with_capacity(nnzb);
-        let mut val = Vec::with_capacity(nnzb * br * bc);
         ptr.push(0);
-        for (counts, cols, vals) in chunks {
-            for n in counts {
-                ptr.push(ptr.last().copied().unwrap_or(0) + n);
-            }
-            col.extend_from_slice(&cols);
-            val.extend_from_slice(&vals);
+        for n in &counts {
+            ptr.push(ptr.last().copied().unwrap_or(0) + n);
         }
+        drop(counts);
+        let nnzb = ptr[nrows];
+        let mut col = vec![0u32; nnzb];
+        let mut val = vec![0.0; nnzb * bb];
+        let mut rows: Vec<(&mut [u32], &mut [f64])> = Vec::with_capacity(nrows);
+        let (mut col_rest, mut val_rest) = (col.as_mut_slice(), val.as_mut_slice());
+        for i in 0..nrows {
+            let n = ptr[i + 1] - ptr[i];
+            let (c, c_tail) = col_rest.split_at_mut(n);
+            let (v, v_tail) = val_rest.split_at_mut(n * bb);
+            rows.push((c, v));
+            col_rest = c_tail;
+            val_rest = v_tail;
+        }
+        rows.into_par_iter()
+            .with_min_len(MIN_ROWS)
+            .enumerate()
+            .for_each_init(&init, |(scratch, cols, vals), (i, (c, v))| {
+                cols.clear();
+                vals.clear();
+                row(scratch, i, cols, vals);
+                c.copy_from_slice(cols);
+                v.copy_from_slice(vals);
+            });
         BlockCsr {
             nrows,
             ncols,
@@ -284,8 +298,7 @@ impl FineMap {
             n,
             3,
             3,
-            4096,
-            || (),
+            || ((), Vec::new(), Vec::new()),
             |_, i, cols, vals| {
                 let f = self.dofs[i].iter().find(|&&f| f != NONE).copied();
                 let Some(f) = f else { return };
@@ -1012,8 +1025,13 @@ fn smooth_prolongator(a: &BlockCsr, dinv: &[f64], t: &BlockCsr, omega: f64) -> B
         t.ncols,
         br,
         MODES,
-        2048,
-        || (Vec::<u32>::new(), Vec::<f64>::new()),
+        || {
+            (
+                (Vec::<u32>::new(), Vec::<f64>::new()),
+                Vec::new(),
+                Vec::new(),
+            )
+        },
         |(cols, sums), i, out_cols, out_vals| {
             cols.clear();
             sums.clear();
