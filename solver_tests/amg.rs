@@ -10,7 +10,7 @@ use icefem::fem::ElasticModel;
 use icefem::mesh::{box_mesh, TetMesh};
 use icefem::physics::{Dirichlet, Elasticity, Model, Region};
 use icefem::sim::{Analysis, Simulation};
-use icefem::solver::{FillOrdering, LinearSolver, LinearSolverKind};
+use icefem::solver::{FillOrdering, IterativeSettings, LinearSolver, LinearSolverKind};
 use nalgebra::Vector3;
 
 /// Relative residual CG is asked for.
@@ -83,9 +83,12 @@ fn solve(
         FillOrdering::Auto,
         assembly,
         &mesh.rest,
-        TOLERANCE,
-        20_000,
-        true,
+        &IterativeSettings {
+            tolerance: TOLERANCE,
+            max_iterations: 20_000,
+            amg_reuse: true,
+            factor_reuse: false,
+        },
     )
     .expect("solver set-up");
     solver.factorize(assembly, values).expect("set-up");

@@ -195,6 +195,7 @@ fn frame_steps(linear: LinearSolverKind, ordering: FillOrdering) -> StepSettings
         cg_tolerance: 1e-10,
         cg_max_iterations: 100_000,
         amg_reuse: true,
+        factor_reuse: false,
     }
 }
 

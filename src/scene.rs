@@ -357,6 +357,11 @@ pub struct SolverSection {
     /// Keep the multigrid hierarchy across Newton iterations and steps until CG's iterations
     /// grow by half (true, default), or set it up at every Hessian refresh (false).
     pub amg_reuse: Option<bool>,
+    /// Cholesky: keep a factorisation across Hessian refreshes and steps as the preconditioner
+    /// of CG until that needs more than 10 iterations (true), or factorise at every refresh
+    /// (false, default: results then do not depend on the history, and resumed runs are
+    /// bit-identical).
+    pub reuse_factorization: Option<bool>,
 }
 
 /// `[output]`.
@@ -544,6 +549,7 @@ impl Validator<'_> {
             cg_tolerance,
             cg_max_iterations,
             amg_reuse: solver.amg_reuse.unwrap_or(true),
+            factor_reuse: solver.reuse_factorization.unwrap_or(false),
         };
         let mut elasticity = Elasticity::new(&mesh, material, model);
         for (i, section) in raw.eigenstrain.iter().enumerate() {

@@ -30,6 +30,7 @@ pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
         cg_tolerance: 1e-12,
         cg_max_iterations: 20_000,
         amg_reuse: true,
+        factor_reuse: false,
     }
 }
 

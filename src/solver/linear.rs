@@ -43,6 +43,52 @@ pub enum LinearSolverKind {
 /// benchmark section for the crossover.
 pub const AUTO_DIRECT_MAX_DOFS: usize = 50_000;
 
+/// Settings of the iterative solvers and of the reuse of preconditioners.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IterativeSettings {
+    /// Relative residual ‖b − A x‖ / ‖b‖ at which CG stops.
+    pub tolerance: f64,
+    /// CG iteration cap.
+    pub max_iterations: usize,
+    /// Multigrid: keep the hierarchy across Newton iterations and steps until the iterations
+    /// grow (false: a set-up at every Hessian refresh).
+    pub amg_reuse: bool,
+    /// Cholesky: keep a factorisation across Hessian refreshes and steps, solving with CG
+    /// preconditioned by it, until CG needs more than [`FACTOR_REUSE_MAX_ITERATIONS`].
+    pub factor_reuse: bool,
+}
+
+/// A reused Cholesky factor is refreshed on the next Hessian refresh once a CG solve
+/// preconditioned by it needed more than this many iterations: each costs one pair of
+/// triangular solves, and a fresh factorisation costs about as much as 10–20 of them on
+/// 1e4–1e5 dofs (`icefem bench`).
+pub const FACTOR_REUSE_MAX_ITERATIONS: usize = 10;
+
+/// A solve preconditioned by a stale factor or hierarchy stops after this many times the
+/// iterations that trigger a refresh (the factor's cap, or the hierarchy's first count) and
+/// refreshes at once: after a large change of the matrix (contacts switching on) the old
+/// preconditioner can need hundreds of iterations.
+pub const STALE_ITERATION_CAP: usize = 3;
+
+/// State of a Cholesky factor reused as a preconditioner.
+pub struct FactorReuse {
+    settings: IterativeSettings,
+    /// The matrix changed since the factorisation.
+    stale: bool,
+    /// A factorisation is due at the next refresh.
+    refresh_due: bool,
+    work: PcgWork,
+}
+
+/// `Auto` switches from multigrid CG to Cholesky for good when a solve with a fresh hierarchy
+/// needs more than this many iterations (on ice it needs 15–40 up to 1e6 dofs; a nearly
+/// incompressible body such as unfrozen water needs hundreds) — if the system has at most
+/// [`FALLBACK_DIRECT_MAX_DOFS`] free dofs.
+pub const AMG_FALLBACK_ITERATIONS: usize = 200;
+/// Largest system `Auto` hands to Cholesky when multigrid struggles: a nested-dissection
+/// factor of 3e5 dofs holds ~2e8 entries (1.6 GB).
+pub const FALLBACK_DIRECT_MAX_DOFS: usize = 300_000;
+
 /// A multigrid-preconditioned CG solve is re-set-up on the next Newton refresh when it needed
 /// more than `REFRESH_GROWTH` × (iterations of the first solve after the last set-up) +
 /// [`REFRESH_SLACK`] iterations.
@@ -122,6 +168,8 @@ pub enum LinearSolver {
         nested_dissection: bool,
         /// The matrix values the current factor was computed from (empty before the first).
         factored: Vec<f64>,
+        /// Reuse of the factor as a CG preconditioner for later matrices (opt-in).
+        reuse: Option<Box<FactorReuse>>,
     },
     /// Preconditioned CG.
     Cg {
@@ -158,6 +206,8 @@ pub struct AmgSolver {
     t_setup: f64,
     /// Iterations and time (s) of every solve so far, for statistics.
     history: Vec<(usize, f64)>,
+    /// What `Auto` falls back to when multigrid struggles (see [`AMG_FALLBACK_ITERATIONS`]).
+    fallback: Option<(FillOrdering, IterativeSettings)>,
 }
 
 impl AmgSolver {
@@ -190,14 +240,14 @@ impl AmgSolver {
                 assembly,
                 values,
             };
-            let result = pcg(
-                &mut ops,
-                b,
-                x,
-                self.tolerance,
-                self.max_iterations,
-                &mut self.work,
-            );
+            let cap = match (self.stale, self.baseline) {
+                (true, Some(base)) => self
+                    .max_iterations
+                    .min(STALE_ITERATION_CAP * base + 10 * REFRESH_SLACK),
+                _ if self.fallback.is_some() => self.max_iterations.min(AMG_FALLBACK_ITERATIONS),
+                _ => self.max_iterations,
+            };
+            let result = pcg(&mut ops, b, x, self.tolerance, cap, &mut self.work);
             match result {
                 Ok(iterations) => {
                     match self.baseline {
@@ -266,17 +316,20 @@ impl LinearSolver {
     /// here once, reused by every [`LinearSolver::solve`]), the workspace for CG.
     ///
     /// `coords` are the rest positions of the mesh nodes (m), from which multigrid builds the
-    /// rigid-body modes; `amg_reuse` keeps its hierarchy between refreshes.
+    /// rigid-body modes.
     pub fn new(
         kind: LinearSolverKind,
         ordering: FillOrdering,
         assembly: &Assembly,
         coords: &[Vector3<f64>],
-        cg_tolerance: f64,
-        cg_max_iterations: usize,
-        amg_reuse: bool,
+        iterative: &IterativeSettings,
     ) -> Result<Self, LinearError> {
         let n = assembly.dofs().num_free();
+        let (cg_tolerance, cg_max_iterations, amg_reuse) = (
+            iterative.tolerance,
+            iterative.max_iterations,
+            iterative.amg_reuse,
+        );
         match kind.resolve(n) {
             LinearSolverKind::Amg | LinearSolverKind::Auto => {
                 Ok(LinearSolver::Amg(Box::new(AmgSolver {
@@ -291,6 +344,8 @@ impl LinearSolver {
                     setups: 0,
                     t_setup: 0.0,
                     history: Vec::new(),
+                    fallback: (kind == LinearSolverKind::Auto && n <= FALLBACK_DIRECT_MAX_DOFS)
+                        .then_some((ordering, *iterative)),
                 })))
             }
             LinearSolverKind::Cholesky => {
@@ -327,6 +382,14 @@ impl LinearSolver {
                     t_symbolic: start.elapsed().as_secs_f64(),
                     nested_dissection,
                     factored: Vec::new(),
+                    reuse: iterative.factor_reuse.then(|| {
+                        Box::new(FactorReuse {
+                            settings: *iterative,
+                            stale: false,
+                            refresh_due: false,
+                            work: PcgWork::new(n),
+                        })
+                    }),
                 })
             }
             LinearSolverKind::Cg => {
@@ -414,6 +477,7 @@ impl LinearSolver {
                 l_values,
                 work,
                 factored,
+                reuse,
                 ..
             } => {
                 let same = factored.len() == values.len()
@@ -421,28 +485,20 @@ impl LinearSolver {
                         .iter()
                         .zip(values)
                         .all(|(a, b)| a.to_bits() == b.to_bits());
+                if let Some(r) = reuse.as_mut() {
+                    r.stale = !same;
+                    if !same && !factored.is_empty() && !r.refresh_due {
+                        return Ok(None);
+                    }
+                }
                 if same {
                     return Ok(None);
                 }
-                let n = symbolic.nrows();
-                // Forget the old values first: a failed factorisation leaves `l_values` invalid.
-                factored.clear();
-                symbolic
-                    .factorize_numeric_llt::<f64>(
-                        l_values,
-                        assembly.matrix(values),
-                        Side::Lower,
-                        Default::default(),
-                        Par::Seq,
-                        MemStack::new(work),
-                        Default::default(),
-                    )
-                    .map_err(|e| match e {
-                        DenseLltError::NonPositivePivot { index } => {
-                            LinearError::NotPositiveDefinite { pivot: index, n }
-                        }
-                    })?;
-                factored.extend_from_slice(values);
+                factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
+                if let Some(r) = reuse.as_mut() {
+                    r.stale = false;
+                    r.refresh_due = false;
+                }
             }
             LinearSolver::Cg { inv_diag, .. } => jacobi_inverse(assembly, values, inv_diag),
             LinearSolver::Amg(s) => {
@@ -472,8 +528,48 @@ impl LinearSolver {
                 symbolic,
                 l_values,
                 work,
+                factored,
+                reuse,
                 ..
             } => {
+                if let Some(r) = reuse.as_mut().filter(|r| r.stale) {
+                    let result = pcg(
+                        &mut FactorOperators {
+                            assembly,
+                            values,
+                            factor: LltRef::new(symbolic, l_values),
+                            work,
+                        },
+                        b,
+                        x,
+                        r.settings.tolerance,
+                        // Beyond this a fresh factorisation is cheaper than going on.
+                        r.settings
+                            .max_iterations
+                            .min(STALE_ITERATION_CAP * FACTOR_REUSE_MAX_ITERATIONS),
+                        &mut r.work,
+                    );
+                    match result {
+                        Ok(iterations) => {
+                            if iterations > FACTOR_REUSE_MAX_ITERATIONS {
+                                r.refresh_due = true;
+                            }
+                            return Ok(LinearStats {
+                                t_solve: start.elapsed().as_secs_f64(),
+                                iterations,
+                            });
+                        }
+                        Err(PcgFailure::NegativeCurvature { iteration }) => {
+                            return Err(LinearError::NegativeCurvature { iteration, n })
+                        }
+                        // The old factor is too far off: factor this matrix, solve directly.
+                        Err(_) => {
+                            factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
+                            r.stale = false;
+                            r.refresh_due = false;
+                        }
+                    }
+                }
                 x.copy_from_slice(b);
                 LltRef::new(symbolic, l_values).solve_in_place_with_conj(
                     Conj::No,
@@ -529,15 +625,91 @@ impl LinearSolver {
                 }
             }
             LinearSolver::Amg(s) => {
-                let iterations = s.solve(assembly, values, b, x)?;
+                let result = s.solve(assembly, values, b, x);
+                let struggling = match &result {
+                    Ok(iterations) => *iterations > AMG_FALLBACK_ITERATIONS,
+                    Err(e) => !e.is_indefinite(),
+                };
+                if let (true, Some((ordering, iterative))) = (struggling, s.fallback) {
+                    let mut direct = LinearSolver::new(
+                        LinearSolverKind::Cholesky,
+                        ordering,
+                        assembly,
+                        &[],
+                        &iterative,
+                    )?;
+                    direct.factorize(assembly, values)?;
+                    *self = direct;
+                    if result.is_err() {
+                        return self.solve(assembly, values, b, x);
+                    }
+                }
+                let iterations = result?;
                 let t_solve = start.elapsed().as_secs_f64();
-                s.history.push((iterations, t_solve));
+                if let LinearSolver::Amg(s) = self {
+                    s.history.push((iterations, t_solve));
+                }
                 Ok(LinearStats {
                     t_solve,
                     iterations,
                 })
             }
         }
+    }
+}
+
+/// Numeric Cholesky factorisation of the matrix with `values` into `l_values`; `factored`
+/// records the values (cleared first: a failed factorisation leaves `l_values` invalid).
+fn factor_numeric(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &mut [f64],
+    work: &mut MemBuffer,
+    factored: &mut Vec<f64>,
+    assembly: &Assembly,
+    values: &[f64],
+) -> Result<(), LinearError> {
+    let n = symbolic.nrows();
+    factored.clear();
+    symbolic
+        .factorize_numeric_llt::<f64>(
+            l_values,
+            assembly.matrix(values),
+            Side::Lower,
+            Default::default(),
+            Par::Seq,
+            MemStack::new(work),
+            Default::default(),
+        )
+        .map_err(|e| match e {
+            DenseLltError::NonPositivePivot { index } => {
+                LinearError::NotPositiveDefinite { pivot: index, n }
+            }
+        })?;
+    factored.extend_from_slice(values);
+    Ok(())
+}
+
+/// The current matrix and an earlier Cholesky factor as PCG's operators.
+struct FactorOperators<'a> {
+    assembly: &'a Assembly,
+    values: &'a [f64],
+    factor: LltRef<'a, usize, f64>,
+    work: &'a mut MemBuffer,
+}
+
+impl PcgOperators for FactorOperators<'_> {
+    fn apply(&mut self, x: &[f64], y: &mut [f64]) {
+        symmetric_multiply(self.assembly, self.values, x, y);
+    }
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        z.copy_from_slice(r);
+        let n = z.len();
+        self.factor.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(z, n, 1),
+            Par::Seq,
+            MemStack::new(self.work),
+        );
     }
 }
 
