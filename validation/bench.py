@@ -719,6 +719,20 @@ def amg_main(a, icefem: Path, python: str, meta_extra: dict) -> int:
     L.append(f"- icefem Cholesky step (up to 1e5 tets): "
              f"**{loglog_slope(pts('chol', lambda r: r['t_step'])):.2f}**")
     L.append("")
+    L.append("Raw icefem medians (per step: medians over the 3 steps; set-ups: over the run):\n")
+    L.append("| solver | tets | free dofs | nnz(K) | pattern (s) | assembly/step (s) | set-up/step (s) | "
+             "solve/step (s) | step (s) | Newton it./step | CG it./step | set-ups | peak MB |")
+    L.append("|" + "---|" * 13)
+    for res in results:
+        for job in ("amg", "chol"):
+            r = res.get(job, {})
+            if "t_step" not in r:
+                continue
+            L.append(f"| {'AMG-CG' if job == 'amg' else 'Cholesky'} | {r['tets']:.0f} | {r['dofs']:.0f} | "
+                     f"{sci(r['nnz'])} | {s(r['t_pattern'])} | {s(r['t_assembly_step'])} | "
+                     f"{s(r['t_factor_step'])} | {s(r['t_solve_step'])} | {s(r['t_step'])} | "
+                     f"{r['newton']:.0f} | {r['lin_it']:.0f} | {r['setups']:.0f} | {mb(r['peak_rss'])} |")
+    L.append("")
     if notes:
         L.append("Notes:\n")
         L.extend(f"- {x}" for x in notes)
