@@ -240,6 +240,9 @@ impl AmgSolver {
         x: &mut [f64],
     ) -> Result<usize, LinearError> {
         let n = b.len();
+        // Iterations of an attempt with a stale hierarchy that was abandoned (counted: they
+        // were paid for).
+        let mut abandoned = 0;
         loop {
             let mut ops = AmgOperators {
                 amg: &mut self.amg,
@@ -253,35 +256,59 @@ impl AmgSolver {
                 _ if self.fallback.is_some() => self.max_iterations.min(AMG_FALLBACK_ITERATIONS),
                 _ => self.max_iterations,
             };
-            let result = pcg(&mut ops, b, x, self.tolerance, cap, &mut self.work);
+            // A stale hierarchy should reach half the digits within the first solve's count.
+            let checkpoint = match (self.stale, self.baseline) {
+                (true, Some(base)) => Some((base.max(1), self.tolerance.sqrt())),
+                _ => None,
+            };
+            let result = pcg(
+                &mut ops,
+                b,
+                x,
+                self.tolerance,
+                cap,
+                checkpoint,
+                &mut self.work,
+            );
             match result {
                 Ok(iterations) => {
                     match self.baseline {
                         None => self.baseline = Some(iterations),
                         Some(base) => {
-                            if iterations as f64 > REFRESH_GROWTH * base as f64 + REFRESH_SLACK as f64 {
+                            if iterations as f64
+                                > REFRESH_GROWTH * base as f64 + REFRESH_SLACK as f64
+                            {
                                 self.refresh_due = true;
                             }
                         }
                     }
-                    return Ok(iterations);
+                    return Ok(iterations + abandoned);
                 }
                 Err(PcgFailure::NegativeCurvature { iteration }) => {
                     return Err(LinearError::NegativeCurvature { iteration, n })
                 }
-                Err(_) if self.stale => {
+                Err(failure) if self.stale => {
+                    abandoned += match failure {
+                        PcgFailure::Breakdown { iteration }
+                        | PcgFailure::NegativeCurvature { iteration }
+                        | PcgFailure::NoConvergence {
+                            iterations: iteration,
+                            ..
+                        } => iteration,
+                    };
                     self.setup(assembly, values)?;
                 }
-                Err(PcgFailure::NoConvergence { residual }) => {
+                Err(PcgFailure::NoConvergence { residual, .. }) => {
                     return Err(LinearError::CgNotConverged {
                         iterations: self.max_iterations,
                         residual,
                     })
                 }
+                // A V-cycle built on a positive-definite matrix is positive definite; one built
+                // on an indefinite tangent (compressed corotated elements) is not, and CG sees
+                // rᵀM⁻¹r ≤ 0 before it meets negative curvature: the same verdict.
                 Err(PcgFailure::Breakdown { iteration }) => {
-                    return Err(LinearError::Faer(format!(
-                        "the multigrid preconditioner lost positive definiteness at CG iteration {iteration}"
-                    )))
+                    return Err(LinearError::NegativeCurvature { iteration, n })
                 }
             }
         }
@@ -538,7 +565,13 @@ impl LinearSolver {
                 reuse,
                 ..
             } => {
+                let mut abandoned = 0;
                 if let Some(r) = reuse.as_mut().filter(|r| r.stale) {
+                    // Beyond this a fresh factorisation is cheaper than going on.
+                    let cap = r
+                        .settings
+                        .max_iterations
+                        .min(STALE_ITERATION_CAP * FACTOR_REUSE_MAX_ITERATIONS);
                     let result = pcg(
                         &mut FactorOperators {
                             assembly,
@@ -549,10 +582,9 @@ impl LinearSolver {
                         b,
                         x,
                         r.settings.tolerance,
-                        // Beyond this a fresh factorisation is cheaper than going on.
-                        r.settings
-                            .max_iterations
-                            .min(STALE_ITERATION_CAP * FACTOR_REUSE_MAX_ITERATIONS),
+                        cap,
+                        // A good old factor reaches half the digits in a few iterations.
+                        Some((FACTOR_REUSE_MAX_ITERATIONS / 2, r.settings.tolerance.sqrt())),
                         &mut r.work,
                     );
                     match result {
@@ -569,7 +601,15 @@ impl LinearSolver {
                             return Err(LinearError::NegativeCurvature { iteration, n })
                         }
                         // The old factor is too far off: factor this matrix, solve directly.
-                        Err(_) => {
+                        Err(failure) => {
+                            abandoned = match failure {
+                                PcgFailure::Breakdown { iteration }
+                                | PcgFailure::NegativeCurvature { iteration }
+                                | PcgFailure::NoConvergence {
+                                    iterations: iteration,
+                                    ..
+                                } => iteration,
+                            };
                             factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
                             r.stale = false;
                             r.refresh_due = false;
@@ -585,7 +625,7 @@ impl LinearSolver {
                 );
                 Ok(LinearStats {
                     t_solve: start.elapsed().as_secs_f64(),
-                    iterations: 1,
+                    iterations: 1 + abandoned,
                 })
             }
             LinearSolver::Cg {

@@ -23,8 +23,9 @@ pub enum PcgFailure {
     NegativeCurvature { iteration: usize },
     /// rᵀM⁻¹r ≤ 0 or not finite: the preconditioner is not positive definite.
     Breakdown { iteration: usize },
-    /// The iteration cap was reached with this relative residual.
-    NoConvergence { residual: f64 },
+    /// Stopped without converging (the iteration cap, or the checkpoint missed) after
+    /// `iterations`, at this relative residual.
+    NoConvergence { iterations: usize, residual: f64 },
 }
 
 /// Work vectors of PCG (allocated once per system size).
@@ -49,12 +50,15 @@ impl PcgWork {
 }
 
 /// Solves A x = b from x = 0 until ‖b − A x‖₂ ≤ `tolerance` ‖b‖₂; returns the iterations.
+/// `checkpoint = Some((k, r))`: give up if the relative residual after k iterations is still
+/// above r (a stale preconditioner that is going to fail shows it early).
 pub fn pcg(
     ops: &mut impl PcgOperators,
     b: &[f64],
     x: &mut [f64],
     tolerance: f64,
     max_iterations: usize,
+    checkpoint: Option<(usize, f64)>,
     work: &mut PcgWork,
 ) -> Result<usize, PcgFailure> {
     let PcgWork { r, z, p, q } = work;
@@ -92,6 +96,12 @@ pub fn pcg(
         if residual <= target {
             return Ok(iteration);
         }
+        if checkpoint.is_some_and(|(k, limit)| iteration == k && residual > limit * b_norm) {
+            return Err(PcgFailure::NoConvergence {
+                iterations: iteration,
+                residual: residual / b_norm,
+            });
+        }
         ops.precondition(r, z);
         let rz_next = dot(r, z);
         if !(rz_next > 0.0 && rz_next.is_finite()) {
@@ -105,6 +115,7 @@ pub fn pcg(
             .for_each(|(p, z)| *p = z + beta * *p);
     }
     Err(PcgFailure::NoConvergence {
+        iterations: max_iterations,
         residual: residual / b_norm,
     })
 }
