@@ -7,6 +7,7 @@ mod common;
 use common::ICE;
 use icefem::assembly::{Assembly, DofMap};
 use icefem::fem::ElasticModel;
+use icefem::fem::Material;
 use icefem::mesh::{box_mesh, TetMesh};
 use icefem::physics::{Dirichlet, Elasticity, Model, Region};
 use icefem::sim::{Analysis, Simulation};
@@ -48,8 +49,16 @@ fn constrained(mesh: &TetMesh, support: Support) -> Vec<bool> {
 /// The stiffness of a linear-elastic ice cube (free system) and a load: gravity-like, plus a
 /// sideways part so that every mode is excited.
 fn cube_system(cells: usize, support: Support) -> (TetMesh, Assembly, Vec<f64>, Vec<f64>) {
+    cube_system_of(cells, support, ICE)
+}
+
+fn cube_system_of(
+    cells: usize,
+    support: Support,
+    material: Material,
+) -> (TetMesh, Assembly, Vec<f64>, Vec<f64>) {
     let mesh = box_mesh([0.0; 3], [0.1; 3], [cells; 3], 6).expect("valid box");
-    let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Linear);
+    let elasticity = Elasticity::new(&mesh, material, ElasticModel::Linear);
     let assembly = Assembly::new(&mesh, DofMap::new(&constrained(&mesh, support)));
     let u = vec![0.0; 3 * mesh.num_nodes()];
     let mut values = vec![0.0; assembly.nnz()];
@@ -78,6 +87,18 @@ fn solve(
     values: &[f64],
     b: &[f64],
 ) -> (Vec<f64>, usize, f64) {
+    let (x, iterations, residual, _) = solve_with(kind, mesh, assembly, values, b);
+    (x, iterations, residual)
+}
+
+/// As [`solve`], also returning the solver that was in use at the end.
+fn solve_with(
+    kind: LinearSolverKind,
+    mesh: &TetMesh,
+    assembly: &Assembly,
+    values: &[f64],
+    b: &[f64],
+) -> (Vec<f64>, usize, f64, LinearSolverKind) {
     let mut solver = LinearSolver::new(
         kind,
         FillOrdering::Auto,
@@ -98,7 +119,7 @@ fn solve(
     assembly.multiply(values, &x, &mut ax);
     let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
     let r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
-    (x, stats.iterations, norm(&r) / norm(b))
+    (x, stats.iterations, norm(&r) / norm(b), solver.kind())
 }
 
 /// Average residual reduction per iteration: (relative residual)^(1 / iterations).
@@ -171,6 +192,25 @@ fn amg_solution_matches_cholesky_with_partly_constrained_nodes() {
     // into the operator the solution would differ at O(1)).
     assert!(diff <= 1e-6 * scale, "max |Δx| = {diff:e} of {scale:e}");
     assert!(it <= 30, "{it} iterations");
+}
+
+#[test]
+fn auto_falls_back_to_cholesky_on_a_nearly_incompressible_body() {
+    // ν = 0.4999 (λ = 5000 μ): the volumetric near-null space of such a body is not spanned by
+    // rigid-body modes, and smoothed aggregation needs hundreds of iterations (the unfrozen
+    // water of the freezing container is this case). 20³ cells = 26 460 free dofs, above the
+    // direct threshold, below the fallback limit: `Auto` starts with multigrid and must end
+    // with Cholesky and the right answer.
+    let soft = Material {
+        lambda: 5000.0 * ICE.mu,
+        ..ICE
+    };
+    let (mesh, assembly, values, b) = cube_system_of(20, Support::Clamped, soft);
+    assert!(assembly.dofs().num_free() > icefem::solver::linear::AUTO_DIRECT_MAX_DOFS);
+    let (_, _, res, kind) = solve_with(LinearSolverKind::Auto, &mesh, &assembly, &values, &b);
+    assert_eq!(kind, LinearSolverKind::Cholesky);
+    // A direct solve: round-off only (1e-8 is CG's tolerance, far above it).
+    assert!(res <= TOLERANCE, "relative residual {res:e}");
 }
 
 /// A corotated ice cube, base clamped, gravity with a sideways part, 1/30 s steps.
