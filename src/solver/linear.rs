@@ -39,14 +39,13 @@ pub enum LinearSolverKind {
 }
 
 /// Largest free-dof count for which `Auto` picks the direct solver. Measured with
-/// `icefem bench --solver cholesky|amg` on the corotated ice cube (backward-Euler steps at
-/// 1/30 s, 2 cores, 2026-12-01): per step, Cholesky / multigrid CG took 0.006 / 0.005 s at
-/// 882 dofs (multigrid is then a dense Cholesky of the whole system), 0.063 / 0.054 s at
-/// 6.1e3, 0.23 / 0.11 s at 1.7e4, 0.80 / 0.24 s at 3.5e4 and 1.64 / 0.57 s at 5.7e4 dofs: on
-/// ice the crossover is near 5e3 dofs. Up to 2e4 dofs, though, both take under 0.3 s a step
-/// and the direct solver's robustness — nearly incompressible water, stiff contact
-/// penalties, indefinite tangents, E up to 1e13 Pa, where multigrid needs hundreds of
-/// iterations or more — is worth more than the difference.
+/// `icefem bench --tets 10000,30000,60000,100000 --steps 3 --solver cholesky|amg` on the
+/// corotated ice cube (backward Euler at 1/30 s, 2 cores, medians of 3 runs, 2026-12-01):
+/// per step, Cholesky / multigrid CG took 0.073 / 0.087 s at 6.1e3 free dofs, 0.22 / 0.17 s at
+/// 1.7e4, 0.74 / 0.42 s at 3.5e4 and 1.74 / 0.90 s at 5.7e4: on ice the crossover is near 1e4
+/// dofs. Up to 2e4 dofs both take under 0.3 s a step, and there the direct solver's robustness
+/// — nearly incompressible water, stiff contact penalties, indefinite tangents, E up to
+/// 1e13 Pa, where multigrid needs hundreds of iterations — is worth more than the difference.
 pub const AUTO_DIRECT_MAX_DOFS: usize = 20_000;
 
 /// Settings of the iterative solvers and of the reuse of preconditioners.
