@@ -1,9 +1,8 @@
 //! Global assembly into a fixed compressed-sparse-column pattern.
 //!
 //! The pattern covers the free (unconstrained) degrees of freedom, both triangles, scalar
-//! entries. It is built once per mesh topology together with a slot map (for every element and
-//! every entry of its 12 × 12 matrix, the index of that entry in the CSC value array) and an
-//! element colouring (no two elements of a colour share a node). Assembly then runs the element
+//! entries. It is built once per mesh topology together with a slot map and an element
+//! colouring (no two elements of a colour share a node). Assembly then runs the element
 //! kernel colour by colour, in parallel within a colour, and adds straight into the values —
 //! no search, no allocation, and the same summation order on every run, so results are
 //! bit-reproducible whatever the thread count.
@@ -90,8 +89,13 @@ impl SharedMut {
 pub struct Assembly {
     dofs: DofMap,
     symbolic: SymbolicSparseColMat<usize>,
-    /// `slots[144 e + 12 r + c]`: value index of entry (r, c) of element e, or NONE.
-    slots: Vec<u32>,
+    /// Slot map, per element and ordered pair of its nodes (a, b): `offsets[16 e + 4 a + b]` is
+    /// where node b's rows start within the columns of node a's free dofs (every column of a
+    /// node has the same rows, so one offset serves its three columns), or NONE when either
+    /// node has no free dof. The value index of entry (row (b, j), column (a, i)) is then
+    /// `col_ptr[free(a, i)] + offset + (free components of b before j)`. 16 `u32` per element
+    /// instead of 144 — at 2e6 tets, 128 MB instead of 1.15 GB.
+    offsets: Vec<u32>,
     /// Elements grouped by colour: `color_elems[color_ptr[k]..color_ptr[k + 1]]`.
     color_ptr: Vec<usize>,
     color_elems: Vec<u32>,
@@ -150,27 +154,23 @@ impl Assembly {
             col_ptr.push(row_idx.len());
         }
         neighbours.clear();
-        let slots: Vec<u32> = mesh
-            .tets
-            .par_iter()
-            .flat_map_iter(|tet| {
-                let local: [Option<usize>; 12] =
-                    std::array::from_fn(|k| dofs.free(3 * tet[k / 3] + k % 3));
-                let (col_ptr, row_idx) = (&col_ptr, &row_idx);
-                (0..144).map(move |rc| {
-                    let (r, c) = (rc / 12, rc % 12);
-                    match (local[r], local[c]) {
-                        (Some(row), Some(col)) => {
-                            let column = &row_idx[col_ptr[col]..col_ptr[col + 1]];
-                            // The pattern was built from the same adjacency, so the entry exists.
-                            let pos = column.binary_search(&row).unwrap_or(0);
-                            (col_ptr[col] + pos) as u32
+        let first_free = |node: usize| (0..3).find_map(|a| dofs.free(3 * node + a));
+        let mut offsets = vec![NONE; 16 * mesh.num_tets()];
+        offsets
+            .par_chunks_mut(16)
+            .zip(mesh.tets.par_iter())
+            .for_each(|(out, tet)| {
+                for (a, &na) in tet.iter().enumerate() {
+                    let Some(col) = first_free(na) else { continue };
+                    let column = &row_idx[col_ptr[col]..col_ptr[col + 1]];
+                    for (b, &nb) in tet.iter().enumerate() {
+                        if let Some(row) = first_free(nb) {
+                            // The pattern was built from the same adjacency: the row exists.
+                            out[4 * a + b] = column.binary_search(&row).unwrap_or(0) as u32;
                         }
-                        _ => NONE,
                     }
-                })
-            })
-            .collect();
+                }
+            });
         let (color_ptr, color_elems) = color_elements(mesh, &adjacency);
         // Columns are sorted with unique rows by construction.
         let diagonal = (0..nf)
@@ -185,7 +185,7 @@ impl Assembly {
         Assembly {
             dofs,
             symbolic,
-            slots,
+            offsets,
             color_ptr,
             color_elems,
             tets: mesh.tets.clone(),
@@ -287,15 +287,38 @@ impl Assembly {
                             grad.add(3 * tet[k / 3] + k % 3, *g);
                         }
                         if with_hessian {
-                            let slots = &self.slots[144 * e..144 * e + 144];
-                            for (s, h) in slots.iter().zip(out.hessian.iter()) {
-                                if *s != NONE {
-                                    vals.add(*s as usize, *h);
-                                }
-                            }
+                            self.scatter_hessian(e, tet, &out.hessian, vals);
                         }
                     }
                 });
+        }
+    }
+
+    /// Adds element `e`'s 12 × 12 matrix into the CSC values through the slot map.
+    ///
+    /// # Safety
+    /// No other thread writes the slots of `e`'s nodes concurrently (colouring).
+    unsafe fn scatter_hessian(&self, e: usize, tet: &[usize; 4], h: &[f64; 144], vals: SharedMut) {
+        let col_ptr = self.symbolic.col_ptr();
+        let offsets = &self.offsets[16 * e..16 * e + 16];
+        for (a, &na) in tet.iter().enumerate() {
+            for i in 0..3 {
+                let Some(col) = self.dofs.free(3 * na + i) else {
+                    continue;
+                };
+                let start = col_ptr[col];
+                for (b, &nb) in tet.iter().enumerate() {
+                    let base = start + offsets[4 * a + b] as usize;
+                    let mut rank = 0;
+                    for j in 0..3 {
+                        if self.dofs.free(3 * nb + j).is_some() {
+                            // SAFETY: the caller's contract; the index is in the pattern.
+                            unsafe { vals.add(base + rank, h[(3 * b + j) * 12 + 3 * a + i]) };
+                            rank += 1;
+                        }
+                    }
+                }
+            }
         }
     }
 

@@ -46,6 +46,20 @@ pub struct BenchResult {
     pub linear_iterations: usize,
     /// Peak resident memory of the process (bytes), if the OS reports it.
     pub peak_memory: Option<u64>,
+    /// First linear system of the run (the first Newton iteration of step 1, A = K + M/h²
+    /// at rest, the system the peer solves): set-up — symbolic analysis plus numeric
+    /// factorisation, or the multigrid hierarchy — (s).
+    pub t_first_setup: f64,
+    /// Its solve: triangular solves, or preconditioned CG to the tolerance (s).
+    pub t_first_solve: f64,
+    /// Its iterations (1 for Cholesky).
+    pub first_iterations: usize,
+    /// Multigrid levels (0 for the other solvers).
+    pub levels: usize,
+    /// Multigrid operator complexity Σ nnz(A_l) / nnz(A_0) (0 for the other solvers).
+    pub operator_complexity: f64,
+    /// Preconditioner or factor set-ups over the whole run.
+    pub setups: usize,
 }
 
 /// Cells per axis of a cube box mesh with about `tets` tetrahedra (6 per cell).
@@ -60,11 +74,15 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Runs `steps` backward-Euler steps of a 10 cm corotated ice cube with ≈ `tets` tets and
 /// reports median per-step timings.
+///
+/// `amg_reuse`: multigrid-preconditioned CG keeps its hierarchy across Newton iterations and
+/// steps (see [`StepSettings::amg_reuse`]).
 pub fn run_size(
     tets: usize,
     steps: usize,
     linear: LinearSolverKind,
     ordering: FillOrdering,
+    amg_reuse: bool,
 ) -> Result<BenchResult, SimError> {
     let start = Instant::now();
     let c = cells_for(tets);
@@ -90,16 +108,36 @@ pub fn run_size(
         vec![base],
     )
     .map_err(|e| SimError::Setup(e.to_string()))?;
-    let settings = frame_steps(linear, ordering);
+    let settings = StepSettings {
+        amg_reuse,
+        ..frame_steps(linear, ordering)
+    };
     let t_model = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let mut sim = Simulation::new(model, settings)?;
     let t_setup = start.elapsed().as_secs_f64();
     let t_symbolic = sim.linear_solver().symbolic_time();
     let mut per_step: Vec<[f64; 6]> = Vec::new();
-    for _ in 0..steps {
+    let mut setups = 0;
+    let mut first = (0.0, 0.0, 0);
+    for step in 0..steps {
         let r = sim.step()?;
         let n = r.newton;
+        setups += n.factorizations;
+        if step == 0 {
+            let setup = n.t_factorization / n.factorizations.max(1) as f64;
+            first = match sim.linear_solver().amg_stats() {
+                Some(amg) => {
+                    let (iterations, t) = amg.solves.first().copied().unwrap_or_default();
+                    (setup, t, iterations)
+                }
+                None => (
+                    t_symbolic + setup,
+                    n.t_solve / n.linear_iterations.max(1) as f64,
+                    1,
+                ),
+            };
+        }
         per_step.push([
             n.t_assembly,
             n.t_factorization,
@@ -110,7 +148,14 @@ pub fn run_size(
         ]);
     }
     let col = |k: usize| median(per_step.iter().map(|r| r[k]).collect());
+    let hierarchy = sim.linear_solver().amg_stats().map(|a| a.hierarchy);
     Ok(BenchResult {
+        t_first_setup: first.0,
+        t_first_solve: first.1,
+        first_iterations: first.2,
+        levels: hierarchy.as_ref().map_or(0, |h| h.level_dofs.len()),
+        operator_complexity: hierarchy.as_ref().map_or(0.0, |h| h.operator_complexity),
+        setups,
         tets: sim.model.mesh.num_tets(),
         dofs: sim.assembly().dofs().num_free(),
         nnz: sim.assembly().nnz(),
@@ -149,6 +194,8 @@ fn frame_steps(linear: LinearSolverKind, ordering: FillOrdering) -> StepSettings
         ordering,
         cg_tolerance: 1e-10,
         cg_max_iterations: 100_000,
+        amg_reuse: true,
+        factor_reuse: false,
     }
 }
 
@@ -346,6 +393,18 @@ pub fn fracture_cost(tets: usize) -> Result<FractureCost, SimError> {
         t_remesh: r.t_remesh,
         t_resolve: r.t_resolve,
     })
+}
+
+/// Least-squares slope of log y against log x over the points (x, y): the exponent p of
+/// y ∝ xᵖ. NaN for fewer than two distinct x.
+pub fn loglog_slope(points: &[(f64, f64)]) -> f64 {
+    let logs: Vec<(f64, f64)> = points.iter().map(|&(x, y)| (x.ln(), y.ln())).collect();
+    let n = logs.len() as f64;
+    let mx = logs.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = logs.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxy: f64 = logs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = logs.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    sxy / sxx
 }
 
 /// Peak resident set size of this process (bytes), from /proc/self/status (Linux).

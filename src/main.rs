@@ -62,6 +62,9 @@ enum Command {
         /// Cholesky fill-reducing ordering.
         #[arg(long, value_enum, default_value = "auto")]
         ordering: OrderingArg,
+        /// Multigrid: set the hierarchy up at every Hessian refresh instead of reusing it.
+        #[arg(long)]
+        no_amg_reuse: bool,
         /// Internal: run one size in this process and print one result line.
         #[arg(long, hide = true)]
         single: Option<usize>,
@@ -139,6 +142,7 @@ fn main() {
             repeats,
             solver,
             ordering,
+            no_amg_reuse,
             single,
             contact,
             fracture,
@@ -148,7 +152,15 @@ fn main() {
             } else if fracture {
                 fracture_bench(&tets, repeats)
             } else {
-                bench_command(&tets, steps, repeats, solver, ordering, single)
+                bench_command(
+                    &tets,
+                    steps,
+                    repeats,
+                    solver,
+                    ordering,
+                    !no_amg_reuse,
+                    single,
+                )
             }
         }
         Command::Render {
@@ -336,6 +348,19 @@ fn figure_command(
 enum SolverArg {
     Cholesky,
     Cg,
+    Amg,
+    Auto,
+}
+
+impl SolverArg {
+    fn name(self) -> &'static str {
+        match self {
+            SolverArg::Cholesky => "cholesky",
+            SolverArg::Cg => "cg",
+            SolverArg::Amg => "amg",
+            SolverArg::Auto => "auto",
+        }
+    }
 }
 
 impl From<SolverArg> for LinearSolverKind {
@@ -343,6 +368,8 @@ impl From<SolverArg> for LinearSolverKind {
         match s {
             SolverArg::Cholesky => LinearSolverKind::Cholesky,
             SolverArg::Cg => LinearSolverKind::Cg,
+            SolverArg::Amg => LinearSolverKind::Amg,
+            SolverArg::Auto => LinearSolverKind::Auto,
         }
     }
 }
@@ -374,7 +401,7 @@ impl From<OrderingArg> for FillOrdering {
     }
 }
 
-const BENCH_FIELDS: usize = 14;
+const BENCH_FIELDS: usize = 20;
 
 /// `icefem bench --fracture`: prints a table of the fracture check and split costs.
 fn fracture_bench(sizes: &[usize], repeats: usize) -> Result<()> {
@@ -462,10 +489,17 @@ fn bench_command(
     repeats: usize,
     solver: SolverArg,
     ordering: OrderingArg,
+    amg_reuse: bool,
     single: Option<usize>,
 ) -> Result<()> {
     if let Some(tets) = single {
-        let r = bench::run_size(tets, steps.max(1), solver.into(), ordering.into())?;
+        let r = bench::run_size(
+            tets,
+            steps.max(1),
+            solver.into(),
+            ordering.into(),
+            amg_reuse,
+        )?;
         let m = r.peak_memory.unwrap_or(0) as f64;
         let row = [
             r.tets as f64,
@@ -482,19 +516,24 @@ fn bench_command(
             r.newton_iterations as f64,
             r.linear_iterations as f64,
             m,
+            r.t_first_setup,
+            r.t_first_solve,
+            r.first_iterations as f64,
+            r.levels as f64,
+            r.operator_complexity,
+            r.setups as f64,
         ];
         println!("{}", row.map(|v| v.to_string()).join(" "));
         return Ok(());
     }
     let exe = std::env::current_exe().context("locating the icefem executable")?;
-    let solver_name = match solver {
-        SolverArg::Cholesky => "cholesky",
-        SolverArg::Cg => "cg",
-    };
-    println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}, ordering {}", ordering.name());
+    let solver_name = solver.name();
+    println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}{}, ordering {}", if amg_reuse { "" } else { " (no hierarchy reuse)" }, ordering.name());
     println!("{} threads; medians of {repeats} runs (fresh process each) of the per-step medians over {steps} steps\n", rayon::current_num_threads());
-    println!("| tets | free dofs | nnz(K) | nnz(L) | pattern (s) | symbolic (s) | assembly/step (s) | factor/step (s) | solve/step (s) | step (s) | Newton it. | lin. it. | peak memory (MB) |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| tets | free dofs | nnz(K) | nnz(L) | pattern (s) | symbolic (s) | assembly/step (s) | factor/step (s) | solve/step (s) | step (s) | Newton it. | lin. it. | peak memory (MB) | first system: setup + solve (s) (it.) | AMG levels / op. complexity | set-ups per run |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    // (dofs, step time, first-system time) per size, for the scaling exponents.
+    let mut scaling: Vec<[f64; 3]> = Vec::new();
     for &tets in sizes {
         let mut rows: Vec<[f64; BENCH_FIELDS]> = Vec::new();
         for _ in 0..repeats.max(1) {
@@ -510,6 +549,7 @@ fn bench_command(
                     "--ordering",
                     ordering.name(),
                 ])
+                .args((!amg_reuse).then_some("--no-amg-reuse"))
                 .output()
                 .context("running a benchmark process")?;
             if !out.status.success() {
@@ -534,8 +574,17 @@ fn bench_command(
             v[v.len() / 2]
         };
         println!(
-            "| {} | {} | {:.2e} | {:.2e} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {} | {} | {:.0} |",
-            med(0), med(1), med(2), med(3), med(5), med(6), med(7), med(8), med(9), med(10), med(11), med(12), med(13) / 1e6
+            "| {} | {} | {:.2e} | {:.2e} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {} | {} | {:.0} | {:.3} + {:.3} = {:.3} ({}) | {} / {:.2} | {} |",
+            med(0), med(1), med(2), med(3), med(5), med(6), med(7), med(8), med(9), med(10), med(11), med(12), med(13) / 1e6,
+            med(14), med(15), med(14) + med(15), med(16), med(17), med(18), med(19)
+        );
+        scaling.push([med(1), med(10), med(14) + med(15)]);
+    }
+    if scaling.len() >= 2 {
+        println!(
+            "\nScaling exponent (least-squares slope of log time against log free dofs): step {:.2}, first system (set-up + solve) {:.2}",
+            bench::loglog_slope(&scaling.iter().map(|r| (r[0], r[1])).collect::<Vec<_>>()),
+            bench::loglog_slope(&scaling.iter().map(|r| (r[0], r[2])).collect::<Vec<_>>()),
         );
     }
     Ok(())

@@ -341,7 +341,8 @@ pub struct TimeSection {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSection {
-    /// "cholesky" (default) or "cg".
+    /// "auto" (default: Cholesky up to `AUTO_DIRECT_MAX_DOFS` free dofs, multigrid CG above),
+    /// "cholesky", "cg" (Jacobi-preconditioned) or "amg" (multigrid-preconditioned CG).
     pub linear: Option<LinearSolverKind>,
     /// Cholesky ordering: "auto" (default), "amd" or "metis".
     pub ordering: Option<FillOrdering>,
@@ -353,6 +354,14 @@ pub struct SolverSection {
     pub cg_tolerance: Option<f64>,
     /// CG iteration cap. Default 20000.
     pub cg_max_iterations: Option<usize>,
+    /// Keep the multigrid hierarchy across Newton iterations and steps until CG's iterations
+    /// grow by half (true, default), or set it up at every Hessian refresh (false).
+    pub amg_reuse: Option<bool>,
+    /// Cholesky: keep a factorisation across Hessian refreshes and steps as the preconditioner
+    /// of CG until that needs more than 10 iterations (true), or factorise at every refresh
+    /// (false, default: results then do not depend on the history, and resumed runs are
+    /// bit-identical).
+    pub reuse_factorization: Option<bool>,
 }
 
 /// `[output]`.
@@ -535,10 +544,12 @@ impl Validator<'_> {
                 step_tolerance: 1e-15 * (hi - lo).norm(),
                 max_iterations,
             },
-            linear: solver.linear.unwrap_or(LinearSolverKind::Cholesky),
+            linear: solver.linear.unwrap_or(LinearSolverKind::Auto),
             ordering: solver.ordering.unwrap_or(FillOrdering::Auto),
             cg_tolerance,
             cg_max_iterations,
+            amg_reuse: solver.amg_reuse.unwrap_or(true),
+            factor_reuse: solver.reuse_factorization.unwrap_or(false),
         };
         let mut elasticity = Elasticity::new(&mesh, material, model);
         for (i, section) in raw.eigenstrain.iter().enumerate() {

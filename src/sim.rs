@@ -38,6 +38,26 @@ pub struct StepSettings {
     pub cg_tolerance: f64,
     /// CG iteration cap.
     pub cg_max_iterations: usize,
+    /// Multigrid-preconditioned CG keeps its hierarchy across Newton iterations and steps
+    /// until the iterations grow (false: a new set-up at every Hessian refresh).
+    pub amg_reuse: bool,
+    /// Cholesky keeps a factorisation across Hessian refreshes and steps, solving with CG
+    /// preconditioned by it until that needs more than
+    /// [`crate::solver::linear::FACTOR_REUSE_MAX_ITERATIONS`] iterations (opt-in: the results
+    /// then depend on when the factor was made, so a resumed run is no longer bit-identical).
+    pub factor_reuse: bool,
+}
+
+impl StepSettings {
+    /// The iterative-solver part of the settings.
+    pub fn iterative(&self) -> crate::solver::IterativeSettings {
+        crate::solver::IterativeSettings {
+            tolerance: self.cg_tolerance,
+            max_iterations: self.cg_max_iterations,
+            amg_reuse: self.amg_reuse,
+            factor_reuse: self.factor_reuse,
+        }
+    }
 }
 
 /// The time-dependent state: everything a step depends on besides the model.
@@ -220,8 +240,8 @@ impl Simulation {
             settings.linear,
             settings.ordering,
             &assembly,
-            settings.cg_tolerance,
-            settings.cg_max_iterations,
+            &model.mesh.rest,
+            &settings.iterative(),
         )?;
         let workspace = NewtonWorkspace::new(&assembly);
         let n = 3 * model.num_nodes();
@@ -376,8 +396,8 @@ impl Simulation {
                 s.linear,
                 s.ordering,
                 &self.assembly,
-                s.cg_tolerance,
-                s.cg_max_iterations,
+                &self.model.mesh.rest,
+                &s.iterative(),
             )?;
             self.workspace = NewtonWorkspace::new(&self.assembly);
             if self.model.contact.is_some() {

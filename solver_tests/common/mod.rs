@@ -29,6 +29,8 @@ pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
         ordering: icefem::solver::FillOrdering::Auto,
         cg_tolerance: 1e-12,
         cg_max_iterations: 20_000,
+        amg_reuse: true,
+        factor_reuse: false,
     }
 }
 

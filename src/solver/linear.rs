@@ -1,8 +1,12 @@
 //! Sparse symmetric positive-definite linear solvers behind one interface: faer's supernodal
-//! Cholesky (symbolic analysis once per pattern, numeric factorisation per call) and
-//! Jacobi-preconditioned conjugate gradients.
+//! Cholesky (symbolic analysis once per pattern, numeric factorisation per call),
+//! Jacobi-preconditioned conjugate gradients, and conjugate gradients preconditioned by
+//! smoothed-aggregation multigrid (whose hierarchy is reused across Newton iterations and
+//! steps while it stays effective).
 
+use super::amg::{Amg, AmgError, AmgInfo};
 use super::ordering::{nested_dissection, FillOrdering};
+use super::pcg::{pcg, symmetric_multiply, PcgFailure, PcgOperators, PcgWork};
 use crate::assembly::Assembly;
 use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -16,6 +20,7 @@ use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::{Conj, MatMut, MatRef, Par, Side};
+use nalgebra::Vector3;
 use std::time::Instant;
 
 /// Which linear solver a Newton iteration uses.
@@ -26,6 +31,86 @@ pub enum LinearSolverKind {
     Cholesky,
     /// Conjugate gradients with a Jacobi (diagonal) preconditioner.
     Cg,
+    /// Conjugate gradients preconditioned by one V-cycle of smoothed-aggregation algebraic
+    /// multigrid ([`super::amg`]).
+    Amg,
+    /// Cholesky below [`AUTO_DIRECT_MAX_DOFS`] free dofs, multigrid-preconditioned CG above.
+    Auto,
+}
+
+/// Largest free-dof count for which `Auto` picks the direct solver. Measured with
+/// `icefem bench --tets 10000,30000,60000,100000 --steps 3 --solver cholesky|amg` on the
+/// corotated ice cube (backward Euler at 1/30 s, 2 cores, medians of 3 runs, 2026-12-01):
+/// per step, Cholesky / multigrid CG took 0.073 / 0.087 s at 6.1e3 free dofs, 0.22 / 0.17 s at
+/// 1.7e4, 0.74 / 0.42 s at 3.5e4 and 1.74 / 0.90 s at 5.7e4: on ice the crossover is near 1e4
+/// dofs. Up to 2e4 dofs both take under 0.3 s a step, and there the direct solver's robustness
+/// — nearly incompressible water, stiff contact penalties, indefinite tangents, E up to
+/// 1e13 Pa, where multigrid needs hundreds of iterations — is worth more than the difference.
+pub const AUTO_DIRECT_MAX_DOFS: usize = 20_000;
+
+/// Settings of the iterative solvers and of the reuse of preconditioners.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IterativeSettings {
+    /// Relative residual ‖b − A x‖ / ‖b‖ at which CG stops.
+    pub tolerance: f64,
+    /// CG iteration cap.
+    pub max_iterations: usize,
+    /// Multigrid: keep the hierarchy across Newton iterations and steps until the iterations
+    /// grow (false: a set-up at every Hessian refresh).
+    pub amg_reuse: bool,
+    /// Cholesky: keep a factorisation across Hessian refreshes and steps, solving with CG
+    /// preconditioned by it, until CG needs more than [`FACTOR_REUSE_MAX_ITERATIONS`].
+    pub factor_reuse: bool,
+}
+
+/// A reused Cholesky factor is refreshed on the next Hessian refresh once a CG solve
+/// preconditioned by it needed more than this many iterations: each costs one pair of
+/// triangular solves, and a fresh factorisation costs about as much as 10–20 of them on
+/// 1e4–1e5 dofs (`icefem bench`).
+pub const FACTOR_REUSE_MAX_ITERATIONS: usize = 10;
+
+/// A solve preconditioned by a stale factor or hierarchy stops after this many times the
+/// iterations that trigger a refresh (the factor's cap, or the hierarchy's first count) and
+/// refreshes at once: after a large change of the matrix (contacts switching on) the old
+/// preconditioner can need hundreds of iterations.
+pub const STALE_ITERATION_CAP: usize = 3;
+
+/// State of a Cholesky factor reused as a preconditioner.
+pub struct FactorReuse {
+    settings: IterativeSettings,
+    /// The matrix changed since the factorisation.
+    stale: bool,
+    /// A factorisation is due at the next refresh.
+    refresh_due: bool,
+    work: PcgWork,
+}
+
+/// `Auto` switches from multigrid CG to Cholesky for good when a solve with a fresh hierarchy
+/// needs more than this many iterations (on ice it needs 15–40 up to 1e6 dofs; a nearly
+/// incompressible body such as unfrozen water needs hundreds) — if the system has at most
+/// [`FALLBACK_DIRECT_MAX_DOFS`] free dofs.
+pub const AMG_FALLBACK_ITERATIONS: usize = 200;
+/// Largest system `Auto` hands to Cholesky when multigrid struggles: a nested-dissection
+/// factor of 3e5 dofs holds ~2e8 entries (1.6 GB).
+pub const FALLBACK_DIRECT_MAX_DOFS: usize = 300_000;
+
+/// A multigrid-preconditioned CG solve is re-set-up on the next Newton refresh when it needed
+/// more than `REFRESH_GROWTH` × (iterations of the first solve after the last set-up) +
+/// [`REFRESH_SLACK`] iterations.
+pub const REFRESH_GROWTH: f64 = 1.5;
+/// Absolute slack of the refresh test, so that a change of one or two iterations at small
+/// counts does not trigger a set-up.
+pub const REFRESH_SLACK: usize = 2;
+
+impl LinearSolverKind {
+    /// The solver actually used for `n` free dofs (`Auto` resolved).
+    pub fn resolve(self, n: usize) -> LinearSolverKind {
+        match self {
+            LinearSolverKind::Auto if n <= AUTO_DIRECT_MAX_DOFS => LinearSolverKind::Cholesky,
+            LinearSolverKind::Auto => LinearSolverKind::Amg,
+            other => other,
+        }
+    }
 }
 
 /// Failures of the linear solve.
@@ -38,12 +123,31 @@ pub enum LinearError {
          unconstrained rigid-body mode (add Dirichlet conditions) or a part of the mesh is detached"
     )]
     NotPositiveDefinite { pivot: usize, n: usize },
+    /// CG met a direction of non-positive curvature: the matrix is not positive definite.
+    #[error("the system matrix is not positive definite (conjugate gradients found negative curvature at iteration {iteration} of a {n}-dof system)")]
+    NegativeCurvature { iteration: usize, n: usize },
+    /// The multigrid set-up failed.
+    #[error("multigrid set-up failed: {0}")]
+    Amg(#[from] AmgError),
     /// CG did not reach its tolerance.
     #[error("conjugate gradients did not converge: relative residual {residual:e} after {iterations} iterations")]
     CgNotConverged { iterations: usize, residual: f64 },
     /// Memory or other failure inside faer.
     #[error("sparse solver failure: {0}")]
     Faer(String),
+}
+
+impl LinearError {
+    /// Whether the failure says the matrix is not positive definite (so Newton may switch to
+    /// the projected Hessian), whichever solver found it.
+    pub fn is_indefinite(&self) -> bool {
+        matches!(
+            self,
+            LinearError::NotPositiveDefinite { .. }
+                | LinearError::NegativeCurvature { .. }
+                | LinearError::Amg(AmgError::CoarseNotPositiveDefinite { .. })
+        )
+    }
 }
 
 /// Time and work of one linear solve.
@@ -69,6 +173,8 @@ pub enum LinearSolver {
         nested_dissection: bool,
         /// The matrix values the current factor was computed from (empty before the first).
         factored: Vec<f64>,
+        /// Reuse of the factor as a CG preconditioner for later matrices (opt-in).
+        reuse: Option<Box<FactorReuse>>,
     },
     /// Preconditioned CG.
     Cg {
@@ -77,20 +183,203 @@ pub enum LinearSolver {
         inv_diag: Vec<f64>,
         work: MemBuffer,
     },
+    /// Multigrid-preconditioned CG.
+    Amg(Box<AmgSolver>),
+}
+
+/// CG preconditioned by a smoothed-aggregation hierarchy that is kept across Newton iterations
+/// and steps: within a run the matrix changes slowly, and a hierarchy built for an earlier
+/// matrix is still a good (symmetric positive-definite) preconditioner for the current one.
+/// It is rebuilt on the next [`LinearSolver::factorize`] once a solve needed more than
+/// [`REFRESH_GROWTH`] times the iterations of the first solve after the last set-up.
+pub struct AmgSolver {
+    amg: Amg,
+    tolerance: f64,
+    max_iterations: usize,
+    /// Keep the hierarchy between refreshes (false: set up at every factorisation).
+    reuse: bool,
+    /// Iterations of the first solve after the last set-up.
+    baseline: Option<usize>,
+    /// A set-up is due at the next factorisation.
+    refresh_due: bool,
+    /// The matrix changed since the last set-up.
+    stale: bool,
+    work: PcgWork,
+    /// Set-ups so far.
+    setups: usize,
+    /// Set-up time so far (s).
+    t_setup: f64,
+    /// Iterations and time (s) of every solve so far, for statistics.
+    history: Vec<(usize, f64)>,
+    /// What `Auto` falls back to when multigrid struggles (see [`AMG_FALLBACK_ITERATIONS`]).
+    fallback: Option<(FillOrdering, IterativeSettings)>,
+}
+
+impl AmgSolver {
+    /// Builds the hierarchy for these values.
+    fn setup(&mut self, assembly: &Assembly, values: &[f64]) -> Result<f64, LinearError> {
+        let start = Instant::now();
+        self.amg.setup(assembly, values)?;
+        self.baseline = None;
+        self.refresh_due = false;
+        self.stale = false;
+        self.setups += 1;
+        let t = start.elapsed().as_secs_f64();
+        self.t_setup += t;
+        Ok(t)
+    }
+
+    /// One PCG solve; a stale hierarchy that lets it fail is rebuilt once and the solve
+    /// repeated.
+    fn solve(
+        &mut self,
+        assembly: &Assembly,
+        values: &[f64],
+        b: &[f64],
+        x: &mut [f64],
+    ) -> Result<usize, LinearError> {
+        let n = b.len();
+        // Iterations of an attempt with a stale hierarchy that was abandoned (counted: they
+        // were paid for).
+        let mut abandoned = 0;
+        loop {
+            let mut ops = AmgOperators {
+                amg: &mut self.amg,
+                assembly,
+                values,
+            };
+            let cap = match (self.stale, self.baseline) {
+                (true, Some(base)) => self
+                    .max_iterations
+                    .min(STALE_ITERATION_CAP * base + 10 * REFRESH_SLACK),
+                _ if self.fallback.is_some() => self.max_iterations.min(AMG_FALLBACK_ITERATIONS),
+                _ => self.max_iterations,
+            };
+            // A stale hierarchy should reach half the digits within the first solve's count.
+            let checkpoint = match (self.stale, self.baseline) {
+                (true, Some(base)) => Some((base.max(1), self.tolerance.sqrt())),
+                _ => None,
+            };
+            let result = pcg(
+                &mut ops,
+                b,
+                x,
+                self.tolerance,
+                cap,
+                checkpoint,
+                &mut self.work,
+            );
+            match result {
+                Ok(iterations) => {
+                    match self.baseline {
+                        None => self.baseline = Some(iterations),
+                        Some(base) => {
+                            if iterations as f64
+                                > REFRESH_GROWTH * base as f64 + REFRESH_SLACK as f64
+                            {
+                                self.refresh_due = true;
+                            }
+                        }
+                    }
+                    return Ok(iterations + abandoned);
+                }
+                Err(PcgFailure::NegativeCurvature { iteration }) => {
+                    return Err(LinearError::NegativeCurvature { iteration, n })
+                }
+                Err(failure) if self.stale => {
+                    abandoned += match failure {
+                        PcgFailure::Breakdown { iteration }
+                        | PcgFailure::NegativeCurvature { iteration }
+                        | PcgFailure::NoConvergence {
+                            iterations: iteration,
+                            ..
+                        } => iteration,
+                    };
+                    self.setup(assembly, values)?;
+                }
+                Err(PcgFailure::NoConvergence { residual, .. }) => {
+                    return Err(LinearError::CgNotConverged {
+                        iterations: self.max_iterations,
+                        residual,
+                    })
+                }
+                // A V-cycle built on a positive-definite matrix is positive definite; one built
+                // on an indefinite tangent (compressed corotated elements) is not, and CG sees
+                // rᵀM⁻¹r ≤ 0 before it meets negative curvature: the same verdict.
+                Err(PcgFailure::Breakdown { iteration }) => {
+                    return Err(LinearError::NegativeCurvature { iteration, n })
+                }
+            }
+        }
+    }
+}
+
+/// What multigrid-preconditioned CG has done so far.
+#[derive(Clone, Debug)]
+pub struct AmgStats<'a> {
+    /// The current hierarchy.
+    pub hierarchy: AmgInfo,
+    /// Set-ups so far.
+    pub setups: usize,
+    /// Their total time (s).
+    pub t_setup: f64,
+    /// Iterations and time (s) of every solve so far.
+    pub solves: &'a [(usize, f64)],
+}
+
+/// The current matrix (CSC, parallel product) and the hierarchy as PCG's operators.
+struct AmgOperators<'a> {
+    amg: &'a mut Amg,
+    assembly: &'a Assembly,
+    values: &'a [f64],
+}
+
+impl PcgOperators for AmgOperators<'_> {
+    fn apply(&mut self, x: &[f64], y: &mut [f64]) {
+        symmetric_multiply(self.assembly, self.values, x, y);
+    }
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        self.amg.apply(r, z);
+    }
 }
 
 impl LinearSolver {
     /// Prepares a solver for the pattern of `assembly`: the symbolic analysis for Cholesky (done
     /// here once, reused by every [`LinearSolver::solve`]), the workspace for CG.
+    ///
+    /// `coords` are the rest positions of the mesh nodes (m), from which multigrid builds the
+    /// rigid-body modes.
     pub fn new(
         kind: LinearSolverKind,
         ordering: FillOrdering,
         assembly: &Assembly,
-        cg_tolerance: f64,
-        cg_max_iterations: usize,
+        coords: &[Vector3<f64>],
+        iterative: &IterativeSettings,
     ) -> Result<Self, LinearError> {
         let n = assembly.dofs().num_free();
-        match kind {
+        let (cg_tolerance, cg_max_iterations, amg_reuse) = (
+            iterative.tolerance,
+            iterative.max_iterations,
+            iterative.amg_reuse,
+        );
+        match kind.resolve(n) {
+            LinearSolverKind::Amg | LinearSolverKind::Auto => {
+                Ok(LinearSolver::Amg(Box::new(AmgSolver {
+                    amg: Amg::new(coords),
+                    tolerance: cg_tolerance,
+                    max_iterations: cg_max_iterations,
+                    reuse: amg_reuse,
+                    baseline: None,
+                    refresh_due: false,
+                    stale: false,
+                    work: PcgWork::new(n),
+                    setups: 0,
+                    t_setup: 0.0,
+                    history: Vec::new(),
+                    fallback: (kind == LinearSolverKind::Auto && n <= FALLBACK_DIRECT_MAX_DOFS)
+                        .then_some((ordering, *iterative)),
+                })))
+            }
             LinearSolverKind::Cholesky => {
                 let start = Instant::now();
                 let permutation = if ordering.uses_metis(n) {
@@ -125,6 +414,14 @@ impl LinearSolver {
                     t_symbolic: start.elapsed().as_secs_f64(),
                     nested_dissection,
                     factored: Vec::new(),
+                    reuse: iterative.factor_reuse.then(|| {
+                        Box::new(FactorReuse {
+                            settings: *iterative,
+                            stale: false,
+                            refresh_due: false,
+                            work: PcgWork::new(n),
+                        })
+                    }),
                 })
             }
             LinearSolverKind::Cg => {
@@ -150,7 +447,29 @@ impl LinearSolver {
     pub fn symbolic_time(&self) -> f64 {
         match self {
             LinearSolver::Cholesky { t_symbolic, .. } => *t_symbolic,
-            LinearSolver::Cg { .. } => 0.0,
+            LinearSolver::Cg { .. } | LinearSolver::Amg(_) => 0.0,
+        }
+    }
+
+    /// The solver in use (`Auto` resolved).
+    pub fn kind(&self) -> LinearSolverKind {
+        match self {
+            LinearSolver::Cholesky { .. } => LinearSolverKind::Cholesky,
+            LinearSolver::Cg { .. } => LinearSolverKind::Cg,
+            LinearSolver::Amg(_) => LinearSolverKind::Amg,
+        }
+    }
+
+    /// Multigrid statistics (`None` for the other solvers).
+    pub fn amg_stats(&self) -> Option<AmgStats<'_>> {
+        match self {
+            LinearSolver::Amg(s) => Some(AmgStats {
+                hierarchy: s.amg.info(),
+                setups: s.setups,
+                t_setup: s.t_setup,
+                solves: &s.history,
+            }),
+            _ => None,
         }
     }
 
@@ -169,14 +488,15 @@ impl LinearSolver {
     pub fn factor_nnz(&self) -> Option<usize> {
         match self {
             LinearSolver::Cholesky { l_values, .. } => Some(l_values.len()),
-            LinearSolver::Cg { .. } => None,
+            LinearSolver::Cg { .. } | LinearSolver::Amg(_) => None,
         }
     }
 
     /// Prepares solves with the matrix of `assembly`'s pattern and these values: the numeric
-    /// Cholesky factorisation, or the Jacobi preconditioner for CG. Returns its time (s), or
-    /// `None` when the values are bit for bit those of the current factor (a linear model at a
-    /// fixed step has the same matrix every step), which is then kept.
+    /// Cholesky factorisation, the Jacobi preconditioner for CG, or the multigrid set-up.
+    /// Returns its time (s), or `None` when nothing was computed: the values are bit for bit
+    /// those of the current factor (a linear model at a fixed step has the same matrix every
+    /// step), or the multigrid hierarchy of an earlier matrix is kept.
     pub fn factorize(
         &mut self,
         assembly: &Assembly,
@@ -189,6 +509,7 @@ impl LinearSolver {
                 l_values,
                 work,
                 factored,
+                reuse,
                 ..
             } => {
                 let same = factored.len() == values.len()
@@ -196,30 +517,29 @@ impl LinearSolver {
                         .iter()
                         .zip(values)
                         .all(|(a, b)| a.to_bits() == b.to_bits());
+                if let Some(r) = reuse.as_mut() {
+                    r.stale = !same;
+                    if !same && !factored.is_empty() && !r.refresh_due {
+                        return Ok(None);
+                    }
+                }
                 if same {
                     return Ok(None);
                 }
-                let n = symbolic.nrows();
-                // Forget the old values first: a failed factorisation leaves `l_values` invalid.
-                factored.clear();
-                symbolic
-                    .factorize_numeric_llt::<f64>(
-                        l_values,
-                        assembly.matrix(values),
-                        Side::Lower,
-                        Default::default(),
-                        Par::Seq,
-                        MemStack::new(work),
-                        Default::default(),
-                    )
-                    .map_err(|e| match e {
-                        DenseLltError::NonPositivePivot { index } => {
-                            LinearError::NotPositiveDefinite { pivot: index, n }
-                        }
-                    })?;
-                factored.extend_from_slice(values);
+                factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
+                if let Some(r) = reuse.as_mut() {
+                    r.stale = false;
+                    r.refresh_due = false;
+                }
             }
             LinearSolver::Cg { inv_diag, .. } => jacobi_inverse(assembly, values, inv_diag),
+            LinearSolver::Amg(s) => {
+                if s.amg.is_built() && s.reuse && !s.refresh_due {
+                    s.stale = true;
+                    return Ok(None);
+                }
+                s.setup(assembly, values)?;
+            }
         }
         Ok(Some(start.elapsed().as_secs_f64()))
     }
@@ -240,8 +560,61 @@ impl LinearSolver {
                 symbolic,
                 l_values,
                 work,
+                factored,
+                reuse,
                 ..
             } => {
+                let mut abandoned = 0;
+                if let Some(r) = reuse.as_mut().filter(|r| r.stale) {
+                    // Beyond this a fresh factorisation is cheaper than going on.
+                    let cap = r
+                        .settings
+                        .max_iterations
+                        .min(STALE_ITERATION_CAP * FACTOR_REUSE_MAX_ITERATIONS);
+                    let result = pcg(
+                        &mut FactorOperators {
+                            assembly,
+                            values,
+                            factor: LltRef::new(symbolic, l_values),
+                            work,
+                        },
+                        b,
+                        x,
+                        r.settings.tolerance,
+                        cap,
+                        // A good old factor reaches half the digits in a few iterations.
+                        Some((FACTOR_REUSE_MAX_ITERATIONS / 2, r.settings.tolerance.sqrt())),
+                        &mut r.work,
+                    );
+                    match result {
+                        Ok(iterations) => {
+                            if iterations > FACTOR_REUSE_MAX_ITERATIONS {
+                                r.refresh_due = true;
+                            }
+                            return Ok(LinearStats {
+                                t_solve: start.elapsed().as_secs_f64(),
+                                iterations,
+                            });
+                        }
+                        Err(PcgFailure::NegativeCurvature { iteration }) => {
+                            return Err(LinearError::NegativeCurvature { iteration, n })
+                        }
+                        // The old factor is too far off: factor this matrix, solve directly.
+                        Err(failure) => {
+                            abandoned = match failure {
+                                PcgFailure::Breakdown { iteration }
+                                | PcgFailure::NegativeCurvature { iteration }
+                                | PcgFailure::NoConvergence {
+                                    iterations: iteration,
+                                    ..
+                                } => iteration,
+                            };
+                            factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
+                            r.stale = false;
+                            r.refresh_due = false;
+                        }
+                    }
+                }
                 x.copy_from_slice(b);
                 LltRef::new(symbolic, l_values).solve_in_place_with_conj(
                     Conj::No,
@@ -251,7 +624,7 @@ impl LinearSolver {
                 );
                 Ok(LinearStats {
                     t_solve: start.elapsed().as_secs_f64(),
-                    iterations: 1,
+                    iterations: 1 + abandoned,
                 })
             }
             LinearSolver::Cg {
@@ -296,7 +669,92 @@ impl LinearSolver {
                     Err(e) => Err(LinearError::Faer(format!("{e:?}"))),
                 }
             }
+            LinearSolver::Amg(s) => {
+                let result = s.solve(assembly, values, b, x);
+                let struggling = match &result {
+                    Ok(iterations) => *iterations > AMG_FALLBACK_ITERATIONS,
+                    Err(e) => !e.is_indefinite(),
+                };
+                if let (true, Some((ordering, iterative))) = (struggling, s.fallback) {
+                    let mut direct = LinearSolver::new(
+                        LinearSolverKind::Cholesky,
+                        ordering,
+                        assembly,
+                        &[],
+                        &iterative,
+                    )?;
+                    direct.factorize(assembly, values)?;
+                    *self = direct;
+                    if result.is_err() {
+                        return self.solve(assembly, values, b, x);
+                    }
+                }
+                let iterations = result?;
+                let t_solve = start.elapsed().as_secs_f64();
+                if let LinearSolver::Amg(s) = self {
+                    s.history.push((iterations, t_solve));
+                }
+                Ok(LinearStats {
+                    t_solve,
+                    iterations,
+                })
+            }
         }
+    }
+}
+
+/// Numeric Cholesky factorisation of the matrix with `values` into `l_values`; `factored`
+/// records the values (cleared first: a failed factorisation leaves `l_values` invalid).
+fn factor_numeric(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &mut [f64],
+    work: &mut MemBuffer,
+    factored: &mut Vec<f64>,
+    assembly: &Assembly,
+    values: &[f64],
+) -> Result<(), LinearError> {
+    let n = symbolic.nrows();
+    factored.clear();
+    symbolic
+        .factorize_numeric_llt::<f64>(
+            l_values,
+            assembly.matrix(values),
+            Side::Lower,
+            Default::default(),
+            Par::Seq,
+            MemStack::new(work),
+            Default::default(),
+        )
+        .map_err(|e| match e {
+            DenseLltError::NonPositivePivot { index } => {
+                LinearError::NotPositiveDefinite { pivot: index, n }
+            }
+        })?;
+    factored.extend_from_slice(values);
+    Ok(())
+}
+
+/// The current matrix and an earlier Cholesky factor as PCG's operators.
+struct FactorOperators<'a> {
+    assembly: &'a Assembly,
+    values: &'a [f64],
+    factor: LltRef<'a, usize, f64>,
+    work: &'a mut MemBuffer,
+}
+
+impl PcgOperators for FactorOperators<'_> {
+    fn apply(&mut self, x: &[f64], y: &mut [f64]) {
+        symmetric_multiply(self.assembly, self.values, x, y);
+    }
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        z.copy_from_slice(r);
+        let n = z.len();
+        self.factor.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(z, n, 1),
+            Par::Seq,
+            MemStack::new(self.work),
+        );
     }
 }
 

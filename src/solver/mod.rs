@@ -1,10 +1,12 @@
 //! Linear solvers and Newton's method.
 
+pub mod amg;
 pub mod linear;
 pub mod newton;
 pub mod ordering;
+pub mod pcg;
 pub mod timestep;
 
-pub use linear::{LinearError, LinearSolver, LinearSolverKind, LinearStats};
+pub use linear::{IterativeSettings, LinearError, LinearSolver, LinearSolverKind, LinearStats};
 pub use newton::{minimize, NewtonError, NewtonParams, NewtonReport, NewtonWorkspace, Potential};
 pub use ordering::FillOrdering;

@@ -238,7 +238,7 @@ pub fn minimize(
             // The exact Hessian first; if it is indefinite (compressed corotated elements),
             // its positive semi-definite projection for the rest of this solve.
             let t = match linear.factorize(assembly, &work.hessian) {
-                Err(LinearError::NotPositiveDefinite { .. }) if potential.project_hessian() => {
+                Err(e) if e.is_indefinite() && potential.project_hessian() => {
                     let start = Instant::now();
                     energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
                     report.t_assembly += start.elapsed().as_secs_f64();
@@ -254,7 +254,22 @@ pub fn minimize(
         for (r, &d) in work.rhs.iter_mut().zip(dofs.free_dofs()) {
             *r = -work.gradient[d];
         }
-        let mut stats = linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?;
+        let mut stats = match linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)
+        {
+            // An iterative solver finds indefiniteness only while solving: switch to the
+            // projected Hessian as a failed factorisation does.
+            Err(e) if e.is_indefinite() && potential.project_hessian() => {
+                let start = Instant::now();
+                potential.evaluate(u, &mut work.gradient, &mut work.hessian);
+                report.t_assembly += start.elapsed().as_secs_f64();
+                if let Some(t) = linear.factorize(assembly, &work.hessian)? {
+                    report.t_factorization += t;
+                    report.factorizations += 1;
+                }
+                linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?
+            }
+            other => other?,
+        };
         report.linear_iterations += stats.iterations;
         report.t_solve += stats.t_solve;
         // Contacts the step would create: put their stiffness into the Hessian and solve again
