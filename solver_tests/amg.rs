@@ -9,7 +9,7 @@ use icefem::assembly::{Assembly, DofMap};
 use icefem::fem::ElasticModel;
 use icefem::fem::Material;
 use icefem::mesh::{box_mesh, TetMesh};
-use icefem::physics::{Dirichlet, Elasticity, Model, Region};
+use icefem::physics::Elasticity;
 use icefem::sim::{Analysis, Simulation};
 use icefem::solver::{FillOrdering, IterativeSettings, LinearSolver, LinearSolverKind};
 use nalgebra::Vector3;
@@ -215,26 +215,8 @@ fn auto_falls_back_to_cholesky_on_a_nearly_incompressible_body() {
 
 /// A corotated ice cube, base clamped, gravity with a sideways part, 1/30 s steps.
 fn falling_load_sim(linear: LinearSolverKind) -> Simulation {
-    let mesh = box_mesh([0.0; 3], [0.1; 3], [8, 8, 8], 6).expect("valid box");
-    let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
-    let base = Dirichlet {
-        region: Region {
-            min: Vector3::repeat(-1.0),
-            max: Vector3::new(1.0, 1.0, 1e-9),
-        },
-        axes: [true; 3],
-        displacement: Vector3::zeros(),
-        velocity: Vector3::zeros(),
-    };
-    let model = Model::new(
-        mesh,
-        elasticity,
-        Vector3::new(300.0, 0.0, -981.0),
-        &[],
-        None,
-        vec![base],
-    )
-    .expect("valid model");
+    let model =
+        icefem::bench::clamped_ice_cube(8, Vector3::new(300.0, 0.0, -981.0)).expect("valid model");
     let mut settings = common::settings(Analysis::Dynamic, 1.0 / 30.0);
     settings.linear = linear;
     Simulation::new(model, settings).expect("simulation")

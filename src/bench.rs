@@ -72,6 +72,26 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// A 10 cm corotated ice cube of `cells`³ box cells (6 tets each), its base (z = 0) clamped,
+/// under gravity `g` (m/s²): the benchmark problem.
+pub fn clamped_ice_cube(cells: usize, g: Vector3<f64>) -> Result<Model, SimError> {
+    let c = cells;
+    let mesh =
+        box_mesh([0.0; 3], [0.1; 3], [c, c, c], 6).map_err(|e| SimError::Setup(e.to_string()))?;
+    let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
+    let base = Dirichlet {
+        region: Region {
+            min: Vector3::repeat(-1.0),
+            max: Vector3::new(1.0, 1.0, 1e-9),
+        },
+        axes: [true; 3],
+        displacement: Vector3::zeros(),
+        velocity: Vector3::zeros(),
+    };
+    Model::new(mesh, elasticity, g, &[], None, vec![base])
+        .map_err(|e| SimError::Setup(e.to_string()))
+}
+
 /// Runs `steps` backward-Euler steps of a 10 cm corotated ice cube with ≈ `tets` tets and
 /// reports median per-step timings.
 ///
@@ -85,29 +105,8 @@ pub fn run_size(
     amg_reuse: bool,
 ) -> Result<BenchResult, SimError> {
     let start = Instant::now();
-    let c = cells_for(tets);
-    let mesh =
-        box_mesh([0.0; 3], [0.1; 3], [c, c, c], 6).map_err(|e| SimError::Setup(e.to_string()))?;
-    let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
-    let base = Dirichlet {
-        region: Region {
-            min: Vector3::repeat(-1.0),
-            max: Vector3::new(1.0, 1.0, 1e-9),
-        },
-        axes: [true; 3],
-        displacement: Vector3::zeros(),
-        velocity: Vector3::zeros(),
-    };
     // A sideways component makes the problem non-trivial for the corotated rotations.
-    let model = Model::new(
-        mesh,
-        elasticity,
-        Vector3::new(3.0, 0.0, -9.81),
-        &[],
-        None,
-        vec![base],
-    )
-    .map_err(|e| SimError::Setup(e.to_string()))?;
+    let model = clamped_ice_cube(cells_for(tets), Vector3::new(3.0, 0.0, -9.81))?;
     let settings = StepSettings {
         amg_reuse,
         ..frame_steps(linear, ordering)
