@@ -371,7 +371,7 @@ fn bad_files_and_frames_are_clear_errors() {
         (&["figure", other.to_str().unwrap()], "not icefem output"),
         (
             &["render", one.to_str().unwrap(), "--size", "10x10"],
-            "each 64 … 8192 pixels",
+            "each 64 … 4096 pixels",
         ),
     ];
     for (args, message) in cases {

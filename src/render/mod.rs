@@ -259,8 +259,9 @@ impl Default for RenderOptions {
 
 /// Smallest picture side (pixels): below it the labels do not fit.
 pub const MIN_SIZE: usize = 64;
-/// Largest picture side (pixels): 16k × 16k × 4 supersamples × 16 bytes is already 16 GB.
-pub const MAX_SIZE: usize = 8192;
+/// Largest picture side (pixels): the 2 × 2 supersampled canvas holds 16 bytes per sample,
+/// 1.1 GB at 4096 × 4096.
+pub const MAX_SIZE: usize = 4096;
 /// Supersampling factor per direction (anti-aliasing).
 const SUPERSAMPLE: usize = 2;
 /// Width of the colour-bar strip at the picture's right (pixels).
