@@ -8,18 +8,13 @@ use super::amg::{Amg, AmgError, AmgInfo};
 use super::ordering::{nested_dissection, FillOrdering};
 use super::pcg::{pcg, symmetric_multiply, PcgFailure, PcgOperators, PcgWork};
 use crate::assembly::Assembly;
-use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltError as DenseLltError;
-use faer::matrix_free::conjugate_gradient::{
-    conjugate_gradient, conjugate_gradient_scratch, CgParams,
-};
-use faer::matrix_free::InitialGuessStatus;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
-use faer::{Conj, MatMut, MatRef, Par, Side};
+use faer::{Conj, MatMut, Par, Side};
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -176,12 +171,12 @@ pub enum LinearSolver {
         /// Reuse of the factor as a CG preconditioner for later matrices (opt-in).
         reuse: Option<Box<FactorReuse>>,
     },
-    /// Preconditioned CG.
+    /// Jacobi-preconditioned CG.
     Cg {
         tolerance: f64,
         max_iterations: usize,
         inv_diag: Vec<f64>,
-        work: MemBuffer,
+        work: PcgWork,
     },
     /// Multigrid-preconditioned CG.
     Amg(Box<AmgSolver>),
@@ -424,22 +419,12 @@ impl LinearSolver {
                     }),
                 })
             }
-            LinearSolverKind::Cg => {
-                let req = conjugate_gradient_scratch::<f64>(
-                    Diag::<f64>::zeros(n).as_ref(),
-                    assembly.matrix(&vec![0.0; assembly.nnz()]),
-                    1,
-                    Par::Seq,
-                );
-                let work =
-                    MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
-                Ok(LinearSolver::Cg {
-                    tolerance: cg_tolerance,
-                    max_iterations: cg_max_iterations,
-                    inv_diag: vec![0.0; n],
-                    work,
-                })
-            }
+            LinearSolverKind::Cg => Ok(LinearSolver::Cg {
+                tolerance: cg_tolerance,
+                max_iterations: cg_max_iterations,
+                inv_diag: vec![0.0; n],
+                work: PcgWork::new(n),
+            }),
         }
     }
 
@@ -633,40 +618,28 @@ impl LinearSolver {
                 inv_diag,
                 work,
             } => {
-                x.fill(0.0);
-                // faer 0.24.4 mis-handles `InitialGuessStatus::Zero`; a zeroed x with
-                // `MaybeNonZero` is equivalent and works.
-                let params = CgParams {
-                    initial_guess: InitialGuessStatus::MaybeNonZero,
-                    abs_tolerance: 0.0,
-                    rel_tolerance: *tolerance,
-                    max_iters: *max_iterations,
-                    ..Default::default()
+                let mut ops = JacobiOperators {
+                    assembly,
+                    values,
+                    inv_diag,
                 };
-                let info = conjugate_gradient(
-                    MatMut::from_column_major_slice_mut(x, n, 1),
-                    faer::diag::DiagRef::from_slice(inv_diag),
-                    assembly.matrix(values),
-                    MatRef::from_column_major_slice(b, n, 1),
-                    params,
-                    |_| {},
-                    Par::Seq,
-                    MemStack::new(work),
-                );
-                let t_solve = start.elapsed().as_secs_f64();
-                match info {
-                    Ok(info) => Ok(LinearStats {
-                        t_solve,
-                        iterations: info.iter_count,
+                match pcg(&mut ops, b, x, *tolerance, *max_iterations, None, work) {
+                    Ok(iterations) => Ok(LinearStats {
+                        t_solve: start.elapsed().as_secs_f64(),
+                        iterations,
                     }),
-                    Err(faer::matrix_free::conjugate_gradient::CgError::NoConvergence {
-                        rel_residual,
-                        ..
-                    }) => Err(LinearError::CgNotConverged {
-                        iterations: *max_iterations,
-                        residual: rel_residual,
-                    }),
-                    Err(e) => Err(LinearError::Faer(format!("{e:?}"))),
+                    Err(PcgFailure::NoConvergence { residual, .. }) => {
+                        Err(LinearError::CgNotConverged {
+                            iterations: *max_iterations,
+                            residual,
+                        })
+                    }
+                    // Jacobi is positive definite exactly when the diagonal is positive: a
+                    // breakdown, like negative curvature, says the matrix is not.
+                    Err(
+                        PcgFailure::NegativeCurvature { iteration }
+                        | PcgFailure::Breakdown { iteration },
+                    ) => Err(LinearError::NegativeCurvature { iteration, n }),
                 }
             }
             LinearSolver::Amg(s) => {
@@ -755,6 +728,24 @@ impl PcgOperators for FactorOperators<'_> {
             Par::Seq,
             MemStack::new(self.work),
         );
+    }
+}
+
+/// The current matrix and the inverse of its diagonal as PCG's operators.
+struct JacobiOperators<'a> {
+    assembly: &'a Assembly,
+    values: &'a [f64],
+    inv_diag: &'a [f64],
+}
+
+impl PcgOperators for JacobiOperators<'_> {
+    fn apply(&mut self, x: &[f64], y: &mut [f64]) {
+        symmetric_multiply(self.assembly, self.values, x, y);
+    }
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        for ((z, r), d) in z.iter_mut().zip(r).zip(self.inv_diag) {
+            *z = r * d;
+        }
     }
 }
 
