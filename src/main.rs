@@ -101,8 +101,8 @@ enum Command {
     Figure {
         /// HDF5 file written by `icefem run`.
         file: PathBuf,
-        /// Frames of the panels, comma-separated; default 1200,1600,2000,2400 (the paper's), or
-        /// four frames spread over a shorter run.
+        /// Frame indices of the panels, comma-separated; default: the frames written at the
+        /// paper's steps 1200, 1600, 2000 and 2400, or four frames spread over a shorter run.
         #[arg(long, value_delimiter = ',')]
         frames: Vec<usize>,
         /// Output PNG (default RUN_figure.png).
