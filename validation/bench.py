@@ -596,13 +596,18 @@ def write_report(path: Path, results: list, meta: dict) -> None:
              "the 3×3 node blocks vanish on this structured mesh); icefem's pattern keeps full 3×3 "
              "blocks, hence nnz(K) > nnz(A). Both store both triangles.")
     L.append("")
+    append_run_log(L)
+    path.write_text("\n".join(L) + "\n")
+
+
+
+def append_run_log(L):
+    """Appends this run's log, folded, to the report lines L."""
     L.append("<details><summary>Run log</summary>\n")
     L.append("```")
     L.extend(LOG)
     L.append("```")
     L.append("</details>")
-    path.write_text("\n".join(L) + "\n")
-
 
 # ---------------------------------------------------------------------------------------------
 # `validation/bench --amg`: icefem's multigrid-preconditioned CG against pyamg, up to 1e6 dofs
@@ -737,11 +742,7 @@ def amg_main(a, icefem: Path, python: str, meta_extra: dict) -> int:
         L.append("Notes:\n")
         L.extend(f"- {x}" for x in notes)
         L.append("")
-    L.append("<details><summary>Run log</summary>\n")
-    L.append("```")
-    L.extend(LOG)
-    L.append("```")
-    L.append("</details>")
+    append_run_log(L)
     out = Path(a.output if a.output != str(HERE / "bench.md") else HERE / "bench_amg.md")
     out.write_text("\n".join(L) + "\n")
     log(f"wrote {out}")

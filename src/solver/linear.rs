@@ -282,14 +282,7 @@ impl AmgSolver {
                     return Err(LinearError::NegativeCurvature { iteration, n })
                 }
                 Err(failure) if self.stale => {
-                    abandoned += match failure {
-                        PcgFailure::Breakdown { iteration }
-                        | PcgFailure::NegativeCurvature { iteration }
-                        | PcgFailure::NoConvergence {
-                            iterations: iteration,
-                            ..
-                        } => iteration,
-                    };
+                    abandoned += failure.iterations();
                     self.setup(assembly, values)?;
                 }
                 Err(PcgFailure::NoConvergence { residual, .. }) => {
@@ -586,14 +579,7 @@ impl LinearSolver {
                         }
                         // The old factor is too far off: factor this matrix, solve directly.
                         Err(failure) => {
-                            abandoned = match failure {
-                                PcgFailure::Breakdown { iteration }
-                                | PcgFailure::NegativeCurvature { iteration }
-                                | PcgFailure::NoConvergence {
-                                    iterations: iteration,
-                                    ..
-                                } => iteration,
-                            };
+                            abandoned = failure.iterations();
                             factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
                             r.stale = false;
                             r.refresh_due = false;

@@ -28,6 +28,18 @@ pub enum PcgFailure {
     NoConvergence { iterations: usize, residual: f64 },
 }
 
+impl PcgFailure {
+    /// Iterations done before stopping (paid for, whatever the outcome).
+    pub fn iterations(&self) -> usize {
+        match *self {
+            PcgFailure::NegativeCurvature { iteration } | PcgFailure::Breakdown { iteration } => {
+                iteration
+            }
+            PcgFailure::NoConvergence { iterations, .. } => iterations,
+        }
+    }
+}
+
 /// Work vectors of PCG (allocated once per system size).
 #[derive(Clone, Debug, Default)]
 pub struct PcgWork {
