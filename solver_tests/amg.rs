@@ -248,3 +248,56 @@ fn amg_simulation_follows_the_cholesky_trajectory() {
     // The hierarchy of the first step serves the next ones (the matrix barely changes).
     assert!(setups < 4, "{setups} multigrid set-ups in 4 steps");
 }
+
+#[test]
+fn a_reused_factor_too_stale_to_converge_is_replaced_and_counted_as_a_set_up() {
+    // Cholesky with `factor_reuse`: a later matrix is solved by CG preconditioned by the old
+    // factor. The same matrix scaled by 1.5 has the old factor as an exact preconditioner (CG:
+    // one iteration, no set-up); the nearly incompressible cube's matrix is far from it, the
+    // solve must factorise it itself — and report that set-up, which /stats/factorizations
+    // counts.
+    let (mesh, assembly, ice, b) = cube_system(8, Support::Clamped);
+    let soft = Material {
+        lambda: 5000.0 * ICE.mu,
+        ..ICE
+    };
+    let (_, _, water, _) = cube_system_of(8, Support::Clamped, soft);
+    let mut solver = LinearSolver::new(
+        LinearSolverKind::Cholesky,
+        FillOrdering::Auto,
+        &assembly,
+        &mesh.rest,
+        &IterativeSettings {
+            tolerance: TOLERANCE,
+            max_iterations: 1000,
+            amg_reuse: true,
+            factor_reuse: true,
+        },
+    )
+    .expect("solver set-up");
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let residual = |values: &[f64], x: &[f64]| {
+        let mut ax = vec![0.0; b.len()];
+        assembly.multiply(values, x, &mut ax);
+        let r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
+        norm(&r) / norm(&b)
+    };
+    let mut x = vec![0.0; b.len()];
+    assert!(solver.factorize(&assembly, &ice).unwrap().is_some());
+
+    let scaled: Vec<f64> = ice.iter().map(|v| 1.5 * v).collect();
+    assert!(solver.factorize(&assembly, &scaled).unwrap().is_none());
+    let stats = solver.solve(&assembly, &scaled, &b, &mut x).unwrap();
+    assert_eq!((stats.setups, stats.t_setup), (0, 0.0));
+    assert!(stats.iterations <= 2, "{} iterations", stats.iterations);
+    assert!(residual(&scaled, &x) <= TOLERANCE);
+
+    assert!(solver.factorize(&assembly, &water).unwrap().is_none());
+    let stats = solver.solve(&assembly, &water, &b, &mut x).unwrap();
+    assert_eq!(stats.setups, 1);
+    assert!(stats.t_setup > 0.0 && stats.t_solve > 0.0);
+    // The abandoned CG iterations were paid for and are counted, plus the direct solve.
+    assert!(stats.iterations > 1);
+    // A direct solve after the new factorisation: round-off, far below CG's tolerance.
+    assert!(residual(&water, &x) <= 1e-10, "{:e}", residual(&water, &x));
+}

@@ -314,13 +314,87 @@ fn uniaxial_strain_beyond_the_limit_leaves_the_return_mapping_plastic_strain() {
     }
 }
 
-#[test]
-fn paper_scene_freezes_2400_frames_with_bounded_energy() {
+/// The paper's scene, loaded from its file, and its end time (s).
+fn paper_scene() -> (Simulation, f64) {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/freezing_container.toml");
     let scene = icefem::scene::Scene::load(&path).unwrap();
-    let mut sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
-    let steps = icefem::run::step_count(scene.end_time, scene.settings.dt);
+    let sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
+    (sim, scene.end_time)
+}
+
+/// While the outer layer freezes (steps 250–450 of the paper's scene: the wall pressures grow
+/// every step), friction at the walls is Coulomb's with the normal force of the *end* of the
+/// step: at a node pressed against one wall, the friction force is at most α λ (sticking) and
+/// exactly α λ where the node slides — to the re-lag tolerance. And the lag starts from the
+/// normal force extrapolated in time, so that one Newton solve per step is usually enough:
+/// 237 solves in these 201 steps; from λ at the start of the step it took 438 (and 4 248
+/// Newton iterations over the first 600 steps instead of 2 359).
+#[test]
+fn wall_friction_is_coulomb_with_the_end_of_step_normal_force_while_freezing() {
+    let (mut sim, _) = paper_scene();
+    let contact = sim.model.contact.clone().unwrap();
+    let alpha = contact.obstacles[0].friction;
+    let eps = contact.smoothing_velocity * sim.settings.dt;
+    let (mut solves, mut steps, mut sliding, mut checked) = (0, 0, 0, 0);
+    for n in 1..=450 {
+        let before = sim.state.u.clone();
+        let report = sim.step().unwrap();
+        if n < 250 {
+            continue;
+        }
+        steps += 1;
+        solves += report.newton_solves;
+        let forces = sim.contact_forces().unwrap();
+        let node = |f: &[f64], i: usize| Vector3::new(f[3 * i], f[3 * i + 1], f[3 * i + 2]);
+        let largest = (0..sim.model.num_nodes())
+            .map(|i| node(&forces.normal, i).norm())
+            .fold(0.0, f64::max);
+        // The lagged λ of every pair is within FRICTION_RELAG_TOLERANCE × the largest λ of the
+        // end-of-step one; at a node that leaves a neighbouring wall a lagged λ there may still
+        // be that small and non-zero, hence twice the tolerance.
+        let slack = 2.0 * icefem::sim::FRICTION_RELAG_TOLERANCE * largest;
+        for i in 0..sim.model.num_nodes() {
+            let normal = node(&forces.normal, i);
+            // Nodes against exactly one wall (the normal force along one axis).
+            if normal.iter().filter(|c| **c != 0.0).count() != 1 {
+                continue;
+            }
+            let lambda = normal.norm();
+            let friction = node(&forces.friction, i).norm();
+            let wall = normal / lambda;
+            let du = node(&sim.state.u, i) - node(&before, i);
+            let slip = (du - wall * wall.dot(&du)).norm();
+            checked += 1;
+            assert!(
+                friction <= alpha * (lambda + slack),
+                "step {n}, node {i}: friction {friction} N > α λ = {} N",
+                alpha * lambda
+            );
+            if slip > eps {
+                sliding += 1;
+                assert!(
+                    friction >= alpha * (lambda - slack),
+                    "step {n}, node {i} slides {slip} m: friction {friction} N < α λ = {} N",
+                    alpha * lambda
+                );
+            }
+        }
+    }
+    eprintln!(
+        "{checked} node-steps checked, {sliding} sliding; {solves} Newton solves in {steps} steps"
+    );
+    assert!(sliding > 100 && checked > sliding);
+    assert!(
+        (solves as f64) < 1.5 * steps as f64,
+        "{solves} Newton solves in {steps} steps"
+    );
+}
+
+#[test]
+fn paper_scene_freezes_2400_frames_with_bounded_energy() {
+    let (mut sim, end_time) = paper_scene();
+    let steps = icefem::run::step_count(end_time, sim.settings.dt);
     assert_eq!(steps, 2400);
     // Upper bound: the whole volume expanded by e against rigid confinement stores at most
     // ½ K (3e)² V (K the ice's bulk modulus); gravity adds ~1e-3 J.

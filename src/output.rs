@@ -176,7 +176,8 @@ pub struct StepStats {
     pub newton_iterations: u32,
     /// Linear-solver iterations summed over the step (one per Newton iteration for Cholesky).
     pub linear_iterations: u32,
-    /// Numeric factorisations (Hessian refreshes) in the step.
+    /// Numeric factorisations or multigrid set-ups in the step (Hessian refreshes, and those a
+    /// solve did itself when a reused preconditioner was too stale).
     pub factorizations: u32,
     /// Solves the step took (1, or more when Newton failed and the step was halved).
     pub substeps: u32,

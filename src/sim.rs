@@ -118,6 +118,10 @@ pub struct StepReport {
     pub t_step: f64,
     /// Solves the step took (1 unless Newton failed and the step was halved).
     pub substeps: u32,
+    /// Newton solves, summed over substeps: one per substep, plus one per re-solve after
+    /// friction's normal force was re-lagged or a mesh obstacle's planes were re-picked
+    /// (at most [`MAX_FRICTION_UPDATES`] per substep).
+    pub newton_solves: u32,
     /// Contact broad phase: ice–ice candidate search and pattern update, and the choice of
     /// each node's plane on mesh obstacles (s).
     pub t_contact_broad: f64,
@@ -129,11 +133,12 @@ pub struct StepReport {
 /// Re-solves of a step with the friction normal force updated from its end.
 pub const MAX_FRICTION_UPDATES: usize = 4;
 
-/// The friction normal force has settled when no pair's changed by more than this fraction of
-/// the largest in the last re-solve. Each re-solve costs a Newton solve; in a freezing
-/// container, where every step moves the wall pressures, 1e-4 took all four re-solves every
-/// step (5 solves, 33 Newton iterations per step at 1e4 tets), while 1e-2 bounds the friction
-/// force's error by 1 % of α λ.
+/// The friction normal force has settled when re-lagging it changes no pair's friction force
+/// at the solution by more than this fraction of the largest α λ (see
+/// [`ContactStep::relag`]; ice–ice pairs: no normal force by more than this fraction of the
+/// largest). Each re-solve costs a Newton solve; in a freezing container, where every step
+/// moves the wall pressures, 1e-4 took all four re-solves every step, while 1e-2 bounds the
+/// friction force's error by 1 % of the largest α λ.
 pub const FRICTION_RELAG_TOLERANCE: f64 = 1e-2;
 
 /// How often a failing step may be halved (down to dt/16).
@@ -147,6 +152,7 @@ impl StepReport {
             energies: next.energies,
             t_step: self.t_step + next.t_step,
             substeps: self.substeps + next.substeps,
+            newton_solves: self.newton_solves + next.newton_solves,
             t_contact_broad: self.t_contact_broad + next.t_contact_broad,
             t_contact_narrow: self.t_contact_narrow + next.t_contact_narrow,
         }
@@ -491,6 +497,21 @@ impl Simulation {
                 reach,
             )
         });
+        // Friction's normal force starts extrapolated from the step before, uₙ − h vₙ.
+        let earlier: Vec<f64> = if dynamic {
+            let v = &self.state.v;
+            self.previous
+                .iter()
+                .zip(v)
+                .map(|(u0, v)| u0 - h * v)
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let contact = contact.map(|mut c| {
+            c.extrapolate_lagged(&earlier);
+            c
+        });
         let mut t_contact_broad = selection.elapsed().as_secs_f64();
         let mut potential = StepPotential {
             model: &self.model,
@@ -516,7 +537,7 @@ impl Simulation {
                     friction: None,
                 };
                 if dynamic && term.friction > 0.0 {
-                    let frames = ice.friction_frames(rest, &self.previous);
+                    let frames = ice.extrapolated_friction_frames(rest, &self.previous, &earlier);
                     ice.friction = Some(IceFriction {
                         dt: h,
                         previous: &self.previous,
@@ -527,11 +548,12 @@ impl Simulation {
             }),
             t_contact: 0.0,
         };
-        // Friction uses the normal force of the start of the step; after each solve it is
-        // re-lagged to the solution's and the step re-solved (warm-started) until it settles
+        // Friction uses the normal force extrapolated to the end of the step; after each solve it
+        // is re-lagged to the solution's and the step re-solved (warm-started) until it settles
         // to FRICTION_RELAG_TOLERANCE of the largest. Mesh obstacles' planes are re-picked the
         // same way.
         let mut newton: Option<NewtonReport> = None;
+        let mut newton_solves = 0;
         for _ in 0..=MAX_FRICTION_UPDATES {
             if newton.is_some() {
                 let mut change: f64 = 0.0;
@@ -542,15 +564,8 @@ impl Simulation {
                     }
                     t_contact_broad += reselection.elapsed().as_secs_f64();
                 }
-                if let Some(c) = potential.contact.as_mut().filter(|c| c.has_friction()) {
-                    let updated = c.normal_forces(&u);
-                    let scale = updated.iter().fold(0.0f64, |m, v| m.max(*v));
-                    let diff = updated
-                        .iter()
-                        .zip(&c.lagged)
-                        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-                    change = if scale > 0.0 { diff / scale } else { 0.0 };
-                    c.lagged = updated;
+                if let Some(c) = potential.contact.as_mut() {
+                    change = change.max(c.relag(&u));
                 }
                 if let Some(ice) = potential.ice.as_mut() {
                     change = change.max(ice.relag(rest, &u));
@@ -569,6 +584,7 @@ impl Simulation {
                 &mut self.workspace,
             )?;
             newton = Some(newton.map_or(report, |n| n.then(&report)));
+            newton_solves += 1;
         }
         let newton = newton.unwrap_or_default();
         if dynamic {
@@ -597,6 +613,7 @@ impl Simulation {
         Ok(StepReport {
             newton,
             substeps: 1,
+            newton_solves,
             t_contact_narrow,
             t_contact_broad,
             ..Default::default()

@@ -14,15 +14,21 @@
 //! contact (Li et al. 2020): with the tangential slip of the step y = (I − n nᵀ)(Δuᵢ − v_obs h),
 //! D = α λ f₀(|y|), whose force has magnitude α λ f₁(|y|) ≤ α λ — exactly α λ once the slip
 //! exceeds ε = ε_v h, growing smoothly from zero below (stick, with creep slower than ε_v). The
-//! normal force λ = k Aᵢ max(0, −g) is lagged: the step is solved with λ from the start of the
-//! step, then re-solved with λ from its end until λ settles (a few rounds at most), so friction
-//! acts with the normal force of the end of the step while each solve stays a minimisation.
+//! normal force λ = k Aᵢ max(0, −g) is lagged: the step is solved with λ extrapolated linearly
+//! from the start of the step and the step before it, then re-solved with λ from its end until
+//! λ settles (a few rounds at most), so friction acts with the normal force of the end of the
+//! step while each solve stays a minimisation.
 
 use super::obstacle_mesh::ObstacleSurface;
 use super::Region;
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
 use std::sync::Arc;
+
+/// Two planes of a mesh obstacle with the same normal whose offsets differ by at most this
+/// (m) are the same plane: round-off of the closest-point projection is ~1e-17 m, penetration
+/// depths are 1e-7 m and more.
+const SAME_PLANE_OFFSET: f64 = 1e-12;
 
 /// Shape of a rigid obstacle at t = 0 (it moves rigidly with its velocity).
 #[derive(Clone, Debug, PartialEq)]
@@ -330,12 +336,39 @@ impl<'a> ContactStep<'a> {
         };
         step.node_planes = step.select_node_planes(previous);
         step.lagged = step.normal_forces(previous);
-        step.planes = contact.planes(t_end);
-        step.time = t_end;
-        for (plane, _) in step.node_planes.iter_mut().flatten() {
-            plane.offset = t_end * plane.velocity.dot(&plane.normal);
-        }
+        step.set_time(t_end);
         step
+    }
+
+    /// Moves the obstacles' planes (shared and per node) to time `t` (s).
+    fn set_time(&mut self, t: f64) {
+        self.planes = self.contact.planes(t);
+        self.time = t;
+        for (plane, _) in self.node_planes.iter_mut().flatten() {
+            plane.offset = t * plane.velocity.dot(&plane.normal);
+        }
+    }
+
+    /// Starts the friction normal force of a dynamic step from its linear extrapolation in
+    /// time, λ = max(0, 2 λ(uₙ) − λ(uₙ₋₁)), instead of λ(uₙ): `earlier` is the displacement
+    /// one step before the start (m), uₙ − h vₙ, against the obstacles where they were then.
+    ///
+    /// Where the normal force grows steadily — ice expanding against the walls as it freezes —
+    /// λ(uₙ) lags the end of the step by a whole step's growth (20–30 % of the largest force
+    /// per step at the onset of freezing), and the re-lag, which contracts by only ≈ α per
+    /// re-solve, needed all its re-solves every step; extrapolated, the first solve is usually
+    /// within the tolerance.
+    pub fn extrapolate_lagged(&mut self, earlier: &[f64]) {
+        let Some(h) = self.dt.filter(|_| self.has_friction()) else {
+            return;
+        };
+        let end = self.time;
+        self.set_time(end - 2.0 * h);
+        let before = self.normal_forces(earlier);
+        self.set_time(end);
+        for (lambda, b) in self.lagged.iter_mut().zip(&before) {
+            *lambda = (2.0 * *lambda - b).max(0.0);
+        }
     }
 
     /// Pairs per boundary node.
@@ -402,9 +435,12 @@ impl<'a> ContactStep<'a> {
             .enumerate()
             .any(|(n, (a, b))| {
                 let i = self.contact.nodes[n / nm];
+                // The same plane: the same normal, through the same point up to round-off (a
+                // node sliding over one face keeps its plane while its closest point moves).
                 let same = match (a, b) {
                     (Some((pa, _)), Some((pb, _))) => {
-                        pa.point == pb.point && pa.normal == pb.normal
+                        pa.normal == pb.normal
+                            && (pa.point - pb.point).dot(&pa.normal).abs() <= SAME_PLANE_OFFSET
                     }
                     (None, None) => true,
                     _ => false,
@@ -427,6 +463,45 @@ impl<'a> ContactStep<'a> {
             });
         }
         out
+    }
+
+    /// Tangential slip y = (I − n nᵀ)(Δuᵢ − v_obs h) (m) of node `i` against plane `p` over a
+    /// step of `h` (s) ending at `u`, and the tangential projector I − n nᵀ.
+    fn slip(&self, p: &Plane, u: &[f64], i: usize, h: f64) -> (Vector3<f64>, Matrix3<f64>) {
+        let tangent = Matrix3::identity() - p.normal * p.normal.transpose();
+        let du = displacement(u, i) - displacement(self.previous, i);
+        (tangent * (du - p.velocity * h), tangent)
+    }
+
+    /// Re-lags friction's normal forces to `u` (the solution of the last solve); returns how
+    /// far that moves friction: the largest change of a pair's friction force at `u`,
+    /// α |Δλ| f₁(|y|), relative to the largest α λ (0 without friction). This is the residual
+    /// a re-solve starts from. A sliding pair (f₁ = 1) feels the whole change of λ; a sticking
+    /// one (slip below ε = ε_v h) only in proportion to f₁ < 1, since inside the cone its
+    /// force is set by equilibrium and λ only bounds it.
+    pub fn relag(&mut self, u: &[f64]) -> f64 {
+        let Some(h) = self.dt.filter(|_| self.has_friction()) else {
+            return 0.0;
+        };
+        let updated = self.normal_forces(u);
+        let eps = self.contact.smoothing_velocity * h;
+        let (mut change, mut scale) = (0.0f64, 0.0f64);
+        for k in 0..self.contact.nodes.len() {
+            let i = self.contact.nodes[k];
+            self.for_each_plane(k, |pair, p, _| {
+                let slip = self.slip(p, u, i, h).0.norm();
+                let weight = friction_profile(slip, eps).1;
+                let delta = (updated[pair] - self.lagged[pair]).abs();
+                change = change.max(p.friction * delta * weight);
+                scale = scale.max(p.friction * updated[pair]);
+            });
+        }
+        self.lagged = updated;
+        if scale > 0.0 {
+            change / scale
+        } else {
+            0.0
+        }
     }
 
     /// Whether any obstacle has friction (then the lagged normal force matters).
@@ -513,9 +588,7 @@ impl<'a> ContactStep<'a> {
                 if lambda <= 0.0 || p.friction <= 0.0 {
                     return;
                 }
-                let tangent = Matrix3::identity() - p.normal * p.normal.transpose();
-                let du = displacement(u, i) - displacement(self.previous, i);
-                let y = tangent * (du - p.velocity * h);
+                let (y, tangent) = self.slip(p, u, i, h);
                 let s = y.norm();
                 let eps = c.smoothing_velocity * h;
                 let (f0, f1, f1_prime) = friction_profile(s, eps);

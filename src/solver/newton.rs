@@ -8,7 +8,7 @@
 //! reassemble and refactorise. Ice is stiff and nearly linear at the strains it survives, so the
 //! second solve of a step almost always reuses the first factorisation.
 
-use super::linear::{LinearError, LinearSolver};
+use super::linear::{LinearError, LinearSolver, LinearStats};
 use crate::assembly::Assembly;
 use std::time::Instant;
 
@@ -68,7 +68,8 @@ pub struct NewtonParams {
 pub struct NewtonReport {
     /// Newton iterations (linear solves).
     pub iterations: usize,
-    /// Numeric factorisations (Hessian refreshes).
+    /// Numeric factorisations or multigrid set-ups (Hessian refreshes, and those a solve had to
+    /// do itself when a reused preconditioner was too stale).
     pub factorizations: usize,
     /// Linear-solver iterations summed over Newton iterations.
     pub linear_iterations: usize,
@@ -89,6 +90,14 @@ pub struct NewtonReport {
 }
 
 impl NewtonReport {
+    /// Adds one linear solve's work, counting the set-ups it did itself as factorisations.
+    fn add_solve(&mut self, stats: &LinearStats) {
+        self.linear_iterations += stats.iterations;
+        self.t_solve += stats.t_solve;
+        self.factorizations += stats.setups;
+        self.t_factorization += stats.t_setup;
+    }
+
     /// Two consecutive solves as one: work and times add, the state is the second's.
     pub fn then(&self, next: &NewtonReport) -> NewtonReport {
         NewtonReport {
@@ -270,8 +279,7 @@ pub fn minimize(
             }
             other => other?,
         };
-        report.linear_iterations += stats.iterations;
-        report.t_solve += stats.t_solve;
+        report.add_solve(&stats);
         // Contacts the step would create: put their stiffness into the Hessian and solve again
         // (a few rounds at most; each marks pairs for good within this solve).
         let rounds = if iteration < ANTICIPATION_ITERATIONS {
@@ -295,8 +303,7 @@ pub fn minimize(
                 report.factorizations += 1;
             }
             stats = linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?;
-            report.linear_iterations += stats.iterations;
-            report.t_solve += stats.t_solve;
+            report.add_solve(&stats);
         }
         // Slope of the potential along the direction (J per unit step).
         let slope_along = |g: &[f64], dir: &[f64]| -> f64 {
@@ -317,8 +324,7 @@ pub fn minimize(
                 *r = -work.trial[d];
             }
             let landing = linear.solve(assembly, &work.hessian, &rhs, &mut work.landing)?;
-            report.linear_iterations += landing.iterations;
-            report.t_solve += landing.t_solve;
+            report.add_solve(&landing);
             work.rhs = rhs;
             if slope_along(&work.gradient, &work.landing) < 0.0 {
                 std::mem::swap(&mut work.direction, &mut work.landing);

@@ -104,6 +104,23 @@ impl IceStep<'_> {
         frames
     }
 
+    /// Friction frames at `previous` (the start of the step) with each normal force
+    /// extrapolated linearly in time from `earlier` (one step before, m): λ = max(0, 2 λ(uₙ) −
+    /// λ(uₙ₋₁)), as [`ContactStep::extrapolate_lagged`] does for obstacles.
+    pub fn extrapolated_friction_frames(
+        &self,
+        rest: &[Vector3<f64>],
+        previous: &[f64],
+        earlier: &[f64],
+    ) -> Vec<Option<FrictionFrame>> {
+        let mut frames = self.friction_frames(rest, previous);
+        let before = self.friction_frames(rest, earlier);
+        for (frame, b) in frames.iter_mut().flatten().zip(&before) {
+            frame.2 = (2.0 * frame.2 - b.map_or(0.0, |b| b.2)).max(0.0);
+        }
+        frames
+    }
+
     /// Re-lags the friction frames to `u`; returns the largest change of a normal force relative
     /// to the largest normal force (0 without friction).
     pub fn relag(&mut self, rest: &[Vector3<f64>], u: &[f64]) -> f64 {
