@@ -409,7 +409,7 @@ fn a_notched_plate_cracks_at_the_notch_root_first() {
 #[test]
 fn the_paper_scene_cracks_as_it_freezes() {
     // scenes/freezing_container_fracture.toml to frame 1200 (40 s; ~2 min): every step
-    // converges, cracks appear once the shell has frozen (frame ~440) and multiply.
+    // converges, cracks appear once the shell has frozen (frame ~400) and multiply.
     use icefem::run::{run, RunOptions};
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scenes/freezing_container_fracture.toml");
