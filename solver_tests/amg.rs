@@ -301,3 +301,114 @@ fn a_reused_factor_too_stale_to_converge_is_replaced_and_counted_as_a_set_up() {
     // A direct solve after the new factorisation: round-off, far below CG's tolerance.
     assert!(residual(&water, &x) <= 1e-10, "{:e}", residual(&water, &x));
 }
+
+/// A Cholesky solver that keeps its factor as CG's preconditioner, with CG's tolerance at
+/// [`TOLERANCE`].
+fn reusing_cholesky(assembly: &Assembly, mesh: &TetMesh) -> LinearSolver {
+    LinearSolver::new(
+        LinearSolverKind::Cholesky,
+        FillOrdering::Auto,
+        assembly,
+        &mesh.rest,
+        &IterativeSettings {
+            tolerance: TOLERANCE,
+            max_iterations: 1000,
+            amg_reuse: true,
+            factor_reuse: true,
+        },
+    )
+    .expect("solver set-up")
+}
+
+#[test]
+fn a_reused_factor_solves_only_as_accurately_as_newton_asks() {
+    // Newton's forcing term loosens CG preconditioned by a reused factor: asked for 1e-4 it
+    // stops there, in fewer iterations than at CG's own tolerance (1e-8). The new matrix is
+    // the ice cube's with λ 20 % larger: close enough for the old factor to be a useful
+    // preconditioner, far enough to need several iterations.
+    let (mesh, assembly, ice, b) = cube_system(8, Support::Clamped);
+    let firmer = Material {
+        lambda: 1.2 * ICE.lambda,
+        ..ICE
+    };
+    let (_, _, mixed, _) = cube_system_of(8, Support::Clamped, firmer);
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let residual = |x: &[f64]| {
+        let mut ax = vec![0.0; b.len()];
+        assembly.multiply(&mixed, x, &mut ax);
+        let r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
+        norm(&r) / norm(&b)
+    };
+    let mut iterations = Vec::new();
+    for forcing in [TOLERANCE, 1e-4] {
+        let mut solver = reusing_cholesky(&assembly, &mesh);
+        assert!(solver.factorize(&assembly, &ice).unwrap().is_some());
+        assert!(solver.factorize(&assembly, &mixed).unwrap().is_none());
+        solver.set_forcing(forcing);
+        let mut x = vec![0.0; b.len()];
+        let stats = solver.solve(&assembly, &mixed, &b, &mut x).unwrap();
+        assert_eq!(
+            stats.setups, 0,
+            "the old factor should do at {forcing:e}: {stats:?}"
+        );
+        assert!(residual(&x) <= forcing, "{:e} > {forcing:e}", residual(&x));
+        iterations.push(stats.iterations);
+    }
+    eprintln!("CG iterations at 1e-8 / 1e-4: {iterations:?}");
+    assert!(iterations[1] < iterations[0], "{iterations:?}");
+    // Never looser than the cap, whatever Newton asks.
+    let mut solver = reusing_cholesky(&assembly, &mesh);
+    solver.factorize(&assembly, &ice).unwrap();
+    solver.factorize(&assembly, &mixed).unwrap();
+    solver.set_forcing(0.5);
+    let mut x = vec![0.0; b.len()];
+    solver.solve(&assembly, &mixed, &b, &mut x).unwrap();
+    assert!(residual(&x) <= icefem::solver::linear::FORCING_MAX);
+}
+
+#[test]
+fn a_factor_that_failed_in_the_next_newton_solve_is_replaced_there_at_once() {
+    // A factor kept into the next Newton solve (the next time step) that proved too stale
+    // there is, from then on, replaced at the first refresh of a new solve without another
+    // attempt — but kept again every STALE_PROBE_PERIOD-th time, to see whether it would do.
+    // Within a solve a factor is still kept.
+    use icefem::solver::linear::STALE_PROBE_PERIOD;
+    let (mesh, assembly, ice, b) = cube_system(8, Support::Clamped);
+    let soft = Material {
+        lambda: 5000.0 * ICE.mu,
+        ..ICE
+    };
+    let (_, _, water, _) = cube_system_of(8, Support::Clamped, soft);
+    let mut solver = reusing_cholesky(&assembly, &mesh);
+    let mut x = vec![0.0; b.len()];
+    solver.start_newton_solve();
+    assert!(solver.factorize(&assembly, &ice).unwrap().is_some());
+    // Next solve: the old factor is kept, fails on the water matrix and is replaced.
+    solver.start_newton_solve();
+    assert!(solver.factorize(&assembly, &water).unwrap().is_none());
+    let stats = solver.solve(&assembly, &water, &b, &mut x).unwrap();
+    assert_eq!(stats.setups, 1);
+    // The following solves factorise at their first refresh...
+    let matrices = [&ice, &water];
+    for k in 0..STALE_PROBE_PERIOD {
+        solver.start_newton_solve();
+        let values = matrices[k % 2];
+        assert!(
+            solver.factorize(&assembly, values).unwrap().is_some(),
+            "solve {k}: the factor should have been replaced"
+        );
+        let stats = solver.solve(&assembly, values, &b, &mut x).unwrap();
+        assert_eq!((stats.setups, stats.iterations), (0, 1), "a direct solve");
+        // ...and keep the fresh factor for a refresh within the solve (exact: one iteration).
+        let scaled: Vec<f64> = values.iter().map(|v| 1.5 * v).collect();
+        assert!(solver.factorize(&assembly, &scaled).unwrap().is_none());
+        let stats = solver.solve(&assembly, &scaled, &b, &mut x).unwrap();
+        assert_eq!(stats.setups, 0);
+        assert!(stats.iterations <= 2, "{} iterations", stats.iterations);
+    }
+    // The probe: the factor is tried once more.
+    solver.start_newton_solve();
+    let next = matrices[STALE_PROBE_PERIOD % 2];
+    assert!(solver.factorize(&assembly, next).unwrap().is_none());
+    solver.solve(&assembly, next, &b, &mut x).unwrap();
+}

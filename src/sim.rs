@@ -43,7 +43,7 @@ pub struct StepSettings {
     pub amg_reuse: bool,
     /// Cholesky keeps a factorisation across Hessian refreshes and steps, solving with CG
     /// preconditioned by it until that needs more than
-    /// [`crate::solver::linear::FACTOR_REUSE_MAX_ITERATIONS`] iterations (opt-in: the results
+    /// [`crate::solver::linear::reuse_iteration_budget`] iterations (opt-in: the results
     /// then depend on when the factor was made, so a resumed run is no longer bit-identical).
     pub factor_reuse: bool,
 }

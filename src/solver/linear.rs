@@ -54,21 +54,48 @@ pub struct IterativeSettings {
     /// grow (false: a set-up at every Hessian refresh).
     pub amg_reuse: bool,
     /// Cholesky: keep a factorisation across Hessian refreshes and steps, solving with CG
-    /// preconditioned by it, until CG needs more than [`FACTOR_REUSE_MAX_ITERATIONS`].
+    /// preconditioned by it, until CG needs more than [`reuse_iteration_budget`].
     pub factor_reuse: bool,
 }
 
 /// A reused Cholesky factor is refreshed on the next Hessian refresh once a CG solve
-/// preconditioned by it needed more than this many iterations: each costs one pair of
-/// triangular solves, and a fresh factorisation costs about as much as 10–20 of them on
-/// 1e4–1e5 dofs (`icefem bench`).
-pub const FACTOR_REUSE_MAX_ITERATIONS: usize = 10;
+/// preconditioned by it needed more than this many iterations per decade of residual
+/// reduction (see [`reuse_iteration_budget`]): each costs one pair of triangular solves, a
+/// fresh factorisation about as much as 10–20 of them on 1e4–1e5 dofs (`icefem bench`), and
+/// a step makes several solves with the same factor. A factor from an earlier iterate of the
+/// same solve reaches Newton's forcing ([`FORCING_MAX`], 4 decades) in 2–5 iterations on the
+/// 1e5-tet freezing container; one from the step before needs 7 and more.
+pub const FACTOR_REUSE_ITERATIONS_PER_DECADE: f64 = 1.5;
+
+/// CG iterations a reused factor may take to reach the relative residual `forcing` before it
+/// is refreshed: [`FACTOR_REUSE_ITERATIONS_PER_DECADE`] per decade (6 at 1e-4, 18 at 1e-12).
+pub fn reuse_iteration_budget(forcing: f64) -> usize {
+    let decades = -forcing.log10();
+    (FACTOR_REUSE_ITERATIONS_PER_DECADE * decades)
+        .ceil()
+        .max(2.0) as usize
+}
 
 /// A solve preconditioned by a stale factor or hierarchy stops after this many times the
 /// iterations that trigger a refresh (the factor's cap, or the hierarchy's first count) and
 /// refreshes at once: after a large change of the matrix (contacts switching on) the old
 /// preconditioner can need hundreds of iterations.
 pub const STALE_ITERATION_CAP: usize = 3;
+
+/// A solve preconditioned by a reused factor needs a relative residual of at most this: the
+/// Newton direction of an iteration far from the solution need not be exact (the nonlinear
+/// error dominates), and nearer the solution [`LinearSolver::set_forcing`] asks for more.
+/// Measured on the 1e5-tet freezing container: the first Newton step of a frame leaves a
+/// relative residual of ~4e-4 whether its linear solve reached 1e-4 or 1e-12.
+pub const FORCING_MAX: f64 = 1e-4;
+
+/// After a reused factor had to be abandoned (or converged too slowly) at some age — Newton
+/// solves since it was computed, see [`LinearSolver::start_newton_solve`] — a factor reaching
+/// that age is replaced at the first Hessian refresh, without the doomed attempt; except every
+/// `STALE_PROBE_PERIOD`-th time, to find out whether it would now do. (Within one Newton solve
+/// an earlier iterate's factor is a good preconditioner; across the steps of a freezing run
+/// it is not: a band of elements changes stiffness every step.)
+pub const STALE_PROBE_PERIOD: usize = 8;
 
 /// State of a Cholesky factor reused as a preconditioner.
 pub struct FactorReuse {
@@ -77,7 +104,63 @@ pub struct FactorReuse {
     stale: bool,
     /// A factorisation is due at the next refresh.
     refresh_due: bool,
+    /// Relative residual the next solves need (see [`LinearSolver::set_forcing`]).
+    forcing: f64,
+    /// Newton solves begun since the current factor was computed.
+    age: usize,
+    /// Smallest age at which a factor had to be abandoned, if it has not done since.
+    failed_age: Option<usize>,
+    /// Factorisations made early because of `failed_age` since the last probe.
+    skipped_attempts: usize,
     work: PcgWork,
+}
+
+impl FactorReuse {
+    fn new(settings: IterativeSettings, n: usize) -> Self {
+        FactorReuse {
+            settings,
+            stale: false,
+            refresh_due: false,
+            forcing: settings.tolerance,
+            age: 0,
+            failed_age: None,
+            skipped_attempts: 0,
+            work: PcgWork::new(n),
+        }
+    }
+
+    /// Whether the factor, about to be kept through one more refresh, should rather be
+    /// replaced now: it is due, or factors of that age have been failing.
+    fn replace_before_use(&mut self) -> bool {
+        if self.refresh_due {
+            return true;
+        }
+        if self.failed_age.is_some_and(|a| self.age >= a) {
+            if self.skipped_attempts < STALE_PROBE_PERIOD {
+                self.skipped_attempts += 1;
+                return true;
+            }
+            self.skipped_attempts = 0;
+        }
+        false
+    }
+
+    /// The factor had to be abandoned, or converged too slowly, at its current age. Only
+    /// factors from earlier Newton solves are remembered: within a solve a failure is rare
+    /// (contacts switching on) and says nothing about the next refresh.
+    fn note_failure(&mut self) {
+        if self.age > 0 {
+            self.failed_age = Some(self.failed_age.map_or(self.age, |a| a.min(self.age)));
+            self.skipped_attempts = 0;
+        }
+    }
+
+    /// A fresh factor.
+    fn renewed(&mut self) {
+        self.stale = false;
+        self.refresh_due = false;
+        self.age = 0;
+    }
 }
 
 /// `Auto` switches from multigrid CG to Cholesky for good when a solve with a fresh hierarchy
@@ -414,7 +497,8 @@ impl LinearSolver {
                         factor_parallelism(symbolic.nrows()),
                         Default::default(),
                     )
-                    .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+                    .or(symbolic
+                        .solve_in_place_scratch::<f64>(1, factor_parallelism(symbolic.nrows())));
                 let work =
                     MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
                 let l_values = vec![0.0; symbolic.len_val()];
@@ -425,14 +509,9 @@ impl LinearSolver {
                     t_symbolic: start.elapsed().as_secs_f64(),
                     nested_dissection,
                     factored: Vec::new(),
-                    reuse: iterative.factor_reuse.then(|| {
-                        Box::new(FactorReuse {
-                            settings: *iterative,
-                            stale: false,
-                            refresh_due: false,
-                            work: PcgWork::new(n),
-                        })
-                    }),
+                    reuse: iterative
+                        .factor_reuse
+                        .then(|| Box::new(FactorReuse::new(*iterative, n))),
                 })
             }
             LinearSolverKind::Cg => Ok(LinearSolver::Cg {
@@ -493,6 +572,28 @@ impl LinearSolver {
         }
     }
 
+    /// A new Newton solve begins (a time step, or a re-solve with updated friction): a reused
+    /// factor is one solve older (see [`STALE_PROBE_PERIOD`]).
+    pub fn start_newton_solve(&mut self) {
+        if let LinearSolver::Cholesky { reuse: Some(r), .. } = self {
+            r.age += 1;
+        }
+    }
+
+    /// Sets the relative residual ‖b − A x‖ / ‖b‖ the next solves need (Newton's forcing term),
+    /// clamped to [`IterativeSettings::tolerance`, [`FORCING_MAX`]]. Only solves preconditioned
+    /// by a reused factor use it: a fresh factor solves exactly at no extra cost, and the
+    /// multigrid and Jacobi solvers keep their tolerance (their iteration counts are what the
+    /// benchmarks compare with pyamg).
+    pub fn set_forcing(&mut self, eta: f64) {
+        if let LinearSolver::Cholesky { reuse: Some(r), .. } = self {
+            // max/min rather than clamp: a NaN request falls back to CG's own tolerance.
+            r.forcing = eta
+                .max(r.settings.tolerance)
+                .min(FORCING_MAX.max(r.settings.tolerance));
+        }
+    }
+
     /// Prepares solves with the matrix of `assembly`'s pattern and these values: the numeric
     /// Cholesky factorisation, the Jacobi preconditioner for CG, or the multigrid set-up.
     /// Returns its time (s), or `None` when nothing was computed: the values are bit for bit
@@ -520,7 +621,7 @@ impl LinearSolver {
                         .all(|(a, b)| a.to_bits() == b.to_bits());
                 if let Some(r) = reuse.as_mut() {
                     r.stale = !same;
-                    if !same && !factored.is_empty() && !r.refresh_due {
+                    if !same && !factored.is_empty() && !r.replace_before_use() {
                         return Ok(None);
                     }
                 }
@@ -529,8 +630,7 @@ impl LinearSolver {
                 }
                 factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
                 if let Some(r) = reuse.as_mut() {
-                    r.stale = false;
-                    r.refresh_due = false;
+                    r.renewed();
                 }
             }
             LinearSolver::Cg { inv_diag, .. } => jacobi_inverse(assembly, values, inv_diag),
@@ -569,10 +669,8 @@ impl LinearSolver {
                 let mut refactored = None;
                 if let Some(r) = reuse.as_mut().filter(|r| r.stale) {
                     // Beyond this a fresh factorisation is cheaper than going on.
-                    let cap = r
-                        .settings
-                        .max_iterations
-                        .min(STALE_ITERATION_CAP * FACTOR_REUSE_MAX_ITERATIONS);
+                    let budget = reuse_iteration_budget(r.forcing);
+                    let cap = r.settings.max_iterations.min(STALE_ITERATION_CAP * budget);
                     let result = pcg(
                         &mut FactorOperators {
                             assembly,
@@ -582,16 +680,20 @@ impl LinearSolver {
                         },
                         b,
                         x,
-                        r.settings.tolerance,
+                        r.forcing,
                         cap,
                         // A good old factor reaches half the digits in a few iterations.
-                        Some((FACTOR_REUSE_MAX_ITERATIONS / 2, r.settings.tolerance.sqrt())),
+                        Some((budget / 2, r.forcing.sqrt())),
                         &mut r.work,
                     );
                     match result {
                         Ok(iterations) => {
-                            if iterations > FACTOR_REUSE_MAX_ITERATIONS {
+                            if iterations > budget {
+                                // Too slow: replace it, and do not keep one this long again.
                                 r.refresh_due = true;
+                                r.note_failure();
+                            } else if r.failed_age.is_some_and(|a| r.age >= a) {
+                                r.failed_age = None;
                             }
                             return Ok(LinearStats {
                                 t_solve: start.elapsed().as_secs_f64(),
@@ -605,11 +707,11 @@ impl LinearSolver {
                         // The old factor is too far off: factor this matrix, solve directly.
                         Err(failure) => {
                             abandoned = failure.iterations();
+                            r.note_failure();
                             let factoring = Instant::now();
                             factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
                             refactored = Some(factoring.elapsed().as_secs_f64());
-                            r.stale = false;
-                            r.refresh_due = false;
+                            r.renewed();
                         }
                     }
                 }
@@ -617,7 +719,7 @@ impl LinearSolver {
                 LltRef::new(symbolic, l_values).solve_in_place_with_conj(
                     Conj::No,
                     MatMut::from_column_major_slice_mut(x, n, 1),
-                    Par::Seq,
+                    factor_parallelism(n),
                     MemStack::new(work),
                 );
                 Ok(LinearStats::with_setup(
@@ -766,7 +868,7 @@ impl PcgOperators for FactorOperators<'_> {
         self.factor.solve_in_place_with_conj(
             Conj::No,
             MatMut::from_column_major_slice_mut(z, n, 1),
-            Par::Seq,
+            factor_parallelism(n),
             MemStack::new(self.work),
         );
     }
