@@ -91,10 +91,12 @@ pub const FORCING_MAX: f64 = 1e-4;
 
 /// After a reused factor had to be abandoned (or converged too slowly) at some age — Newton
 /// solves since it was computed, see [`LinearSolver::start_newton_solve`] — a factor reaching
-/// that age is replaced at the first Hessian refresh, without the doomed attempt; except every
-/// `STALE_PROBE_PERIOD`-th time, to find out whether it would now do. (Within one Newton solve
-/// an earlier iterate's factor is a good preconditioner; across the steps of a freezing run
-/// it is not: a band of elements changes stiffness every step.)
+/// that age is replaced at the first Hessian refresh, without the doomed attempt. It is tried
+/// again (a probe) after 1 such replacement, then after 2, 4, … up to `STALE_PROBE_PERIOD` as
+/// long as the probes fail. (Within one Newton solve an earlier iterate's factor is a good
+/// preconditioner; across the steps of a freezing run it is not: a band of elements changes
+/// stiffness every step. A failed probe costs a few CG iterations, a needless factorisation
+/// 10–20 of them.)
 pub const STALE_PROBE_PERIOD: usize = 8;
 
 /// State of a Cholesky factor reused as a preconditioner.
@@ -112,6 +114,8 @@ pub struct FactorReuse {
     failed_age: Option<usize>,
     /// Factorisations made early because of `failed_age` since the last probe.
     skipped_attempts: usize,
+    /// Early factorisations before the next probe (1, 2, 4, … [`STALE_PROBE_PERIOD`]).
+    probe_period: usize,
     work: PcgWork,
 }
 
@@ -125,6 +129,7 @@ impl FactorReuse {
             age: 0,
             failed_age: None,
             skipped_attempts: 0,
+            probe_period: 1,
             work: PcgWork::new(n),
         }
     }
@@ -136,7 +141,7 @@ impl FactorReuse {
             return true;
         }
         if self.failed_age.is_some_and(|a| self.age >= a) {
-            if self.skipped_attempts < STALE_PROBE_PERIOD {
+            if self.skipped_attempts < self.probe_period {
                 self.skipped_attempts += 1;
                 return true;
             }
@@ -150,6 +155,11 @@ impl FactorReuse {
     /// (contacts switching on) and says nothing about the next refresh.
     fn note_failure(&mut self) {
         if self.age > 0 {
+            self.probe_period = match self.failed_age {
+                // A probe failed: wait longer before the next.
+                Some(a) if self.age >= a => (2 * self.probe_period).min(STALE_PROBE_PERIOD),
+                _ => 1,
+            };
             self.failed_age = Some(self.failed_age.map_or(self.age, |a| a.min(self.age)));
             self.skipped_attempts = 0;
         }
