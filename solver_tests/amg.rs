@@ -11,7 +11,9 @@ use icefem::fem::Material;
 use icefem::mesh::{box_mesh, TetMesh};
 use icefem::physics::Elasticity;
 use icefem::sim::{Analysis, Simulation};
-use icefem::solver::{FillOrdering, IterativeSettings, LinearSolver, LinearSolverKind};
+use icefem::solver::{
+    FactorPrecision, FillOrdering, IterativeSettings, LinearSolver, LinearSolverKind,
+};
 use nalgebra::Vector3;
 
 /// Relative residual CG is asked for.
@@ -109,6 +111,7 @@ fn solve_with(
             max_iterations: 20_000,
             amg_reuse: true,
             factor_reuse: false,
+            factor_precision: FactorPrecision::Single,
         },
     )
     .expect("solver set-up");
@@ -251,30 +254,18 @@ fn amg_simulation_follows_the_cholesky_trajectory() {
 
 #[test]
 fn a_reused_factor_too_stale_to_converge_is_replaced_and_counted_as_a_set_up() {
-    // Cholesky with `factor_reuse`: a later matrix is solved by CG preconditioned by the old
-    // factor. The same matrix scaled by 1.5 has the old factor as an exact preconditioner (CG:
-    // one iteration, no set-up); the nearly incompressible cube's matrix is far from it, the
-    // solve must factorise it itself — and report that set-up, which /stats/factorizations
-    // counts.
+    // Cholesky with `factor_reuse` (double precision, so that a fresh factor solves directly):
+    // a later matrix is solved by CG preconditioned by the old factor. The same matrix scaled
+    // by 1.5 has the old factor as an exact preconditioner (CG: one iteration, no set-up); the
+    // nearly incompressible cube's matrix is far from it, the solve must factorise it itself —
+    // and report that set-up, which /stats/factorizations counts.
     let (mesh, assembly, ice, b) = cube_system(8, Support::Clamped);
     let soft = Material {
         lambda: 5000.0 * ICE.mu,
         ..ICE
     };
     let (_, _, water, _) = cube_system_of(8, Support::Clamped, soft);
-    let mut solver = LinearSolver::new(
-        LinearSolverKind::Cholesky,
-        FillOrdering::Auto,
-        &assembly,
-        &mesh.rest,
-        &IterativeSettings {
-            tolerance: TOLERANCE,
-            max_iterations: 1000,
-            amg_reuse: true,
-            factor_reuse: true,
-        },
-    )
-    .expect("solver set-up");
+    let mut solver = reusing_cholesky(&assembly, &mesh, FactorPrecision::Double);
     let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
     let residual = |values: &[f64], x: &[f64]| {
         let mut ax = vec![0.0; b.len()];
@@ -302,9 +293,13 @@ fn a_reused_factor_too_stale_to_converge_is_replaced_and_counted_as_a_set_up() {
     assert!(residual(&water, &x) <= 1e-10, "{:e}", residual(&water, &x));
 }
 
-/// A Cholesky solver that keeps its factor as CG's preconditioner, with CG's tolerance at
-/// [`TOLERANCE`].
-fn reusing_cholesky(assembly: &Assembly, mesh: &TetMesh) -> LinearSolver {
+/// A Cholesky solver that keeps its factor, in `precision`, as CG's preconditioner, with CG's
+/// tolerance at [`TOLERANCE`].
+fn reusing_cholesky(
+    assembly: &Assembly,
+    mesh: &TetMesh,
+    precision: FactorPrecision,
+) -> LinearSolver {
     LinearSolver::new(
         LinearSolverKind::Cholesky,
         FillOrdering::Auto,
@@ -315,6 +310,7 @@ fn reusing_cholesky(assembly: &Assembly, mesh: &TetMesh) -> LinearSolver {
             max_iterations: 1000,
             amg_reuse: true,
             factor_reuse: true,
+            factor_precision: precision,
         },
     )
     .expect("solver set-up")
@@ -341,7 +337,7 @@ fn a_reused_factor_solves_only_as_accurately_as_newton_asks() {
     };
     let mut iterations = Vec::new();
     for forcing in [TOLERANCE, 1e-4] {
-        let mut solver = reusing_cholesky(&assembly, &mesh);
+        let mut solver = reusing_cholesky(&assembly, &mesh, FactorPrecision::Single);
         assert!(solver.factorize(&assembly, &ice).unwrap().is_some());
         assert!(solver.factorize(&assembly, &mixed).unwrap().is_none());
         solver.set_forcing(forcing);
@@ -356,22 +352,97 @@ fn a_reused_factor_solves_only_as_accurately_as_newton_asks() {
     }
     eprintln!("CG iterations at 1e-8 / 1e-4: {iterations:?}");
     assert!(iterations[1] < iterations[0], "{iterations:?}");
-    // Never looser than the cap, whatever Newton asks.
-    let mut solver = reusing_cholesky(&assembly, &mesh);
-    solver.factorize(&assembly, &ice).unwrap();
-    solver.factorize(&assembly, &mixed).unwrap();
-    solver.set_forcing(0.5);
+    // Never looser than the caps, whatever Newton asks: FORCING_MAX for a first solve (no
+    // convergence rate to go by, η = ∞), FORCING_LATER_MAX for later ones.
+    use icefem::solver::linear::{FORCING_LATER_MAX, FORCING_MAX};
+    for (asked, cap) in [(f64::INFINITY, FORCING_MAX), (0.5, FORCING_LATER_MAX)] {
+        let mut solver = reusing_cholesky(&assembly, &mesh, FactorPrecision::Single);
+        solver.factorize(&assembly, &ice).unwrap();
+        solver.factorize(&assembly, &mixed).unwrap();
+        solver.set_forcing(asked);
+        let mut x = vec![0.0; b.len()];
+        solver.solve(&assembly, &mixed, &b, &mut x).unwrap();
+        assert!(
+            residual(&x) <= cap,
+            "asked {asked}: {:e} > {cap:e}",
+            residual(&x)
+        );
+    }
+}
+
+#[test]
+fn a_single_precision_factor_preconditions_cg_to_double_precision_accuracy() {
+    // The kept factor in f32 (the default): a fresh one brings CG on the f64 matrix to 1e-8 in
+    // a few iterations (its error is round-off of f32, ~1e-7 relative, times the conditioning
+    // along a few directions), and the solution agrees with the double-precision direct
+    // solve to CG's tolerance times the condition number (≤ 1e-5 relative: κ ≈ 1e3 here).
+    let (mesh, assembly, ice, b) = cube_system(8, Support::Clamped);
+    let mut single = reusing_cholesky(&assembly, &mesh, FactorPrecision::Single);
+    let mut double = reusing_cholesky(&assembly, &mesh, FactorPrecision::Double);
+    let (mut xs, mut xd) = (vec![0.0; b.len()], vec![0.0; b.len()]);
+    for (solver, x) in [(&mut single, &mut xs), (&mut double, &mut xd)] {
+        assert!(solver.factorize(&assembly, &ice).unwrap().is_some());
+        let stats = solver.solve(&assembly, &ice, &b, x).unwrap();
+        assert_eq!(stats.setups, 0);
+        eprintln!(
+            "{:?}: {} iterations",
+            solver.factor_precision(),
+            stats.iterations
+        );
+        assert!(stats.iterations <= 4, "{} iterations", stats.iterations);
+    }
+    assert_eq!(single.factor_precision(), Some(FactorPrecision::Single));
+    assert_eq!(double.factor_precision(), Some(FactorPrecision::Double));
+    let mut ax = vec![0.0; b.len()];
+    assembly.multiply(&ice, &xs, &mut ax);
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
+    assert!(
+        norm(&r) <= TOLERANCE * norm(&b),
+        "{:e}",
+        norm(&r) / norm(&b)
+    );
+    let d: Vec<f64> = xs.iter().zip(&xd).map(|(s, d)| s - d).collect();
+    assert!(norm(&d) <= 1e-5 * norm(&xd), "{:e}", norm(&d) / norm(&xd));
+}
+
+#[test]
+fn single_precision_gives_way_to_double_where_f32_cannot_factor_the_matrix() {
+    // A nearly incompressible cube (λ = 1e9 μ, ν = 0.5 − 5e-10): its stiffness spans ~12
+    // decades, beyond f32's 7 digits — the f32 factorisation meets a non-positive pivot or
+    // gives a preconditioner CG cannot converge with. The solver switches to double precision
+    // for good and solves as the double-precision direct solver does.
+    let (mesh, assembly, _, b) = cube_system(6, Support::Clamped);
+    let locked = Material {
+        lambda: 1e9 * ICE.mu,
+        ..ICE
+    };
+    let (_, _, values, _) = cube_system_of(6, Support::Clamped, locked);
+    let mut solver = reusing_cholesky(&assembly, &mesh, FactorPrecision::Single);
+    solver.factorize(&assembly, &values).unwrap();
     let mut x = vec![0.0; b.len()];
-    solver.solve(&assembly, &mixed, &b, &mut x).unwrap();
-    assert!(residual(&x) <= icefem::solver::linear::FORCING_MAX);
+    let stats = solver.solve(&assembly, &values, &b, &mut x).unwrap();
+    eprintln!("{stats:?}");
+    assert_eq!(solver.factor_precision(), Some(FactorPrecision::Double));
+    // The answer is the double-precision direct solve's, bit for bit: the same factorisation
+    // of the same matrix, the same triangular solves.
+    let (expected, _, _) = solve(LinearSolverKind::Cholesky, &mesh, &assembly, &values, &b);
+    assert_eq!(x, expected);
+    // It stays in double precision: a later matrix (the same scaled, for which the kept
+    // factor is exact up to scale) is solved by CG with the double-precision factor.
+    let scaled: Vec<f64> = values.iter().map(|v| 2.0 * v).collect();
+    solver.factorize(&assembly, &scaled).unwrap();
+    let stats = solver.solve(&assembly, &scaled, &b, &mut x).unwrap();
+    assert!(stats.iterations <= 2, "{stats:?}");
+    assert_eq!(solver.factor_precision(), Some(FactorPrecision::Double));
 }
 
 #[test]
 fn a_factor_that_failed_in_the_next_newton_solve_is_replaced_there_at_once() {
     // A factor kept into the next Newton solve (the next time step) that proved too stale
     // there is, from then on, replaced at the first refresh of a new solve without another
-    // attempt — but kept again every STALE_PROBE_PERIOD-th time, to see whether it would do.
-    // Within a solve a factor is still kept.
+    // attempt — but tried again (a probe) after 1, then 2, 4, … up to STALE_PROBE_PERIOD such
+    // replacements while the probes keep failing. Within a solve a factor is still kept.
     use icefem::solver::linear::STALE_PROBE_PERIOD;
     let (mesh, assembly, ice, b) = cube_system(8, Support::Clamped);
     let soft = Material {
@@ -379,7 +450,8 @@ fn a_factor_that_failed_in_the_next_newton_solve_is_replaced_there_at_once() {
         ..ICE
     };
     let (_, _, water, _) = cube_system_of(8, Support::Clamped, soft);
-    let mut solver = reusing_cholesky(&assembly, &mesh);
+    // Double precision: a fresh factor is then a direct solve (one iteration).
+    let mut solver = reusing_cholesky(&assembly, &mesh, FactorPrecision::Double);
     let mut x = vec![0.0; b.len()];
     solver.start_newton_solve();
     assert!(solver.factorize(&assembly, &ice).unwrap().is_some());
@@ -388,27 +460,40 @@ fn a_factor_that_failed_in_the_next_newton_solve_is_replaced_there_at_once() {
     assert!(solver.factorize(&assembly, &water).unwrap().is_none());
     let stats = solver.solve(&assembly, &water, &b, &mut x).unwrap();
     assert_eq!(stats.setups, 1);
-    // The following solves factorise at their first refresh...
+    // Each later solve alternates the two matrices, so every probe fails: replacements in
+    // runs of 1, 2, 4, 8, 8, … between probes.
     let matrices = [&ice, &water];
-    for k in 0..STALE_PROBE_PERIOD {
+    let mut period = 1;
+    let mut solve = 0;
+    for _probe in 0..5 {
+        for _ in 0..period {
+            solver.start_newton_solve();
+            let values = matrices[solve % 2];
+            solve += 1;
+            assert!(
+                solver.factorize(&assembly, values).unwrap().is_some(),
+                "solve {solve}: the factor should have been replaced"
+            );
+            let stats = solver.solve(&assembly, values, &b, &mut x).unwrap();
+            assert_eq!((stats.setups, stats.iterations), (0, 1), "a direct solve");
+            // ...and keep the fresh factor for a refresh within the solve (an exact
+            // preconditioner up to scale: CG in one or two iterations).
+            let scaled: Vec<f64> = values.iter().map(|v| 1.5 * v).collect();
+            assert!(solver.factorize(&assembly, &scaled).unwrap().is_none());
+            let stats = solver.solve(&assembly, &scaled, &b, &mut x).unwrap();
+            assert_eq!(stats.setups, 0);
+            assert!(stats.iterations <= 2, "{} iterations", stats.iterations);
+        }
+        // The probe: the factor is tried once more, fails and is replaced inside the solve.
         solver.start_newton_solve();
-        let values = matrices[k % 2];
+        let values = matrices[solve % 2];
+        solve += 1;
         assert!(
-            solver.factorize(&assembly, values).unwrap().is_some(),
-            "solve {k}: the factor should have been replaced"
+            solver.factorize(&assembly, values).unwrap().is_none(),
+            "solve {solve}: a probe keeps the factor"
         );
         let stats = solver.solve(&assembly, values, &b, &mut x).unwrap();
-        assert_eq!((stats.setups, stats.iterations), (0, 1), "a direct solve");
-        // ...and keep the fresh factor for a refresh within the solve (exact: one iteration).
-        let scaled: Vec<f64> = values.iter().map(|v| 1.5 * v).collect();
-        assert!(solver.factorize(&assembly, &scaled).unwrap().is_none());
-        let stats = solver.solve(&assembly, &scaled, &b, &mut x).unwrap();
-        assert_eq!(stats.setups, 0);
-        assert!(stats.iterations <= 2, "{} iterations", stats.iterations);
+        assert_eq!(stats.setups, 1, "solve {solve}: the probe fails");
+        period = (2 * period).min(STALE_PROBE_PERIOD);
     }
-    // The probe: the factor is tried once more.
-    solver.start_newton_solve();
-    let next = matrices[STALE_PROBE_PERIOD % 2];
-    assert!(solver.factorize(&assembly, next).unwrap().is_none());
-    solver.solve(&assembly, next, &b, &mut x).unwrap();
 }

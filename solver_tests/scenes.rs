@@ -114,6 +114,11 @@ fn non_physical_values_name_field_and_range() {
         &GOOD.replace("[time]", "[solver]\ntolerance = 2.0\n[time]"),
         Some("solver.tolerance"),
     );
+    let err = error_of(
+        &GOOD.replace("[time]", "[solver]\nfactor_precision = \"half\"\n[time]"),
+        Some("factor_precision"),
+    );
+    assert!(err.contains("single") && err.contains("double"), "{err}");
     error_of(&(GOOD.to_string() + "[[traction]]\nmin = [5.0, 5.0, 5.0]\nmax = [6.0, 6.0, 6.0]\ntraction = [0.0, 0.0, 1.0]\n"), Some("traction[0]"));
     error_of(
         &(GOOD.to_string()

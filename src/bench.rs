@@ -10,7 +10,7 @@ use crate::physics::ice_contact::IceContact;
 use crate::physics::obstacle_mesh::ObstacleSurface;
 use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Region};
 use crate::sim::{Analysis, SimError, Simulation, StepSettings};
-use crate::solver::{FillOrdering, LinearSolverKind, NewtonParams};
+use crate::solver::{FactorPrecision, FillOrdering, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
 use std::sync::Arc;
 use std::time::Instant;
@@ -195,6 +195,7 @@ fn frame_steps(linear: LinearSolverKind, ordering: FillOrdering) -> StepSettings
         cg_max_iterations: 100_000,
         amg_reuse: true,
         factor_reuse: false,
+        factor_precision: FactorPrecision::Single,
     }
 }
 

@@ -31,7 +31,7 @@ use crate::physics::obstacle_mesh::ObstacleSurface;
 use crate::physics::plasticity::Plasticity;
 use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Rayleigh, Region, Traction};
 use crate::sim::{Analysis, StepSettings};
-use crate::solver::{FillOrdering, LinearSolverKind, NewtonParams};
+use crate::solver::{FactorPrecision, FillOrdering, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -358,10 +358,13 @@ pub struct SolverSection {
     /// grow by half (true, default), or set it up at every Hessian refresh (false).
     pub amg_reuse: Option<bool>,
     /// Cholesky: keep a factorisation across Hessian refreshes and steps as the preconditioner
-    /// of CG until that needs more than 10 iterations (true), or factorise at every refresh
-    /// (false, default: results then do not depend on the history, and resumed runs are
-    /// bit-identical).
+    /// of CG until that needs more than 5 iterations per decade of residual reduction (true),
+    /// or factorise at every refresh (false, default: results then do not depend on the
+    /// history, and resumed runs are bit-identical).
     pub reuse_factorization: Option<bool>,
+    /// Precision of the kept factorisation: "single" (default: half the memory and time,
+    /// double precision automatically where single fails) or "double".
+    pub factor_precision: Option<FactorPrecision>,
 }
 
 /// `[output]`.
@@ -550,6 +553,7 @@ impl Validator<'_> {
             cg_max_iterations,
             amg_reuse: solver.amg_reuse.unwrap_or(true),
             factor_reuse: solver.reuse_factorization.unwrap_or(false),
+            factor_precision: solver.factor_precision.unwrap_or(FactorPrecision::Single),
         };
         let mut elasticity = Elasticity::new(&mesh, material, model);
         for (i, section) in raw.eigenstrain.iter().enumerate() {

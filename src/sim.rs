@@ -46,6 +46,8 @@ pub struct StepSettings {
     /// [`crate::solver::linear::reuse_iteration_budget`] iterations (opt-in: the results
     /// then depend on when the factor was made, so a resumed run is no longer bit-identical).
     pub factor_reuse: bool,
+    /// Precision of that kept factor.
+    pub factor_precision: crate::solver::linear::FactorPrecision,
 }
 
 impl StepSettings {
@@ -56,6 +58,7 @@ impl StepSettings {
             max_iterations: self.cg_max_iterations,
             amg_reuse: self.amg_reuse,
             factor_reuse: self.factor_reuse,
+            factor_precision: self.factor_precision,
         }
     }
 }

@@ -5,7 +5,7 @@ use icefem::fem::{ElasticModel, Material};
 use icefem::mesh::TetMesh;
 use icefem::physics::{Dirichlet, Elasticity, Model, Region};
 use icefem::sim::{Analysis, Simulation, StepSettings};
-use icefem::solver::{LinearSolverKind, NewtonParams};
+use icefem::solver::{FactorPrecision, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
 
 /// Ice, as in the paper: λ = 8.64e10 Pa, μ = 3.70e10 Pa, ρ = 916 kg/m³.
@@ -31,6 +31,7 @@ pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
         cg_max_iterations: 20_000,
         amg_reuse: true,
         factor_reuse: false,
+        factor_precision: FactorPrecision::Single,
     }
 }
 

@@ -14,6 +14,7 @@ use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
+use faer::sparse::SparseColMatRef;
 use faer::{Conj, MatMut, Par, Side};
 use nalgebra::Vector3;
 use std::time::Instant;
@@ -56,19 +57,40 @@ pub struct IterativeSettings {
     /// Cholesky: keep a factorisation across Hessian refreshes and steps, solving with CG
     /// preconditioned by it, until CG needs more than [`reuse_iteration_budget`].
     pub factor_reuse: bool,
+    /// Precision of that kept factorisation (ignored without `factor_reuse`).
+    pub factor_precision: FactorPrecision,
+}
+
+/// Precision of a Cholesky factor kept as the preconditioner of CG (`factor_reuse`).
+///
+/// A preconditioner need not be exact, and single precision halves both the bytes a
+/// triangular solve reads and the time of the factorisation (measured on the 1e5-tet freezing
+/// container, 59 049 dofs, 4.6e7 entries in L, 2 cores: 0.70 instead of 1.05–1.1 s per
+/// factorisation, 0.045 instead of 0.07 s per CG iteration, with the same CG iteration counts).
+/// CG itself runs in double precision on the exact matrix, so the solution is as accurate as
+/// asked. Single precision can fail where the matrix is too ill-conditioned for 24-bit
+/// mantissas (a non-positive pivot, or a fresh factor that cannot bring CG to the tolerance);
+/// the solver then switches to double precision for good.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FactorPrecision {
+    /// f32 factor, solves in f32 inside the f64 CG (default), double precision on failure.
+    Single,
+    /// f64 factor; a fresh one is used as a direct solver.
+    Double,
 }
 
 /// A reused Cholesky factor is refreshed on the next Hessian refresh once a CG solve
 /// preconditioned by it needed more than this many iterations per decade of residual
-/// reduction (see [`reuse_iteration_budget`]): each costs one pair of triangular solves, a
-/// fresh factorisation about as much as 10–20 of them on 1e4–1e5 dofs (`icefem bench`), and
-/// a step makes several solves with the same factor. A factor from an earlier iterate of the
-/// same solve reaches Newton's forcing ([`FORCING_MAX`], 4 decades) in 2–5 iterations on the
-/// 1e5-tet freezing container; one from the step before needs 7 and more.
-pub const FACTOR_REUSE_ITERATIONS_PER_DECADE: f64 = 1.5;
+/// reduction (see [`reuse_iteration_budget`]): each costs one pair of triangular solves and a
+/// product with the matrix, a fresh factorisation about as much as 15 of them on the 1e5-tet
+/// freezing container (single precision: 0.70 s against 0.045 s), and a step makes a few
+/// solves with the same factor. There a factor from the step before reaches Newton's first
+/// forcing ([`FORCING_MAX`], 3 decades) in 2–9 iterations.
+pub const FACTOR_REUSE_ITERATIONS_PER_DECADE: f64 = 5.0;
 
 /// CG iterations a reused factor may take to reach the relative residual `forcing` before it
-/// is refreshed: [`FACTOR_REUSE_ITERATIONS_PER_DECADE`] per decade (6 at 1e-4, 18 at 1e-12).
+/// is refreshed: [`FACTOR_REUSE_ITERATIONS_PER_DECADE`] per decade (15 at 1e-3, 60 at 1e-12).
 pub fn reuse_iteration_budget(forcing: f64) -> usize {
     let decades = -forcing.log10();
     (FACTOR_REUSE_ITERATIONS_PER_DECADE * decades)
@@ -82,12 +104,19 @@ pub fn reuse_iteration_budget(forcing: f64) -> usize {
 /// preconditioner can need hundreds of iterations.
 pub const STALE_ITERATION_CAP: usize = 3;
 
-/// A solve preconditioned by a reused factor needs a relative residual of at most this: the
-/// Newton direction of an iteration far from the solution need not be exact (the nonlinear
-/// error dominates), and nearer the solution [`LinearSolver::set_forcing`] asks for more.
-/// Measured on the 1e5-tet freezing container: the first Newton step of a frame leaves a
-/// relative residual of ~4e-4 whether its linear solve reached 1e-4 or 1e-12.
-pub const FORCING_MAX: f64 = 1e-4;
+/// The first solve of a Newton solve, preconditioned by a reused factor, needs a relative
+/// residual of at most this: the Newton direction far from the solution need not be exact
+/// (the nonlinear error dominates), and nearer the solution [`LinearSolver::set_forcing`]
+/// asks for what Newton's convergence can use. Measured on the 1e5-tet freezing container:
+/// the first Newton step of a frame leaves a relative residual of ~4e-4 whether its linear
+/// solve reached 1e-4 or 1e-12, and steps 62–75 took 1.00 s on average at 1e-3 against 1.20 s
+/// at 1e-4 (same Newton iterations).
+pub const FORCING_MAX: f64 = 1e-3;
+
+/// Loosest relative residual a later solve of a Newton solve may stop at (Eisenstat and
+/// Walker's safeguard η_max, smaller than their 0.9: a direction good to 10 % keeps Newton's
+/// step count).
+pub const FORCING_LATER_MAX: f64 = 0.1;
 
 /// After a reused factor had to be abandoned (or converged too slowly) at some age — Newton
 /// solves since it was computed, see [`LinearSolver::start_newton_solve`] — a factor reaching
@@ -116,7 +145,24 @@ pub struct FactorReuse {
     skipped_attempts: usize,
     /// Early factorisations before the next probe (1, 2, 4, … [`STALE_PROBE_PERIOD`]).
     probe_period: usize,
+    /// Precision of the factor: `Single` until a single-precision factorisation fails.
+    precision: FactorPrecision,
+    /// The single-precision factor and its work space (empty in double precision).
+    single: SingleFactor,
     work: PcgWork,
+}
+
+/// A single-precision Cholesky factor with the buffers to compute and apply it.
+#[derive(Default)]
+struct SingleFactor {
+    /// Values of L, in the symbolic factor's layout.
+    l: Vec<f32>,
+    /// The matrix rounded to f32 (the factorisation's input).
+    matrix: Vec<f32>,
+    /// Right-hand side and solution of a triangular solve.
+    rhs: Vec<f32>,
+    /// faer's scratch for the factorisation and the solves.
+    work: Option<MemBuffer>,
 }
 
 impl FactorReuse {
@@ -130,8 +176,62 @@ impl FactorReuse {
             failed_age: None,
             skipped_attempts: 0,
             probe_period: 1,
+            precision: settings.factor_precision,
+            single: SingleFactor::default(),
             work: PcgWork::new(n),
         }
+    }
+
+    /// Whether the current factor solves the current matrix exactly (a fresh double-precision
+    /// factor): then a direct solve, else CG preconditioned by the factor.
+    fn exact(&self) -> bool {
+        !self.stale && self.precision == FactorPrecision::Double
+    }
+
+    /// Factorises `values` in single precision; `false` (and double precision from now on)
+    /// if the factorisation meets a non-positive pivot.
+    fn factor_single(
+        &mut self,
+        symbolic: &SymbolicCholesky<usize>,
+        assembly: &Assembly,
+        values: &[f64],
+    ) -> Result<bool, LinearError> {
+        let single = &mut self.single;
+        let par = factor_parallelism(symbolic.nrows());
+        if single.work.is_none() {
+            let req = symbolic
+                .factorize_numeric_llt_scratch::<f32>(par, Default::default())
+                .or(symbolic.solve_in_place_scratch::<f32>(1, par));
+            single.work =
+                Some(MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?);
+            single.l = vec![0.0; symbolic.len_val()];
+            single.rhs = vec![0.0; symbolic.nrows()];
+        }
+        single.matrix.clear();
+        single.matrix.extend(values.iter().map(|&v| v as f32));
+        let Some(work) = single.work.as_mut() else {
+            unreachable!("allocated above")
+        };
+        let result = symbolic.factorize_numeric_llt::<f32>(
+            &mut single.l,
+            SparseColMatRef::new(assembly.symbolic(), &single.matrix),
+            Side::Lower,
+            Default::default(),
+            par,
+            MemStack::new(work),
+            Default::default(),
+        );
+        let factored = result.is_ok();
+        if !factored {
+            self.switch_to_double();
+        }
+        Ok(factored)
+    }
+
+    /// Double precision from now on; the single-precision buffers are freed.
+    fn switch_to_double(&mut self) {
+        self.precision = FactorPrecision::Double;
+        self.single = SingleFactor::default();
     }
 
     /// Whether the factor, about to be kept through one more refresh, should rather be
@@ -511,7 +611,8 @@ impl LinearSolver {
                         .solve_in_place_scratch::<f64>(1, factor_parallelism(symbolic.nrows())));
                 let work =
                     MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
-                let l_values = vec![0.0; symbolic.len_val()];
+                // Allocated by the first double-precision factorisation.
+                let l_values = Vec::new();
                 Ok(LinearSolver::Cholesky {
                     symbolic,
                     l_values,
@@ -574,10 +675,19 @@ impl LinearSolver {
         )
     }
 
+    /// Precision of a Cholesky factor kept as CG's preconditioner (`None` without
+    /// `factor_reuse`, or for the iterative solvers): where single precision failed, `Double`.
+    pub fn factor_precision(&self) -> Option<FactorPrecision> {
+        match self {
+            LinearSolver::Cholesky { reuse: Some(r), .. } => Some(r.precision),
+            _ => None,
+        }
+    }
+
     /// Number of nonzeros of the Cholesky factor, if direct.
     pub fn factor_nnz(&self) -> Option<usize> {
         match self {
-            LinearSolver::Cholesky { l_values, .. } => Some(l_values.len()),
+            LinearSolver::Cholesky { symbolic, .. } => Some(symbolic.len_val()),
             LinearSolver::Cg { .. } | LinearSolver::Amg(_) => None,
         }
     }
@@ -597,10 +707,16 @@ impl LinearSolver {
     /// benchmarks compare with pyamg).
     pub fn set_forcing(&mut self, eta: f64) {
         if let LinearSolver::Cholesky { reuse: Some(r), .. } = self {
+            // The first solve (η = ∞) has no rate to go by.
+            let cap = if eta == f64::INFINITY {
+                FORCING_MAX
+            } else {
+                FORCING_LATER_MAX
+            };
             // max/min rather than clamp: a NaN request falls back to CG's own tolerance.
             r.forcing = eta
                 .max(r.settings.tolerance)
-                .min(FORCING_MAX.max(r.settings.tolerance));
+                .min(cap.max(r.settings.tolerance));
         }
     }
 
@@ -638,10 +754,15 @@ impl LinearSolver {
                 if same {
                     return Ok(None);
                 }
-                factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
-                if let Some(r) = reuse.as_mut() {
-                    r.renewed();
-                }
+                refactor(
+                    symbolic,
+                    l_values,
+                    work,
+                    factored,
+                    reuse.as_deref_mut(),
+                    assembly,
+                    values,
+                )?;
             }
             LinearSolver::Cg { inv_diag, .. } => jacobi_inverse(assembly, values, inv_diag),
             LinearSolver::Amg(s) => {
@@ -675,54 +796,18 @@ impl LinearSolver {
                 reuse,
                 ..
             } => {
-                let mut abandoned = 0;
-                let mut refactored = None;
-                if let Some(r) = reuse.as_mut().filter(|r| r.stale) {
-                    // Beyond this a fresh factorisation is cheaper than going on.
-                    let budget = reuse_iteration_budget(r.forcing);
-                    let cap = r.settings.max_iterations.min(STALE_ITERATION_CAP * budget);
-                    let result = pcg(
-                        &mut FactorOperators {
-                            assembly,
-                            values,
-                            factor: LltRef::new(symbolic, l_values),
-                            work,
-                        },
-                        b,
-                        x,
-                        r.forcing,
-                        cap,
-                        // A good old factor reaches half the digits in a few iterations.
-                        Some((budget / 2, r.forcing.sqrt())),
-                        &mut r.work,
-                    );
-                    match result {
-                        Ok(iterations) => {
-                            if iterations > budget {
-                                // Too slow: replace it, and do not keep one this long again.
-                                r.refresh_due = true;
-                                r.note_failure();
-                            } else if r.failed_age.is_some_and(|a| r.age >= a) {
-                                r.failed_age = None;
-                            }
-                            return Ok(LinearStats {
-                                t_solve: start.elapsed().as_secs_f64(),
-                                iterations,
-                                ..Default::default()
-                            });
-                        }
-                        Err(PcgFailure::NegativeCurvature { iteration }) => {
-                            return Err(LinearError::NegativeCurvature { iteration, n })
-                        }
-                        // The old factor is too far off: factor this matrix, solve directly.
-                        Err(failure) => {
-                            abandoned = failure.iterations();
-                            r.note_failure();
-                            let factoring = Instant::now();
-                            factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
-                            refactored = Some(factoring.elapsed().as_secs_f64());
-                            r.renewed();
-                        }
+                let mut kept = KeptSolve::default();
+                if let Some(r) = reuse.as_mut() {
+                    kept = solve_with_kept_factor(
+                        r, symbolic, l_values, work, factored, assembly, values, b, x,
+                    )?;
+                    if let Some(iterations) = kept.iterations {
+                        return Ok(LinearStats {
+                            t_solve: start.elapsed().as_secs_f64() - kept.t_setup,
+                            iterations,
+                            setups: kept.setups,
+                            t_setup: kept.t_setup,
+                        });
                     }
                 }
                 x.copy_from_slice(b);
@@ -732,11 +817,12 @@ impl LinearSolver {
                     factor_parallelism(n),
                     MemStack::new(work),
                 );
-                Ok(LinearStats::with_setup(
-                    start.elapsed().as_secs_f64(),
-                    1 + abandoned,
-                    refactored,
-                ))
+                Ok(LinearStats {
+                    t_solve: start.elapsed().as_secs_f64() - kept.t_setup,
+                    iterations: 1 + kept.abandoned,
+                    setups: kept.setups,
+                    t_setup: kept.t_setup,
+                })
             }
             LinearSolver::Cg {
                 tolerance,
@@ -829,11 +915,150 @@ fn factor_parallelism(n: usize) -> Par {
     }
 }
 
-/// Numeric Cholesky factorisation of the matrix with `values` into `l_values`; `factored`
-/// records the values (cleared first: a failed factorisation leaves `l_values` invalid).
+/// Factorises the matrix with `values`: in single precision if `reuse` keeps its factor so
+/// (double precision when that fails), else in double precision into `l_values`.
+fn refactor(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &mut Vec<f64>,
+    work: &mut MemBuffer,
+    factored: &mut Vec<f64>,
+    reuse: Option<&mut FactorReuse>,
+    assembly: &Assembly,
+    values: &[f64],
+) -> Result<(), LinearError> {
+    let Some(r) = reuse else {
+        return factor_numeric(symbolic, l_values, work, factored, assembly, values);
+    };
+    if r.precision == FactorPrecision::Single && r.factor_single(symbolic, assembly, values)? {
+        factored.clear();
+        factored.extend_from_slice(values);
+    } else {
+        factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
+    }
+    r.renewed();
+    Ok(())
+}
+
+/// What [`solve_with_kept_factor`] did.
+#[derive(Default)]
+struct KeptSolve {
+    /// CG's iterations, or `None` when the factor is now exact and the caller solves directly.
+    iterations: Option<usize>,
+    /// CG iterations of abandoned attempts.
+    abandoned: usize,
+    /// Factorisations made on the way, and their time (s).
+    setups: usize,
+    t_setup: f64,
+}
+
+/// Solves with CG preconditioned by the kept factor (a stale one, or a fresh single-precision
+/// one). A factor that cannot bring CG to the forcing is replaced and the solve repeated: a
+/// stale one by a fresh factorisation, a fresh single-precision one by double precision for
+/// good. Ends when CG converged, or when the factor is an exact (fresh double) one.
+// The arguments are the Cholesky solver's parts, borrowed separately.
+#[allow(clippy::too_many_arguments)]
+fn solve_with_kept_factor(
+    r: &mut FactorReuse,
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &mut Vec<f64>,
+    work: &mut MemBuffer,
+    factored: &mut Vec<f64>,
+    assembly: &Assembly,
+    values: &[f64],
+    b: &[f64],
+    x: &mut [f64],
+) -> Result<KeptSolve, LinearError> {
+    let mut kept = KeptSolve::default();
+    while !r.exact() {
+        let fresh = !r.stale;
+        // Beyond the cap a fresh factorisation is cheaper than going on.
+        let budget = reuse_iteration_budget(r.forcing);
+        let cap = r.settings.max_iterations.min(STALE_ITERATION_CAP * budget);
+        let FactorReuse {
+            single,
+            work: pcg_work,
+            precision,
+            forcing,
+            ..
+        } = &mut *r;
+        let factor = match (precision, single.work.as_mut()) {
+            (FactorPrecision::Single, Some(single_work)) => Factor::Single {
+                l: LltRef::new(symbolic, &single.l),
+                rhs: &mut single.rhs,
+                work: single_work,
+            },
+            _ => Factor::Double {
+                l: LltRef::new(symbolic, l_values),
+                work: &mut *work,
+            },
+        };
+        let result = pcg(
+            &mut FactorOperators {
+                assembly,
+                values,
+                factor,
+            },
+            b,
+            x,
+            *forcing,
+            cap,
+            // A good factor reaches half the digits in a few iterations.
+            Some((budget / 2, forcing.sqrt())),
+            pcg_work,
+        );
+        // A fresh factor that fails is short of precision; an old one, of freshness.
+        let fail = |r: &mut FactorReuse| {
+            if fresh {
+                r.switch_to_double();
+            } else {
+                r.note_failure();
+            }
+        };
+        match result {
+            Ok(iterations) => {
+                if iterations > budget {
+                    // Too slow: replace it, and do not keep one this long again.
+                    r.refresh_due = true;
+                    fail(r);
+                } else if !fresh && r.failed_age.is_some_and(|a| r.age >= a) {
+                    r.failed_age = None;
+                }
+                kept.iterations = Some(iterations + kept.abandoned);
+                return Ok(kept);
+            }
+            Err(PcgFailure::NegativeCurvature { iteration }) => {
+                return Err(LinearError::NegativeCurvature {
+                    iteration,
+                    n: b.len(),
+                })
+            }
+            Err(failure) => {
+                kept.abandoned += failure.iterations();
+                fail(r);
+                let factoring = Instant::now();
+                refactor(
+                    symbolic,
+                    l_values,
+                    work,
+                    factored,
+                    Some(r),
+                    assembly,
+                    values,
+                )?;
+                kept.setups += 1;
+                kept.t_setup += factoring.elapsed().as_secs_f64();
+            }
+        }
+    }
+    Ok(kept)
+}
+
+/// Numeric Cholesky factorisation of the matrix with `values` into `l_values` (allocated on
+/// first use); `factored` records the values (cleared first: a failed factorisation leaves
+/// `l_values` invalid).
 fn factor_numeric(
     symbolic: &SymbolicCholesky<usize>,
-    l_values: &mut [f64],
+    l_values: &mut Vec<f64>,
     work: &mut MemBuffer,
     factored: &mut Vec<f64>,
     assembly: &Assembly,
@@ -841,6 +1066,7 @@ fn factor_numeric(
 ) -> Result<(), LinearError> {
     let n = symbolic.nrows();
     factored.clear();
+    l_values.resize(symbolic.len_val(), 0.0);
     symbolic
         .factorize_numeric_llt::<f64>(
             l_values,
@@ -860,12 +1086,26 @@ fn factor_numeric(
     Ok(())
 }
 
-/// The current matrix and an earlier Cholesky factor as PCG's operators.
+/// A Cholesky factor applied as a preconditioner, with its solve's scratch.
+enum Factor<'a> {
+    Double {
+        l: LltRef<'a, usize, f64>,
+        work: &'a mut MemBuffer,
+    },
+    /// Solved in f32: the residual is rounded to f32 and the result widened back.
+    Single {
+        l: LltRef<'a, usize, f32>,
+        rhs: &'a mut [f32],
+        work: &'a mut MemBuffer,
+    },
+}
+
+/// The current matrix and a Cholesky factor (of it, or of an earlier matrix) as PCG's
+/// operators.
 struct FactorOperators<'a> {
     assembly: &'a Assembly,
     values: &'a [f64],
-    factor: LltRef<'a, usize, f64>,
-    work: &'a mut MemBuffer,
+    factor: Factor<'a>,
 }
 
 impl PcgOperators for FactorOperators<'_> {
@@ -873,14 +1113,25 @@ impl PcgOperators for FactorOperators<'_> {
         symmetric_multiply(self.assembly, self.values, x, y);
     }
     fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
-        z.copy_from_slice(r);
         let n = z.len();
-        self.factor.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(z, n, 1),
-            factor_parallelism(n),
-            MemStack::new(self.work),
-        );
+        let par = factor_parallelism(n);
+        match &mut self.factor {
+            Factor::Double { l, work } => {
+                z.copy_from_slice(r);
+                let z = MatMut::from_column_major_slice_mut(z, n, 1);
+                l.solve_in_place_with_conj(Conj::No, z, par, MemStack::new(work));
+            }
+            Factor::Single { l, rhs, work } => {
+                for (s, &r) in rhs.iter_mut().zip(r) {
+                    *s = r as f32;
+                }
+                let s = MatMut::from_column_major_slice_mut(rhs, n, 1);
+                l.solve_in_place_with_conj(Conj::No, s, par, MemStack::new(work));
+                for (z, &s) in z.iter_mut().zip(rhs.iter()) {
+                    *z = f64::from(s);
+                }
+            }
+        }
     }
 }
 

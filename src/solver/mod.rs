@@ -7,6 +7,8 @@ pub mod ordering;
 pub mod pcg;
 pub mod timestep;
 
-pub use linear::{IterativeSettings, LinearError, LinearSolver, LinearSolverKind, LinearStats};
+pub use linear::{
+    FactorPrecision, IterativeSettings, LinearError, LinearSolver, LinearSolverKind, LinearStats,
+};
 pub use newton::{minimize, NewtonError, NewtonParams, NewtonReport, NewtonWorkspace, Potential};
 pub use ordering::FillOrdering;
