@@ -372,14 +372,10 @@ impl LinearStats {
 pub enum LinearSolver {
     /// Cholesky with its symbolic analysis, factor storage and workspace kept between calls.
     Cholesky {
-        symbolic: SymbolicCholesky<usize>,
-        l_values: Vec<f64>,
-        work: MemBuffer,
+        factor: DirectFactor,
         t_symbolic: f64,
         /// Whether nested dissection (rather than AMD) ordered the factor.
         nested_dissection: bool,
-        /// The matrix values the current factor was computed from (empty before the first).
-        factored: Vec<f64>,
         /// Reuse of the factor as a CG preconditioner for later matrices (opt-in).
         reuse: Option<Box<FactorReuse>>,
     },
@@ -611,15 +607,16 @@ impl LinearSolver {
                         .solve_in_place_scratch::<f64>(1, factor_parallelism(symbolic.nrows())));
                 let work =
                     MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
-                // Allocated by the first double-precision factorisation.
-                let l_values = Vec::new();
                 Ok(LinearSolver::Cholesky {
-                    symbolic,
-                    l_values,
-                    work,
+                    factor: DirectFactor {
+                        symbolic,
+                        // Allocated by the first double-precision factorisation.
+                        l: Vec::new(),
+                        work,
+                        factored: Vec::new(),
+                    },
                     t_symbolic: start.elapsed().as_secs_f64(),
                     nested_dissection,
-                    factored: Vec::new(),
                     reuse: iterative
                         .factor_reuse
                         .then(|| Box::new(FactorReuse::new(*iterative, n))),
@@ -687,7 +684,7 @@ impl LinearSolver {
     /// Number of nonzeros of the Cholesky factor, if direct.
     pub fn factor_nnz(&self) -> Option<usize> {
         match self {
-            LinearSolver::Cholesky { symbolic, .. } => Some(symbolic.len_val()),
+            LinearSolver::Cholesky { factor, .. } => Some(factor.symbolic.len_val()),
             LinearSolver::Cg { .. } | LinearSolver::Amg(_) => None,
         }
     }
@@ -732,37 +729,18 @@ impl LinearSolver {
     ) -> Result<Option<f64>, LinearError> {
         let start = Instant::now();
         match self {
-            LinearSolver::Cholesky {
-                symbolic,
-                l_values,
-                work,
-                factored,
-                reuse,
-                ..
-            } => {
-                let same = factored.len() == values.len()
-                    && factored
-                        .iter()
-                        .zip(values)
-                        .all(|(a, b)| a.to_bits() == b.to_bits());
+            LinearSolver::Cholesky { factor, reuse, .. } => {
+                let same = factor.is_of(values);
                 if let Some(r) = reuse.as_mut() {
                     r.stale = !same;
-                    if !same && !factored.is_empty() && !r.replace_before_use() {
+                    if !same && !factor.factored.is_empty() && !r.replace_before_use() {
                         return Ok(None);
                     }
                 }
                 if same {
                     return Ok(None);
                 }
-                refactor(
-                    symbolic,
-                    l_values,
-                    work,
-                    factored,
-                    reuse.as_deref_mut(),
-                    assembly,
-                    values,
-                )?;
+                refactor(factor, reuse.as_deref_mut(), assembly, values)?;
             }
             LinearSolver::Cg { inv_diag, .. } => jacobi_inverse(assembly, values, inv_diag),
             LinearSolver::Amg(s) => {
@@ -788,19 +766,10 @@ impl LinearSolver {
         let n = b.len();
         let start = Instant::now();
         match self {
-            LinearSolver::Cholesky {
-                symbolic,
-                l_values,
-                work,
-                factored,
-                reuse,
-                ..
-            } => {
+            LinearSolver::Cholesky { factor, reuse, .. } => {
                 let mut kept = KeptSolve::default();
                 if let Some(r) = reuse.as_mut() {
-                    kept = solve_with_kept_factor(
-                        r, symbolic, l_values, work, factored, assembly, values, b, x,
-                    )?;
+                    kept = solve_with_kept_factor(r, factor, assembly, values, b, x)?;
                     if let Some(iterations) = kept.iterations {
                         return Ok(LinearStats {
                             t_solve: start.elapsed().as_secs_f64() - kept.t_setup,
@@ -811,11 +780,11 @@ impl LinearSolver {
                     }
                 }
                 x.copy_from_slice(b);
-                LltRef::new(symbolic, l_values).solve_in_place_with_conj(
+                LltRef::new(&factor.symbolic, &factor.l).solve_in_place_with_conj(
                     Conj::No,
                     MatMut::from_column_major_slice_mut(x, n, 1),
                     factor_parallelism(n),
-                    MemStack::new(work),
+                    MemStack::new(&mut factor.work),
                 );
                 Ok(LinearStats {
                     t_solve: start.elapsed().as_secs_f64() - kept.t_setup,
@@ -916,24 +885,23 @@ fn factor_parallelism(n: usize) -> Par {
 }
 
 /// Factorises the matrix with `values`: in single precision if `reuse` keeps its factor so
-/// (double precision when that fails), else in double precision into `l_values`.
+/// (double precision when that fails), else in double precision.
 fn refactor(
-    symbolic: &SymbolicCholesky<usize>,
-    l_values: &mut Vec<f64>,
-    work: &mut MemBuffer,
-    factored: &mut Vec<f64>,
+    factor: &mut DirectFactor,
     reuse: Option<&mut FactorReuse>,
     assembly: &Assembly,
     values: &[f64],
 ) -> Result<(), LinearError> {
     let Some(r) = reuse else {
-        return factor_numeric(symbolic, l_values, work, factored, assembly, values);
+        return factor.factor(assembly, values);
     };
-    if r.precision == FactorPrecision::Single && r.factor_single(symbolic, assembly, values)? {
-        factored.clear();
-        factored.extend_from_slice(values);
+    if r.precision == FactorPrecision::Single
+        && r.factor_single(&factor.symbolic, assembly, values)?
+    {
+        factor.factored.clear();
+        factor.factored.extend_from_slice(values);
     } else {
-        factor_numeric(symbolic, l_values, work, factored, assembly, values)?;
+        factor.factor(assembly, values)?;
     }
     r.renewed();
     Ok(())
@@ -955,14 +923,9 @@ struct KeptSolve {
 /// one). A factor that cannot bring CG to the forcing is replaced and the solve repeated: a
 /// stale one by a fresh factorisation, a fresh single-precision one by double precision for
 /// good. Ends when CG converged, or when the factor is an exact (fresh double) one.
-// The arguments are the Cholesky solver's parts, borrowed separately.
-#[allow(clippy::too_many_arguments)]
 fn solve_with_kept_factor(
     r: &mut FactorReuse,
-    symbolic: &SymbolicCholesky<usize>,
-    l_values: &mut Vec<f64>,
-    work: &mut MemBuffer,
-    factored: &mut Vec<f64>,
+    direct: &mut DirectFactor,
     assembly: &Assembly,
     values: &[f64],
     b: &[f64],
@@ -983,13 +946,13 @@ fn solve_with_kept_factor(
         } = &mut *r;
         let factor = match (precision, single.work.as_mut()) {
             (FactorPrecision::Single, Some(single_work)) => Factor::Single {
-                l: LltRef::new(symbolic, &single.l),
+                l: LltRef::new(&direct.symbolic, &single.l),
                 rhs: &mut single.rhs,
                 work: single_work,
             },
             _ => Factor::Double {
-                l: LltRef::new(symbolic, l_values),
-                work: &mut *work,
+                l: LltRef::new(&direct.symbolic, &direct.l),
+                work: &mut direct.work,
             },
         };
         let result = pcg(
@@ -1036,15 +999,7 @@ fn solve_with_kept_factor(
                 kept.abandoned += failure.iterations();
                 fail(r);
                 let factoring = Instant::now();
-                refactor(
-                    symbolic,
-                    l_values,
-                    work,
-                    factored,
-                    Some(r),
-                    assembly,
-                    values,
-                )?;
+                refactor(direct, Some(r), assembly, values)?;
                 kept.setups += 1;
                 kept.t_setup += factoring.elapsed().as_secs_f64();
             }
@@ -1053,37 +1008,53 @@ fn solve_with_kept_factor(
     Ok(kept)
 }
 
-/// Numeric Cholesky factorisation of the matrix with `values` into `l_values` (allocated on
-/// first use); `factored` records the values (cleared first: a failed factorisation leaves
-/// `l_values` invalid).
-fn factor_numeric(
-    symbolic: &SymbolicCholesky<usize>,
-    l_values: &mut Vec<f64>,
-    work: &mut MemBuffer,
-    factored: &mut Vec<f64>,
-    assembly: &Assembly,
-    values: &[f64],
-) -> Result<(), LinearError> {
-    let n = symbolic.nrows();
-    factored.clear();
-    l_values.resize(symbolic.len_val(), 0.0);
-    symbolic
-        .factorize_numeric_llt::<f64>(
-            l_values,
-            assembly.matrix(values),
-            Side::Lower,
-            Default::default(),
-            factor_parallelism(n),
-            MemStack::new(work),
-            Default::default(),
-        )
-        .map_err(|e| match e {
-            DenseLltError::NonPositivePivot { index } => {
-                LinearError::NotPositiveDefinite { pivot: index, n }
-            }
-        })?;
-    factored.extend_from_slice(values);
-    Ok(())
+/// A sparse Cholesky factorisation in double precision: the symbolic analysis (once per
+/// pattern), the factor's values, faer's scratch, and the matrix they were computed from.
+pub struct DirectFactor {
+    symbolic: SymbolicCholesky<usize>,
+    /// Values of L in the symbolic factor's layout (allocated on first use: a factor kept in
+    /// single precision never needs them).
+    l: Vec<f64>,
+    work: MemBuffer,
+    /// The matrix values the current factor was computed from (empty before the first, and
+    /// after a failed factorisation).
+    factored: Vec<f64>,
+}
+
+impl DirectFactor {
+    /// Whether the current factor was computed from exactly these values (bit for bit).
+    fn is_of(&self, values: &[f64]) -> bool {
+        self.factored.len() == values.len()
+            && self
+                .factored
+                .iter()
+                .zip(values)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+    }
+
+    /// Numeric factorisation of the matrix with `values`.
+    fn factor(&mut self, assembly: &Assembly, values: &[f64]) -> Result<(), LinearError> {
+        let n = self.symbolic.nrows();
+        self.factored.clear();
+        self.l.resize(self.symbolic.len_val(), 0.0);
+        self.symbolic
+            .factorize_numeric_llt::<f64>(
+                &mut self.l,
+                assembly.matrix(values),
+                Side::Lower,
+                Default::default(),
+                factor_parallelism(n),
+                MemStack::new(&mut self.work),
+                Default::default(),
+            )
+            .map_err(|e| match e {
+                DenseLltError::NonPositivePivot { index } => {
+                    LinearError::NotPositiveDefinite { pivot: index, n }
+                }
+            })?;
+        self.factored.extend_from_slice(values);
+        Ok(())
+    }
 }
 
 /// A Cholesky factor applied as a preconditioner, with its solve's scratch.
