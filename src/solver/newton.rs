@@ -145,6 +145,8 @@ pub struct NewtonWorkspace {
     trial: Vec<f64>,
     /// A second direction (free dofs), for the anticipated-contact step.
     landing: Vec<f64>,
+    /// Gradient at the line search's full step (all dofs): the next iterate's, if accepted.
+    trial_gradient: Vec<f64>,
 }
 
 impl NewtonWorkspace {
@@ -159,6 +161,7 @@ impl NewtonWorkspace {
             direction: vec![0.0; nf],
             trial: vec![0.0; n],
             landing: vec![0.0; nf],
+            trial_gradient: vec![0.0; n],
         }
     }
     /// Gradient over all dofs at the last evaluated iterate (N).
@@ -192,14 +195,19 @@ pub fn minimize(
     let mut refresh = true;
     let mut previous_residual = f64::INFINITY;
     let mut floor = 0.0;
+    // Potential at `u` when `work.gradient` already holds its gradient (from the line search).
+    let mut known: Option<f64> = None;
     for iteration in 0..=params.max_iterations {
         let start = Instant::now();
         let mut energy = if refresh {
             potential.forget_anticipated();
             potential.evaluate(u, &mut work.gradient, &mut work.hessian)
+        } else if let Some(e) = known {
+            e
         } else {
             potential.gradient(u, &mut work.gradient)
         };
+        known = None;
         let residual = free_max(&work.gradient);
         report.t_assembly += start.elapsed().as_secs_f64();
         if !energy.is_finite() || !residual.is_finite() {
@@ -345,8 +353,18 @@ pub fn minimize(
             for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
                 work.trial[d] += alpha * dx;
             }
-            let e = potential.energy(&work.trial);
+            // The full step is nearly always taken, and the next iteration then needs the
+            // gradient there: computed with the energy (one pass over the elements for both).
+            let e = if alpha == 1.0 {
+                potential.gradient(&work.trial, &mut work.trial_gradient)
+            } else {
+                potential.energy(&work.trial)
+            };
             if e.is_finite() && (e <= energy + 1e-4 * alpha * slope || e <= energy + roundoff) {
+                if alpha == 1.0 {
+                    std::mem::swap(&mut work.gradient, &mut work.trial_gradient);
+                    known = Some(e);
+                }
                 break;
             }
             alpha *= 0.5;
@@ -364,7 +382,10 @@ pub fn minimize(
             step_max = step_max.max((alpha * dx).abs());
         }
         if step_max <= params.step_tolerance {
-            report.energy = potential.gradient(u, &mut work.gradient);
+            report.energy = match known {
+                Some(e) => e,
+                None => potential.gradient(u, &mut work.gradient),
+            };
             report.residual = free_max(&work.gradient);
             return Ok(report);
         }
