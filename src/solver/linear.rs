@@ -228,7 +228,8 @@ impl FactorReuse {
         Ok(factored)
     }
 
-    /// Double precision from now on; the single-precision buffers are freed.
+    /// Double precision from now on; the single-precision buffers are freed. The caller
+    /// factorises in double precision next: until then no factor is valid.
     fn switch_to_double(&mut self) {
         self.precision = FactorPrecision::Double;
         self.single = SingleFactor::default();
@@ -969,20 +970,21 @@ fn solve_with_kept_factor(
             Some((budget / 2, forcing.sqrt())),
             pcg_work,
         );
-        // A fresh factor that fails is short of precision; an old one, of freshness.
-        let fail = |r: &mut FactorReuse| {
-            if fresh {
-                r.switch_to_double();
-            } else {
-                r.note_failure();
-            }
-        };
         match result {
             Ok(iterations) => {
-                if iterations > budget {
+                if iterations > budget && fresh {
+                    // A fresh single-precision factor this slow is short of precision: double
+                    // from now on, starting with this matrix (later solves may reuse it
+                    // without another factorisation call).
+                    r.switch_to_double();
+                    let factoring = Instant::now();
+                    refactor(direct, Some(r), assembly, values)?;
+                    kept.setups += 1;
+                    kept.t_setup += factoring.elapsed().as_secs_f64();
+                } else if iterations > budget {
                     // Too slow: replace it, and do not keep one this long again.
                     r.refresh_due = true;
-                    fail(r);
+                    r.note_failure();
                 } else if !fresh && r.failed_age.is_some_and(|a| r.age >= a) {
                     r.failed_age = None;
                 }
@@ -997,7 +999,12 @@ fn solve_with_kept_factor(
             }
             Err(failure) => {
                 kept.abandoned += failure.iterations();
-                fail(r);
+                // A fresh factor that fails is short of precision; an old one, of freshness.
+                if fresh {
+                    r.switch_to_double();
+                } else {
+                    r.note_failure();
+                }
                 let factoring = Instant::now();
                 refactor(direct, Some(r), assembly, values)?;
                 kept.setups += 1;
