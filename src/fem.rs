@@ -7,7 +7,7 @@
 #![allow(non_snake_case)]
 
 use crate::mesh::TetMesh;
-use nalgebra::{Matrix3, SMatrix, Vector3};
+use nalgebra::{Matrix3, SMatrix, SymmetricEigen, Vector3};
 
 /// 9 × 9 matrix: derivative of `vec(P)` with respect to `vec(F)`.
 pub type Tangent = SMatrix<f64, 9, 9>;
@@ -489,37 +489,13 @@ pub(crate) fn offset_elastic_gradient(
     let exp_m1 = if d.iter().all(|v| *v == 0.0) {
         Matrix3::zeros()
     } else {
-        expm1(&(-d))
+        let eig = SymmetricEigen::new(d);
+        let v = eig.eigenvectors;
+        v * Matrix3::from_diagonal(&eig.eigenvalues.map(|l| (-l).exp_m1())) * v.transpose()
     };
     let a_minus_i = (exp_m1 - Matrix3::identity() * e) / (1.0 + e);
     let a = Matrix3::identity() + a_minus_i;
     (a, H * a + a_minus_i)
-}
-
-/// exp(X) − I of a 3 × 3 matrix, without the cancellation of forming exp(X) first: a Taylor
-/// series of X / 2ˢ scaled to ‖X / 2ˢ‖_F ≤ 1/8 (ten terms leave a truncation error below
-/// 1e-17 relative), then s squarings E(2Y) = E(Y) (E(Y) + 2 I). A few 3 × 3 products: the
-/// element kernels call it at every evaluation of every element with a plastic strain, where
-/// a symmetric eigendecomposition took a fifth of a freezing step's time.
-pub fn expm1(x: &Matrix3<f64>) -> Matrix3<f64> {
-    let norm = x.norm();
-    let squarings = if norm > 0.125 {
-        (norm / 0.125).log2().ceil() as i32
-    } else {
-        0
-    };
-    let y = x / 2f64.powi(squarings);
-    let identity = Matrix3::identity();
-    // y (I + y/2 (I + y/3 (… (I + y/10)))) by Horner's rule.
-    let mut series = identity;
-    for k in (2..=10).rev() {
-        series = identity + y * series / f64::from(k);
-    }
-    let mut e = y * series;
-    for _ in 0..squarings {
-        e = e * (e + 2.0 * identity);
-    }
-    e
 }
 
 /// Symmetric tensor to Voigt order xx yy zz yz xz xy.
@@ -561,26 +537,6 @@ pub(crate) mod tests {
             rest,
             [mesh.rest[0], mesh.rest[1], mesh.rest[2], mesh.rest[3]],
         )
-    }
-
-    #[test]
-    fn expm1_matches_the_eigendecomposition_at_every_scale() {
-        // exp(X) − I of a symmetric X from its eigendecomposition, V (exp(Λ) − 1) Vᵀ, with
-        // exp_m1 per eigenvalue: exact to round-off (~1e-16 relative to ‖exp(X) − I‖).
-        let reference = |x: &Matrix3<f64>| {
-            let eig = nalgebra::SymmetricEigen::new(*x);
-            let v = eig.eigenvectors;
-            v * Matrix3::from_diagonal(&eig.eigenvalues.map(f64::exp_m1)) * v.transpose()
-        };
-        let shape = Matrix3::new(0.3, -0.7, 0.2, -0.7, 0.1, -0.4, 0.2, -0.4, -0.4);
-        for scale in [1e-9, 1e-4, 0.01, 0.05, 0.3, 1.0, 3.0] {
-            let x = shape * scale;
-            let (got, want) = (expm1(&x), reference(&x));
-            let error = (got - want).norm() / want.norm();
-            // 1e-14: a few squarings and the eigensolver each lose a few ulps.
-            assert!(error < 1e-14, "scale {scale}: relative error {error:e}");
-        }
-        assert_eq!(expm1(&Matrix3::zeros()), Matrix3::zeros());
     }
 
     /// Gradient and Hessian against central finite differences of the energy / gradient.
