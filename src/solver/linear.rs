@@ -198,20 +198,21 @@ impl FactorReuse {
     ) -> Result<bool, LinearError> {
         let single = &mut self.single;
         let par = factor_parallelism(symbolic.nrows());
-        if single.work.is_none() {
-            let req = symbolic
-                .factorize_numeric_llt_scratch::<f32>(par, Default::default())
-                .or(symbolic.solve_in_place_scratch::<f32>(1, par));
-            single.work =
-                Some(MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?);
-            single.l = vec![0.0; symbolic.len_val()];
-            single.rhs = vec![0.0; symbolic.nrows()];
-        }
+        let work = match single.work {
+            Some(ref mut work) => work,
+            None => {
+                let req = symbolic
+                    .factorize_numeric_llt_scratch::<f32>(par, Default::default())
+                    .or(symbolic.solve_in_place_scratch::<f32>(1, par));
+                let work =
+                    MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
+                single.l = vec![0.0; symbolic.len_val()];
+                single.rhs = vec![0.0; symbolic.nrows()];
+                single.work.insert(work)
+            }
+        };
         single.matrix.clear();
         single.matrix.extend(values.iter().map(|&v| v as f32));
-        let Some(work) = single.work.as_mut() else {
-            unreachable!("allocated above")
-        };
         let result = symbolic.factorize_numeric_llt::<f32>(
             &mut single.l,
             SparseColMatRef::new(assembly.symbolic(), &single.matrix),
@@ -773,12 +774,7 @@ impl LinearSolver {
                 if let Some(r) = reuse.as_mut() {
                     kept = solve_with_kept_factor(r, factor, assembly, values, b, x)?;
                     if let Some(iterations) = kept.iterations {
-                        return Ok(LinearStats {
-                            t_solve: start.elapsed().as_secs_f64() - kept.t_setup,
-                            iterations,
-                            setups: kept.setups,
-                            t_setup: kept.t_setup,
-                        });
+                        return Ok(kept.stats(start, iterations));
                     }
                 }
                 x.copy_from_slice(b);
@@ -788,12 +784,7 @@ impl LinearSolver {
                     factor_parallelism(n),
                     MemStack::new(&mut factor.work),
                 );
-                Ok(LinearStats {
-                    t_solve: start.elapsed().as_secs_f64() - kept.t_setup,
-                    iterations: 1 + kept.abandoned,
-                    setups: kept.setups,
-                    t_setup: kept.t_setup,
-                })
+                Ok(kept.stats(start, 1 + kept.abandoned))
             }
             LinearSolver::Cg {
                 tolerance,
@@ -919,6 +910,18 @@ struct KeptSolve {
     /// Factorisations made on the way, and their time (s).
     setups: usize,
     t_setup: f64,
+}
+
+impl KeptSolve {
+    /// The solve's statistics: `iterations` in all, since `start`, its set-ups apart.
+    fn stats(&self, start: Instant, iterations: usize) -> LinearStats {
+        LinearStats {
+            t_solve: start.elapsed().as_secs_f64() - self.t_setup,
+            iterations,
+            setups: self.setups,
+            t_setup: self.t_setup,
+        }
+    }
 }
 
 /// Solves with CG preconditioned by the kept factor (a stale one, or a fresh single-precision
