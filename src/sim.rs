@@ -550,6 +550,7 @@ impl Simulation {
                 ice
             }),
             t_contact: 0.0,
+            contact_blocks: Vec::new(),
         };
         // Friction uses the normal force extrapolated to the end of the step; after each solve it
         // is re-lagged to the solution's and the step re-solved (warm-started) until it settles
@@ -637,6 +638,7 @@ impl Simulation {
             project: true,
             ice: None,
             t_contact: 0.0,
+            contact_blocks: Vec::new(),
         };
         let mut gradient = vec![0.0; self.previous.len()];
         potential.evaluate(&self.previous, &mut gradient, &mut self.damping_stiffness);

@@ -267,6 +267,27 @@ pub(crate) fn friction_profile(s: f64, eps: f64) -> (f64, f64, f64) {
     }
 }
 
+/// Energy (J), gradient (N) and Hessian (N/m) of the smoothed friction potential α λ f₀(|y|)
+/// for the tangential slip `y` (m) with tangential projector `tangent`, `scale` = α λ (N) and
+/// smoothing length `eps` = ε_v h (m). The Hessian is positive semi-definite.
+pub(crate) fn friction_terms(
+    scale: f64,
+    y: &Vector3<f64>,
+    tangent: &Matrix3<f64>,
+    eps: f64,
+) -> (f64, Vector3<f64>, Matrix3<f64>) {
+    let s = y.norm();
+    let (f0, f1, f1_prime) = friction_profile(s, eps);
+    // f₁(s)/s → 2/ε as s → 0.
+    let f1_over_s = if s > 1e-14 * eps { f1 / s } else { 2.0 / eps };
+    let mut hessian = scale * f1_over_s * tangent;
+    if s > 1e-14 * eps {
+        let yhat = y / s;
+        hessian += scale * (f1_prime - f1_over_s) * yhat * yhat.transpose();
+    }
+    (scale * f0, scale * f1_over_s * y, hessian)
+}
+
 /// Receives a node's 3 × 3 Hessian block: `(node, block)`.
 pub type BlockSink<'a> = &'a mut dyn FnMut(usize, &Matrix3<f64>);
 
@@ -589,24 +610,15 @@ impl<'a> ContactStep<'a> {
                     return;
                 }
                 let (y, tangent) = self.slip(p, u, i, h);
-                let s = y.norm();
                 let eps = c.smoothing_velocity * h;
-                let (f0, f1, f1_prime) = friction_profile(s, eps);
                 let scale = p.friction * lambda;
-                energy += scale * f0;
-                // f₁(s)/s → 2/ε as s → 0.
-                let f1_over_s = if s > 1e-14 * eps { f1 / s } else { 2.0 / eps };
-                let g_fric = scale * f1_over_s * y;
+                let (f0, g_fric, h_fric) = friction_terms(scale, &y, &tangent, eps);
+                energy += f0;
                 g_node += g_fric;
                 if let Some(f) = forces.as_deref_mut() {
                     for a in 0..3 {
                         f.friction[3 * i + a] -= g_fric[a];
                     }
-                }
-                let mut h_fric = scale * f1_over_s * tangent;
-                if s > 1e-14 * eps {
-                    let yhat = y / s;
-                    h_fric += scale * (f1_prime - f1_over_s) * yhat * yhat.transpose();
                 }
                 h_node += h_fric;
             });

@@ -720,6 +720,29 @@ impl LinearSolver {
         }
     }
 
+    /// Whether [`LinearSolver::solve`] works with the matrix values themselves (CG and the
+    /// multigrid, and CG preconditioned by a kept factor) rather than with a factor only (a
+    /// plain direct solve): only then does a change of the values in place reach the solves.
+    pub fn iterates_on_matrix(&self) -> bool {
+        match self {
+            LinearSolver::Cholesky { reuse, .. } => reuse.is_some(),
+            LinearSolver::Cg { .. } => true,
+            LinearSolver::Amg(s) => s.reuse,
+        }
+    }
+
+    /// The matrix values changed in place since [`LinearSolver::factorize`] (a chord
+    /// iteration's contact update; see [`LinearSolver::iterates_on_matrix`]): a kept factor
+    /// or hierarchy is now merely a preconditioner of them, Jacobi's diagonal is recomputed.
+    pub fn matrix_changed(&mut self, assembly: &Assembly, values: &[f64]) {
+        match self {
+            LinearSolver::Cholesky { reuse: Some(r), .. } => r.stale = true,
+            LinearSolver::Cholesky { reuse: None, .. } => {}
+            LinearSolver::Cg { inv_diag, .. } => jacobi_inverse(assembly, values, inv_diag),
+            LinearSolver::Amg(s) => s.stale = true,
+        }
+    }
+
     /// Prepares solves with the matrix of `assembly`'s pattern and these values: the numeric
     /// Cholesky factorisation, the Jacobi preconditioner for CG, or the multigrid set-up.
     /// Returns its time (s), or `None` when nothing was computed: the values are bit for bit

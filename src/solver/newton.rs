@@ -45,6 +45,14 @@ pub trait Potential {
     fn add_anticipated_gradient(&self, _u: &[f64], _gradient: &mut [f64]) -> bool {
         false
     }
+    /// Brings the contact part of `hessian` (the last assembled Hessian, or the last one this
+    /// updated) to the iterate `u` in place, leaving the rest as assembled; returns whether it
+    /// changed. Contact is the part of the potential that is far from quadratic (a node
+    /// leaves a wall, friction passes between sticking and sliding) and costs little to
+    /// re-evaluate, against a whole element pass for a Hessian.
+    fn update_contact_hessian(&mut self, _u: &[f64], _hessian: &mut [f64]) -> bool {
+        false
+    }
 }
 
 /// A chord iteration (reusing the last factorisation) must cut the residual at least this
@@ -250,6 +258,14 @@ pub fn minimize(
             potential.forget_anticipated();
             let start = Instant::now();
             energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
+            report.t_assembly += start.elapsed().as_secs_f64();
+        } else if !refresh && linear.iterates_on_matrix() {
+            // A chord iteration of a solver that multiplies by the matrix: its contact part
+            // follows the iterate (the factor or hierarchy stays as it is, now stale).
+            let start = Instant::now();
+            if potential.update_contact_hessian(u, &mut work.hessian) {
+                linear.matrix_changed(assembly, &work.hessian);
+            }
             report.t_assembly += start.elapsed().as_secs_f64();
         }
         if refresh {

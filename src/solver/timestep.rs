@@ -14,7 +14,7 @@
 
 use super::newton::Potential;
 use crate::assembly::Assembly;
-use crate::physics::contact::{friction_profile, ContactForces, ContactStep};
+use crate::physics::contact::{friction_terms, ContactForces, ContactStep};
 use crate::physics::ice_contact::{Candidate, IceContact};
 use crate::physics::Model;
 use nalgebra::{Matrix3, Vector3};
@@ -55,6 +55,9 @@ pub struct StepPotential<'a> {
     pub ice: Option<IceStep<'a>>,
     /// Wall time spent evaluating contact (obstacles and ice–ice narrow phase) (s).
     pub t_contact: f64,
+    /// The obstacle contact's 3 × 3 Hessian blocks (node, block) in the last assembled Hessian,
+    /// for [`Potential::update_contact_hessian`].
+    pub contact_blocks: Vec<(usize, Matrix3<f64>)>,
 }
 
 /// The ice–ice contact candidates of a step and where their 12 × 12 blocks go.
@@ -171,18 +174,8 @@ impl IceStep<'_> {
                 .sum();
             let tangent = Matrix3::identity() - n * n.transpose();
             let y = tangent * rel;
-            let s = y.norm();
-            let (f0, f1, f1_prime) = friction_profile(s, eps);
-            let scale = self.term.friction * lambda;
-            energy += scale * f0;
-            // f₁(s)/s → 2/ε as s → 0.
-            let f1_over_s = if s > 1e-14 * eps { f1 / s } else { 2.0 / eps };
-            let g_y = scale * f1_over_s * y;
-            let mut h_y = scale * f1_over_s * tangent;
-            if s > 1e-14 * eps {
-                let yhat = y / s;
-                h_y += scale * (f1_prime - f1_over_s) * yhat * yhat.transpose();
-            }
+            let (f0, g_y, h_y) = friction_terms(self.term.friction * lambda, &y, &tangent, eps);
+            energy += f0;
             for k in 0..4 {
                 for a in 0..3 {
                     let d = 3 * nodes[k] + a;
@@ -336,12 +329,11 @@ impl StepPotential<'_> {
             let slots = self.block_slots;
             energy += match hessian.as_deref_mut() {
                 Some(hs) => {
+                    let blocks = &mut self.contact_blocks;
+                    blocks.clear();
                     let mut add = |node: usize, block: &Matrix3<f64>| {
-                        for (k, s) in slots[node].iter().enumerate() {
-                            if *s != u32::MAX {
-                                hs[*s as usize] += block[(k / 3, k % 3)];
-                            }
-                        }
+                        add_block(hs, &slots[node], block, 1.0);
+                        blocks.push((node, *block));
                     };
                     contact.evaluate(u, gradient.as_deref_mut(), Some(&mut add), None)
                 }
@@ -433,7 +425,38 @@ impl StepPotential<'_> {
     }
 }
 
+/// Adds `sign` × a node's 3 × 3 `block` into the CSC values `hessian` at the node's `slots`.
+fn add_block(hessian: &mut [f64], slots: &[u32; 9], block: &Matrix3<f64>, sign: f64) {
+    for (k, s) in slots.iter().enumerate() {
+        if *s != u32::MAX {
+            hessian[*s as usize] += sign * block[(k / 3, k % 3)];
+        }
+    }
+}
+
 impl Potential for StepPotential<'_> {
+    fn update_contact_hessian(&mut self, u: &[f64], hessian: &mut [f64]) -> bool {
+        let Some(contact) = &self.contact else {
+            return false;
+        };
+        let start = std::time::Instant::now();
+        let mut blocks = Vec::with_capacity(self.contact_blocks.len());
+        contact.evaluate(u, None, Some(&mut |node, b| blocks.push((node, *b))), None);
+        let changed = blocks != self.contact_blocks;
+        if changed {
+            let slots = self.block_slots;
+            for (node, block) in &self.contact_blocks {
+                add_block(hessian, &slots[*node], block, -1.0);
+            }
+            for (node, block) in &blocks {
+                add_block(hessian, &slots[*node], block, 1.0);
+            }
+            self.contact_blocks = blocks;
+        }
+        self.t_contact += start.elapsed().as_secs_f64();
+        changed
+    }
+
     fn anticipate(&mut self, u: &[f64], trial: &[f64]) -> bool {
         let obstacles = self
             .contact
