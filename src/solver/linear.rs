@@ -203,7 +203,8 @@ impl FactorReuse {
             None => {
                 let req = symbolic
                     .factorize_numeric_llt_scratch::<f32>(par, Default::default())
-                    .or(symbolic.solve_in_place_scratch::<f32>(1, par));
+                    .or(symbolic
+                        .solve_in_place_scratch::<f32>(1, solve_parallelism(symbolic.nrows())));
                 let work =
                     MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
                 single.l = vec![0.0; symbolic.len_val()];
@@ -606,7 +607,7 @@ impl LinearSolver {
                         Default::default(),
                     )
                     .or(symbolic
-                        .solve_in_place_scratch::<f64>(1, factor_parallelism(symbolic.nrows())));
+                        .solve_in_place_scratch::<f64>(1, solve_parallelism(symbolic.nrows())));
                 let work =
                     MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
                 Ok(LinearSolver::Cholesky {
@@ -804,7 +805,7 @@ impl LinearSolver {
                 LltRef::new(&factor.symbolic, &factor.l).solve_in_place_with_conj(
                     Conj::No,
                     MatMut::from_column_major_slice_mut(x, n, 1),
-                    factor_parallelism(n),
+                    solve_parallelism(n),
                     MemStack::new(&mut factor.work),
                 );
                 Ok(kept.stats(start, 1 + kept.abandoned))
@@ -894,6 +895,25 @@ pub const PARALLEL_FACTOR_MIN_DOFS: usize = 20_000;
 /// faer's parallelism for factorising `n` free dofs (see [`PARALLEL_FACTOR_MIN_DOFS`]).
 fn factor_parallelism(n: usize) -> Par {
     if n >= PARALLEL_FACTOR_MIN_DOFS {
+        Par::rayon(0)
+    } else {
+        Par::Seq
+    }
+}
+
+/// Triangular solves with the factor run on all threads from this many free dofs. Below, the
+/// synchronisation of faer's parallel supernodal solve costs more than the second core gives
+/// (the solve streams the factor from memory once per direction). Measured on 2 cores: a
+/// double-precision solve at 56 862 dofs 0.127 s sequential against 0.131–0.137 s parallel,
+/// at 160 284 dofs 0.56 against 0.48 s (`icefem bench --tets 100000,300000 --steps 3
+/// --repeats 1`, solve/step = 2 solves); the single-precision solves inside CG on the 1e5-tet
+/// freezing container (59 049 dofs, steps 91–102) 0.535 instead of 0.635 s a step.
+pub const PARALLEL_SOLVE_MIN_DOFS: usize = 100_000;
+
+/// faer's parallelism for a triangular solve with the factor of `n` free dofs (see
+/// [`PARALLEL_SOLVE_MIN_DOFS`]).
+fn solve_parallelism(n: usize) -> Par {
+    if n >= PARALLEL_SOLVE_MIN_DOFS {
         Par::rayon(0)
     } else {
         Par::Seq
@@ -1119,7 +1139,7 @@ impl PcgOperators for FactorOperators<'_> {
     }
     fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
         let n = z.len();
-        let par = factor_parallelism(n);
+        let par = solve_parallelism(n);
         match &mut self.factor {
             Factor::Double { l, work } => {
                 z.copy_from_slice(r);
