@@ -31,13 +31,18 @@
 //! happens after the first frame, whenever [`COMMIT_INTERVAL`] has passed since
 //! the last one, and when the writer finishes or is dropped — so a run writing a
 //! frame every few milliseconds does not spend its time flushing, and a killed
-//! run loses at most the last interval. A process killed at any point leaves a
-//! file in which every frame carrying `complete = 1` is fully on disk; [`OutputWriter::resume`]
-//! discards whatever came after it. (H5Fflush hands the data to the OS; it
-//! does not fsync, so this protects against a killed process, not against a
-//! power loss.) The file is created with the default (oldest-compatible)
-//! superblock on purpose: newer superblocks record an "open for writing" flag
-//! that would make a killed run's file unopenable without `h5clear`.
+//! run loses at most the last interval. Between commits the file on disk does not
+//! change under what it already holds: HDF5's metadata cache writes only when
+//! flushed, and freed space is never reused (see `crash_safe_options`). A process
+//! killed between commits therefore leaves a readable file in which every frame
+//! carrying `complete = 1` is fully on disk; [`OutputWriter::resume`] discards
+//! whatever came after it. (A kill during a commit's own flushes, a few
+//! milliseconds per interval, could still leave the groups half updated. H5Fflush
+//! hands the data to the OS; it does not fsync, so this protects against a killed
+//! process, not against a power loss.) The file has superblock version 2 (the
+//! HDF5 1.8 format, which the file-space setting needs), not version 3, whose
+//! "open for writing" flag would make a killed run's file unopenable without
+//! `h5clear`.
 
 use std::fmt::Write as _;
 use std::io::Read as _;
@@ -423,6 +428,33 @@ pub struct OutputWriter {
     last_commit: Option<std::time::Instant>,
 }
 
+/// How a run's file is created and reopened for writing, so that between commits nothing the
+/// file on disk refers to changes (see the module docs): the metadata cache never writes an
+/// entry out on its own (evictions off, so the cache grows as needed — some kilobytes per
+/// frame — and only a flush writes), and freed file space is never reused (file-space
+/// strategy "none": a group's heap that grows moves to the end of the file, and its old block
+/// stays as it was, as the on-disk group still points to it until the next flush). With HDF5's
+/// defaults, a process killed between commits left files whose `/frames` could not be listed
+/// ("bad heap free list", "addr overflow") in 3 of 4 kills of a fast run.
+fn crash_safe_options() -> hdf5::file::FileBuilder {
+    use hdf5::plist::file_access::{
+        CacheDecreaseMode, CacheIncreaseMode, FlashIncreaseMode, MetadataCacheConfig,
+    };
+    use hdf5::plist::file_create::FileSpaceStrategy;
+    let cache = MetadataCacheConfig {
+        evictions_enabled: false,
+        incr_mode: CacheIncreaseMode::Off,
+        flash_incr_mode: FlashIncreaseMode::Off,
+        decr_mode: CacheDecreaseMode::Off,
+        ..Default::default()
+    };
+    let mut builder = File::with_options();
+    builder
+        .with_fapl(|fapl| fapl.mdc_config(&cache))
+        .with_fcpl(|fcpl| fcpl.file_space_strategy(FileSpaceStrategy::None));
+    builder
+}
+
 /// Longest wall time between two commits of written frames (see the module docs).
 pub const COMMIT_INTERVAL: std::time::Duration = std::time::Duration::from_millis(500);
 
@@ -435,7 +467,9 @@ impl OutputWriter {
         let scene_path = vlen_str(path, "scene_path", header.scene_path)?;
         let version = vlen_str(path, "icefem_version", header.version)?;
 
-        let file = File::create(path).ctx(path, || "creating the file".into())?;
+        let file = crash_safe_options()
+            .create(path)
+            .ctx(path, || "creating the file".into())?;
         close_on_exec(&file);
         let root: &Group = &file;
         write_attr(path, root, "scene", &scene)?;
@@ -801,7 +835,9 @@ impl OutputWriter {
     /// compacts the file).
     pub fn resume(path: &Path) -> Result<(Self, ResumeFrame), OutputError> {
         check_hdf5_signature(path)?;
-        let file = File::open_rw(path).ctx(path, || "opening for resume".into())?;
+        let file = crash_safe_options()
+            .open_rw(path)
+            .ctx(path, || "opening for resume".into())?;
         close_on_exec(&file);
         check_icefem_layout(path, &file)?;
         let scene_text = read_string_attr(path, &file, "scene")?;
