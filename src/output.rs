@@ -430,8 +430,9 @@ pub struct OutputWriter {
 
 /// How a run's file is created and reopened for writing, so that between commits nothing the
 /// file on disk refers to changes (see the module docs): the metadata cache never writes an
-/// entry out on its own (evictions off, so the cache grows as needed — some kilobytes per
-/// frame — and only a flush writes), and freed file space is never reused (file-space
+/// entry out on its own (evictions off, so the cache grows as needed — about 10 kB a frame,
+/// measured: 47 MB more peak memory over 5 000 frames of a 60-tet bar — and only a flush
+/// writes), and freed file space is never reused (file-space
 /// strategy "none": a group's heap that grows moves to the end of the file, and its old block
 /// stays as it was, as the on-disk group still points to it until the next flush). With HDF5's
 /// defaults, a process killed between commits left files whose `/frames` could not be listed
