@@ -216,7 +216,7 @@ fn corotated_strain(R: &Matrix3<f64>, H: &Matrix3<f64>) -> Matrix3<f64> {
 }
 
 /// Rotation R of the polar decomposition F = R S (the inversion-safe one: det R = +1): by
-/// Newton's iteration (see [`polar_rotation_newton`]) where it applies, else from the signed
+/// Newton's iteration R ← ½ (R + R⁻ᵀ) where it applies (det F ≥ 0.1), else from the signed
 /// SVD.
 pub fn polar_rotation(F: &Matrix3<f64>) -> Matrix3<f64> {
     polar_rotation_newton(F).unwrap_or_else(|| {

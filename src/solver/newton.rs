@@ -6,7 +6,11 @@
 //! direction, and the line search and the residual test see the true potential) as long as
 //! each iteration reduces the residual at least [`CHORD_CONTRACTION`]-fold; otherwise they
 //! reassemble and refactorise. Ice is stiff and nearly linear at the strains it survives, so the
-//! second solve of a step almost always reuses the first factorisation.
+//! second solve of a step almost always reuses the first factorisation. With a solver that
+//! multiplies by the matrix (CG, possibly preconditioned by a kept factor) a chord iteration
+//! also brings the contact part of the matrix to the iterate
+//! ([`Potential::update_contact_hessian`]): contact is where the potential is far from
+//! quadratic, and re-evaluating it costs little against an element pass.
 
 use super::linear::{LinearError, LinearSolver, LinearStats};
 use crate::assembly::Assembly;
