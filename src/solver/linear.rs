@@ -894,7 +894,12 @@ pub const PARALLEL_FACTOR_MIN_DOFS: usize = 20_000;
 
 /// faer's parallelism for factorising `n` free dofs (see [`PARALLEL_FACTOR_MIN_DOFS`]).
 fn factor_parallelism(n: usize) -> Par {
-    if n >= PARALLEL_FACTOR_MIN_DOFS {
+    all_threads_from(n, PARALLEL_FACTOR_MIN_DOFS)
+}
+
+/// All threads for a system of `n` free dofs from `min_dofs` on, one below.
+fn all_threads_from(n: usize, min_dofs: usize) -> Par {
+    if n >= min_dofs {
         Par::rayon(0)
     } else {
         Par::Seq
@@ -913,11 +918,7 @@ pub const PARALLEL_SOLVE_MIN_DOFS: usize = 100_000;
 /// faer's parallelism for a triangular solve with the factor of `n` free dofs (see
 /// [`PARALLEL_SOLVE_MIN_DOFS`]).
 fn solve_parallelism(n: usize) -> Par {
-    if n >= PARALLEL_SOLVE_MIN_DOFS {
-        Par::rayon(0)
-    } else {
-        Par::Seq
-    }
+    all_threads_from(n, PARALLEL_SOLVE_MIN_DOFS)
 }
 
 /// Factorises the matrix with `values`: in single precision if `reuse` keeps its factor so
