@@ -7,6 +7,7 @@
 use super::amg::{Amg, AmgError, AmgInfo};
 use super::ordering::{nested_dissection, FillOrdering};
 use super::pcg::{pcg, symmetric_multiply, PcgFailure, PcgOperators, PcgWork};
+use super::tree_solve::{self, FactorScalar, TreeSolve, TreeWork};
 use crate::assembly::Assembly;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltError as DenseLltError;
@@ -163,6 +164,8 @@ struct SingleFactor {
     rhs: Vec<f32>,
     /// faer's scratch for the factorisation and the solves.
     work: Option<MemBuffer>,
+    /// Buffers of the tree-parallel solves.
+    tree_work: TreeWork<f32>,
 }
 
 impl FactorReuse {
@@ -203,8 +206,7 @@ impl FactorReuse {
             None => {
                 let req = symbolic
                     .factorize_numeric_llt_scratch::<f32>(par, Default::default())
-                    .or(symbolic
-                        .solve_in_place_scratch::<f32>(1, solve_parallelism(symbolic.nrows())));
+                    .or(symbolic.solve_in_place_scratch::<f32>(1, Par::Seq));
                 let work =
                     MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
                 single.l = vec![0.0; symbolic.len_val()];
@@ -606,16 +608,17 @@ impl LinearSolver {
                         factor_parallelism(symbolic.nrows()),
                         Default::default(),
                     )
-                    .or(symbolic
-                        .solve_in_place_scratch::<f64>(1, solve_parallelism(symbolic.nrows())));
+                    .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
                 let work =
                     MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
                 Ok(LinearSolver::Cholesky {
                     factor: DirectFactor {
+                        tree: TreeSolve::new(&symbolic, rayon::current_num_threads()),
                         symbolic,
                         // Allocated by the first double-precision factorisation.
                         l: Vec::new(),
                         work,
+                        tree_work: TreeWork::default(),
                         factored: Vec::new(),
                     },
                     t_symbolic: start.elapsed().as_secs_f64(),
@@ -802,11 +805,13 @@ impl LinearSolver {
                     }
                 }
                 x.copy_from_slice(b);
-                LltRef::new(&factor.symbolic, &factor.l).solve_in_place_with_conj(
-                    Conj::No,
-                    MatMut::from_column_major_slice_mut(x, n, 1),
-                    solve_parallelism(n),
-                    MemStack::new(&mut factor.work),
+                solve_with_factor(
+                    &factor.symbolic,
+                    &factor.l,
+                    factor.tree.as_ref(),
+                    &mut factor.tree_work,
+                    &mut factor.work,
+                    x,
                 );
                 Ok(kept.stats(start, 1 + kept.abandoned))
             }
@@ -894,31 +899,36 @@ pub const PARALLEL_FACTOR_MIN_DOFS: usize = 20_000;
 
 /// faer's parallelism for factorising `n` free dofs (see [`PARALLEL_FACTOR_MIN_DOFS`]).
 fn factor_parallelism(n: usize) -> Par {
-    all_threads_from(n, PARALLEL_FACTOR_MIN_DOFS)
-}
-
-/// All threads for a system of `n` free dofs from `min_dofs` on, one below.
-fn all_threads_from(n: usize, min_dofs: usize) -> Par {
-    if n >= min_dofs {
+    if n >= PARALLEL_FACTOR_MIN_DOFS {
         Par::rayon(0)
     } else {
         Par::Seq
     }
 }
 
-/// Triangular solves with the factor run on all threads from this many free dofs. Below, the
-/// synchronisation of faer's parallel supernodal solve costs more than the second core gives
-/// (the solve streams the factor from memory once per direction). Measured on 2 cores: a
-/// double-precision solve at 56 862 dofs 0.127 s sequential against 0.131–0.137 s parallel,
-/// at 160 284 dofs 0.56 against 0.48 s (`icefem bench --tets 100000,300000 --steps 3
-/// --repeats 1`, solve/step = 2 solves); the single-precision solves inside CG on the 1e5-tet
-/// freezing container (59 049 dofs, steps 91–102) 0.535 instead of 0.635 s a step.
-pub const PARALLEL_SOLVE_MIN_DOFS: usize = 100_000;
-
-/// faer's parallelism for a triangular solve with the factor of `n` free dofs (see
-/// [`PARALLEL_SOLVE_MIN_DOFS`]).
-fn solve_parallelism(n: usize) -> Par {
-    all_threads_from(n, PARALLEL_SOLVE_MIN_DOFS)
+/// Solves L Lᵀ x = `x` in place with the factor `l` of `symbolic`: tree-parallel when there is
+/// a `tree` plan ([`tree_solve`]), else faer's solve on one thread (its parallel solve shares
+/// only each supernode's dense kernels, too small for one right-hand side).
+fn solve_with_factor<T: FactorScalar>(
+    symbolic: &SymbolicCholesky<usize>,
+    l: &[T],
+    tree: Option<&TreeSolve>,
+    tree_work: &mut TreeWork<T>,
+    faer_work: &mut MemBuffer,
+    x: &mut [T],
+) {
+    match tree {
+        Some(plan) => tree_solve::solve_in_place(symbolic, l, plan, tree_work, x),
+        None => {
+            let n = x.len();
+            LltRef::new(symbolic, l).solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(x, n, 1),
+                Par::Seq,
+                MemStack::new(faer_work),
+            );
+        }
+    }
 }
 
 /// Factorises the matrix with `values`: in single precision if `reuse` keeps its factor so
@@ -993,16 +1003,23 @@ fn solve_with_kept_factor(
             forcing,
             ..
         } = &mut *r;
-        let factor = match (precision, single.work.as_mut()) {
-            (FactorPrecision::Single, Some(single_work)) => Factor::Single {
-                l: LltRef::new(&direct.symbolic, &single.l),
+        let factor_values = match (precision, single.work.as_mut()) {
+            (FactorPrecision::Single, Some(single_work)) => FactorValues::Single {
+                l: &single.l,
                 rhs: &mut single.rhs,
+                tree_work: &mut single.tree_work,
                 work: single_work,
             },
-            _ => Factor::Double {
-                l: LltRef::new(&direct.symbolic, &direct.l),
+            _ => FactorValues::Double {
+                l: &direct.l,
+                tree_work: &mut direct.tree_work,
                 work: &mut direct.work,
             },
+        };
+        let factor = Factor {
+            symbolic: &direct.symbolic,
+            tree: direct.tree.as_ref(),
+            values: factor_values,
         };
         let result = pcg(
             &mut FactorOperators {
@@ -1071,6 +1088,10 @@ pub struct DirectFactor {
     /// single precision never needs them).
     l: Vec<f64>,
     work: MemBuffer,
+    /// How triangular solves share the elimination tree between threads (`None`: faer's
+    /// solve on one thread).
+    tree: Option<TreeSolve>,
+    tree_work: TreeWork<f64>,
     /// The matrix values the current factor was computed from (empty before the first, and
     /// after a failed factorisation).
     factored: Vec<f64>,
@@ -1112,16 +1133,26 @@ impl DirectFactor {
     }
 }
 
-/// A Cholesky factor applied as a preconditioner, with its solve's scratch.
-enum Factor<'a> {
+/// A Cholesky factor applied as a preconditioner: its symbolic part and tree plan, its values
+/// and their solve's buffers.
+struct Factor<'a> {
+    symbolic: &'a SymbolicCholesky<usize>,
+    tree: Option<&'a TreeSolve>,
+    values: FactorValues<'a>,
+}
+
+/// The values of a [`Factor`], in the precision it was computed in.
+enum FactorValues<'a> {
     Double {
-        l: LltRef<'a, usize, f64>,
+        l: &'a [f64],
+        tree_work: &'a mut TreeWork<f64>,
         work: &'a mut MemBuffer,
     },
     /// Solved in f32: the residual is rounded to f32 and the result widened back.
     Single {
-        l: LltRef<'a, usize, f32>,
+        l: &'a [f32],
         rhs: &'a mut [f32],
+        tree_work: &'a mut TreeWork<f32>,
         work: &'a mut MemBuffer,
     },
 }
@@ -1139,20 +1170,26 @@ impl PcgOperators for FactorOperators<'_> {
         symmetric_multiply(self.assembly, self.values, x, y);
     }
     fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
-        let n = z.len();
-        let par = solve_parallelism(n);
-        match &mut self.factor {
-            Factor::Double { l, work } => {
+        let Factor {
+            symbolic,
+            tree,
+            values,
+        } = &mut self.factor;
+        match values {
+            FactorValues::Double { l, tree_work, work } => {
                 z.copy_from_slice(r);
-                let z = MatMut::from_column_major_slice_mut(z, n, 1);
-                l.solve_in_place_with_conj(Conj::No, z, par, MemStack::new(work));
+                solve_with_factor(symbolic, l, *tree, tree_work, work, z);
             }
-            Factor::Single { l, rhs, work } => {
+            FactorValues::Single {
+                l,
+                rhs,
+                tree_work,
+                work,
+            } => {
                 for (s, &r) in rhs.iter_mut().zip(r) {
                     *s = r as f32;
                 }
-                let s = MatMut::from_column_major_slice_mut(rhs, n, 1);
-                l.solve_in_place_with_conj(Conj::No, s, par, MemStack::new(work));
+                solve_with_factor(symbolic, l, *tree, tree_work, work, rhs);
                 for (z, &s) in z.iter_mut().zip(rhs.iter()) {
                     *z = f64::from(s);
                 }

@@ -6,6 +6,7 @@ pub mod newton;
 pub mod ordering;
 pub mod pcg;
 pub mod timestep;
+pub mod tree_solve;
 
 pub use linear::{
     FactorPrecision, IterativeSettings, LinearError, LinearSolver, LinearSolverKind, LinearStats,
