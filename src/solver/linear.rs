@@ -67,7 +67,8 @@ pub struct IterativeSettings {
 /// A preconditioner need not be exact, and single precision halves the bytes a triangular
 /// solve reads and cuts the factorisation's time by a third (measured on the 1e5-tet freezing
 /// container, 59 049 dofs, 4.6e7 entries in L, 2 cores: 0.70 instead of 1.05–1.1 s per
-/// factorisation, 0.045 instead of 0.07 s per CG iteration, with the same CG iteration counts).
+/// factorisation, 0.045 instead of 0.07 s per CG iteration with faer's one-thread solves, with the same CG
+/// iteration counts).
 /// CG itself runs in double precision on the exact matrix, so the solution is as accurate as
 /// asked. Single precision can fail where the matrix is too ill-conditioned for 24-bit
 /// mantissas (a non-positive pivot, or a fresh factor that cannot bring CG to the tolerance);
@@ -84,10 +85,12 @@ pub enum FactorPrecision {
 /// A reused Cholesky factor is refreshed on the next Hessian refresh once a CG solve
 /// preconditioned by it needed more than this many iterations per decade of residual
 /// reduction (see [`reuse_iteration_budget`]): each costs one pair of triangular solves and a
-/// product with the matrix, a fresh factorisation about as much as 15 of them on the 1e5-tet
-/// freezing container (single precision: 0.70 s against 0.045 s), and a step makes a few
-/// solves with the same factor. There a factor from the step before reaches Newton's first
-/// forcing ([`FORCING_MAX`], 3 decades) in 1–13 iterations, typically 5.
+/// product with the matrix, a fresh factorisation about as much as 25–30 of them on the 1e5-tet
+/// freezing container (single precision: 0.8 s against 0.028 s with the tree-parallel solves),
+/// and a step makes a few solves with the same factor. There a factor from the step before
+/// reaches Newton's first forcing ([`FORCING_MAX`], 3 decades) in 1–13 iterations, typically 5.
+/// Steps 91–102 of that scene (resumed from step 90, two runs each): 14.1 s with 5, 14.2–15.0 s
+/// with 7, 14.8–16.2 s with 10 iterations per decade.
 pub const FACTOR_REUSE_ITERATIONS_PER_DECADE: f64 = 5.0;
 
 /// CG iterations a reused factor may take to reach the relative residual `forcing` before it
