@@ -67,8 +67,8 @@ pub struct IterativeSettings {
 /// A preconditioner need not be exact, and single precision halves the bytes a triangular
 /// solve reads and cuts the factorisation's time by a third (measured on the 1e5-tet freezing
 /// container, 59 049 dofs, 4.6e7 entries in L, 2 cores: 0.70 instead of 1.05–1.1 s per
-/// factorisation, 0.045 instead of 0.07 s per CG iteration with faer's one-thread solves, with the same CG
-/// iteration counts).
+/// factorisation, 0.045 instead of 0.07 s per CG iteration with faer's one-thread solves,
+/// with the same CG iteration counts).
 /// CG itself runs in double precision on the exact matrix, so the solution is as accurate as
 /// asked. Single precision can fail where the matrix is too ill-conditioned for 24-bit
 /// mantissas (a non-positive pivot, or a fresh factor that cannot bring CG to the tolerance);
@@ -616,7 +616,9 @@ impl LinearSolver {
                     MemBuffer::try_new(req).map_err(|e| LinearError::Faer(format!("{e:?}")))?;
                 Ok(LinearSolver::Cholesky {
                     factor: DirectFactor {
-                        tree: TreeSolve::new(&symbolic, rayon::current_num_threads()),
+                        tree: (n >= TREE_SOLVE_MIN_DOFS)
+                            .then(|| TreeSolve::new(&symbolic, rayon::current_num_threads()))
+                            .flatten(),
                         symbolic,
                         // Allocated by the first double-precision factorisation.
                         l: Vec::new(),
@@ -899,6 +901,13 @@ impl LinearSolver {
 /// 6.1 instead of 10.5 s at 160 284, but 0.033 instead of 0.022 s at 6 084, where the
 /// supernodes are too small to share.
 pub const PARALLEL_FACTOR_MIN_DOFS: usize = 20_000;
+
+/// Triangular solves share the elimination tree between threads ([`tree_solve`]) from this
+/// many free dofs; below, the copies and the hand-over between threads cost more than the
+/// second core gives. Two f64 solves per step (`icefem bench --tets 1000,10000,30000 --steps 3`,
+/// 2 cores, medians of 3, faer's one-thread solve / the tree solve): 0.0001 / 0.0004 s at 882
+/// dofs, 0.0029 / 0.0043 s at 6 084, 0.022 / 0.014 s at 16 524, 0.13 / 0.085 s at 56 862.
+pub const TREE_SOLVE_MIN_DOFS: usize = 10_000;
 
 /// faer's parallelism for factorising `n` free dofs (see [`PARALLEL_FACTOR_MIN_DOFS`]).
 fn factor_parallelism(n: usize) -> Par {
