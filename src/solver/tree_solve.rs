@@ -20,9 +20,9 @@ use faer::linalg::triangular_solve::{
 use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
 use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
-use faer::{Accum, MatMut, Par};
+use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
-use std::ops::{AddAssign, Neg, Range, SubAssign};
+use std::ops::{AddAssign, Neg, SubAssign};
 
 /// The element type of a factor solved here (f32 or f64).
 pub trait FactorScalar:
@@ -53,8 +53,6 @@ pub struct TreeSolve {
     /// Per thread, the supernodes of its subtrees in increasing order (faer numbers a parent
     /// after its children, so that is an order of elimination).
     bins: Vec<Vec<usize>>,
-    /// Per thread, the columns it owns (its supernodes' column ranges).
-    owned: Vec<Vec<Range<usize>>>,
     /// Per column, the thread that owns it, or [`TOP`].
     owner: Vec<u32>,
     /// Supernodes above all the subtrees, in increasing order.
@@ -122,14 +120,12 @@ impl TreeSolve {
         let end = sn.supernode_end();
         let mut owner = vec![TOP; sn.nrows()];
         let mut bins = Vec::with_capacity(threads);
-        let mut owned = Vec::with_capacity(threads);
         for (b, roots) in roots.iter().enumerate() {
             let mut supernodes = tree.descendants(roots);
             supernodes.sort_unstable();
             for &s in &supernodes {
                 owner[begin[s]..end[s]].fill(b as u32);
             }
-            owned.push(supernodes.iter().map(|&s| begin[s]..end[s]).collect());
             bins.push(supernodes);
         }
         let max_pattern = (0..sn.n_supernodes())
@@ -138,7 +134,6 @@ impl TreeSolve {
             .unwrap_or(0);
         Some(TreeSolve {
             bins,
-            owned,
             owner,
             top,
             max_pattern,
@@ -300,10 +295,8 @@ pub fn solve_in_place<T: FactorScalar>(
                 );
             }
         });
-    for (mine, owned) in work.threads.iter().zip(&plan.owned) {
-        for columns in owned {
-            work.x[columns.clone()].copy_from_slice(&mine.x[columns.clone()]);
-        }
+    copy_owned_rows(sn, plan, work);
+    for mine in &work.threads {
         for (x, &c) in work.x.iter_mut().zip(&mine.contribution) {
             *x -= c;
         }
@@ -326,11 +319,7 @@ pub fn solve_in_place<T: FactorScalar>(
                 backward(&l, s, &mut mine.x, &mut mine.gather);
             }
         });
-    for (mine, owned) in work.threads.iter().zip(&plan.owned) {
-        for columns in owned {
-            work.x[columns.clone()].copy_from_slice(&mine.x[columns.clone()]);
-        }
-    }
+    copy_owned_rows(sn, plan, work);
 
     match symbolic.perm() {
         Some(perm) => {
@@ -340,6 +329,32 @@ pub fn solve_in_place<T: FactorScalar>(
         }
         None => rhs.copy_from_slice(&work.x),
     }
+}
+
+/// Copies into `work.x` the rows each thread owns from that thread's copy.
+fn copy_owned_rows<T: Copy>(
+    sn: &SymbolicSupernodalCholesky<usize>,
+    plan: &TreeSolve,
+    work: &mut TreeWork<T>,
+) {
+    let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+    for (mine, supernodes) in work.threads.iter().zip(&plan.bins) {
+        for &s in supernodes {
+            work.x[begin[s]..end[s]].copy_from_slice(&mine.x[begin[s]..end[s]]);
+        }
+    }
+}
+
+/// Supernode `s` of `l`: its first column, off-diagonal rows, and the diagonal and
+/// below-diagonal blocks of its columns.
+fn blocks<'a, T>(
+    l: &SupernodalLltRef<'a, usize, T>,
+    s: usize,
+) -> (usize, &'a [usize], MatRef<'a, T>, MatRef<'a, T>) {
+    let node = l.supernode(s);
+    let matrix = node.val();
+    let (diagonal, below) = matrix.split_at_row(matrix.ncols());
+    (node.start(), node.pattern(), diagonal, below)
 }
 
 /// Forward substitution through supernode `s` of thread `me`: x_s ← L_ss⁻¹ x_s, then the rows
@@ -354,14 +369,10 @@ fn forward<T: FactorScalar>(
     gather: &mut [T],
     contribution: &mut [T],
 ) {
-    let node = l.supernode(s);
-    let matrix = node.val();
-    let size = matrix.ncols();
-    let (diagonal, below) = matrix.split_at_row(size);
-    let start = node.start();
+    let (start, pattern, diagonal, below) = blocks(l, s);
+    let size = diagonal.ncols();
     let mut xs = MatMut::from_column_major_slice_mut(&mut x[start..start + size], size, 1);
     solve_lower_triangular_in_place(diagonal, xs.rb_mut(), Par::Seq);
-    let pattern = node.pattern();
     let gather = &mut gather[..pattern.len()];
     matmul(
         MatMut::from_column_major_slice_mut(gather, pattern.len(), 1),
@@ -388,16 +399,12 @@ fn backward<T: FactorScalar>(
     x: &mut [T],
     gather: &mut [T],
 ) {
-    let node = l.supernode(s);
-    let matrix = node.val();
-    let size = matrix.ncols();
-    let (diagonal, below) = matrix.split_at_row(size);
-    let pattern = node.pattern();
+    let (start, pattern, diagonal, below) = blocks(l, s);
+    let size = diagonal.ncols();
     let gather = &mut gather[..pattern.len()];
     for (g, &row) in gather.iter_mut().zip(pattern) {
         *g = x[row];
     }
-    let start = node.start();
     let mut xs = MatMut::from_column_major_slice_mut(&mut x[start..start + size], size, 1);
     matmul(
         xs.rb_mut(),
