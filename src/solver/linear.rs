@@ -5,6 +5,7 @@
 //! steps while it stays effective).
 
 use super::amg::{Amg, AmgError, AmgInfo};
+use super::low_rank::LowRankCorrection;
 use super::ordering::{nested_dissection, FillOrdering};
 use super::pcg::{pcg, symmetric_multiply, PcgFailure, PcgOperators, PcgWork};
 use super::tree_solve::{self, FactorScalar, TreeSolve, TreeWork};
@@ -153,6 +154,9 @@ pub struct FactorReuse {
     precision: FactorPrecision,
     /// The single-precision factor and its work space (empty in double precision).
     single: SingleFactor,
+    /// Exact treatment of the few entries that changed by a large factor since the
+    /// factorisation (contacts switching on or off).
+    correction: LowRankCorrection,
     work: PcgWork,
 }
 
@@ -184,6 +188,7 @@ impl FactorReuse {
             probe_period: 1,
             precision: settings.factor_precision,
             single: SingleFactor::default(),
+            correction: LowRankCorrection::default(),
             work: PcgWork::new(n),
         }
     }
@@ -278,6 +283,7 @@ impl FactorReuse {
         self.stale = false;
         self.refresh_due = false;
         self.age = 0;
+        self.correction.clear();
     }
 }
 
@@ -1013,6 +1019,7 @@ fn solve_with_kept_factor(
             work: pcg_work,
             precision,
             forcing,
+            correction,
             ..
         } = &mut *r;
         let factor_values = match (precision, single.work.as_mut()) {
@@ -1033,12 +1040,20 @@ fn solve_with_kept_factor(
             tree: direct.tree.as_ref(),
             values: factor_values,
         };
+        let mut operators = FactorOperators {
+            assembly,
+            values,
+            factor,
+            correction: None,
+        };
+        if !fresh {
+            correction.update(assembly, values, &direct.factored, |x| {
+                operators.factor.solve_columns(x)
+            });
+            operators.correction = Some(correction);
+        }
         let result = pcg(
-            &mut FactorOperators {
-                assembly,
-                values,
-                factor,
-            },
+            &mut operators,
             b,
             x,
             *forcing,
@@ -1153,6 +1168,77 @@ struct Factor<'a> {
     values: FactorValues<'a>,
 }
 
+impl Factor<'_> {
+    /// z ← (L Lᵀ)⁻¹ r.
+    fn solve(&mut self, r: &[f64], z: &mut [f64]) {
+        let Factor {
+            symbolic,
+            tree,
+            values,
+        } = self;
+        match values {
+            FactorValues::Double { l, tree_work, work } => {
+                z.copy_from_slice(r);
+                solve_with_factor(symbolic, l, *tree, tree_work, work, z);
+            }
+            FactorValues::Single {
+                l,
+                rhs,
+                tree_work,
+                work,
+            } => {
+                for (s, &r) in rhs.iter_mut().zip(r) {
+                    *s = r as f32;
+                }
+                solve_with_factor(symbolic, l, *tree, tree_work, work, rhs);
+                for (z, &s) in z.iter_mut().zip(rhs.iter()) {
+                    *z = f64::from(s);
+                }
+            }
+        }
+    }
+
+    /// X ← (L Lᵀ)⁻¹ X for an n × k column-major block `x`: faer's supernodal solve with k
+    /// right-hand sides on all threads (its dense kernels are matrix products then, so this
+    /// is much cheaper per column than k single solves).
+    fn solve_columns(&mut self, x: &mut [f64]) {
+        let n = self.symbolic.nrows();
+        let k = x.len() / n;
+        let par = Par::rayon(0);
+        let Ok(mut scratch) =
+            MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<f64>(k, par))
+        else {
+            // Out of memory for the block: one column at a time in the buffers at hand.
+            for column in x.chunks_exact_mut(n) {
+                let r = column.to_vec();
+                self.solve(&r, column);
+            }
+            return;
+        };
+        match &self.values {
+            FactorValues::Double { l, .. } => LltRef::new(self.symbolic, l)
+                .solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(x, n, k),
+                    par,
+                    MemStack::new(&mut scratch),
+                ),
+            FactorValues::Single { l, .. } => {
+                let mut block: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+                LltRef::new(self.symbolic, l).solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(&mut block, n, k),
+                    par,
+                    MemStack::new(&mut scratch),
+                );
+                for (x, &b) in x.iter_mut().zip(&block) {
+                    *x = f64::from(b);
+                }
+            }
+        }
+    }
+}
+
 /// The values of a [`Factor`], in the precision it was computed in.
 enum FactorValues<'a> {
     Double {
@@ -1175,6 +1261,8 @@ struct FactorOperators<'a> {
     assembly: &'a Assembly,
     values: &'a [f64],
     factor: Factor<'a>,
+    /// Applied after the factor's solve, if any.
+    correction: Option<&'a mut LowRankCorrection>,
 }
 
 impl PcgOperators for FactorOperators<'_> {
@@ -1182,30 +1270,9 @@ impl PcgOperators for FactorOperators<'_> {
         symmetric_multiply(self.assembly, self.values, x, y);
     }
     fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
-        let Factor {
-            symbolic,
-            tree,
-            values,
-        } = &mut self.factor;
-        match values {
-            FactorValues::Double { l, tree_work, work } => {
-                z.copy_from_slice(r);
-                solve_with_factor(symbolic, l, *tree, tree_work, work, z);
-            }
-            FactorValues::Single {
-                l,
-                rhs,
-                tree_work,
-                work,
-            } => {
-                for (s, &r) in rhs.iter_mut().zip(r) {
-                    *s = r as f32;
-                }
-                solve_with_factor(symbolic, l, *tree, tree_work, work, rhs);
-                for (z, &s) in z.iter_mut().zip(rhs.iter()) {
-                    *z = f64::from(s);
-                }
-            }
+        self.factor.solve(r, z);
+        if let Some(correction) = &mut self.correction {
+            correction.apply(z);
         }
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod amg;
 pub mod linear;
+pub mod low_rank;
 pub mod newton;
 pub mod ordering;
 pub mod pcg;
