@@ -17,6 +17,7 @@
 //! the factor's life) and H = Eᵀ Y. G is re-read from the current matrix at every solve, so a
 //! dof that changes further costs nothing more.
 
+use super::linear::LinearError;
 use crate::assembly::Assembly;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
@@ -26,9 +27,11 @@ use rayon::prelude::*;
 pub const LARGE_CHANGE_RATIO: f64 = 2.0;
 
 /// At most this many corrected dofs per factor: each costs one triangular solve to set up and
-/// an axpy of the system's length per CG iteration, and a factorisation of the 1e5-tet
-/// container (0.8 s) costs about as much as 48 single-precision solves. Beyond it the factor
-/// is left to age, and CG's iteration budget replaces it.
+/// an axpy of the system's length per CG iteration, and the longer a factor lives the more the
+/// small changes it leaves to CG add up. Steps 91–102 of the 1e5-tet container (resumed from
+/// step 90, same hour): 10.7 s with 48 (the factor lasts 8 steps), 11.3 s with 96 (11 steps,
+/// 26 more CG and 4 more Newton iterations). Beyond it CG's iteration budget replaces the
+/// factor.
 pub const MAX_CORRECTED_DOFS: usize = 48;
 
 /// Rows per parallel chunk of the correction's update of z.
@@ -63,14 +66,15 @@ impl LowRankCorrection {
     /// factor of `factored`: adds the dofs whose diagonal changed by more than
     /// [`LARGE_CHANGE_RATIO`] (up to [`MAX_CORRECTED_DOFS`]), computing their columns of F⁻¹
     /// in one call of `solve_factor` (an n × k column-major block, X ← F⁻¹ X), and recomputes
-    /// the gain from the current values.
+    /// the gain from the current values. An error of `solve_factor` is returned, the
+    /// correction left as it was.
     pub fn update(
         &mut self,
         assembly: &Assembly,
         values: &[f64],
         factored: &[f64],
-        solve_factor: impl FnOnce(&mut [f64]),
-    ) {
+        solve_factor: impl FnOnce(&mut [f64]) -> Result<(), LinearError>,
+    ) -> Result<(), LinearError> {
         let s = assembly.symbolic();
         let n = s.nrows();
         if self.selected.len() != n {
@@ -113,7 +117,15 @@ impl LowRankCorrection {
             for (j, &d) in self.dofs[first_new..].iter().enumerate() {
                 self.y[start + j * n + d] = 1.0;
             }
-            solve_factor(&mut self.y[start..]);
+            if let Err(e) = solve_factor(&mut self.y[start..]) {
+                // No half-made columns: the correction stays as it was.
+                for &d in &self.dofs[first_new..] {
+                    self.selected[d] = false;
+                }
+                self.dofs.truncate(first_new);
+                self.y.truncate(start);
+                return Err(e);
+            }
         }
         let m = self.dofs.len();
         let g = DMatrix::from_fn(m, m, |a, b| {
@@ -130,6 +142,7 @@ impl LowRankCorrection {
             .unwrap_or_else(|| DMatrix::zeros(m, m));
         self.z_s.resize(m, 0.0);
         self.update.resize(m, 0.0);
+        Ok(())
     }
 
     /// z ← z − Y · gain · z[S]: turns z = F⁻¹ r into (F + E G Eᵀ)⁻¹ r.
