@@ -5,9 +5,9 @@
 //! A = F + Δ, F the factored matrix. Most of Δ is small relative to F — a freezing band, the
 //! friction stiffness growing with the wall pressure — and leaves the preconditioned spectrum
 //! clustered at 1; but a contact switching on or off changes a handful of diagonal entries by
-//! orders of magnitude (k A = 3.4e9 N/m against ~1e7 N/m of the ice around a node), and each
-//! such entry is an outlying eigenvalue that costs CG about one iteration in every solve
-//! until the factor is replaced. Measured on the 1e5-tet freezing container (steps 91–102):
+//! orders of magnitude (k A = 3.4e9 N/m, some 400× the stiffness of the water nodes they
+//! hold), and each such entry is an outlying eigenvalue that costs CG about one iteration in
+//! every solve until the factor is replaced. Measured on the 1e5-tet freezing container (steps 91–102):
 //! a factor one step old sees ~21 000 diagonal entries changed by more than 1 %, but only 6–24
 //! by more than a factor 2 — and those 6–24 are the same set at 50 %, 100 % and 1000 %.
 //!
@@ -80,6 +80,11 @@ impl LowRankCorrection {
         if self.selected.len() != n {
             self.clear();
             self.selected = vec![false; n];
+        }
+        if factored.len() != values.len() {
+            // No record of the factored matrix (a failed factorisation): nothing to correct.
+            self.clear();
+            return Ok(());
         }
         let entry = |row: usize, col: usize| -> Option<usize> {
             let range = s.col_range(col);
