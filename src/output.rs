@@ -179,6 +179,9 @@ pub struct StepStats {
     pub dt: f64,
     /// Newton iterations taken by the step.
     pub newton_iterations: u32,
+    /// Newton solves the step took: one per substep, plus one per re-solve after friction's
+    /// normal force was re-lagged or a mesh obstacle's planes were re-picked.
+    pub newton_solves: u32,
     /// Linear-solver iterations summed over the step (one per Newton iteration for Cholesky).
     pub linear_iterations: u32,
     /// Numeric factorisations or multigrid set-ups in the step (Hessian refreshes, and those a
@@ -233,7 +236,7 @@ enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-const STATS_COLUMNS: [(&str, StatsColumn); 24] = [
+const STATS_COLUMNS: [(&str, StatsColumn); 25] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -241,6 +244,7 @@ const STATS_COLUMNS: [(&str, StatsColumn); 24] = [
         "newton_iterations",
         StatsColumn::U32(|s| s.newton_iterations),
     ),
+    ("newton_solves", StatsColumn::U32(|s| s.newton_solves)),
     (
         "linear_iterations",
         StatsColumn::U32(|s| s.linear_iterations),
@@ -489,17 +493,7 @@ impl OutputWriter {
             .create_group("stats")
             .ctx(path, || "creating /stats".into())?;
         for (name, col) in STATS_COLUMNS {
-            let builder = stats.new_dataset_builder();
-            let builder = match col {
-                StatsColumn::U64(_) => builder.empty::<u64>(),
-                StatsColumn::U32(_) => builder.empty::<u32>(),
-                StatsColumn::F64(_) => builder.empty::<f64>(),
-            };
-            builder
-                .shape(0..)
-                .chunk(STATS_CHUNK_ROWS)
-                .create(name)
-                .ctx(path, || format!("creating /stats/{name}"))?;
+            create_stats_column(path, &stats, name, col)?;
         }
         file.flush().ctx(path, || "flushing the header".into())?;
 
@@ -898,14 +892,51 @@ impl Drop for OutputWriter {
     }
 }
 
-/// Truncates `/stats` for `resume`; returns the row count kept.
+/// Creates the empty, extendable `/stats/{name}` column.
+fn create_stats_column(
+    path: &Path,
+    stats: &Group,
+    name: &str,
+    col: StatsColumn,
+) -> Result<Dataset, OutputError> {
+    let builder = stats.new_dataset_builder();
+    let builder = match col {
+        StatsColumn::U64(_) => builder.empty::<u64>(),
+        StatsColumn::U32(_) => builder.empty::<u32>(),
+        StatsColumn::F64(_) => builder.empty::<f64>(),
+    };
+    builder
+        .shape(0..)
+        .chunk(STATS_CHUNK_ROWS)
+        .create(name)
+        .ctx(path, || format!("creating /stats/{name}"))
+}
+
+/// Truncates `/stats` for `resume`; returns the row count kept. A column the file lacks
+/// (written before the column existed) is created with 0 in every row it has.
 fn truncate_stats(path: &Path, file: &File, last_step: u64) -> Result<usize, OutputError> {
     let stats = file.group("stats").ctx(path, || "opening /stats".into())?;
+    let rows = stats
+        .dataset("step")
+        .ctx(path, || "opening /stats/step".into())?
+        .shape()
+        .first()
+        .copied()
+        .unwrap_or(0);
     let mut columns = Vec::with_capacity(STATS_COLUMNS.len());
-    for (name, _) in STATS_COLUMNS {
-        let ds = stats
-            .dataset(name)
-            .ctx(path, || format!("opening /stats/{name}"))?;
+    for (name, col) in STATS_COLUMNS {
+        let ds = if stats.link_exists(name) {
+            stats
+                .dataset(name)
+                .ctx(path, || format!("opening /stats/{name}"))?
+        } else {
+            let ds = create_stats_column(path, &stats, name, col)?;
+            // Rows beyond the old extent read as the fill value, 0.
+            ds.resize(rows).ctx(path, || {
+                format!("sizing the new /stats/{name} to {rows} rows")
+            })?;
+            ds
+        };
         let shape = ds.shape();
         if shape.len() != 1 {
             return Err(corrupt(
@@ -1974,6 +2005,7 @@ mod tests {
             time: step as f64 * 1e-3,
             dt: 1e-3,
             newton_iterations: 3,
+            newton_solves: 2,
             linear_iterations: 7,
             factorizations: 2,
             substeps: 1,
@@ -2427,6 +2459,50 @@ mod tests {
         assert_eq!(tok("frames/000002/tets"), tok("mesh/tets"));
         let after = describe(&path).unwrap();
         assert!(after.contains("3 complete, 0 incomplete"), "{after}");
+    }
+
+    #[test]
+    fn resume_adds_a_stats_column_the_file_lacks() {
+        // A file written before `/stats/newton_solves` existed: resuming creates the column
+        // with 0 in the rows already there, and the resumed steps fill in their values.
+        let _guard = hdf5_guard();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("older.h5");
+        let (p, t) = mesh();
+        let mut w = OutputWriter::create(&path, &header(&p, &t)).unwrap();
+        for step in 0..=10 {
+            w.append_stats(&stats(step)).unwrap();
+        }
+        write(&mut w, 1, &frame_data(1, &p, &t), false);
+        w.finish().unwrap();
+        File::open_rw(&path)
+            .unwrap()
+            .group("stats")
+            .unwrap()
+            .unlink("newton_solves")
+            .unwrap();
+
+        let (mut w, rf) = OutputWriter::resume(&path).unwrap();
+        assert_eq!(rf.step, 10);
+        for step in 11..=12 {
+            w.append_stats(&stats(step)).unwrap();
+        }
+        w.finish().unwrap();
+        let f = File::open(&path).unwrap();
+        let solves = f
+            .dataset("stats/newton_solves")
+            .unwrap()
+            .read_raw::<u32>()
+            .unwrap();
+        let mut expected = vec![0; 11];
+        expected.extend([2, 2]);
+        assert_eq!(solves, expected);
+        for (name, _) in STATS_COLUMNS {
+            assert_eq!(
+                f.dataset(&format!("stats/{name}")).unwrap().shape(),
+                vec![13]
+            );
+        }
     }
 
     #[test]

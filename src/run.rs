@@ -180,6 +180,7 @@ fn stats_row(
         time: sim.state.time,
         dt: sim.settings.dt,
         newton_iterations: n.iterations as u32,
+        newton_solves: report.newton_solves,
         linear_iterations: n.linear_iterations as u32,
         factorizations: n.factorizations as u32,
         substeps: report.substeps,

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Time per step of a run written by `icefem run`, from its /stats table: for each range of
-steps, the median, mean and largest wall time of a step, and the Newton iterations, linear
-(CG) iterations and factorisations per step (medians), with the time split into assembly,
-factorisation and solve (means). Prints a markdown table.
+steps, the median, mean and largest wall time of a step, and the Newton iterations, Newton
+solves (the step's and its friction re-solves; files written before /stats/newton_solves
+existed: "–"), linear (CG) iterations and factorisations per step (medians), with the time
+split into assembly, factorisation and solve (means). Prints a markdown table.
 
     validation/.venv/bin/python validation/step_times.py RUN.h5 [--ranges 1-38,39-51,52-90]
 
@@ -42,9 +43,9 @@ def main():
         cuts = np.linspace(step.min(), last + 1, 4).astype(int)
         ranges = [(int(cuts[i]), int(cuts[i + 1]) - 1) for i in range(3)]
     ranges.append((int(step.min()), last))
-    print("| steps | n | step median (s) | mean (s) | max (s) | Newton it. | CG it. "
-          "| factorisations | assembly / factorisation / solve, mean (s) |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| steps | n | step median (s) | mean (s) | max (s) | Newton it. | Newton solves "
+          "| CG it. | factorisations | assembly / factorisation / solve, mean (s) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for a, b in ranges:
         sel = (step >= a) & (step <= b)
         if not sel.any():
@@ -53,8 +54,11 @@ def main():
         med = lambda k: np.median(stats[k][sel])
         mean = lambda k: stats[k][sel].mean()
         label = f"{a}–{b}" if (a, b) != ranges[-1] else f"all ({a}–{b})"
+        # Rows from before the column existed hold 0 (a step always takes one solve).
+        solves = stats.get("newton_solves", np.zeros_like(step))[sel]
+        solves = f"{np.median(solves):g}" if (solves > 0).all() else "–"
         print(f"| {label} | {sel.sum()} | {np.median(t):.3f} | {t.mean():.3f} | {t.max():.2f} "
-              f"| {med('newton_iterations'):g} | {med('linear_iterations'):g} "
+              f"| {med('newton_iterations'):g} | {solves} | {med('linear_iterations'):g} "
               f"| {med('factorizations'):g} (total {int(stats['factorizations'][sel].sum())}) "
               f"| {mean('t_assembly'):.3f} / {mean('t_factorization'):.3f} / {mean('t_solve'):.3f} |")
 
