@@ -938,16 +938,26 @@ fn solve_with_factor<T: FactorScalar>(
 ) {
     match tree {
         Some(plan) => tree_solve::solve_in_place(symbolic, l, plan, tree_work, x),
-        None => {
-            let n = x.len();
-            LltRef::new(symbolic, l).solve_in_place_with_conj(
-                Conj::No,
-                MatMut::from_column_major_slice_mut(x, n, 1),
-                Par::Seq,
-                MemStack::new(faer_work),
-            );
-        }
+        None => faer_solve(symbolic, l, faer_work, x),
     }
+}
+
+/// X ← (L Lᵀ)⁻¹ X by faer's supernodal solve on this thread, for an n × k column-major block
+/// `x` (k = 1: one vector); `work` must hold faer's scratch for k columns.
+fn faer_solve<T: FactorScalar>(
+    symbolic: &SymbolicCholesky<usize>,
+    l: &[T],
+    work: &mut MemBuffer,
+    x: &mut [T],
+) {
+    let n = symbolic.nrows();
+    let k = x.len() / n;
+    LltRef::new(symbolic, l).solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(x, n, k),
+        Par::Seq,
+        MemStack::new(work),
+    );
 }
 
 /// Factorises the matrix with `values`: in single precision if `reuse` keeps its factor so
@@ -1227,22 +1237,16 @@ impl Factor<'_> {
     }
 }
 
-/// X ← (L Lᵀ)⁻¹ X for an n × k column-major block, on this thread.
+/// X ← (L Lᵀ)⁻¹ X for an n × k column-major block, on this thread, with scratch of its own.
 fn solve_block<T: FactorScalar>(
     symbolic: &SymbolicCholesky<usize>,
     l: &[T],
     x: &mut [T],
 ) -> Result<(), LinearError> {
-    let n = symbolic.nrows();
-    let k = x.len() / n;
+    let k = x.len() / symbolic.nrows();
     let mut scratch = MemBuffer::try_new(symbolic.solve_in_place_scratch::<T>(k, Par::Seq))
         .map_err(|e| LinearError::Faer(format!("{e:?}")))?;
-    LltRef::new(symbolic, l).solve_in_place_with_conj(
-        Conj::No,
-        MatMut::from_column_major_slice_mut(x, n, k),
-        Par::Seq,
-        MemStack::new(&mut scratch),
-    );
+    faer_solve(symbolic, l, &mut scratch, x);
     Ok(())
 }
 

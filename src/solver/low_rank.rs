@@ -75,8 +75,7 @@ impl LowRankCorrection {
         factored: &[f64],
         solve_factor: impl FnOnce(&mut [f64]) -> Result<(), LinearError>,
     ) -> Result<(), LinearError> {
-        let s = assembly.symbolic();
-        let n = s.nrows();
+        let n = assembly.symbolic().nrows();
         if self.selected.len() != n {
             self.clear();
             self.selected = vec![false; n];
@@ -86,13 +85,6 @@ impl LowRankCorrection {
             self.clear();
             return Ok(());
         }
-        let entry = |row: usize, col: usize| -> Option<usize> {
-            let range = s.col_range(col);
-            s.row_idx_of_col_raw(col)
-                .binary_search(&row)
-                .ok()
-                .map(|k| range.start + k)
-        };
         let first_new = self.dofs.len();
         for c in 0..n {
             if self.dofs.len() == MAX_CORRECTED_DOFS {
@@ -101,7 +93,7 @@ impl LowRankCorrection {
             if self.selected[c] {
                 continue;
             }
-            let Some(k) = entry(c, c) else { continue };
+            let k = assembly.diagonal_slot(c);
             let (new, old) = (values[k], factored[k]);
             // Written so that a NaN or non-positive diagonal is never selected: the
             // factorisation, not the correction, has to deal with those.
@@ -134,7 +126,9 @@ impl LowRankCorrection {
         }
         let m = self.dofs.len();
         let g = DMatrix::from_fn(m, m, |a, b| {
-            entry(self.dofs[a], self.dofs[b]).map_or(0.0, |k| values[k] - factored[k])
+            assembly
+                .slot(self.dofs[a], self.dofs[b])
+                .map_or(0.0, |k| values[k] - factored[k])
         });
         let h = DMatrix::from_fn(m, m, |a, b| self.y[b * n + self.dofs[a]]);
         let system = DMatrix::identity(m, m) + &g * h;
