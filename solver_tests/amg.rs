@@ -66,8 +66,9 @@ fn cube_system_of(
     let mut values = vec![0.0; assembly.nnz()];
     let mut energies = vec![0.0; mesh.num_tets()];
     let mut gradient = vec![0.0; u.len()];
+    let history = elasticity.initial_history();
     assembly.assemble(
-        |e, h, out| elasticity.element(&mesh.tets, &u, e, h, out),
+        |e, h, out| elasticity.element(&mesh.tets, &history, &u, e, h, out),
         &mut energies,
         &mut gradient,
         Some(&mut values),

@@ -59,7 +59,7 @@ fn free_body_with_uniform_eigenstrain_expands_stress_free() {
             statically_determinate(0.1),
             settings(Analysis::Static, 1.0),
         );
-        sim.model.elasticity.eigenstrain.fill(e);
+        sim.state.history.eigenstrain.fill(e);
         sim.step().unwrap();
         // u = e x exactly (P1 represents linear fields; the supports admit it).
         for (i, p) in sim.model.mesh.rest.iter().enumerate() {
@@ -106,7 +106,7 @@ fn confined_body_with_eigenstrain_carries_pressure_3ke() {
             supports.clone(),
             settings(Analysis::Static, 1.0),
         );
-        sim.model.elasticity.eigenstrain.fill(e);
+        sim.state.history.eigenstrain.fill(e);
         sim.step().unwrap();
         let p_exact = 3.0 * ICE.bulk() * e;
         let p_corot = 3.0 * ICE.bulk() * (1.0 - 1.0 / (1.0 + e)); // Fe = I/(1 + e): S − I = −e/(1 + e) I

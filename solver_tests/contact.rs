@@ -65,7 +65,7 @@ fn cube_on(
     let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
     let mut model =
         Model::new(mesh, elasticity, Vector3::from(gravity), &[], None, vec![]).unwrap();
-    model.contact = Some(contact);
+    model.add_obstacles(contact);
     Simulation::new(model, settings(Analysis::Dynamic, dt)).unwrap()
 }
 
@@ -84,10 +84,10 @@ fn mean_over(
 #[test]
 fn resting_block_penetrates_by_weight_over_stiffness_and_does_not_drift() {
     let mut sim = cube_on_floor([0.0, 0.0, -9.81], 0.5, None, 1.0 / 30.0, 1e-4);
-    let k = sim.model.contact.as_ref().unwrap().obstacles[0].stiffness;
+    let k = sim.model.obstacle_contact().unwrap().obstacles[0].stiffness;
     let weight = sim.model.total_mass() * 9.81;
     let expected = weight / (k * 0.1 * 0.1);
-    let contact = sim.model.contact.clone().unwrap();
+    let contact = sim.model.obstacle_contact().cloned().unwrap();
     // Area-weighted mean penetration of the bottom nodes: Σ Aᵢ dᵢ / Σ Aᵢ = Σ fᵢ / (k A) = m g / (k A)
     // once the block is in equilibrium.
     let penetration = |sim: &Simulation| {
@@ -170,7 +170,7 @@ fn cube_dropped_into_container_comes_to_rest_inside_without_energy_gain() {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/drop_into_container.toml");
     let scene = icefem::scene::Scene::load(&path).unwrap();
     let mut sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
-    let inner = match &sim.model.contact.as_ref().unwrap().obstacles[0].shape {
+    let inner = match &sim.model.obstacle_contact().unwrap().obstacles[0].shape {
         Shape::Container { inner } => *inner,
         other => panic!("expected a container, got {other:?}"),
     };
@@ -214,7 +214,7 @@ fn scene_without_obstacles_builds_no_contact_structures() {
         vec![],
         settings(Analysis::Dynamic, 0.01),
     );
-    assert!(sim.model.contact.is_none());
+    assert!(sim.model.obstacle_contact().is_none());
     assert!(sim.contact_forces().is_none());
     assert_eq!(sim.contact_structures_len(), 0);
 }
@@ -226,8 +226,8 @@ fn stacked_cubes_rest_on_each_other_through_ice_contact() {
     let mut sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
     let ice = sim
         .model
-        .ice_contact
-        .clone()
+        .ice_contact()
+        .cloned()
         .expect("two parts: ice contact on");
     assert_eq!(ice.parts, 2);
     let steps = icefem::run::step_count(scene.end_time, scene.settings.dt);
@@ -341,7 +341,7 @@ end_time = 1.0
 fn ice_on_ice_friction_sticks_and_slides_like_coulomb() {
     let g = 9.81;
     let upper_mean_x = |sim: &Simulation, field: &[f64]| {
-        let ice = sim.model.ice_contact.as_ref().unwrap();
+        let ice = sim.model.ice_contact().unwrap();
         let nodes: Vec<usize> = (0..sim.model.num_nodes())
             .filter(|&i| ice.part[i] == 1)
             .collect();
@@ -353,7 +353,7 @@ fn ice_on_ice_friction_sticks_and_slides_like_coulomb() {
         sim.step().unwrap();
     }
     let slip = upper_mean_x(&sim, &sim.state.u) - {
-        let ice = sim.model.ice_contact.as_ref().unwrap();
+        let ice = sim.model.ice_contact().unwrap();
         let nodes: Vec<usize> = (0..sim.model.num_nodes())
             .filter(|&i| ice.part[i] == 0)
             .collect();
@@ -493,7 +493,7 @@ fn moving_mesh_floor_carries_the_block_with_it() {
         sim.step().unwrap();
     }
     let vz = mean_over(&sim, |_| true, |i| sim.state.v[3 * i + 2]);
-    let k = sim.model.contact.as_ref().unwrap().obstacles[0].stiffness;
+    let k = sim.model.obstacle_contact().unwrap().obstacles[0].stiffness;
     let expected = sim.model.total_mass() * 9.81 / (k * 0.01);
     let floor_z = lift * sim.state.time;
     let depth = floor_z - mean_over(&sim, |p| p.z < 1e-12, |i| sim.state.u[3 * i + 2]);
@@ -584,7 +584,7 @@ fn cube_slides_down_the_obj_ramp_scene_and_stops_on_the_floor() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/slide_down_ramp.toml");
     let scene = icefem::scene::Scene::load(&path).unwrap();
     let mut sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
-    let ramp = sim.model.contact.as_ref().unwrap().obstacles[0]
+    let ramp = sim.model.obstacle_contact().unwrap().obstacles[0]
         .surface()
         .expect("obstacle 0 is the OBJ ramp")
         .clone();

@@ -13,8 +13,9 @@ fn nodal_forces(el: &Elasticity, tets: &[[usize; 4]], u: &[f64]) -> (Vec<f64>, f
     let mut f = vec![0.0; u.len()];
     let mut scale: f64 = 0.0;
     let mut out = ElementEval::default();
+    let history = el.initial_history();
     for (e, tet) in tets.iter().enumerate() {
-        el.element(tets, u, e, false, &mut out);
+        el.element(tets, &history, u, e, false, &mut out);
         for k in 0..12 {
             f[3 * tet[k / 3] + k % 3] += out.gradient[k];
             scale = scale.max(out.gradient[k].abs());
@@ -37,7 +38,7 @@ fn patch_test_linear_field_gives_exact_constant_strain_and_no_interior_force() {
     for model in [ElasticModel::Linear, ElasticModel::Corotated] {
         let el = Elasticity::new(&mesh, ICE, model);
         // Constant strain: every element's stress is the same.
-        let stresses = el.stresses(&mesh.tets, &u);
+        let stresses = el.stresses(&mesh.tets, &el.initial_history(), &u);
         let reference = stresses[0];
         let smax = reference.iter().fold(0.0f64, |m, s| m.max(s.abs()));
         for s in &stresses {

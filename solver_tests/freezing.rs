@@ -114,7 +114,8 @@ fn confined_cube(law: ElasticModel) -> (f64, f64, Simulation) {
         friction: 0.0,
     };
     let mut m = model(mesh, law, vec![]);
-    m.contact = Some(Contact::new(&m.mesh, vec![container], 1e-4));
+    let contact = Contact::new(&m.mesh, vec![container], 1e-4);
+    m.add_obstacles(contact);
     m.freezing = Some(frozen_at_once(&m.mesh));
     // Steps of 1 s are static for ice (its period is ~10 µs); backward Euler damps the rest.
     let mut sim = Simulation::new(m, settings(Analysis::Dynamic, 1.0)).unwrap();
@@ -186,11 +187,11 @@ fn freezing_front_reaches_each_centroid_at_distance_over_speed() {
     let mut switched = vec![f64::NAN; centroid_z.len()];
     while sim.state.time < 60.0 {
         sim.step().unwrap();
-        for (e, s) in sim.model.elasticity.freeze_state.iter().enumerate() {
+        for (e, s) in sim.state.history.freeze_state.iter().enumerate() {
             if *s > 0.0 && switched[e].is_nan() {
                 switched[e] = sim.state.time;
                 // The eigenstrain follows the state.
-                assert!((sim.model.elasticity.eigenstrain[e] - s * E_MAX).abs() < 1e-16);
+                assert!((sim.state.history.eigenstrain[e] - s * E_MAX).abs() < 1e-16);
             }
         }
     }
@@ -239,8 +240,8 @@ fn impose(sim: &mut Simulation, strain: [f64; 3]) {
 }
 
 fn max_plastic(sim: &Simulation) -> f64 {
-    sim.model
-        .elasticity
+    sim.state
+        .history
         .plastic_strain
         .iter()
         .map(|p| p.norm())
@@ -271,7 +272,7 @@ fn uniaxial_strain_beyond_the_limit_leaves_the_return_mapping_plastic_strain() {
         let mut sim = strained_cube(law, p);
         impose(&mut sim, [0.0, 0.0, eps]);
         impose(&mut sim, [0.0, 0.0, 0.0]);
-        for (e, ep) in sim.model.elasticity.plastic_strain.iter().enumerate() {
+        for (e, ep) in sim.state.history.plastic_strain.iter().enumerate() {
             assert!(
                 (ep - expected).norm() < tol * expected.norm(),
                 "{law:?} element {e}: ε_p = {ep}, expected {expected}"
@@ -333,7 +334,7 @@ fn paper_scene() -> (Simulation, f64) {
 #[test]
 fn wall_friction_is_coulomb_with_the_end_of_step_normal_force_while_freezing() {
     let (mut sim, _) = paper_scene();
-    let contact = sim.model.contact.clone().unwrap();
+    let contact = sim.model.obstacle_contact().cloned().unwrap();
     let alpha = contact.obstacles[0].friction;
     let eps = contact.smoothing_velocity * sim.settings.dt;
     let (mut solves, mut steps, mut sliding, mut checked) = (0, 0, 0, 0);
@@ -424,6 +425,7 @@ fn paper_scene_freezes_2400_frames_with_bounded_energy() {
             // For calibrating fracture (issue 6): the largest separation stress v⁺/A.
             let separation = icefem::fracture::separation(
                 &sim.model.elasticity,
+                &sim.state.history,
                 &sim.model.mesh.tets,
                 &sim.state.u,
                 &sim.contact_forces().map_or(Vec::new(), |c| {
@@ -440,7 +442,7 @@ fn paper_scene_freezes_2400_frames_with_bounded_energy() {
             eprintln!(
                 "frame {n}: max ‖ε_p‖ {:.4e}, top rise {lo:.4e} … {hi:.4e} m, frozen {:.1} %, energy {e:.4e} J, max separation stress {separation:.3e} Pa",
                 max_plastic(&sim),
-                100.0 * sim.model.elasticity.freeze_state.iter().filter(|s| **s >= 1.0).count() as f64
+                100.0 * sim.state.history.freeze_state.iter().filter(|s| **s >= 1.0).count() as f64
                     / sim.model.mesh.num_tets() as f64
             );
         }
@@ -450,7 +452,7 @@ fn paper_scene_freezes_2400_frames_with_bounded_energy() {
         started.elapsed().as_secs_f64()
     );
     // Everything froze, and the top deformed unevenly (plastic flow is not uniform).
-    assert!(sim.model.elasticity.freeze_state.iter().all(|s| *s >= 1.0));
+    assert!(sim.state.history.freeze_state.iter().all(|s| *s >= 1.0));
     assert!(max_plastic(&sim) > 0.0);
 }
 

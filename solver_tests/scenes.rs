@@ -264,7 +264,7 @@ fn mesh_obstacle_errors_name_field_and_file() {
         &scene_path,
     )
     .unwrap();
-    let surface = scene.model.contact.as_ref().unwrap().obstacles[0]
+    let surface = scene.model.obstacle_contact().unwrap().obstacles[0]
         .surface()
         .unwrap();
     assert_eq!(surface.vertices[1], nalgebra::Vector3::new(1.0, 0.0, -1.0));

@@ -6,7 +6,7 @@ use crate::fem::{ElasticModel, Material};
 use crate::mesh::surface::TriSurface;
 use crate::mesh::{box_mesh, TetMesh};
 use crate::physics::contact::{default_stiffness, Shape};
-use crate::physics::ice_contact::IceContact;
+use crate::physics::ice_contact::IceContactTerm;
 use crate::physics::obstacle_mesh::ObstacleSurface;
 use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Region};
 use crate::sim::{Analysis, SimError, Simulation, StepSettings};
@@ -281,7 +281,6 @@ pub fn contact_cost(
     };
     let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
     let contact = Contact::new(&mesh, vec![container], 1e-4);
-    let ice = IceContact::new(&mesh, stiffness, 0.3, 1e-4, &[]);
     let mut model = Model::new(
         mesh,
         elasticity,
@@ -291,9 +290,11 @@ pub fn contact_cost(
         vec![],
     )
     .map_err(setup)?;
-    model.contact = Some(contact);
-    model.ice_contact = ice;
-    let boundary_nodes = model.contact.as_ref().map_or(0, |c| c.nodes.len());
+    let young = model.elasticity.material.young();
+    let ice = IceContactTerm::new(&model.mesh, stiffness, 0.3, 1e-4, &[], young);
+    model.add_obstacles(contact);
+    model.set_ice_contact(ice);
+    let boundary_nodes = model.obstacle_contact().map_or(0, |c| c.nodes.len());
     let mut sim = Simulation::new(
         model,
         frame_steps(LinearSolverKind::Cholesky, FillOrdering::Auto),

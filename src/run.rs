@@ -225,7 +225,8 @@ fn write_frame(
     let rest = rows(&sim.model.mesh.rest);
     let positions = sim.positions();
     let stress = sim.stresses();
-    let eigenstrain = &sim.model.elasticity.eigenstrain;
+    let history = &sim.state.history;
+    let eigenstrain = &history.eigenstrain;
     // The displacement is stored exactly (positions = rest + u are rounded), so that a
     // resumed run continues bit for bit.
     let mut node_fields = vec![Field {
@@ -262,20 +263,19 @@ fn write_frame(
             data: &active,
         });
     }
-    let el = &sim.model.elasticity;
     let mut element_fields = vec![Field {
         name: "eigenstrain",
         cols: 1,
         data: eigenstrain,
     }];
-    if !el.freeze_state.is_empty() {
+    if !history.freeze_state.is_empty() {
         element_fields.push(Field {
             name: "freeze_state",
             cols: 1,
-            data: &el.freeze_state,
+            data: &history.freeze_state,
         });
     }
-    let plastic: Vec<f64> = el
+    let plastic: Vec<f64> = history
         .plastic_strain
         .iter()
         .flat_map(crate::fem::to_voigt)
@@ -381,10 +381,10 @@ fn restore(
     let tets = sim.model.mesh.num_tets();
     if let Some((_, 1, e)) = frame.element_fields.iter().find(|f| f.0 == "eigenstrain") {
         if e.len() == tets {
-            sim.model.elasticity.eigenstrain = e.clone();
+            sim.state.history.eigenstrain = e.clone();
         }
     }
-    sim.model.apply_schedule(frame.time);
+    sim.model.apply_schedule(frame.time, &mut sim.state.history);
     if sim.model.plasticity.is_some() {
         let p = frame
             .element_fields
@@ -393,7 +393,7 @@ fn restore(
             .ok_or_else(|| {
                 bad("the last complete frame has no element field `plastic_strain`".into())
             })?;
-        sim.model.elasticity.plastic_strain = p.2.chunks(6).map(from_voigt).collect();
+        sim.state.history.plastic_strain = p.2.chunks(6).map(from_voigt).collect();
     }
     Ok(())
 }

@@ -26,7 +26,7 @@ use crate::mesh::surface::TriSurface;
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
 use crate::physics::contact::{default_stiffness, Shape};
 use crate::physics::freezing::{Freezing, Water};
-use crate::physics::ice_contact::IceContact;
+use crate::physics::ice_contact::IceContactTerm;
 use crate::physics::obstacle_mesh::ObstacleSurface;
 use crate::physics::plasticity::Plasticity;
 use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Rayleigh, Region, Traction};
@@ -599,7 +599,9 @@ impl Validator<'_> {
                 path: self.path.into(),
                 source,
             })?;
-        model.contact = contact;
+        if let Some(contact) = contact {
+            model.add_obstacles(contact);
+        }
         if let Some(f) = &raw.freezing {
             model.freezing =
                 Some(self.freezing(f, &model.mesh, &model.elasticity.eigenstrain, &material)?);
@@ -626,9 +628,14 @@ impl Validator<'_> {
             Some(k) => self.positive("physics.ice_stiffness", k)?,
             None => default_stiffness(&model.mesh, material.young()),
         };
-        model.ice_contact =
-            IceContact::new(&model.mesh, ice_stiffness, ice_friction, smoothing, &[]);
-        model.ice_contact_params = [ice_stiffness, ice_friction, smoothing];
+        model.set_ice_contact(IceContactTerm::new(
+            &model.mesh,
+            ice_stiffness,
+            ice_friction,
+            smoothing,
+            &[],
+            material.young(),
+        ));
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),
             None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),

@@ -30,7 +30,8 @@ use super::separation;
 use super::split::Fracturable;
 use crate::mesh::TetMesh;
 use crate::physics::ice_contact::parts_of;
-use crate::sim::{SimError, Simulation, StepStart};
+use crate::physics::history::ElementHistory;
+use crate::sim::{SimError, Simulation, State};
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -54,20 +55,23 @@ fn equilibrium_separation(sim: &mut Simulation) -> Vec<super::NodeSeparation> {
             .map(|(n, f)| n + f)
             .collect()
     });
-    let mut solved_with = match sim.step_start() {
-        Some(start) if !start.plastic_strain.is_empty() => start.plastic_strain.clone(),
-        _ => Vec::new(),
-    };
-    let model = &mut sim.model;
-    let swap = !solved_with.is_empty();
-    if swap {
-        std::mem::swap(&mut model.elasticity.plastic_strain, &mut solved_with);
-    }
-    let sep = separation(&model.elasticity, &model.mesh.tets, &sim.state.u, &pressing);
-    if swap {
-        std::mem::swap(&mut model.elasticity.plastic_strain, &mut solved_with);
-    }
-    sep
+    // The plastic strains the step was solved with are those of its start.
+    let solved_with: Option<ElementHistory> = sim
+        .step_start()
+        .filter(|start| !start.history.plastic_strain.is_empty())
+        .map(|start| ElementHistory {
+            plastic_strain: start.history.plastic_strain.clone(),
+            ..sim.state.history.clone()
+        });
+    let history = solved_with.as_ref().unwrap_or(&sim.state.history);
+    let model = &sim.model;
+    separation(
+        &model.elasticity,
+        history,
+        &model.mesh.tets,
+        &sim.state.u,
+        &pressing,
+    )
 }
 
 /// Refused split attempts allowed per permitted event in one step: each costs a split attempt
@@ -174,7 +178,7 @@ impl Fracture {
             .model
             .remeshed(&mesh.rest, mesh.tets, &f.parent, &cracks)
             .map_err(invalid)?;
-        sim.remesh(model, f.u, f.v)
+        sim.remesh(model, f.u, f.v, &f.parent)
     }
 
     /// Number of distinct cracks.
@@ -302,16 +306,11 @@ impl Fracture {
             let clock = Instant::now();
             // The step's start state on the new mesh: nodal fields were carried through the
             // split (`extra`), element fields follow the parent element.
-            let start = start.map(|st| StepStart {
-                plastic_strain: f
-                    .parent
-                    .iter()
-                    .filter_map(|&p| st.plastic_strain.get(p))
-                    .copied()
-                    .collect(),
+            let start = start.map(|st| State {
                 u: f.extra[0].clone(),
                 v: f.extra[1].clone(),
-                time: st.time,
+                history: st.history.inherit(&f.parent),
+                ..st
             });
             self.rebuild(sim, f, origin)?;
             report.t_remesh += clock.elapsed().as_secs_f64();
@@ -331,18 +330,14 @@ impl Fracture {
     /// Takes the step that ended in `sim`'s current state again from `start` on the split
     /// mesh; if that fails, keeps the split mesh with the step's end state unchanged (as
     /// O'Brien & Hodgins do for every split) and returns false.
-    fn retake(&self, sim: &mut Simulation, start: StepStart) -> bool {
-        let (u, v, time) = (sim.state.u.clone(), sim.state.v.clone(), sim.state.time);
-        let plastic = sim.model.elasticity.plastic_strain.clone();
+    fn retake(&self, sim: &mut Simulation, start: State) -> bool {
+        let end = sim.state.clone();
         if sim.retake_step(start).is_ok() {
             return true;
         }
-        sim.state.u = u;
-        sim.state.v = v;
-        sim.state.time = time;
-        sim.state.step += 1;
-        sim.model.elasticity.plastic_strain = plastic;
-        sim.model.apply_schedule(time);
+        let time = end.time;
+        sim.state = end;
+        sim.model.apply_schedule(time, &mut sim.state.history);
         false
     }
 }

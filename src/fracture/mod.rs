@@ -36,6 +36,7 @@ pub use driver::{Fracture, FractureEvent, FractureReport, FractureSettings};
 
 use crate::fem::{elastic_strain, offset_elastic_gradient, ElasticModel};
 use crate::physics::elasticity::Elasticity;
+use crate::physics::history::ElementHistory;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
 /// The separation tensor of one node and what the criterion needs from it.
@@ -101,6 +102,7 @@ fn split(sigma: &Matrix3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
 /// 1e9 Pa, it read as separation stresses of 1e9–1e10 Pa on the wall nodes.
 pub fn separation(
     elasticity: &Elasticity,
+    history: &ElementHistory,
     tets: &[[usize; 4]],
     u: &[f64],
     pressing: &[f64],
@@ -119,7 +121,7 @@ pub fn separation(
     let mut weighted_grads: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nodes];
     let mut touches_water = vec![false; nodes];
     for (e, tet) in tets.iter().enumerate() {
-        if elasticity.freeze_state.get(e).is_some_and(|s| *s < 1.0) {
+        if !history.is_frozen(e) {
             for &i in tet {
                 touches_water[i] = true;
             }
@@ -127,7 +129,7 @@ pub fn separation(
         }
         let rest = &elasticity.rest[e];
         let local = Elasticity::local(u, tet);
-        let offset = elasticity.offset_of(e);
+        let offset = history.offset_of(e);
         let (strain, r) = elastic_strain(elasticity.model, rest, &local, &offset);
         // The simulation's nodal force of a stress σ (in the element's frame) is −V R σ G ∇Nᵢ,
         // with G = I (linear) or F*⁻ᵀ (the corotated model's multiplicative offset).
@@ -139,7 +141,7 @@ pub fn separation(
                     .transpose()
             }
         };
-        let (material, _) = elasticity.material_of(e);
+        let (material, _) = elasticity.material_of(history, e);
         let sigma = material.hooke(&strain);
         let (plus, minus) = split(&sigma);
         for (k, &i) in tet.iter().enumerate() {
@@ -196,7 +198,8 @@ mod tests {
             .iter()
             .flat_map(|x| (g * x).iter().copied().collect::<Vec<_>>())
             .collect();
-        let sep = separation(&el, &mesh.tets, &u, &[]);
+        let history = el.initial_history();
+        let sep = separation(&el, &history, &mesh.tets, &u, &[]);
         let node = mesh
             .rest
             .iter()

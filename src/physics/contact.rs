@@ -20,10 +20,13 @@
 //! step while each solve stays a minimisation.
 
 use super::obstacle_mesh::ObstacleSurface;
+use super::term::{Remesh, Solve, StepTerm, Term};
 use super::Region;
+use crate::assembly::Assembly;
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
 use std::sync::Arc;
+use std::time::Instant;
 
 /// Two planes of a mesh obstacle with the same normal whose offsets differ by at most this
 /// (m) are the same plane: round-off of the closest-point projection is ~1e-17 m, penetration
@@ -634,5 +637,173 @@ impl<'a> ContactStep<'a> {
             }
         }
         energy
+    }
+}
+
+/// Adds `sign` × a node's 3 × 3 `block` into the CSC values `hessian` at the node's `slots`.
+fn add_block(hessian: &mut [f64], slots: &[u32; 9], block: &Matrix3<f64>, sign: f64) {
+    for (k, s) in slots.iter().enumerate() {
+        if *s != u32::MAX {
+            hessian[*s as usize] += sign * block[(k / 3, k % 3)];
+        }
+    }
+}
+
+/// Contact with rigid obstacles as a term of the incremental potential (`[[obstacle]]`).
+#[derive(Clone, Debug)]
+pub struct ObstacleContact {
+    /// The obstacles and the boundary nodes that can touch them.
+    pub contact: Contact,
+    /// Number of mesh nodes.
+    num_nodes: usize,
+    /// Per node, the CSC value indices of its 3 × 3 block in the current pattern.
+    block_slots: Vec<[u32; 9]>,
+}
+
+impl ObstacleContact {
+    /// The term for `contact` on a mesh of `num_nodes` nodes.
+    pub fn new(contact: Contact, num_nodes: usize) -> Self {
+        ObstacleContact {
+            contact,
+            num_nodes,
+            block_slots: Vec::new(),
+        }
+    }
+}
+
+impl Term for ObstacleContact {
+    fn name(&self) -> &'static str {
+        "obstacle contact"
+    }
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+    fn clone_box(&self) -> Box<dyn Term> {
+        Box::new(self.clone())
+    }
+    fn pattern_ready(&mut self, assembly: &Assembly, changed: bool) {
+        if changed || self.block_slots.is_empty() {
+            self.block_slots = (0..self.num_nodes)
+                .map(|i| assembly.node_block_slots(i))
+                .collect();
+        }
+    }
+    fn begin_solve<'a>(&'a self, solve: &Solve<'a>) -> Option<Box<dyn StepTerm + 'a>> {
+        let selection = Instant::now();
+        let h = solve.h;
+        // Mesh obstacles look for nodes as far as the step can carry them, and an edge.
+        let vmax = solve.velocity.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let reach = self.contact.edge + 2.0 * h * vmax * 3f64.sqrt();
+        let mut step = ContactStep::new(
+            &self.contact,
+            solve.rest,
+            solve.previous,
+            solve.times,
+            solve.dynamic.then_some(h),
+            reach,
+        );
+        // Friction's normal force starts extrapolated from the step before, uₙ − h vₙ.
+        step.extrapolate_lagged(solve.earlier);
+        Some(Box::new(ObstacleStep {
+            step,
+            slots: &self.block_slots,
+            blocks: Vec::new(),
+            t_broad: selection.elapsed().as_secs_f64(),
+        }))
+    }
+    fn stored_energy(&self, rest: &[Vector3<f64>], u: &[f64], t: f64) -> f64 {
+        let c = &self.contact;
+        ContactStep::new(c, rest, u, (t, t), None, c.edge).evaluate(u, None, None, None)
+    }
+    fn has_contact_forces(&self) -> bool {
+        true
+    }
+    fn bookkeeping_len(&self) -> usize {
+        self.block_slots.len()
+    }
+    fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term> {
+        let c = &self.contact;
+        let contact = Contact::new(remesh.mesh, c.obstacles.clone(), c.smoothing_velocity);
+        Box::new(ObstacleContact::new(contact, remesh.mesh.num_nodes()))
+    }
+}
+
+/// Obstacle contact during one solve.
+struct ObstacleStep<'a> {
+    step: ContactStep<'a>,
+    /// CSC value indices of each node's 3 × 3 block, indexed by node.
+    slots: &'a [[u32; 9]],
+    /// The 3 × 3 Hessian blocks (node, block) in the last assembled or refreshed Hessian.
+    blocks: Vec<(usize, Matrix3<f64>)>,
+    /// Time spent choosing mesh-obstacle planes (s).
+    t_broad: f64,
+}
+
+impl StepTerm for ObstacleStep<'_> {
+    fn add(
+        &mut self,
+        u: &[f64],
+        energy: &mut f64,
+        gradient: Option<&mut [f64]>,
+        hessian: Option<&mut [f64]>,
+    ) {
+        let slots = self.slots;
+        *energy += match hessian {
+            Some(hs) => {
+                let blocks = &mut self.blocks;
+                blocks.clear();
+                let mut add = |node: usize, block: &Matrix3<f64>| {
+                    add_block(hs, &slots[node], block, 1.0);
+                    blocks.push((node, *block));
+                };
+                self.step.evaluate(u, gradient, Some(&mut add), None)
+            }
+            None => self.step.evaluate(u, gradient, None, None),
+        };
+    }
+    fn anticipate(&mut self, u: &[f64], trial: &[f64]) -> bool {
+        self.step.anticipate(u, trial)
+    }
+    fn forget_anticipated(&mut self) {
+        self.step.anticipated.clear();
+    }
+    fn add_anticipated_gradient(&self, u: &[f64], gradient: &mut [f64]) -> bool {
+        self.step.add_anticipated_gradient(u, gradient)
+    }
+    fn refresh_hessian(&mut self, u: &[f64], hessian: &mut [f64]) -> bool {
+        let mut blocks = Vec::with_capacity(self.blocks.len());
+        self.step
+            .evaluate(u, None, Some(&mut |node, b| blocks.push((node, *b))), None);
+        let changed = blocks != self.blocks;
+        if changed {
+            for (node, block) in &self.blocks {
+                add_block(hessian, &self.slots[*node], block, -1.0);
+            }
+            for (node, block) in &blocks {
+                add_block(hessian, &self.slots[*node], block, 1.0);
+            }
+            self.blocks = blocks;
+        }
+        changed
+    }
+    fn relag(&mut self, u: &[f64]) -> f64 {
+        let reselection = Instant::now();
+        let replaned = self.step.reselect_node_planes(u);
+        self.t_broad += reselection.elapsed().as_secs_f64();
+        let change = self.step.relag(u);
+        if replaned {
+            f64::INFINITY
+        } else {
+            change
+        }
+    }
+    fn add_contact_forces(&self, u: &[f64], forces: &mut ContactForces) {
+        self.step.evaluate(u, None, None, Some(forces));
+    }
+    fn is_contact(&self) -> bool {
+        true
+    }
+    fn broad_phase_time(&self) -> f64 {
+        self.t_broad
     }
 }

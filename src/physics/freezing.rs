@@ -18,7 +18,7 @@
 //! the ice's, far below anything that matters for the ice, and the mesh of the liquid keeps
 //! its shape.
 
-use super::elasticity::Elasticity;
+use super::history::ElementHistory;
 use super::Region;
 use crate::mesh::TetMesh;
 
@@ -121,16 +121,14 @@ impl Freezing {
         }
     }
 
-    /// Sets every element's freeze state, material blend and eigenstrain for time `t` (s).
-    pub fn apply(&self, t: f64, elasticity: &mut Elasticity) {
-        elasticity.water_bulk = self.water_bulk();
-        elasticity.water_shear = self.water_shear;
+    /// Sets every element's freeze state and eigenstrain in `history` for time `t` (s).
+    pub fn apply(&self, t: f64, history: &mut ElementHistory) {
         let n = self.arrival.len();
-        elasticity.freeze_state.resize(n, 0.0);
+        history.freeze_state.resize(n, 0.0);
         for e in 0..n {
             let s = self.state(e, t);
-            elasticity.freeze_state[e] = s;
-            elasticity.eigenstrain[e] = self.base_eigenstrain[e] + s * self.expansion;
+            history.freeze_state[e] = s;
+            history.eigenstrain[e] = self.base_eigenstrain[e] + s * self.expansion;
         }
     }
 }

@@ -42,9 +42,12 @@
 //! motion, go into a uniform grid, and each boundary node of another part is looked up in it.
 //! The candidate (node, triangle) pairs are fixed for the step.
 
+use super::contact::{default_stiffness, friction_terms, ContactForces};
 use super::grid::BoxGrid;
+use super::term::{Remesh, Solve, StepStartView, StepTerm, Term};
+use crate::assembly::Assembly;
 use crate::mesh::TetMesh;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// The ice–ice contact term of a mesh with several parts or with cracks.
 #[derive(Clone, Debug)]
@@ -467,5 +470,435 @@ impl IceContact {
     /// The four nodes of a pair, in gradient order.
     pub fn pair_nodes(c: &Candidate) -> [usize; 4] {
         [c.node, c.face[0], c.face[1], c.face[2]]
+    }
+}
+
+/// The ice–ice contact candidates of a step and where their 12 × 12 blocks go.
+pub struct IceStep<'a> {
+    /// The term.
+    pub term: &'a IceContact,
+    /// Rest positions (m).
+    pub rest: &'a [Vector3<f64>],
+    /// Candidate pairs.
+    pub candidates: &'a [Candidate],
+    /// For each candidate, the CSC value index of each entry of its 12 × 12 block (row-major),
+    /// `u32::MAX` where a dof is constrained.
+    pub slots: &'a [Vec<u32>],
+    /// Candidates whose stiffness enters the Hessian before they penetrate (see
+    /// `ContactStep::anticipate`).
+    pub anticipated: Vec<bool>,
+    /// Friction of the step (dynamic steps with ice friction only).
+    pub friction: Option<IceFriction<'a>>,
+}
+
+/// A normal (unit), the foot-point weights (βₐ, β_b, β_c) and the normal force λ (N) of a
+/// penetrating ice–ice pair, frozen for friction.
+pub type FrictionFrame = (Vector3<f64>, [f64; 3], f64);
+
+/// Ice–ice friction data frozen for a step.
+pub struct IceFriction<'a> {
+    /// Time step (s).
+    pub dt: f64,
+    /// Displacement at the start of the step (m).
+    pub previous: &'a [f64],
+    /// Per candidate, its frame if it penetrates.
+    pub frames: Vec<Option<FrictionFrame>>,
+}
+
+impl<'a> IceStep<'a> {
+    /// Friction frames of the pairs penetrating at `u`.
+    pub fn friction_frames(&self, rest: &[Vector3<f64>], u: &[f64]) -> Vec<Option<FrictionFrame>> {
+        let mut frames = vec![None; self.candidates.len()];
+        self.term
+            .for_each_closest(rest, u, self.candidates, |m, g, dg| {
+                if let Some((_, slope, _)) = self.term.penalty(g) {
+                    let n = Vector3::new(dg[0], dg[1], dg[2]);
+                    let beta = [1, 2, 3]
+                        .map(|k| -n.dot(&Vector3::new(dg[3 * k], dg[3 * k + 1], dg[3 * k + 2])));
+                    let normal_force = -self.term.stiffness * self.candidates[m].area * slope;
+                    frames[m] = Some((n, beta, normal_force));
+                }
+            });
+        frames
+    }
+
+    /// Friction frames at `previous` (the start of the step) with each normal force
+    /// extrapolated linearly in time from `earlier` (one step before, m): λ = max(0, 2 λ(uₙ) −
+    /// λ(uₙ₋₁)), as [`ContactStep::extrapolate_lagged`] does for obstacles.
+    pub fn extrapolated_friction_frames(
+        &self,
+        rest: &[Vector3<f64>],
+        previous: &[f64],
+        earlier: &[f64],
+    ) -> Vec<Option<FrictionFrame>> {
+        let mut frames = self.friction_frames(rest, previous);
+        let before = self.friction_frames(rest, earlier);
+        for (frame, b) in frames.iter_mut().flatten().zip(&before) {
+            frame.2 = (2.0 * frame.2 - b.map_or(0.0, |b| b.2)).max(0.0);
+        }
+        frames
+    }
+
+    /// Re-lags the friction frames to `u`; returns the largest change of a normal force relative
+    /// to the largest normal force (0 without friction).
+    pub fn relag_friction(&mut self, u: &[f64]) -> f64 {
+        if self.friction.is_none() {
+            return 0.0;
+        }
+        let new = self.friction_frames(self.rest, u);
+        let lam = |f: &Option<FrictionFrame>| f.map_or(0.0, |x| x.2);
+        let scale = new.iter().map(lam).fold(0.0f64, f64::max);
+        let Some(fr) = self.friction.as_mut() else {
+            return 0.0;
+        };
+        let change = new
+            .iter()
+            .zip(&fr.frames)
+            .map(|(a, b)| (lam(a) - lam(b)).abs())
+            .fold(0.0f64, f64::max);
+        fr.frames = new;
+        if scale > 0.0 {
+            change / scale
+        } else {
+            0.0
+        }
+    }
+
+    /// Friction energy (J), adding gradient, Hessian and forces.
+    fn add_friction(
+        &self,
+        u: &[f64],
+        mut gradient: Option<&mut [f64]>,
+        mut hessian: Option<&mut [f64]>,
+        mut forces: Option<&mut [f64]>,
+    ) -> f64 {
+        let Some(fr) = &self.friction else { return 0.0 };
+        let mut energy = 0.0;
+        let eps = self.term.smoothing_velocity * fr.dt;
+        for (m, frame) in fr.frames.iter().enumerate() {
+            let Some((n, beta, lambda)) = frame else {
+                continue;
+            };
+            let nodes = IceContact::pair_nodes(&self.candidates[m]);
+            let w = [1.0, -beta[0], -beta[1], -beta[2]];
+            let rel: Vector3<f64> = (0..4)
+                .map(|k| {
+                    let i = nodes[k];
+                    w[k] * Vector3::from_fn(|a, _| u[3 * i + a] - fr.previous[3 * i + a])
+                })
+                .sum();
+            let tangent = Matrix3::identity() - n * n.transpose();
+            let y = tangent * rel;
+            let (f0, g_y, h_y) = friction_terms(self.term.friction * lambda, &y, &tangent, eps);
+            energy += f0;
+            for k in 0..4 {
+                for a in 0..3 {
+                    let d = 3 * nodes[k] + a;
+                    if let Some(g) = gradient.as_deref_mut() {
+                        g[d] += w[k] * g_y[a];
+                    }
+                    if let Some(f) = forces.as_deref_mut() {
+                        f[d] -= w[k] * g_y[a];
+                    }
+                }
+            }
+            if let (Some(hs), Some(slots)) = (hessian.as_deref_mut(), self.slots.get(m)) {
+                for r in 0..12 {
+                    for col in 0..12 {
+                        let slot = slots[12 * r + col];
+                        if slot != u32::MAX {
+                            hs[slot as usize] += w[r / 3] * w[col / 3] * h_y[(r % 3, col % 3)];
+                        }
+                    }
+                }
+            }
+        }
+        energy
+    }
+
+    /// Marks candidates that do not penetrate at `u` but would at `trial`; returns whether any
+    /// was newly marked.
+    pub fn anticipate_pairs(&mut self, u: &[f64], trial: &[f64]) -> bool {
+        let rest = self.rest;
+        if self.anticipated.is_empty() {
+            self.anticipated = vec![false; self.candidates.len()];
+        }
+        let mut now = vec![false; self.candidates.len()];
+        let term = self.term;
+        term.for_each_closest(rest, u, self.candidates, |m, g, _| {
+            now[m] = term.penalty(g).is_some()
+        });
+        let mut changed = false;
+        let anticipated = &mut self.anticipated;
+        term.for_each_closest(rest, trial, self.candidates, |m, g, _| {
+            if term.penalty(g).is_some() && !now[m] && !anticipated[m] {
+                anticipated[m] = true;
+                changed = true;
+            }
+        });
+        changed
+    }
+
+    /// Adds k Aₚ (g − δ) ∇g for the anticipated pairs still short of the penalty's onset δ at
+    /// `u` (see `Potential::add_anticipated_gradient`); returns whether there was any.
+    pub fn add_anticipated_pair_gradient(&self, u: &[f64], gradient: &mut [f64]) -> bool {
+        if !self.anticipated.contains(&true) {
+            return false;
+        }
+        let rest = self.rest;
+        let mut any = false;
+        self.term
+            .for_each_closest(rest, u, self.candidates, |m, gap, dg| {
+                if self.term.penalty(gap).is_none() && self.anticipated[m] {
+                    let c = &self.candidates[m];
+                    let ka = self.term.stiffness * c.area;
+                    let nodes = IceContact::pair_nodes(c);
+                    let beyond = gap - self.term.onset();
+                    for (k, dgk) in dg.iter().enumerate() {
+                        gradient[3 * nodes[k / 3] + k % 3] += ka * beyond * dgk;
+                    }
+                    any = true;
+                }
+            });
+        any
+    }
+
+    /// Contact energy (J) at `u`, adding gradient, Hessian and, if asked, the forces on the ice.
+    pub fn evaluate(
+        &self,
+        u: &[f64],
+        mut gradient: Option<&mut [f64]>,
+        mut hessian: Option<&mut [f64]>,
+        mut forces: Option<&mut ContactForces>,
+    ) -> f64 {
+        let rest = self.rest;
+        let mut energy = 0.0;
+        let anticipated = &self.anticipated;
+        self.term
+            .for_each_closest(rest, u, self.candidates, |m, gap, dg| {
+                let c = &self.candidates[m];
+                let ka = self.term.stiffness * c.area;
+                let nodes = IceContact::pair_nodes(c);
+                let penalty = self.term.penalty(gap);
+                if let Some((phi, slope, _)) = penalty {
+                    energy += ka * phi;
+                    for (k, dgk) in dg.iter().enumerate() {
+                        let d = 3 * nodes[k / 3] + k % 3;
+                        if let Some(gr) = gradient.as_deref_mut() {
+                            gr[d] += ka * slope * dgk;
+                        }
+                        if let Some(f) = forces.as_deref_mut() {
+                            f.normal[d] -= ka * slope * dgk;
+                        }
+                    }
+                }
+                // Anticipated pairs take the full stiffness (they are about to be pressed).
+                let curvature = match penalty {
+                    Some((_, _, c2)) if !anticipated.get(m).is_some_and(|a| *a) => c2,
+                    None if !anticipated.get(m).is_some_and(|a| *a) => 0.0,
+                    _ => 1.0,
+                };
+                if let (Some(hs), Some(slots), true) =
+                    (hessian.as_deref_mut(), self.slots.get(m), curvature > 0.0)
+                {
+                    for r in 0..12 {
+                        for col in 0..12 {
+                            let s = slots[12 * r + col];
+                            if s != u32::MAX {
+                                hs[s as usize] += ka * curvature * dg[r] * dg[col];
+                            }
+                        }
+                    }
+                }
+            });
+        energy + self.add_friction(u, gradient, hessian, forces.map(|f| &mut f.friction[..]))
+    }
+}
+
+impl StepTerm for IceStep<'_> {
+    fn add(
+        &mut self,
+        u: &[f64],
+        energy: &mut f64,
+        gradient: Option<&mut [f64]>,
+        hessian: Option<&mut [f64]>,
+    ) {
+        *energy += self.evaluate(u, gradient, hessian, None);
+    }
+    fn anticipate(&mut self, u: &[f64], trial: &[f64]) -> bool {
+        self.anticipate_pairs(u, trial)
+    }
+    fn forget_anticipated(&mut self) {
+        self.anticipated.clear();
+    }
+    fn add_anticipated_gradient(&self, u: &[f64], gradient: &mut [f64]) -> bool {
+        self.add_anticipated_pair_gradient(u, gradient)
+    }
+    fn relag(&mut self, u: &[f64]) -> f64 {
+        self.relag_friction(u)
+    }
+    fn add_contact_forces(&self, u: &[f64], forces: &mut ContactForces) {
+        self.evaluate(u, None, None, Some(forces));
+    }
+    fn is_contact(&self) -> bool {
+        true
+    }
+}
+
+/// Ice–ice contact as a term of the incremental potential: present in every model, active
+/// while the mesh has several parts or cracks (`[physics] ice_stiffness`, `ice_friction`).
+#[derive(Clone, Debug)]
+pub struct IceContactTerm {
+    /// Penalty stiffness (N/m³); 0 takes [`default_stiffness`] of each mesh.
+    pub stiffness: f64,
+    /// Coulomb friction coefficient between pieces.
+    pub friction: f64,
+    /// Friction smoothing velocity (m/s).
+    pub smoothing_velocity: f64,
+    /// The contact of the current mesh, if it has several parts or cracks.
+    pub active: Option<IceContact>,
+    /// Candidate pairs of the current step.
+    candidates: Vec<Candidate>,
+    /// CSC value indices of each candidate's 12 × 12 block (row-major), `u32::MAX` where a
+    /// dof is constrained.
+    candidate_slots: Vec<Vec<u32>>,
+}
+
+impl IceContactTerm {
+    /// The term on `mesh` with crack faces `cracks`; `stiffness` 0 takes the default
+    /// 10 E / h of the mesh with Young's modulus `young` (Pa).
+    pub fn new(
+        mesh: &TetMesh,
+        stiffness: f64,
+        friction: f64,
+        smoothing_velocity: f64,
+        cracks: &[[usize; 3]],
+        young: f64,
+    ) -> Self {
+        let k = if stiffness > 0.0 {
+            stiffness
+        } else {
+            default_stiffness(mesh, young)
+        };
+        IceContactTerm {
+            stiffness,
+            friction,
+            smoothing_velocity,
+            active: IceContact::new(mesh, k, friction, smoothing_velocity, cracks),
+            candidates: Vec::new(),
+            candidate_slots: Vec::new(),
+        }
+    }
+
+    /// The term with the given parameters, inactive until a remesh gives its mesh several
+    /// parts or cracks.
+    pub fn inactive(stiffness: f64, friction: f64, smoothing_velocity: f64) -> Self {
+        IceContactTerm {
+            stiffness,
+            friction,
+            smoothing_velocity,
+            active: None,
+            candidates: Vec::new(),
+            candidate_slots: Vec::new(),
+        }
+    }
+
+    /// Number of candidate pairs of the current step.
+    pub fn num_candidates(&self) -> usize {
+        self.candidates.len()
+    }
+
+    fn step<'a>(&'a self, rest: &'a [Vector3<f64>], slots: &'a [Vec<u32>]) -> Option<IceStep<'a>> {
+        self.active.as_ref().map(|term| IceStep {
+            term,
+            rest,
+            candidates: &self.candidates,
+            slots,
+            anticipated: Vec::new(),
+            friction: None,
+        })
+    }
+}
+
+impl Term for IceContactTerm {
+    fn name(&self) -> &'static str {
+        "ice contact"
+    }
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+    fn clone_box(&self) -> Box<dyn Term> {
+        Box::new(self.clone())
+    }
+    /// Finds the candidate pairs of the coming step; the pattern must couple exactly their
+    /// nodes. Keeping the pattern a function of the step's start state (never a
+    /// history-dependent superset) keeps resumed runs bit-identical.
+    fn start_step(&mut self, start: &StepStartView) -> Option<Vec<(usize, usize)>> {
+        let term = self.active.as_ref()?;
+        self.candidates = term.candidates(start.rest, start.u, start.v, start.dt);
+        let mut couplings: Vec<(usize, usize)> = self
+            .candidates
+            .iter()
+            .flat_map(|c| c.face.map(|f| (c.node.min(f), c.node.max(f))))
+            .collect();
+        couplings.sort_unstable();
+        couplings.dedup();
+        Some(couplings)
+    }
+    fn pattern_ready(&mut self, assembly: &Assembly, _changed: bool) {
+        if self.active.is_none() {
+            return;
+        }
+        self.candidate_slots = self
+            .candidates
+            .iter()
+            .map(|c| {
+                let nodes = IceContact::pair_nodes(c);
+                (0..144)
+                    .map(|rc| {
+                        let (r, col) = (rc / 12, rc % 12);
+                        let (dr, dc) = (3 * nodes[r / 3] + r % 3, 3 * nodes[col / 3] + col % 3);
+                        match (assembly.dofs().free(dr), assembly.dofs().free(dc)) {
+                            (Some(fr), Some(fc)) => {
+                                assembly.slot(fr, fc).map_or(u32::MAX, |s| s as u32)
+                            }
+                            _ => u32::MAX,
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+    }
+    fn begin_solve<'a>(&'a self, solve: &Solve<'a>) -> Option<Box<dyn StepTerm + 'a>> {
+        let mut ice = self.step(solve.rest, &self.candidate_slots)?;
+        if solve.dynamic && ice.term.friction > 0.0 {
+            let frames = ice.extrapolated_friction_frames(solve.rest, solve.previous, solve.earlier);
+            ice.friction = Some(IceFriction {
+                dt: solve.h,
+                previous: solve.previous,
+                frames,
+            });
+        }
+        Some(Box::new(ice))
+    }
+    fn stored_energy(&self, rest: &[Vector3<f64>], u: &[f64], _t: f64) -> f64 {
+        self.step(rest, &[])
+            .map_or(0.0, |ice| ice.evaluate(u, None, None, None))
+    }
+    fn has_contact_forces(&self) -> bool {
+        self.active.is_some()
+    }
+    fn bookkeeping_len(&self) -> usize {
+        self.candidate_slots.len()
+    }
+    fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term> {
+        Box::new(IceContactTerm::new(
+            remesh.mesh,
+            self.stiffness,
+            self.friction,
+            self.smoothing_velocity,
+            remesh.cracks,
+            remesh.young,
+        ))
     }
 }

@@ -65,3 +65,26 @@ pub fn traction_faces(mesh: &TetMesh, region: &Region) -> (usize, f64) {
     }
     (count, area)
 }
+
+/// The dead loads as a term of a solve: potential −f·u of constant nodal forces.
+pub struct DeadLoads<'a> {
+    /// Nodal forces (N), 3 per node.
+    pub force: &'a [f64],
+}
+
+impl super::term::StepTerm for DeadLoads<'_> {
+    fn add(
+        &mut self,
+        u: &[f64],
+        energy: &mut f64,
+        mut gradient: Option<&mut [f64]>,
+        _hessian: Option<&mut [f64]>,
+    ) {
+        for (d, (ud, f)) in u.iter().zip(self.force).enumerate() {
+            *energy -= f * ud;
+            if let Some(g) = gradient.as_deref_mut() {
+                g[d] -= f;
+            }
+        }
+    }
+}

@@ -1,15 +1,20 @@
-//! The physical model of a scene: elasticity, mass, loads, damping and boundary conditions.
-//! A scene builds only the terms it enables; a term that is off costs nothing.
+//! The physical model of a scene: elasticity, mass, loads, damping, boundary conditions and
+//! the terms the scene enables (see [`term`]); a term that is off costs nothing. The model is
+//! fixed between remeshes; what changes from step to step is in the simulation state
+//! ([`history`]).
 
 pub mod contact;
 pub mod dirichlet;
 pub mod elasticity;
 pub mod freezing;
 pub mod grid;
+pub mod history;
 pub mod ice_contact;
+pub mod inertia;
 pub mod loads;
 pub mod obstacle_mesh;
 pub mod plasticity;
+pub mod term;
 
 pub use contact::{Contact, Obstacle};
 pub use dirichlet::Dirichlet;
@@ -17,7 +22,10 @@ pub use elasticity::Elasticity;
 pub use loads::Traction;
 
 use crate::mesh::{MeshError, TetMesh};
+use history::ElementHistory;
+use ice_contact::{IceContact, IceContactTerm};
 use nalgebra::Vector3;
+use term::{Remesh, Term};
 
 /// Axis-aligned box region in rest coordinates (m), bounds inclusive.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -59,10 +67,10 @@ pub struct Model {
     pub damping: Option<Rayleigh>,
     /// Dirichlet conditions.
     pub dirichlet: Vec<Dirichlet>,
-    /// Contact with rigid obstacles, if the scene has any (none: no contact work at all).
-    pub contact: Option<Contact>,
-    /// Contact between separate parts of the mesh, if it has more than one.
-    pub ice_contact: Option<ice_contact::IceContact>,
+    /// The terms the scene enables beyond elasticity, loads, inertia and damping, in the
+    /// order their energies are summed: obstacle contact (if the scene has obstacles), then
+    /// ice–ice contact (active when the mesh has several parts or cracks).
+    pub terms: Vec<Box<dyn Term>>,
     /// Freezing schedule, if the scene freezes (none: every element is ice throughout).
     pub freezing: Option<freezing::Freezing>,
     /// Plasticity, if on (none: no plastic state at all).
@@ -71,14 +79,12 @@ pub struct Model {
     pub gravity: Vector3<f64>,
     /// Surface tractions, kept likewise.
     pub tractions: Vec<Traction>,
-    /// Ice–ice contact parameters for when the mesh has (or fracture makes) several parts:
-    /// penalty stiffness (N/m³; 0 = the default 10 E / h), friction, smoothing velocity (m/s).
-    pub ice_contact_params: [f64; 3],
 }
 
 impl Model {
     /// Assembles the model: lumped mass ρV/4 per tet vertex, gravity m g on each node, the
-    /// given tractions on boundary faces.
+    /// given tractions on boundary faces; ice–ice contact with the default stiffness, without
+    /// friction, inactive until a remesh gives the mesh several parts or cracks.
     pub fn new(
         mesh: TetMesh,
         elasticity: Elasticity,
@@ -102,22 +108,20 @@ impl Model {
             external_force,
             damping,
             dirichlet,
-            contact: None,
-            ice_contact: None,
+            terms: vec![Box::new(IceContactTerm::inactive(0.0, 0.0, 1e-4))],
             freezing: None,
             plasticity: None,
             gravity,
             tractions: tractions.to_vec(),
-            ice_contact_params: [0.0, 0.0, 1e-4],
         })
     }
 
     /// The model on a new mesh made from this one by splitting elements (fracture): `parent[e]`
     /// is the element of this model that new element `e` came from, and inherits its
-    /// eigenstrain, plastic strain, freeze state and freezing schedule. Mass and loads are
-    /// rebuilt from the new rest volumes and boundary (total mass is unchanged when the rest
-    /// volume is), contact from the new boundary, and ice–ice contact from the new parts and
-    /// the crack faces `cracks` (node triples; their two sides must not interpenetrate).
+    /// prescribed eigenstrain and freezing schedule. Mass and loads are rebuilt from the new
+    /// rest volumes and boundary (total mass is unchanged when the rest volume is), and every
+    /// term rebuilds itself on the new mesh with the crack faces `cracks` (node triples; their
+    /// two sides must not interpenetrate).
     pub fn remeshed(
         &self,
         rest: &[Vector3<f64>],
@@ -138,19 +142,13 @@ impl Model {
             self.damping,
             self.dirichlet.clone(),
         )?;
-        model.contact = self
-            .contact
-            .as_ref()
-            .map(|c| Contact::new(&model.mesh, c.obstacles.clone(), c.smoothing_velocity));
-        let [stiffness, friction, smoothing] = self.ice_contact_params;
-        let stiffness = if stiffness > 0.0 {
-            stiffness
-        } else {
-            contact::default_stiffness(&model.mesh, old.material.young())
+        let remesh = Remesh {
+            mesh: &model.mesh,
+            parent,
+            cracks,
+            young: old.material.young(),
         };
-        model.ice_contact =
-            ice_contact::IceContact::new(&model.mesh, stiffness, friction, smoothing, cracks);
-        model.ice_contact_params = self.ice_contact_params;
+        model.terms = self.terms.iter().map(|t| t.remeshed(&remesh)).collect();
         model.freezing = self.freezing.as_ref().map(|f| freezing::Freezing {
             arrival: inherit(&f.arrival),
             base_eigenstrain: inherit(&f.base_eigenstrain),
@@ -160,18 +158,46 @@ impl Model {
         Ok(model)
     }
 
-    /// Sets the time-dependent material state (freeze states, expansion) for time `t` (s).
-    pub fn apply_schedule(&mut self, t: f64) {
+    /// Adds contact with rigid obstacles, summed before the other contact terms.
+    pub fn add_obstacles(&mut self, contact: Contact) {
+        let nodes = self.mesh.num_nodes();
+        self.terms
+            .insert(0, Box::new(contact::ObstacleContact::new(contact, nodes)));
+    }
+
+    /// Replaces the ice–ice contact term.
+    pub fn set_ice_contact(&mut self, term: IceContactTerm) {
+        self.terms.retain(|t| t.as_any().downcast_ref::<IceContactTerm>().is_none());
+        self.terms.push(Box::new(term));
+    }
+
+    /// The first term of type `T`, if the model has one.
+    pub fn term<T: 'static>(&self) -> Option<&T> {
+        self.terms.iter().find_map(|t| t.as_any().downcast_ref::<T>())
+    }
+
+    /// Contact with rigid obstacles, if the scene has any.
+    pub fn obstacle_contact(&self) -> Option<&Contact> {
+        self.term::<contact::ObstacleContact>().map(|t| &t.contact)
+    }
+
+    /// Ice–ice contact, if the mesh has several parts or cracks.
+    pub fn ice_contact(&self) -> Option<&IceContact> {
+        self.term::<IceContactTerm>().and_then(|t| t.active.as_ref())
+    }
+
+    /// Sets the time-dependent element history (freeze states, expansion) for time `t` (s).
+    pub fn apply_schedule(&self, t: f64, history: &mut ElementHistory) {
         if let Some(f) = &self.freezing {
-            f.apply(t, &mut self.elasticity);
+            f.apply(t, history);
         }
     }
 
-    /// Return mapping of the plastic strains for converged displacements `u` (m); returns the
-    /// largest plastic strain norm (0 without plasticity).
-    pub fn update_plastic_strain(&mut self, u: &[f64]) -> f64 {
+    /// Return mapping of the plastic strains in `history` for converged displacements `u`
+    /// (m); returns the largest plastic strain norm (0 without plasticity).
+    pub fn update_plastic_strain(&self, history: &mut ElementHistory, u: &[f64]) -> f64 {
         match &self.plasticity {
-            Some(p) => p.update(&mut self.elasticity, &self.mesh.tets, u),
+            Some(p) => p.update(&self.elasticity, history, &self.mesh.tets, u),
             None => 0.0,
         }
     }

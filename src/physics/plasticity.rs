@@ -11,6 +11,7 @@
 //! the mapping then updates ε_p from the converged displacement.
 
 use super::elasticity::Elasticity;
+use super::history::ElementHistory;
 use nalgebra::Matrix3;
 
 /// Plasticity parameters.
@@ -43,28 +44,34 @@ impl Plasticity {
         updated
     }
 
-    /// Updates every fully frozen element's plastic strain for the converged displacements `u`
-    /// (m); returns the largest ‖ε_p‖ afterwards.
-    pub fn update(&self, elasticity: &mut Elasticity, tets: &[[usize; 4]], u: &[f64]) -> f64 {
+    /// Updates every fully frozen element's plastic strain in `history` for the converged
+    /// displacements `u` (m); returns the largest ‖ε_p‖ afterwards.
+    pub fn update(
+        &self,
+        elasticity: &Elasticity,
+        history: &mut ElementHistory,
+        tets: &[[usize; 4]],
+        u: &[f64],
+    ) -> f64 {
         use rayon::prelude::*;
         let n = tets.len();
-        if elasticity.plastic_strain.len() != n {
-            elasticity.plastic_strain = vec![Matrix3::zeros(); n];
+        if history.plastic_strain.len() != n {
+            history.plastic_strain = vec![Matrix3::zeros(); n];
         }
-        let el = &*elasticity;
+        let h = &*history;
         let updated: Vec<Matrix3<f64>> = (0..n)
             .into_par_iter()
             .map(|e| {
-                let frozen = el.freeze_state.get(e).is_none_or(|&s| s >= 1.0);
-                if frozen {
-                    self.return_map(&el.elastic_strain(tets, u, e), &el.plastic_strain[e])
+                if h.is_frozen(e) {
+                    let elastic = elasticity.elastic_strain(tets, h, u, e);
+                    self.return_map(&elastic, &h.plastic_strain[e])
                 } else {
-                    el.plastic_strain[e]
+                    h.plastic_strain[e]
                 }
             })
             .collect();
         let largest = updated.iter().map(|p| p.norm()).fold(0.0, f64::max);
-        elasticity.plastic_strain = updated;
+        history.plastic_strain = updated;
         largest
     }
 }

@@ -6,7 +6,6 @@ pub mod low_rank;
 pub mod newton;
 pub mod ordering;
 pub mod pcg;
-pub mod timestep;
 pub mod tree_solve;
 
 pub use linear::{

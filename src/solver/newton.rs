@@ -8,9 +8,8 @@
 //! reassemble and refactorise. Ice is stiff and nearly linear at the strains it survives, so the
 //! second solve of a step almost always reuses the first factorisation. With a solver that
 //! multiplies by the matrix (CG, possibly preconditioned by a kept factor) a chord iteration
-//! also brings the contact part of the matrix to the iterate
-//! ([`Potential::update_contact_hessian`]): contact is where the potential is far from
-//! quadratic, and re-evaluating it costs little against an element pass.
+//! also brings the cheap, far-from-quadratic part of the matrix to the iterate
+//! ([`Potential::refresh_hessian`]), which costs little against a whole assembly.
 
 use super::linear::{LinearError, LinearSolver, LinearStats};
 use crate::assembly::Assembly;
@@ -31,30 +30,28 @@ pub trait Potential {
         false
     }
     /// Given the current iterate `u` and the full Newton step `trial`, lets the potential add
-    /// to its Hessian the stiffness of constraints the step would activate (contact); returns
-    /// whether the Hessian changed, in which case Newton recomputes the step.
+    /// to its Hessian the stiffness of constraints the step would activate; returns whether
+    /// the Hessian changed, in which case Newton recomputes the step.
     fn anticipate(&mut self, _u: &[f64], _trial: &[f64]) -> bool {
         false
     }
     /// Forgets what [`Potential::anticipate`] added: each iteration starts from the true
     /// Hessian, or Newton would converge only linearly towards states where an anticipated
-    /// contact stays open.
+    /// constraint stays inactive.
     fn forget_anticipated(&mut self) {}
-    /// Adds to `gradient` the gradient the anticipated contacts would have at `u` if they were
-    /// already active (k A g n for a pair still at a positive gap g); returns whether there was
-    /// any. Newton puts it into the right-hand side only: with the stiffness of a contact in
-    /// the Hessian but not its force, a node approaching an obstacle would creep towards it by
-    /// (load / penalty stiffness) per iteration; with both, the step lands it on the obstacle,
-    /// pressed in to equilibrium, as the active contact's quadratic model predicts.
+    /// Adds to `gradient` the gradient the anticipated constraints would have at `u` if they
+    /// were already active; returns whether there was any. Newton puts it into the
+    /// right-hand side only: with the stiffness of a constraint in the Hessian but not its
+    /// force, a node approaching an obstacle would creep towards it by (load / penalty
+    /// stiffness) per iteration; with both, the step lands it on the obstacle, pressed in to
+    /// equilibrium, as the active constraint's quadratic model predicts.
     fn add_anticipated_gradient(&self, _u: &[f64], _gradient: &mut [f64]) -> bool {
         false
     }
-    /// Brings the contact part of `hessian` (the last assembled Hessian, or the last one this
-    /// updated) to the iterate `u` in place, leaving the rest as assembled; returns whether it
-    /// changed. Contact is the part of the potential that is far from quadratic (a node
-    /// leaves a wall, friction passes between sticking and sliding) and costs little to
-    /// re-evaluate, against a whole element pass for a Hessian.
-    fn update_contact_hessian(&mut self, _u: &[f64], _hessian: &mut [f64]) -> bool {
+    /// Brings the part of `hessian` (the last assembled Hessian, or the last one this
+    /// updated) that is cheap to re-evaluate and far from quadratic to the iterate `u` in
+    /// place, leaving the rest as assembled; returns whether it changed.
+    fn refresh_hessian(&mut self, _u: &[f64], _hessian: &mut [f64]) -> bool {
         false
     }
 }
@@ -155,7 +152,7 @@ pub struct NewtonWorkspace {
     rhs: Vec<f64>,
     direction: Vec<f64>,
     trial: Vec<f64>,
-    /// A second direction (free dofs), for the anticipated-contact step.
+    /// A second direction (free dofs), for the anticipated-constraint step.
     landing: Vec<f64>,
     /// Gradient at the line search's full step (all dofs): the next iterate's, if accepted.
     trial_gradient: Vec<f64>,
@@ -264,10 +261,10 @@ pub fn minimize(
             energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
             report.t_assembly += start.elapsed().as_secs_f64();
         } else if !refresh && linear.iterates_on_matrix() {
-            // A chord iteration of a solver that multiplies by the matrix: its contact part
+            // A chord iteration of a solver that multiplies by the matrix: its cheap part
             // follows the iterate (the factor or hierarchy stays as it is, now stale).
             let start = Instant::now();
-            if potential.update_contact_hessian(u, &mut work.hessian) {
+            if potential.refresh_hessian(u, &mut work.hessian) {
                 linear.matrix_changed(assembly, &work.hessian);
             }
             report.t_assembly += start.elapsed().as_secs_f64();
@@ -343,7 +340,7 @@ pub fn minimize(
                 .map(|(&d, x)| g[d] * x)
                 .sum()
         };
-        // Anticipated contacts: solve again with their force in the right-hand side too, and
+        // Anticipated constraints: solve again with their force in the right-hand side too, and
         // take that step if it still descends.
         work.trial.copy_from_slice(&work.gradient);
         if iteration < ANTICIPATION_ITERATIONS
@@ -431,11 +428,11 @@ fn forcing(residual: f64, previous: f64, target: f64) -> f64 {
     quadratic.max(0.5 * target / residual)
 }
 
-/// Newton iterations during which contacts a step would create are anticipated (see
-/// `Potential::anticipate`). Past them Newton runs plain: anticipation can cycle — a pair that
-/// the full step would press is stiffened, the stiffened step leaves it open, the next full
-/// step presses it again — and two crack sides at rest against each other kept a step at a
-/// 20 N residual for 50 iterations that way.
+/// Newton iterations during which constraints a step would activate are anticipated (see
+/// `Potential::anticipate`). Past them Newton runs plain: anticipation can cycle — a
+/// constraint the full step would activate is stiffened, the stiffened step leaves it
+/// inactive, the next full step activates it again — and two crack sides of a fractured
+/// block at rest against each other kept a step at a 20 N residual for 50 iterations that way.
 const ANTICIPATION_ITERATIONS: usize = 10;
 
 /// The smallest residual (N) double precision can resolve at `u`: forces are stiffness times

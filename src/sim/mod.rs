@@ -1,14 +1,24 @@
 //! The step loop: owns the model, the state and the solver data, and advances time.
+//!
+//! Each solve minimises the sum of the step's terms (see `physics::term` and [`potential`]):
+//! the elastic energy, the dead loads, the terms the scene enables (obstacle contact, ice–ice
+//! contact) and, in a dynamic step, inertia and damping.
+
+pub mod potential;
 
 use crate::assembly::{Assembly, DofMap};
-use crate::physics::contact::{ContactForces, ContactStep};
-use crate::physics::ice_contact::{Candidate, IceContact};
+use crate::physics::contact::ContactForces;
+use crate::physics::elasticity::ElasticStep;
+use crate::physics::history::ElementHistory;
+use crate::physics::inertia::{Inertia, StiffnessDamping};
+use crate::physics::loads::DeadLoads;
+use crate::physics::term::{Solve, StepStartView, StepTerm};
 use crate::physics::Model;
-use crate::solver::timestep::{IceFriction, IceStep, Inertia, StepPotential};
 use crate::solver::{
     minimize, FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams,
-    NewtonReport, NewtonWorkspace, Potential,
+    NewtonReport, NewtonWorkspace,
 };
+use potential::StepPotential;
 use std::time::Instant;
 
 /// Static equilibrium per step, or backward-Euler dynamics.
@@ -63,7 +73,8 @@ impl StepSettings {
     }
 }
 
-/// The time-dependent state: everything a step depends on besides the model.
+/// The time-dependent state: everything a step depends on besides the model. Rolling a step
+/// back is restoring a copy of it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct State {
     /// Nodal displacement from the rest position (m), 3 per node.
@@ -74,20 +85,8 @@ pub struct State {
     pub time: f64,
     /// Completed steps.
     pub step: u64,
-}
-
-/// The state a step started from, kept so that the step can be taken again (after fracture
-/// changed the mesh at its end).
-#[derive(Clone, Debug, PartialEq)]
-pub struct StepStart {
-    /// Displacements (m), 3 per node.
-    pub u: Vec<f64>,
-    /// Velocities (m/s), 3 per node.
-    pub v: Vec<f64>,
-    /// Plastic strain per element (empty without plasticity).
-    pub plastic_strain: Vec<nalgebra::Matrix3<f64>>,
-    /// Time (s).
-    pub time: f64,
+    /// What the elements carry from step to step.
+    pub history: ElementHistory,
 }
 
 /// Energies of a state (J).
@@ -138,7 +137,7 @@ pub const MAX_FRICTION_UPDATES: usize = 4;
 
 /// The friction normal force has settled when re-lagging it changes no pair's friction force
 /// at the solution by more than this fraction of the largest α λ (see
-/// [`ContactStep::relag`]; ice–ice pairs: no normal force by more than this fraction of the
+/// `ContactStep::relag`; ice–ice pairs: no normal force by more than this fraction of the
 /// largest). Each re-solve costs a Newton solve; in a freezing container, where every step
 /// moves the wall pressures, 1e-4 took all four re-solves every step, while 1e-2 bounds the
 /// friction force's error by 1 % of the largest α λ.
@@ -208,18 +207,12 @@ pub struct Simulation {
     previous: Vec<f64>,
     predictor: Vec<f64>,
     damping_stiffness: Vec<f64>,
-    /// Per node, the CSC value indices of its 3 × 3 block (only built with contact).
-    block_slots: Vec<[u32; 9]>,
     /// Contact forces on the ice after the last step (N, 3 per node; empty without contact).
     contact_forces: ContactForces,
-    /// Node pairs coupled in the pattern by ice–ice contact (sorted, unique).
+    /// Node pairs the terms couple in the pattern beyond the elements (sorted, unique).
     couplings: Vec<(usize, usize)>,
-    /// Ice–ice contact candidates of the current step.
-    candidates: Vec<Candidate>,
-    /// CSC value indices of each candidate's 12 × 12 block.
-    candidate_slots: Vec<Vec<u32>>,
     /// Where the last step started (none before the first step or after a remesh).
-    start: Option<StepStart>,
+    start: Option<State>,
 }
 
 impl Simulation {
@@ -236,10 +229,14 @@ impl Simulation {
             }
         }
         let mut model = model;
-        model.apply_schedule(0.0);
-        if model.plasticity.is_some() && model.elasticity.plastic_strain.is_empty() {
-            model.elasticity.plastic_strain = vec![Default::default(); model.mesh.num_tets()];
+        if let Some(f) = &model.freezing {
+            // The water's constants, for the elements a freezing schedule leaves unfrozen.
+            model.elasticity.water_bulk = f.water_bulk();
+            model.elasticity.water_shear = f.water_shear;
         }
+        let mut history =
+            ElementHistory::initial(&model.elasticity.eigenstrain, model.plasticity.is_some());
+        model.apply_schedule(0.0, &mut history);
         let constrained = model.constrained_dofs();
         if settings.analysis == Analysis::Static && !constrained.iter().any(|c| *c) {
             return Err(SimError::NoDirichlet);
@@ -253,12 +250,16 @@ impl Simulation {
             &settings.iterative(),
         )?;
         let workspace = NewtonWorkspace::new(&assembly);
+        for term in &mut model.terms {
+            term.pattern_ready(&assembly, true);
+        }
         let n = 3 * model.num_nodes();
         let state = State {
             u: vec![0.0; n],
             v: vec![0.0; n],
             time: 0.0,
             step: 0,
+            history,
         };
         let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
         Ok(Simulation {
@@ -266,16 +267,8 @@ impl Simulation {
             scratch: vec![0.0; 2 * assembly.dofs().num_free()],
             previous: vec![0.0; n],
             predictor: vec![0.0; n],
-            block_slots: match &model.contact {
-                Some(_) => (0..model.num_nodes())
-                    .map(|i| assembly.node_block_slots(i))
-                    .collect(),
-                None => Vec::new(),
-            },
             contact_forces: ContactForces::default(),
             couplings: Vec::new(),
-            candidates: Vec::new(),
-            candidate_slots: Vec::new(),
             start: None,
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
@@ -293,32 +286,43 @@ impl Simulation {
 
     /// Continues with `model` on a new mesh after a topology change (fracture; see
     /// [`Model::remeshed`]), with the nodal displacements `u` and velocities `v` (3 per node)
-    /// on the new mesh. Pattern, colouring and symbolic factorisation are rebuilt (only here);
-    /// time and step count carry on.
-    pub fn remesh(&mut self, model: Model, u: Vec<f64>, v: Vec<f64>) -> Result<(), SimError> {
+    /// on the new mesh; new element `e` inherits the history of element `parent[e]`. Pattern,
+    /// colouring and symbolic factorisation are rebuilt (only here); time and step count carry
+    /// on.
+    pub fn remesh(
+        &mut self,
+        model: Model,
+        u: Vec<f64>,
+        v: Vec<f64>,
+        parent: &[usize],
+    ) -> Result<(), SimError> {
         let (time, step) = (self.state.time, self.state.step);
+        let mut history = self.state.history.inherit(parent);
         let mut next = Simulation::new(model, self.settings)?;
-        next.model.apply_schedule(time);
-        next.state = State { u, v, time, step };
+        next.model.apply_schedule(time, &mut history);
+        next.state = State {
+            u,
+            v,
+            time,
+            step,
+            history,
+        };
         *self = next;
         Ok(())
     }
 
     /// Where the last step started (none before the first step and after a remesh).
-    pub fn step_start(&self) -> Option<&StepStart> {
+    pub fn step_start(&self) -> Option<&State> {
         self.start.as_ref()
     }
 
     /// Takes the last step again from `start` (the step's start state, on the current mesh
     /// — after a remesh it must be carried over to the new nodes and elements). On failure
     /// the state is left at `start`.
-    pub fn retake_step(&mut self, start: StepStart) -> Result<StepReport, SimError> {
-        self.state.u = start.u;
-        self.state.v = start.v;
-        self.state.time = start.time;
-        self.state.step -= 1;
-        self.model.elasticity.plastic_strain = start.plastic_strain;
-        self.model.apply_schedule(start.time);
+    pub fn retake_step(&mut self, start: State) -> Result<StepReport, SimError> {
+        self.state = start;
+        self.model
+            .apply_schedule(self.state.time, &mut self.state.history);
         self.step()
     }
 
@@ -328,7 +332,9 @@ impl Simulation {
     }
     /// Number of ice–ice candidate pairs of the last step (for statistics).
     pub fn ice_candidates(&self) -> usize {
-        self.candidates.len()
+        self.model
+            .term::<crate::physics::ice_contact::IceContactTerm>()
+            .map_or(0, |t| t.num_candidates())
     }
     /// The linear solver (for statistics).
     pub fn linear_solver(&self) -> &LinearSolver {
@@ -342,27 +348,14 @@ impl Simulation {
         let start = Instant::now();
         let t0 = self.state.time;
         // Kept for fracture's retake, and to roll back a failed step.
-        self.start = Some(StepStart {
-            u: self.state.u.clone(),
-            v: self.state.v.clone(),
-            plastic_strain: self.model.elasticity.plastic_strain.clone(),
-            time: t0,
-        });
+        self.start = Some(self.state.clone());
         let t_end = t0 + self.settings.dt;
-        if self.model.ice_contact.is_some() {
-            self.prepare_ice_contact()?;
-        }
+        self.start_terms()?;
         let t_contact_broad = start.elapsed().as_secs_f64();
         let result = self.advance(self.settings.dt, t_end, 0);
         if let (Err(_), Some(s)) = (&result, &self.start) {
-            self.state.time = t0;
-            self.state.u.clone_from(&s.u);
-            self.state.v.clone_from(&s.v);
-            self.model
-                .elasticity
-                .plastic_strain
-                .clone_from(&s.plastic_strain);
-            self.model.apply_schedule(t0);
+            self.state.clone_from(s);
+            self.model.apply_schedule(t0, &mut self.state.history);
         }
         let mut report = result.map_err(|(source, time)| SimError::Step {
             step: self.state.step + 1,
@@ -376,28 +369,29 @@ impl Simulation {
         Ok(report)
     }
 
-    /// Finds the ice–ice candidate pairs of the coming step and makes the sparsity pattern
-    /// couple exactly their nodes: the pattern, slot map, colouring and symbolic factorisation
-    /// are rebuilt when that set changes (and only then). Keeping the pattern a function of the
-    /// step's start state (never a history-dependent superset) keeps resumed runs bit-identical.
-    fn prepare_ice_contact(&mut self) -> Result<(), SimError> {
-        let Some(term) = &self.model.ice_contact else {
+    /// Lets every term prepare the coming step, and makes the sparsity pattern couple exactly
+    /// the node pairs they ask for: the pattern, slot map, colouring and symbolic
+    /// factorisation are rebuilt when that set changes (and only then).
+    fn start_terms(&mut self) -> Result<(), SimError> {
+        let view = StepStartView {
+            rest: &self.model.mesh.rest,
+            u: &self.state.u,
+            v: &self.state.v,
+            dt: self.settings.dt,
+        };
+        let mut asked: Option<Vec<(usize, usize)>> = None;
+        for term in &mut self.model.terms {
+            if let Some(pairs) = term.start_step(&view) {
+                asked.get_or_insert_with(Vec::new).extend(pairs);
+            }
+        }
+        let Some(mut couplings) = asked else {
             return Ok(());
         };
-        self.candidates = term.candidates(
-            &self.model.mesh.rest,
-            &self.state.u,
-            &self.state.v,
-            self.settings.dt,
-        );
-        let mut couplings: Vec<(usize, usize)> = self
-            .candidates
-            .iter()
-            .flat_map(|c| c.face.map(|f| (c.node.min(f), c.node.max(f))))
-            .collect();
         couplings.sort_unstable();
         couplings.dedup();
-        if couplings != self.couplings {
+        let changed = couplings != self.couplings;
+        if changed {
             let dofs = self.assembly.dofs().clone();
             self.assembly = Assembly::with_couplings(&self.model.mesh, dofs, &couplings);
             let s = &self.settings;
@@ -409,36 +403,14 @@ impl Simulation {
                 &s.iterative(),
             )?;
             self.workspace = NewtonWorkspace::new(&self.assembly);
-            if self.model.contact.is_some() {
-                self.block_slots = (0..self.model.num_nodes())
-                    .map(|i| self.assembly.node_block_slots(i))
-                    .collect();
-            }
             if !self.damping_stiffness.is_empty() {
                 self.damping_stiffness = vec![0.0; self.assembly.nnz()];
             }
             self.couplings = couplings;
         }
-        let assembly = &self.assembly;
-        self.candidate_slots = self
-            .candidates
-            .iter()
-            .map(|c| {
-                let nodes = IceContact::pair_nodes(c);
-                (0..144)
-                    .map(|rc| {
-                        let (r, col) = (rc / 12, rc % 12);
-                        let (dr, dc) = (3 * nodes[r / 3] + r % 3, 3 * nodes[col / 3] + col % 3);
-                        match (assembly.dofs().free(dr), assembly.dofs().free(dc)) {
-                            (Some(fr), Some(fc)) => {
-                                assembly.slot(fr, fc).map_or(u32::MAX, |s| s as u32)
-                            }
-                            _ => u32::MAX,
-                        }
-                    })
-                    .collect()
-            })
-            .collect();
+        for term in &mut self.model.terms {
+            term.pattern_ready(&self.assembly, changed);
+        }
         Ok(())
     }
 
@@ -464,7 +436,7 @@ impl Simulation {
     /// One backward-Euler (or static) solve of length `h` ending at `t_new`.
     fn try_step(&mut self, h: f64, t_new: f64) -> Result<StepReport, NewtonError> {
         let dynamic = self.settings.analysis == Analysis::Dynamic;
-        self.model.apply_schedule(t_new);
+        self.model.apply_schedule(t_new, &mut self.state.history);
         self.previous.copy_from_slice(&self.state.u);
         let mut u = self.state.u.clone();
         if dynamic {
@@ -484,23 +456,8 @@ impl Simulation {
             self.stiffness_at_previous(damping.stiffness);
         }
         let force_floor = self.force_scale(h, dynamic);
-        let rest = &self.model.mesh.rest;
-        let t_start = self.state.time;
-        let selection = Instant::now();
-        let contact = self.model.contact.as_ref().map(|c| {
-            // Mesh obstacles look for nodes as far as the step can carry them, and an edge.
-            let vmax = self.state.v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            let reach = c.edge + 2.0 * h * vmax * 3f64.sqrt();
-            ContactStep::new(
-                c,
-                rest,
-                &self.previous,
-                (t_start, t_new),
-                dynamic.then_some(h),
-                reach,
-            )
-        });
-        // Friction's normal force starts extrapolated from the step before, uₙ − h vₙ.
+        // Lagged quantities (friction's normal force) start extrapolated from the step
+        // before, uₙ − h vₙ.
         let earlier: Vec<f64> = if dynamic {
             let v = &self.state.v;
             self.previous
@@ -511,72 +468,58 @@ impl Simulation {
         } else {
             Vec::new()
         };
-        let contact = contact.map(|mut c| {
-            c.extrapolate_lagged(&earlier);
-            c
-        });
-        let mut t_contact_broad = selection.elapsed().as_secs_f64();
-        let mut potential = StepPotential {
-            model: &self.model,
-            assembly: &self.assembly,
-            inertia: dynamic.then(|| Inertia {
+        let model = &self.model;
+        let solve = Solve {
+            rest: &model.mesh.rest,
+            previous: &self.previous,
+            velocity: &self.state.v,
+            earlier: &earlier,
+            h,
+            dynamic,
+            times: (self.state.time, t_new),
+        };
+        let mut terms: Vec<Box<dyn StepTerm + '_>> = vec![
+            Box::new(ElasticStep {
+                elasticity: &model.elasticity,
+                tets: &model.mesh.tets,
+                history: &self.state.history,
+                assembly: &self.assembly,
+                element_energy: &mut self.element_energy,
+                project: false,
+            }),
+            Box::new(DeadLoads {
+                force: &model.external_force,
+            }),
+        ];
+        terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(&solve)));
+        if dynamic {
+            terms.push(Box::new(Inertia {
                 dt: h,
+                mass: &model.mass,
                 predictor: &self.predictor,
                 previous: &self.previous,
                 alpha: damping.mass,
-                beta_stiffness: (damping.stiffness > 0.0).then_some(&self.damping_stiffness[..]),
-            }),
-            element_energy: &mut self.element_energy,
-            scratch: &mut self.scratch,
-            contact,
-            block_slots: &self.block_slots,
-            project: false,
-            ice: self.model.ice_contact.as_ref().map(|term| {
-                let mut ice = IceStep {
-                    term,
-                    candidates: &self.candidates,
-                    slots: &self.candidate_slots,
-                    anticipated: Vec::new(),
-                    friction: None,
-                };
-                if dynamic && term.friction > 0.0 {
-                    let frames = ice.extrapolated_friction_frames(rest, &self.previous, &earlier);
-                    ice.friction = Some(IceFriction {
-                        dt: h,
-                        previous: &self.previous,
-                        frames,
-                    });
-                }
-                ice
-            }),
-            t_contact: 0.0,
-            contact_blocks: Vec::new(),
-        };
-        // Friction uses the normal force extrapolated to the end of the step; after each solve it
-        // is re-lagged to the solution's and the step re-solved (warm-started) until it settles
-        // to FRICTION_RELAG_TOLERANCE of the largest. Mesh obstacles' planes are re-picked the
-        // same way.
+                assembly: &self.assembly,
+            }));
+            if damping.stiffness > 0.0 {
+                terms.push(Box::new(StiffnessDamping {
+                    dt: h,
+                    beta_stiffness: &self.damping_stiffness,
+                    previous: &self.previous,
+                    assembly: &self.assembly,
+                    scratch: &mut self.scratch,
+                }));
+            }
+        }
+        let mut potential = StepPotential::new(terms);
+        // Lagged quantities (friction's normal force, mesh obstacles' planes) are those of the
+        // start of the solve; after each solve they are re-lagged to its solution and the step
+        // is re-solved (warm-started) until they settle to FRICTION_RELAG_TOLERANCE.
         let mut newton: Option<NewtonReport> = None;
         let mut newton_solves = 0;
         for _ in 0..=MAX_FRICTION_UPDATES {
-            if newton.is_some() {
-                let mut change: f64 = 0.0;
-                if let Some(c) = potential.contact.as_mut() {
-                    let reselection = Instant::now();
-                    if c.reselect_node_planes(&u) {
-                        change = f64::INFINITY;
-                    }
-                    t_contact_broad += reselection.elapsed().as_secs_f64();
-                }
-                if let Some(c) = potential.contact.as_mut() {
-                    change = change.max(c.relag(&u));
-                }
-                if let Some(ice) = potential.ice.as_mut() {
-                    change = change.max(ice.relag(rest, &u));
-                }
-                if change <= FRICTION_RELAG_TOLERANCE {
-                    break;
-                }
+            if newton.is_some() && potential.relag(&u) <= FRICTION_RELAG_TOLERANCE {
+                break;
             }
             let report = minimize(
                 &mut potential,
@@ -591,27 +534,29 @@ impl Simulation {
             newton_solves += 1;
         }
         let newton = newton.unwrap_or_default();
-        if dynamic {
-            for ((v, un), u0) in self.state.v.iter_mut().zip(&u).zip(&self.previous) {
-                *v = (un - u0) / h;
-            }
-        }
-        if potential.contact.is_some() || potential.ice.is_some() {
+        let contact_terms: Vec<&Box<dyn StepTerm + '_>> =
+            potential.terms.iter().filter(|t| t.is_contact()).collect();
+        if !contact_terms.is_empty() {
             let n = u.len();
             let mut forces = ContactForces {
                 normal: vec![0.0; n],
                 friction: vec![0.0; n],
             };
-            if let Some(contact) = &potential.contact {
-                contact.evaluate(&u, None, None, Some(&mut forces));
-            }
-            if let Some(ice) = &potential.ice {
-                ice.add(&self.model.mesh.rest, &u, None, None, Some(&mut forces));
+            for term in contact_terms {
+                term.add_contact_forces(&u, &mut forces);
             }
             self.contact_forces = forces;
         }
         let t_contact_narrow = potential.t_contact;
-        self.model.update_plastic_strain(&u);
+        let t_contact_broad = potential.broad_phase_time();
+        drop(potential);
+        if dynamic {
+            for ((v, un), u0) in self.state.v.iter_mut().zip(&u).zip(&self.previous) {
+                *v = (un - u0) / h;
+            }
+        }
+        self.model
+            .update_plastic_strain(&mut self.state.history, &u);
         self.state.u = u;
         self.state.time = t_new;
         Ok(StepReport {
@@ -626,22 +571,23 @@ impl Simulation {
 
     /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.
     fn stiffness_at_previous(&mut self, beta: f64) {
-        let mut potential = StepPotential {
-            model: &self.model,
+        let mut elastic = ElasticStep {
+            elasticity: &self.model.elasticity,
+            tets: &self.model.mesh.tets,
+            history: &self.state.history,
             assembly: &self.assembly,
-            inertia: None,
             element_energy: &mut self.element_energy,
-            scratch: &mut self.scratch,
-            contact: None,
-            block_slots: &[],
             // β K must be positive semi-definite to damp.
             project: true,
-            ice: None,
-            t_contact: 0.0,
-            contact_blocks: Vec::new(),
         };
         let mut gradient = vec![0.0; self.previous.len()];
-        potential.evaluate(&self.previous, &mut gradient, &mut self.damping_stiffness);
+        self.damping_stiffness.fill(0.0);
+        elastic.add(
+            &self.previous,
+            &mut 0.0,
+            Some(&mut gradient),
+            Some(&mut self.damping_stiffness),
+        );
         self.damping_stiffness.iter_mut().for_each(|k| *k *= beta);
     }
 
@@ -650,7 +596,10 @@ impl Simulation {
     /// judged relative to it.
     fn force_scale(&self, h: f64, dynamic: bool) -> f64 {
         let dofs = self.assembly.dofs();
-        let offsets = self.model.elasticity.offset_force_scale();
+        let offsets = self
+            .model
+            .elasticity
+            .offset_force_scale(&self.state.history);
         dofs.free_dofs()
             .iter()
             .map(|&d| {
@@ -667,13 +616,13 @@ impl Simulation {
     /// Energies of the current state.
     pub fn energies(&mut self) -> Energies {
         let u = &self.state.u;
-        let el = &self.model.elasticity;
-        let tets = &self.model.mesh.tets;
-        self.assembly.energies(
-            |e, out| el.element(tets, u, e, false, out),
+        let elastic = self.model.elasticity.energy(
+            &self.assembly,
+            &self.model.mesh.tets,
+            &self.state.history,
+            u,
             &mut self.element_energy,
         );
-        let elastic = self.element_energy.iter().sum();
         let kinetic = self
             .state
             .v
@@ -688,20 +637,13 @@ impl Simulation {
             .zip(u)
             .map(|(f, u)| f * u)
             .sum::<f64>();
-        let contact = self.model.contact.as_ref().map_or(0.0, |c| {
-            let t = self.state.time;
-            ContactStep::new(c, &self.model.mesh.rest, u, (t, t), None, c.edge)
-                .evaluate(u, None, None, None)
-        }) + self.model.ice_contact.as_ref().map_or(0.0, |term| {
-            let ice = IceStep {
-                friction: None,
-                term,
-                candidates: &self.candidates,
-                slots: &[],
-                anticipated: Vec::new(),
-            };
-            ice.add(&self.model.mesh.rest, u, None, None, None)
-        });
+        let (rest, t) = (&self.model.mesh.rest, self.state.time);
+        let contact = self
+            .model
+            .terms
+            .iter()
+            .map(|term| term.stored_energy(rest, u, t))
+            .sum();
         Energies {
             kinetic,
             elastic,
@@ -714,18 +656,22 @@ impl Simulation {
     pub fn stresses(&self) -> Vec<[f64; 6]> {
         self.model
             .elasticity
-            .stresses(&self.model.mesh.tets, &self.state.u)
+            .stresses(&self.model.mesh.tets, &self.state.history, &self.state.u)
     }
 
     /// Number of entries held by contact bookkeeping (block slots, output
     /// forces); zero for a model without obstacles.
     pub fn contact_structures_len(&self) -> usize {
-        self.block_slots.len() + self.contact_forces.normal.len()
+        let terms: usize = self.model.terms.iter().map(|t| t.bookkeeping_len()).sum();
+        terms + self.contact_forces.normal.len()
     }
 
     /// Contact forces on the ice after the last step (N, 3 per node), if the model has contact.
     pub fn contact_forces(&self) -> Option<&ContactForces> {
-        (self.model.contact.is_some() || self.model.ice_contact.is_some())
+        self.model
+            .terms
+            .iter()
+            .any(|t| t.has_contact_forces())
             .then_some(&self.contact_forces)
     }
 

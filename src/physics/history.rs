@@ -1,0 +1,64 @@
+//! Per-element history: what the elements carry from step to step (plastic strain, freeze
+//! state, eigenstrain). It is part of the simulation state, so rolling a step back is
+//! restoring a copy of the state, and it follows the elements through remeshing.
+
+use nalgebra::Matrix3;
+
+/// The per-element state that changes during a run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ElementHistory {
+    /// Isotropic eigenstrain per element (dimensionless): the scene's prescribed eigenstrain
+    /// plus the freezing expansion at the current time.
+    pub eigenstrain: Vec<f64>,
+    /// Plastic strain per element (symmetric, dimensionless); empty without plasticity.
+    pub plastic_strain: Vec<Matrix3<f64>>,
+    /// Freeze state per element, 0 (water) … 1 (ice); empty without freezing (all ice).
+    pub freeze_state: Vec<f64>,
+}
+
+impl ElementHistory {
+    /// The history of a mesh's elements at the start of a run: the prescribed `eigenstrain`,
+    /// zero plastic strain if `plastic`, no freeze states (a freezing schedule sets them).
+    pub fn initial(eigenstrain: &[f64], plastic: bool) -> Self {
+        ElementHistory {
+            eigenstrain: eigenstrain.to_vec(),
+            plastic_strain: if plastic {
+                vec![Matrix3::zeros(); eigenstrain.len()]
+            } else {
+                Vec::new()
+            },
+            freeze_state: Vec::new(),
+        }
+    }
+
+    /// The history on a mesh made from this one's by splitting elements: new element `e`
+    /// inherits everything element `parent[e]` carries.
+    pub fn inherit(&self, parent: &[usize]) -> Self {
+        fn pick<T: Copy>(v: &[T], parent: &[usize]) -> Vec<T> {
+            if v.is_empty() {
+                Vec::new()
+            } else {
+                parent.iter().map(|&p| v[p]).collect()
+            }
+        }
+        ElementHistory {
+            eigenstrain: pick(&self.eigenstrain, parent),
+            plastic_strain: pick(&self.plastic_strain, parent),
+            freeze_state: pick(&self.freeze_state, parent),
+        }
+    }
+
+    /// Strain offset ε* = e I + ε_p of element `e`.
+    pub fn offset_of(&self, e: usize) -> Matrix3<f64> {
+        let iso = Matrix3::identity() * self.eigenstrain[e];
+        match self.plastic_strain.get(e) {
+            Some(p) => iso + p,
+            None => iso,
+        }
+    }
+
+    /// Whether element `e` is fully frozen (always, without a freezing schedule).
+    pub fn is_frozen(&self, e: usize) -> bool {
+        self.freeze_state.get(e).is_none_or(|&s| s >= 1.0)
+    }
+}

@@ -1,0 +1,100 @@
+//! Inertia and Rayleigh damping as terms of a backward-Euler step.
+//!
+//! For displacements u and velocities v at step n and a step h, with û = uₙ + h vₙ and
+//! D = α M + β Kₙ, the step minimises
+//!
+//! ```text
+//! E(u) = Σₑ Wₑ(u) − f·u + 1/(2h²) (u − û)ᵀ M (u − û) + 1/(2h) (u − uₙ)ᵀ D (u − uₙ),
+//! ```
+//!
+//! whose stationarity condition is exactly M (vₙ₊₁ − vₙ)/h = f − ∇W(uₙ₊₁) − D vₙ₊₁ with
+//! vₙ₊₁ = (uₙ₊₁ − uₙ)/h. The damping stiffness Kₙ is the elastic Hessian at the start of the
+//! step, so the damping term is a fixed quadratic and the step stays a minimisation.
+
+use super::term::StepTerm;
+use crate::assembly::Assembly;
+
+/// Inertia with mass-proportional damping: 1/(2h²) ‖u − û‖²_M + α/(2h) ‖u − uₙ‖²_M.
+pub struct Inertia<'a> {
+    /// Time step h (s).
+    pub dt: f64,
+    /// Lumped nodal mass (kg), one per node.
+    pub mass: &'a [f64],
+    /// Predictor û = uₙ + h vₙ (m), all dofs.
+    pub predictor: &'a [f64],
+    /// Displacement uₙ at the start of the step (m), all dofs.
+    pub previous: &'a [f64],
+    /// Mass-proportional damping α (1/s).
+    pub alpha: f64,
+    /// Pattern of the free system.
+    pub assembly: &'a Assembly,
+}
+
+impl StepTerm for Inertia<'_> {
+    fn add(
+        &mut self,
+        u: &[f64],
+        energy: &mut f64,
+        mut gradient: Option<&mut [f64]>,
+        mut hessian: Option<&mut [f64]>,
+    ) {
+        let h = self.dt;
+        let dofs = self.assembly.dofs();
+        for d in 0..u.len() {
+            let m = self.mass[d / 3];
+            let a = u[d] - self.predictor[d];
+            let b = u[d] - self.previous[d];
+            *energy += 0.5 * m * a * a / (h * h) + 0.5 * self.alpha * m * b * b / h;
+            if let Some(g) = gradient.as_deref_mut() {
+                g[d] += m * a / (h * h) + self.alpha * m * b / h;
+            }
+            if let (Some(hs), Some(f)) = (hessian.as_deref_mut(), dofs.free(d)) {
+                hs[self.assembly.diagonal_slot(f)] += m / (h * h) + self.alpha * m / h;
+            }
+        }
+    }
+}
+
+/// Stiffness-proportional damping: 1/(2h) (u − uₙ)ᵀ β Kₙ (u − uₙ) on the free dofs.
+pub struct StiffnessDamping<'a> {
+    /// Time step h (s).
+    pub dt: f64,
+    /// β Kₙ on the free system (CSC values of `assembly`'s pattern, N s/m).
+    pub beta_stiffness: &'a [f64],
+    /// Displacement uₙ at the start of the step (m), all dofs.
+    pub previous: &'a [f64],
+    /// Pattern of the free system.
+    pub assembly: &'a Assembly,
+    /// Scratch of 2 × free dofs.
+    pub scratch: &'a mut [f64],
+}
+
+impl StepTerm for StiffnessDamping<'_> {
+    fn add(
+        &mut self,
+        u: &[f64],
+        energy: &mut f64,
+        mut gradient: Option<&mut [f64]>,
+        hessian: Option<&mut [f64]>,
+    ) {
+        let (h, k) = (self.dt, self.beta_stiffness);
+        let dofs = self.assembly.dofs();
+        // Δu and βKₙΔu in the two halves of the scratch buffer: no allocation per call.
+        let (delta, product) = self.scratch.split_at_mut(dofs.num_free());
+        for (x, &d) in delta.iter_mut().zip(dofs.free_dofs()) {
+            *x = u[d] - self.previous[d];
+        }
+        self.assembly.multiply(k, delta, product);
+        for (i, &d) in dofs.free_dofs().iter().enumerate() {
+            *energy += 0.5 * delta[i] * product[i] / h;
+            if let Some(g) = gradient.as_deref_mut() {
+                g[d] += product[i] / h;
+            }
+        }
+        if let Some(hs) = hessian {
+            for (v, kv) in hs.iter_mut().zip(k) {
+                *v += kv / h;
+            }
+        }
+    }
+}

@@ -1,0 +1,162 @@
+//! The interface of everything that contributes to a step's incremental potential.
+//!
+//! A solve (a time step, or a part of a halved one) minimises a sum of terms. Each term adds
+//! its energy (J), gradient (N, over all 3n dofs) and Hessian (N/m, into the CSC values of the
+//! free system) at a displacement u; Newton and its line search see only the sum (see
+//! `sim::potential`). Optional hooks, with do-nothing defaults, let a term take part in what
+//! Newton does beyond evaluating: anticipate constraints a step would activate, refresh the
+//! cheap part of a kept Hessian, re-lag a lagged quantity between solves.
+//!
+//! Two traits split a term's life:
+//! - [`StepTerm`]: the term during one solve, holding what is fixed for it (the obstacles'
+//!   planes at the step's end, the lagged friction normal force, the inertia predictor).
+//! - [`Term`]: a term a scene enables (obstacle contact, ice–ice contact); it lives in the
+//!   model, prepares itself at the start of each step (its candidate pairs, the sparsity it
+//!   needs), makes a [`StepTerm`] for each solve, and rebuilds itself on a remeshed mesh.
+//!
+//! Elasticity, dead loads, inertia and Rayleigh damping are the mechanics every model has;
+//! the simulation makes their [`StepTerm`]s from the model's fields. Adding a term means one
+//! file implementing [`Term`] and [`StepTerm`], and its scene table.
+
+use super::contact::ContactForces;
+use crate::assembly::Assembly;
+use crate::mesh::TetMesh;
+use nalgebra::Vector3;
+use std::any::Any;
+
+/// A term during one solve.
+pub trait StepTerm {
+    /// Adds the term's energy at `u` (all dofs, m) to `energy` (J), its gradient to
+    /// `gradient` (N, all dofs) and its Hessian to `hessian` (CSC values of the free system,
+    /// N/m), each if given.
+    fn add(
+        &mut self,
+        u: &[f64],
+        energy: &mut f64,
+        gradient: Option<&mut [f64]>,
+        hessian: Option<&mut [f64]>,
+    );
+    /// Switches to a positive semi-definite approximation of the Hessian from now on; returns
+    /// whether anything changed.
+    fn project_hessian(&mut self) -> bool {
+        false
+    }
+    /// Given the iterate `u` and the full Newton step `trial`, adds to later Hessians the
+    /// stiffness of constraints the step would activate; returns whether any was added.
+    fn anticipate(&mut self, _u: &[f64], _trial: &[f64]) -> bool {
+        false
+    }
+    /// Forgets what [`StepTerm::anticipate`] added.
+    fn forget_anticipated(&mut self) {}
+    /// Adds to `gradient` what the anticipated constraints would contribute at `u` if they
+    /// were already active; returns whether there was any.
+    fn add_anticipated_gradient(&self, _u: &[f64], _gradient: &mut [f64]) -> bool {
+        false
+    }
+    /// Brings this term's part of `hessian` (the last one assembled, or the last this
+    /// refreshed) to `u` in place; returns whether it changed. Only terms far from quadratic
+    /// and cheap to evaluate (contact) do this.
+    fn refresh_hessian(&mut self, _u: &[f64], _hessian: &mut [f64]) -> bool {
+        false
+    }
+    /// Re-lags what the term holds fixed during a solve (friction's normal force, the plane a
+    /// node meets a mesh obstacle on) to the solution `u`; returns how much that changes the
+    /// term relative to its own scale (∞ when the solve must be repeated regardless, 0 when
+    /// nothing is lagged).
+    fn relag(&mut self, _u: &[f64]) -> f64 {
+        0.0
+    }
+    /// Adds the term's contact forces on the ice at `u` (N, 3 per node), if it is a contact.
+    fn add_contact_forces(&self, _u: &[f64], _forces: &mut ContactForces) {}
+    /// Whether this is a contact term (its evaluation counts as contact narrow-phase time).
+    fn is_contact(&self) -> bool {
+        false
+    }
+    /// Wall time this term spent choosing its contact pairs during the solve (s).
+    fn broad_phase_time(&self) -> f64 {
+        0.0
+    }
+}
+
+/// What a term sees at the start of a step.
+pub struct StepStartView<'a> {
+    /// Rest positions (m).
+    pub rest: &'a [Vector3<f64>],
+    /// Displacement at the start of the step (m), 3 per node.
+    pub u: &'a [f64],
+    /// Velocity at the start of the step (m/s), 3 per node.
+    pub v: &'a [f64],
+    /// The step (s).
+    pub dt: f64,
+}
+
+/// What a term sees of one solve: fixed while it lasts.
+pub struct Solve<'a> {
+    /// Rest positions (m).
+    pub rest: &'a [Vector3<f64>],
+    /// Displacement at the start of the solve (m), 3 per node.
+    pub previous: &'a [f64],
+    /// Velocity at the start of the solve (m/s), 3 per node.
+    pub velocity: &'a [f64],
+    /// Displacement one step before the start, uₙ − h vₙ (m), for extrapolating lagged
+    /// quantities; empty in a static solve.
+    pub earlier: &'a [f64],
+    /// The solve's step h (s).
+    pub h: f64,
+    /// Whether the solve is dynamic (backward Euler) rather than static.
+    pub dynamic: bool,
+    /// Start and end time of the solve (s).
+    pub times: (f64, f64),
+}
+
+/// What a term needs to rebuild itself on a mesh made by splitting elements.
+pub struct Remesh<'a> {
+    /// The new mesh.
+    pub mesh: &'a TetMesh,
+    /// For each new element, the element of the old mesh it came from.
+    pub parent: &'a [usize],
+    /// Crack faces of the new mesh (node triples): their two sides must not interpenetrate.
+    pub cracks: &'a [[usize; 3]],
+    /// Young's modulus of the ice (Pa), for default penalty stiffnesses.
+    pub young: f64,
+}
+
+/// A term a scene enables, kept in the model.
+pub trait Term: Send + Sync + std::fmt::Debug {
+    /// Short name (for messages and statistics).
+    fn name(&self) -> &'static str;
+    /// The term as `Any`, for reading its configuration back (tests, statistics).
+    fn as_any(&self) -> &dyn Any;
+    /// A copy of the term.
+    fn clone_box(&self) -> Box<dyn Term>;
+    /// Prepares the step that starts at `start`; returns the node pairs the term couples in
+    /// the sparsity pattern beyond the elements' (sorted, unique), if it couples any.
+    fn start_step(&mut self, _start: &StepStartView) -> Option<Vec<(usize, usize)>> {
+        None
+    }
+    /// Called with the pattern a step is solved on, after [`Term::start_step`] (and when the
+    /// simulation is built); `changed` tells whether the pattern is new.
+    fn pattern_ready(&mut self, _assembly: &Assembly, _changed: bool) {}
+    /// The term for one solve; `None` if it contributes nothing to it.
+    fn begin_solve<'a>(&'a self, solve: &Solve<'a>) -> Option<Box<dyn StepTerm + 'a>>;
+    /// Energy the term stores at `u` and time `t` (s), reported with the contact energy (J).
+    fn stored_energy(&self, _rest: &[Vector3<f64>], _u: &[f64], _t: f64) -> f64 {
+        0.0
+    }
+    /// Whether the term exerts contact forces on the ice (they are then written per frame).
+    fn has_contact_forces(&self) -> bool {
+        false
+    }
+    /// Entries held for the term's bookkeeping (to show a term that is off costs nothing).
+    fn bookkeeping_len(&self) -> usize {
+        0
+    }
+    /// The term on a mesh made by splitting elements of this one's.
+    fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term>;
+}
+
+impl Clone for Box<dyn Term> {
+    fn clone(&self) -> Self {
+        self.clone_box()
+    }
+}
