@@ -26,7 +26,8 @@ fn continue_on(sim: &mut Simulation, f: &Fracturable) {
         .model
         .remeshed(&f.rest, f.tets.clone(), &f.parent, &[])
         .unwrap();
-    sim.remesh(model, f.u.clone(), f.v.clone(), &f.parent).unwrap();
+    sim.remesh(model, f.u.clone(), f.v.clone(), &f.parent)
+        .unwrap();
 }
 
 fn fracturable(sim: &Simulation) -> Fracturable {

@@ -6,12 +6,12 @@
 //! blends from water to ice with its freeze state. The strain offsets and freeze states are
 //! per-element history and live in the simulation state ([`ElementHistory`]).
 
-use crate::fem::{
-    elastic_strain, element_eval, element_stress, ElasticModel, ElementEval, ElementRest, Material,
-};
 use super::history::ElementHistory;
 use super::term::StepTerm;
 use crate::assembly::Assembly;
+use crate::fem::{
+    elastic_strain, element_eval, element_stress, ElasticModel, ElementEval, ElementRest, Material,
+};
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
 

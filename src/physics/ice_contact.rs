@@ -872,7 +872,8 @@ impl Term for IceContactTerm {
     fn begin_solve<'a>(&'a self, solve: &Solve<'a>) -> Option<Box<dyn StepTerm + 'a>> {
         let mut ice = self.step(solve.rest, &self.candidate_slots)?;
         if solve.dynamic && ice.term.friction > 0.0 {
-            let frames = ice.extrapolated_friction_frames(solve.rest, solve.previous, solve.earlier);
+            let frames =
+                ice.extrapolated_friction_frames(solve.rest, solve.previous, solve.earlier);
             ice.friction = Some(IceFriction {
                 dt: solve.h,
                 previous: solve.previous,

@@ -167,13 +167,16 @@ impl Model {
 
     /// Replaces the ice–ice contact term.
     pub fn set_ice_contact(&mut self, term: IceContactTerm) {
-        self.terms.retain(|t| t.as_any().downcast_ref::<IceContactTerm>().is_none());
+        self.terms
+            .retain(|t| t.as_any().downcast_ref::<IceContactTerm>().is_none());
         self.terms.push(Box::new(term));
     }
 
     /// The first term of type `T`, if the model has one.
     pub fn term<T: 'static>(&self) -> Option<&T> {
-        self.terms.iter().find_map(|t| t.as_any().downcast_ref::<T>())
+        self.terms
+            .iter()
+            .find_map(|t| t.as_any().downcast_ref::<T>())
     }
 
     /// Contact with rigid obstacles, if the scene has any.
@@ -183,7 +186,8 @@ impl Model {
 
     /// Ice–ice contact, if the mesh has several parts or cracks.
     pub fn ice_contact(&self) -> Option<&IceContact> {
-        self.term::<IceContactTerm>().and_then(|t| t.active.as_ref())
+        self.term::<IceContactTerm>()
+            .and_then(|t| t.active.as_ref())
     }
 
     /// Sets the time-dependent element history (freeze states, expansion) for time `t` (s).

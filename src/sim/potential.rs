@@ -39,11 +39,21 @@ impl<'a> StepPotential<'a> {
             return 0.0;
         };
         let mut elastic = 0.0;
-        elastic_term.add(u, &mut elastic, gradient.as_deref_mut(), hessian.as_deref_mut());
+        elastic_term.add(
+            u,
+            &mut elastic,
+            gradient.as_deref_mut(),
+            hessian.as_deref_mut(),
+        );
         let mut rest = 0.0;
         for term in others {
             let clock = term.is_contact().then(Instant::now);
-            term.add(u, &mut rest, gradient.as_deref_mut(), hessian.as_deref_mut());
+            term.add(
+                u,
+                &mut rest,
+                gradient.as_deref_mut(),
+                hessian.as_deref_mut(),
+            );
             if let Some(clock) = clock {
                 self.t_contact += clock.elapsed().as_secs_f64();
             }
