@@ -91,7 +91,7 @@ fn a_bar_cut_through_separates_and_the_pieces_do_not_interpenetrate() {
     let ice = sim
         .model
         .ice_contact()
-        .clone()
+        .cloned()
         .expect("two pieces: ice contact on");
     assert_eq!(ice.parts, 2);
     let free: Vec<usize> = (0..sim.model.num_nodes())
