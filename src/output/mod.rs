@@ -64,7 +64,7 @@ mod xdmf;
 
 pub use describe::describe;
 pub use reader::{CrackTriangle, FrameReader, StoredFrame, StoredMesh};
-pub use resume::ResumeFrame;
+pub use resume::{ResumeFrame, StoredField};
 pub use writer::{OutputWriter, COMMIT_INTERVAL};
 pub use xdmf::write_xdmf;
 

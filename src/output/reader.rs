@@ -38,8 +38,8 @@ impl StoredFrame {
         self.state
             .element_fields
             .iter()
-            .find(|(n, _, _)| n == name)
-            .map(|(_, cols, data)| (*cols, data.as_slice()))
+            .find(|f| f.name == name)
+            .map(|f| (f.columns, f.data.as_slice()))
     }
 }
 

@@ -30,11 +30,24 @@ pub struct ResumeFrame {
     pub rest_positions: Vec<[f64; 3]>,
     /// Tetrahedra, 0-based node indices (all checked to be < node count).
     pub tets: Vec<[usize; 4]>,
-    /// `(name, cols, row-major data)` of every per-element field, sorted by name.
+    /// Every per-element field, sorted by name.
     /// Does not include `stress`; read it with the hdf5 crate if needed.
-    pub element_fields: Vec<(String, usize, Vec<f64>)>,
-    /// `(name, cols, row-major data)` of every per-node field, sorted by name.
-    pub node_fields: Vec<(String, usize, Vec<f64>)>,
+    pub element_fields: Vec<StoredField>,
+    /// Every per-node field, sorted by name.
+    pub node_fields: Vec<StoredField>,
+}
+
+/// One per-element or per-node field read back from a frame (owned), row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoredField {
+    /// Dataset name inside the frame group, e.g. `eigenstrain` or `displacement`.
+    pub name: String,
+    /// Components per row (1 for a field stored as a 1-D dataset).
+    pub columns: usize,
+    /// Row-major values, `rows * columns` long, one row per element (element fields) or per
+    /// node (node fields), in the units the run wrote them in (e.g. displacement in m,
+    /// strains dimensionless).
+    pub data: Vec<f64>,
 }
 
 impl OutputWriter {
@@ -210,10 +223,15 @@ pub(super) fn read_frame(
         let data = ds
             .read_raw::<f64>()
             .ctx(path, || format!("reading {gname}/{name}"))?;
+        let field = StoredField {
+            name,
+            columns: cols,
+            data,
+        };
         if is_cell {
-            element_fields.push((name, cols, data));
+            element_fields.push(field);
         } else {
-            node_fields.push((name, cols, data));
+            node_fields.push(field);
         }
     }
     Ok(ResumeFrame {
@@ -241,6 +259,7 @@ mod tests {
     };
     use super::super::writer::STATS_COLUMNS;
     use super::super::{describe, OutputError, OutputWriter};
+    use super::StoredField;
 
     /// Environment variable through which the parent test tells the re-executed
     /// test binary where to write the file it then "crashes" on.
@@ -328,13 +347,25 @@ mod tests {
         assert_eq!(
             rf.element_fields,
             vec![
-                ("eigenstrain".to_string(), 1, d.eig.clone()),
-                ("plastic_strain".to_string(), 6, d.plastic.clone())
+                StoredField {
+                    name: "eigenstrain".to_string(),
+                    columns: 1,
+                    data: d.eig.clone()
+                },
+                StoredField {
+                    name: "plastic_strain".to_string(),
+                    columns: 6,
+                    data: d.plastic.clone()
+                }
             ]
         );
         assert_eq!(
             rf.node_fields,
-            vec![("temperature".to_string(), 1, d.temp.clone())]
+            vec![StoredField {
+                name: "temperature".to_string(),
+                columns: 1,
+                data: d.temp.clone()
+            }]
         );
 
         // Continue the run: frame 2 gets the same name the partial one had.
