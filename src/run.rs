@@ -343,13 +343,14 @@ fn restore(
         let origin: Vec<usize> = frame
             .element_fields
             .iter()
-            .find(|f| f.0 == "origin" && f.1 == 1 && f.2.len() == frame.tets.len())
+            .find(|f| f.name == "origin" && f.columns == 1 && f.data.len() == frame.tets.len())
             .filter(|f| {
                 let scene_tets = sim.model.mesh.num_tets() as f64;
-                f.2.iter()
+                f.data
+                    .iter()
                     .all(|&o| o >= 0.0 && o < scene_tets && o.fract() == 0.0)
             })
-            .map(|f| f.2.iter().map(|&o| o as usize).collect())
+            .map(|f| f.data.iter().map(|&o| o as usize).collect())
             .ok_or_else(|| {
                 bad("its mesh was split but the frame has no valid element field `origin`".into())
             })?;
@@ -366,8 +367,8 @@ fn restore(
         frame
             .node_fields
             .iter()
-            .find(|f| f.0 == name && f.1 == 3 && f.2.len() == n)
-            .map(|f| f.2.clone())
+            .find(|f| f.name == name && f.columns == 3 && f.data.len() == n)
+            .map(|f| f.data.clone())
     };
     let u = field("displacement")
         .ok_or_else(|| bad("the last complete frame has no node field `displacement`".into()))?;
@@ -379,9 +380,13 @@ fn restore(
     sim.state.time = frame.time;
     sim.state.step = frame.step;
     let tets = sim.model.mesh.num_tets();
-    if let Some((_, 1, e)) = frame.element_fields.iter().find(|f| f.0 == "eigenstrain") {
-        if e.len() == tets {
-            sim.state.history.eigenstrain = e.clone();
+    if let Some(e) = frame
+        .element_fields
+        .iter()
+        .find(|f| f.name == "eigenstrain")
+    {
+        if e.columns == 1 && e.data.len() == tets {
+            sim.state.history.eigenstrain = e.data.clone();
         }
     }
     sim.model.apply_schedule(frame.time, &mut sim.state.history);
@@ -389,11 +394,11 @@ fn restore(
         let p = frame
             .element_fields
             .iter()
-            .find(|f| f.0 == "plastic_strain" && f.1 == 6 && f.2.len() == 6 * tets)
+            .find(|f| f.name == "plastic_strain" && f.columns == 6 && f.data.len() == 6 * tets)
             .ok_or_else(|| {
                 bad("the last complete frame has no element field `plastic_strain`".into())
             })?;
-        sim.state.history.plastic_strain = p.2.chunks(6).map(from_voigt).collect();
+        sim.state.history.plastic_strain = p.data.chunks(6).map(from_voigt).collect();
     }
     Ok(())
 }

@@ -1,0 +1,446 @@
+//! HDF5 helpers shared by the writer, resume, the XDMF sidecar, the frame reader and
+//! `describe`: error context, close-on-exec, attributes, matrices and index arrays (written
+//! compressed when large), their shape-checked reading, the signature and layout checks, and
+//! the listing of `/frames`.
+
+use std::io::Read as _;
+use std::path::Path;
+use std::str::FromStr;
+
+use hdf5::types::{VarLenAscii, VarLenUnicode};
+use hdf5::{Dataset, File, Group, H5Type};
+use ndarray::{ArrayView1, ArrayView2};
+
+use super::{corrupt, invalid, OutputError};
+
+/// Marks the file's descriptor close-on-exec. HDF5 opens files without `O_CLOEXEC`, so a
+/// child process started while a file is open inherits the descriptor and keeps the file's lock
+/// after we close it: our own next open of that file then fails with "unable to lock file"
+/// (seen in the test suite, which writes files while it runs `icefem` processes). Best effort:
+/// on failure the descriptor simply stays inheritable.
+pub(super) fn close_on_exec(file: &File) {
+    hdf5::sync::sync(|| {
+        let mut handle: *mut std::ffi::c_void = std::ptr::null_mut();
+        // SAFETY: `file` is an open file id; with the default (sec2) driver the VFD handle
+        // points to the POSIX descriptor, an `int`. The HDF5 call runs under hdf5's lock.
+        unsafe {
+            let status = hdf5_sys::h5f::H5Fget_vfd_handle(
+                file.id(),
+                hdf5_sys::h5p::H5P_DEFAULT,
+                &mut handle,
+            );
+            if status >= 0 && !handle.is_null() {
+                let fd = *(handle as *const libc::c_int);
+                libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC);
+            }
+        }
+    });
+}
+
+/// Target number of values per chunk of a frame dataset (64 Ki × 8 B = 512 KiB),
+/// below HDF5's default 1 MiB chunk cache.
+const FRAME_CHUNK_VALUES: usize = 65536;
+
+/// Attaches the file path and a description of the failed operation to HDF5 errors.
+pub(super) trait Hdf5Context<T> {
+    fn ctx(self, path: &Path, context: impl FnOnce() -> String) -> Result<T, OutputError>;
+}
+
+impl<T> Hdf5Context<T> for hdf5::Result<T> {
+    fn ctx(self, path: &Path, context: impl FnOnce() -> String) -> Result<T, OutputError> {
+        self.map_err(|source| OutputError::Hdf5 {
+            path: path.to_path_buf(),
+            context: context(),
+            source,
+        })
+    }
+}
+
+/// Makes an HDF5 variable-length UTF-8 string (rejects interior NULs).
+pub(super) fn vlen_str(path: &Path, what: &str, s: &str) -> Result<VarLenUnicode, OutputError> {
+    VarLenUnicode::from_str(s).map_err(|e| invalid(path, format!("{what}: {e}")))
+}
+
+pub(super) fn write_attr<T: H5Type>(
+    path: &Path,
+    loc: &hdf5::Location,
+    name: &str,
+    value: &T,
+) -> Result<(), OutputError> {
+    loc.new_attr::<T>()
+        .create(name)
+        .and_then(|a| a.write_scalar(value))
+        .ctx(path, || {
+            format!("writing attribute {name} on {}", loc.name())
+        })
+}
+
+pub(super) fn read_attr<T: H5Type>(
+    path: &Path,
+    loc: &hdf5::Location,
+    name: &str,
+) -> Result<T, OutputError> {
+    loc.attr(name)
+        .and_then(|a| a.read_scalar::<T>())
+        .ctx(path, || {
+            format!("reading attribute {name} of {}", loc.name())
+        })
+}
+
+/// Reads a scalar string attribute written as variable-length UTF-8 or ASCII
+/// (the latter for files touched by other tools).
+pub(super) fn read_string(attr: &hdf5::Attribute) -> hdf5::Result<String> {
+    match attr.read_scalar::<VarLenUnicode>() {
+        Ok(s) => Ok(s.as_str().to_owned()),
+        Err(e) => attr
+            .read_scalar::<VarLenAscii>()
+            .map(|s| s.as_str().to_owned())
+            .map_err(|_| e),
+    }
+}
+
+pub(super) fn read_string_attr(
+    path: &Path,
+    loc: &hdf5::Location,
+    name: &str,
+) -> Result<String, OutputError> {
+    loc.attr(name).and_then(|a| read_string(&a)).ctx(path, || {
+        format!("reading attribute {name} of {}", loc.name())
+    })
+}
+
+/// Datasets with fewer values than this are stored contiguous and uncompressed:
+/// for a few kilobytes, chunk indexes and deflate cost more time (and often
+/// bytes) than they save — a 200-tet run would spend most of its time in zlib.
+const COMPRESS_MIN_VALUES: usize = 4096;
+
+/// Writes a row-major `rows × cols` f64 matrix (1-D when `cols == 1`),
+/// chunked and compressed when it holds at least `COMPRESS_MIN_VALUES` values.
+pub(super) fn write_matrix(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    rows: usize,
+    cols: usize,
+    data: &[f64],
+) -> Result<(), OutputError> {
+    let ctx = || format!("writing {}/{name} [{rows}, {cols}]", g.name());
+    if cols == 1 {
+        let view = ArrayView1::from(data);
+        let mut b = g.new_dataset_builder();
+        if rows >= COMPRESS_MIN_VALUES {
+            b = compress(b.chunk(rows.min(FRAME_CHUNK_VALUES)));
+        }
+        b.with_data(view).create(name).ctx(path, ctx)?;
+    } else {
+        let view = ArrayView2::from_shape((rows, cols), data)
+            .map_err(|e| invalid(path, format!("{name}: {e}")))?;
+        let mut b = g.new_dataset_builder();
+        if rows * cols >= COMPRESS_MIN_VALUES {
+            let chunk_rows = (FRAME_CHUNK_VALUES / cols).clamp(1, rows);
+            b = compress(b.chunk((chunk_rows, cols)));
+        }
+        b.with_data(view).create(name).ctx(path, ctx)?;
+    }
+    Ok(())
+}
+
+/// Shuffle + deflate level 1: cheap, and shuffle (which must precede deflate)
+/// makes the slowly varying high bytes of f64/i64 compress well.
+fn compress(b: hdf5::dataset::DatasetBuilder) -> hdf5::dataset::DatasetBuilder {
+    if hdf5::filters::deflate_available() {
+        b.shuffle().deflate(1)
+    } else {
+        b
+    }
+}
+
+pub(super) fn write_vec3(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    v: &[[f64; 3]],
+) -> Result<(), OutputError> {
+    write_matrix(path, g, name, v.len(), 3, v.as_flattened())
+}
+
+pub(super) fn write_tets(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    tets: &[[usize; 4]],
+) -> Result<(), OutputError> {
+    write_indices(path, g, name, tets)
+}
+
+/// Writes rows of N indices as i64 [rows, N] ([rows] when N = 1), compressed when large.
+pub(super) fn write_indices<const N: usize>(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    rows: &[[usize; N]],
+) -> Result<(), OutputError> {
+    let mut flat = Vec::with_capacity(rows.len() * N);
+    for &i in rows.as_flattened() {
+        // Indices were checked against the node count, which is a slice
+        // length and so fits in i64 on every supported platform.
+        flat.push(i64::try_from(i).map_err(|_| invalid(path, format!("index {i} too large")))?);
+    }
+    let ctx = || format!("writing {}/{name} [{}, {N}]", g.name(), rows.len());
+    let mut b = g.new_dataset_builder();
+    if flat.len() >= COMPRESS_MIN_VALUES {
+        let chunk_rows = (FRAME_CHUNK_VALUES / N).min(rows.len());
+        b = compress(if N == 1 {
+            b.chunk(chunk_rows)
+        } else {
+            b.chunk((chunk_rows, N))
+        });
+    }
+    if N == 1 {
+        b.with_data(ArrayView1::from(&flat))
+            .create(name)
+            .ctx(path, ctx)?;
+    } else {
+        let view = ArrayView2::from_shape((rows.len(), N), &flat)
+            .map_err(|e| invalid(path, format!("{name}: {e}")))?;
+        b.with_data(view).create(name).ctx(path, ctx)?;
+    }
+    Ok(())
+}
+
+pub(super) fn check_tets(
+    path: &Path,
+    what: &str,
+    tets: &[[usize; 4]],
+    n: usize,
+) -> Result<(), OutputError> {
+    if let Some((e, t)) = tets
+        .iter()
+        .enumerate()
+        .find(|(_, t)| t.iter().any(|&i| i >= n))
+    {
+        return Err(invalid(
+            path,
+            format!("{what}: tet {e} = {t:?} references a node ≥ node count {n}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Opens `g/name`, checking it is 2-D with `cols` columns; returns the dataset and its rows.
+pub(super) fn open_2d(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    cols: usize,
+) -> Result<(Dataset, usize), OutputError> {
+    let ds = g
+        .dataset(name)
+        .ctx(path, || format!("opening {}/{name}", g.name()))?;
+    let shape = ds.shape();
+    match shape.as_slice() {
+        [r, c] if *c == cols => Ok((ds, *r)),
+        _ => Err(corrupt(
+            path,
+            format!(
+                "{}/{name} has shape {shape:?}, expected [rows, {cols}]",
+                g.name()
+            ),
+        )),
+    }
+}
+
+pub(super) fn read_vec3(path: &Path, g: &Group, name: &str) -> Result<Vec<[f64; 3]>, OutputError> {
+    let (ds, rows) = open_2d(path, g, name, 3)?;
+    let flat = ds
+        .read_raw::<f64>()
+        .ctx(path, || format!("reading {}/{name}", g.name()))?;
+    if rows.checked_mul(3) != Some(flat.len()) {
+        return Err(corrupt(path, format!("{}/{name}: short read", g.name())));
+    }
+    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
+pub(super) fn read_tets(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    n: usize,
+) -> Result<Vec<[usize; 4]>, OutputError> {
+    let (ds, rows) = open_2d(path, g, name, 4)?;
+    // Reading as i64 lets HDF5 convert u64/i32/… files too; out-of-range
+    // values make the read fail rather than wrap.
+    let flat = ds
+        .read_raw::<i64>()
+        .ctx(path, || format!("reading {}/{name}", g.name()))?;
+    if rows.checked_mul(4) != Some(flat.len()) {
+        return Err(corrupt(path, format!("{}/{name}: short read", g.name())));
+    }
+    let mut out = Vec::with_capacity(rows);
+    for (e, c) in flat.chunks_exact(4).enumerate() {
+        let mut t = [0usize; 4];
+        for (k, &v) in c.iter().enumerate() {
+            t[k] = usize::try_from(v).ok().filter(|&i| i < n).ok_or_else(|| {
+                corrupt(
+                    path,
+                    format!(
+                        "{}/{name}: tet {e} has node index {v} outside 0..{n}",
+                        g.name()
+                    ),
+                )
+            })?;
+        }
+        out.push(t);
+    }
+    Ok(out)
+}
+
+/// Rejects files without the HDF5 signature, which HDF5 searches for at
+/// offset 0 and at every power of two from 512 (user blocks).
+pub(super) fn check_hdf5_signature(path: &Path) -> Result<(), OutputError> {
+    const SIG: [u8; 8] = [0x89, b'H', b'D', b'F', b'\r', b'\n', 0x1a, b'\n'];
+    let io = |context: &str| {
+        let context = context.to_string();
+        move |source| OutputError::Io {
+            path: path.to_path_buf(),
+            context,
+            source,
+        }
+    };
+    let mut f = std::fs::File::open(path).map_err(io("opening"))?;
+    let len = f.metadata().map_err(io("reading metadata"))?.len();
+    let mut offset = 0u64;
+    while offset + 8 <= len {
+        use std::io::Seek as _;
+        f.seek(std::io::SeekFrom::Start(offset))
+            .map_err(io("seeking"))?;
+        let mut buf = [0u8; 8];
+        f.read_exact(&mut buf).map_err(io("reading"))?;
+        if buf == SIG {
+            return Ok(());
+        }
+        offset = if offset == 0 { 512 } else { offset * 2 };
+    }
+    Err(OutputError::NotHdf5 {
+        path: path.to_path_buf(),
+    })
+}
+
+pub(super) fn check_icefem_layout(path: &Path, file: &File) -> Result<(), OutputError> {
+    let not = |reason: &str| OutputError::NotIcefem {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    };
+    if !file.link_exists("mesh") || file.group("mesh").is_err() {
+        return Err(not("no /mesh group"));
+    }
+    let has_version = file
+        .attr_names()
+        .map(|names| names.iter().any(|n| n == "icefem_version"))
+        .unwrap_or(false);
+    if !has_version {
+        return Err(not("no icefem_version root attribute"));
+    }
+    if !file.link_exists("frames") || file.group("frames").is_err() {
+        return Err(not("no /frames group"));
+    }
+    Ok(())
+}
+
+/// One entry of `/frames`, as found on disk.
+pub(super) struct FrameEntry {
+    /// Frame index, the number in `/frames/NNNNNN`.
+    pub(super) index: usize,
+    /// Group name inside `/frames`.
+    pub(super) name: String,
+    /// Whether the frame carries `complete = 1`.
+    pub(super) complete: bool,
+}
+
+/// Lists frame groups sorted by index. Members whose names are not decimal
+/// indices are ignored (they are not ours to judge).
+pub(super) fn list_frames(path: &Path, frames: &Group) -> Result<Vec<FrameEntry>, OutputError> {
+    let names = frames
+        .member_names()
+        .ctx(path, || "listing /frames".into())?;
+    let mut out = Vec::new();
+    for name in names {
+        if name.is_empty() || !name.bytes().all(|b| b.is_ascii_digit()) {
+            continue;
+        }
+        let Ok(index) = name.parse::<usize>() else {
+            continue;
+        };
+        // A frame is complete only if the attribute exists and reads as 1;
+        // anything else (missing, wrong type, other value) means incomplete.
+        let complete = frames
+            .group(&name)
+            .ok()
+            .and_then(|g| g.attr("complete").ok())
+            .and_then(|a| a.read_scalar::<u8>().ok())
+            == Some(1);
+        out.push(FrameEntry {
+            index,
+            name,
+            complete,
+        });
+    }
+    out.sort_by_key(|f| f.index);
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use hdf5::File;
+
+    use super::super::test_support::hdf5_guard;
+    use super::super::{describe, write_xdmf, OutputError, OutputWriter};
+
+    #[test]
+    fn foreign_files_are_rejected() {
+        let _guard = hdf5_guard();
+        let dir = tempfile::tempdir().unwrap();
+        let text = dir.path().join("notes.h5");
+        std::fs::write(&text, "this is not HDF5 at all, just some text\n").unwrap();
+        let e = describe(&text).unwrap_err();
+        assert!(matches!(e, OutputError::NotHdf5 { .. }), "{e:?}");
+        assert!(e.to_string().contains("notes.h5"), "{e}");
+        let e = OutputWriter::resume(&text).err().unwrap();
+        assert!(matches!(e, OutputError::NotHdf5 { .. }), "{e:?}");
+
+        let empty = dir.path().join("empty.h5");
+        std::fs::write(&empty, "").unwrap();
+        assert!(matches!(describe(&empty), Err(OutputError::NotHdf5 { .. })));
+
+        let missing = dir.path().join("missing.h5");
+        assert!(matches!(describe(&missing), Err(OutputError::Io { .. })));
+
+        let plain = dir.path().join("plain.h5");
+        {
+            let f = File::create(&plain).unwrap();
+            f.new_dataset_builder()
+                .with_data(&[1.0f64, 2.0])
+                .create("x")
+                .unwrap();
+        }
+        let e = describe(&plain).unwrap_err();
+        assert!(matches!(e, OutputError::NotIcefem { .. }), "{e:?}");
+        assert!(e.to_string().contains("plain.h5"), "{e}");
+        assert!(matches!(
+            OutputWriter::resume(&plain),
+            Err(OutputError::NotIcefem { .. })
+        ));
+        assert!(matches!(
+            write_xdmf(&plain),
+            Err(OutputError::NotIcefem { .. })
+        ));
+
+        // /mesh present but no version attribute.
+        {
+            let f = File::open_rw(&plain).unwrap();
+            f.create_group("mesh").unwrap();
+        }
+        let e = describe(&plain).unwrap_err();
+        assert!(e.to_string().contains("icefem_version"), "{e}");
+    }
+}

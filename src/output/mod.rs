@@ -1,0 +1,297 @@
+//! HDF5 output of an icefem run, plus its XDMF sidecar for ParaView / meshio.
+//!
+//! - [`OutputWriter`] (`writer.rs`) creates a run's file and appends frames and `/stats` rows;
+//! - [`OutputWriter::resume`] (`resume.rs`) reopens it after its last complete frame and reads
+//!   that frame back as a [`ResumeFrame`];
+//! - [`write_xdmf`] (`xdmf.rs`) writes the XDMF sidecars;
+//! - [`FrameReader`] (`reader.rs`) reads complete frames back for `render` and `figure`;
+//! - [`describe`] (`describe.rs`) is the text of `icefem info`;
+//! - `hdf5_io.rs` holds the HDF5 helpers these share (attributes, matrices, index arrays, the
+//!   signature and layout checks, the listing of `/frames`).
+//!
+//! # File layout
+//!
+//! ```text
+//! /                      attrs: scene (TOML text), scene_path, icefem_version, format_version (u32)
+//! /mesh/rest_positions   f64 [n, 3]  reference configuration (m)
+//! /mesh/tets             i64 [m, 4]  0-based node indices of each linear tetrahedron
+//! /frames/NNNNNN         one group per output frame, NNNNNN = 0-based frame index (6+ digits)
+//!     attrs: step (u64), time (f64, s), complete (u8, = 1, written last)
+//!     positions          f64 [n, 3]  (m)
+//!     velocities         f64 [n, 3]  (m/s)
+//!     rest_positions     f64 [n, 3]  (m)   hard link to the previous frame's when topology is unchanged
+//!     tets               i64 [m, 4]        hard link to the previous frame's when topology is unchanged
+//!     stress             f64 [m, 6]  Cauchy stress, Voigt order xx yy zz yz xz xy (Pa)
+//!     <field>            f64 [rows] if cols == 1, else [rows, cols]; attr center = "Cell" | "Node"
+//!     cracks/            fracture runs only: the crack faces as separate triangles
+//!         vertices       f64 [3t, 3] (m), drawn with the rendering gap where a crack is closed
+//!         triangles      i64 [t, 3]  indices into vertices
+//!         crack          i64 [t]     which crack (connected crack surface) each belongs to
+//! /stats/<column>        one resizable chunked 1-D dataset per `StepStats` field, one row per step
+//! ```
+//!
+//! Tetrahedra are stored as signed 64-bit integers rather than `u64` because
+//! the XDMF 3 library shipped with ParaView has no 64-bit unsigned type.
+//!
+//! # Crash safety
+//!
+//! Frames are committed in batches: a file flush, then the `complete` attribute
+//! on every frame written since the last commit, then a second flush. A commit
+//! happens after the first frame, whenever [`COMMIT_INTERVAL`] has passed since
+//! the last one, and when the writer finishes or is dropped — so a run writing a
+//! frame every few milliseconds does not spend its time flushing, and a killed
+//! run loses at most the last interval. Between commits the file on disk does not
+//! change under what it already holds: HDF5's metadata cache writes only when
+//! flushed, and freed space is never reused (see `crash_safe_options`). A process
+//! killed between commits therefore leaves a readable file in which every frame
+//! carrying `complete = 1` is fully on disk; [`OutputWriter::resume`] discards
+//! whatever came after it. (A kill during a commit's own flushes, a few
+//! milliseconds per interval, could still leave the groups half updated. H5Fflush
+//! hands the data to the OS; it does not fsync, so this protects against a killed
+//! process, not against a power loss.) The file has superblock version 2 (the
+//! HDF5 1.8 format, which the file-space setting needs), not version 3, whose
+//! "open for writing" flag would make a killed run's file unopenable without
+//! `h5clear`.
+
+mod describe;
+mod hdf5_io;
+mod reader;
+mod resume;
+#[cfg(test)]
+mod test_support;
+mod writer;
+mod xdmf;
+
+pub use describe::describe;
+pub use reader::{CrackTriangle, FrameReader, StoredFrame, StoredMesh};
+pub use resume::{ResumeFrame, StoredField};
+pub use writer::{OutputWriter, COMMIT_INTERVAL};
+pub use xdmf::write_xdmf;
+
+use std::path::{Path, PathBuf};
+
+use crate::fracture::cracks::CrackSurface;
+
+/// Version of the on-disk layout described in the module docs, stored as
+/// root attribute `format_version`. Bump when the layout changes incompatibly.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// Dataset names inside a frame group that are not user fields.
+const RESERVED_FRAME_NAMES: [&str; 5] = [
+    "positions",
+    "velocities",
+    "rest_positions",
+    "tets",
+    "stress",
+];
+
+/// One per-element or per-node field stored in a frame, row-major (rows × cols).
+///
+/// `rows` is implied: the element count for element fields, the node count for
+/// node fields; `data.len()` must equal `rows * cols`. Units are the caller's
+/// (document them in the field name's meaning, e.g. strain is dimensionless).
+pub struct Field<'a> {
+    /// Dataset name inside the frame group; must not contain `/`, be `.`, or
+    /// collide with a built-in dataset (`positions`, `velocities`,
+    /// `rest_positions`, `tets`, `stress`).
+    pub name: &'a str,
+    /// Number of components per row (≥ 1). Fields with one column are stored
+    /// as 1-D datasets.
+    pub cols: usize,
+    /// Row-major values, `rows * cols` long.
+    pub data: &'a [f64],
+}
+
+/// What is written once when a run starts.
+pub struct RunHeader<'a> {
+    /// The TOML scene, stored as root attribute `scene`.
+    pub scene_text: &'a str,
+    /// Where the scene was read from, root attribute `scene_path`.
+    pub scene_path: &'a str,
+    /// icefem version that wrote the file, root attribute `icefem_version`.
+    pub version: &'a str,
+    /// Initial reference node positions (m), `/mesh/rest_positions` [n, 3].
+    pub rest_positions: &'a [[f64; 3]],
+    /// Initial tetrahedra, 0-based node indices, `/mesh/tets` [m, 4] (i64).
+    pub tets: &'a [[usize; 4]],
+}
+
+/// One output frame.
+pub struct Frame<'a> {
+    /// Solver time step index, attribute `step`.
+    pub step: u64,
+    /// Simulated time (s), attribute `time`.
+    pub time: f64,
+    /// Current node positions (m), dataset `positions` [n, 3].
+    pub positions: &'a [[f64; 3]],
+    /// Node velocities (m/s), dataset `velocities` [n, 3].
+    pub velocities: &'a [[f64; 3]],
+    /// Reference node positions (m), dataset `rest_positions` [n, 3]. Only
+    /// written when `topology_changed`; otherwise hard-linked to the previous
+    /// frame's (or `/mesh`'s) and this slice is only length-checked.
+    pub rest_positions: &'a [[f64; 3]],
+    /// Tetrahedra (0-based node indices), dataset `tets` [m, 4]. Same linking
+    /// rule as `rest_positions`.
+    pub tets: &'a [[usize; 4]],
+    /// `true` → write `rest_positions` and `tets` anew in this frame; `false`
+    /// → hard-link them to the previous frame's (node and element counts must
+    /// then be unchanged).
+    pub topology_changed: bool,
+    /// Per-element Cauchy stress (Pa), Voigt order xx yy zz yz xz xy, dataset
+    /// `stress` [m, 6].
+    pub stress: &'a [[f64; 6]],
+    /// Extra per-element state (e.g. `eigenstrain` m×1, `plastic_strain` m×6).
+    pub element_fields: &'a [Field<'a>],
+    /// Extra per-node state (e.g. `temperature` n×1).
+    pub node_fields: &'a [Field<'a>],
+    /// Crack surfaces (fracture runs), group `cracks`: `vertices` f64 [k, 3] (m),
+    /// `triangles` i64 [t, 3] (indices into `vertices`), `crack` i64 [t] (which crack).
+    pub cracks: Option<&'a CrackSurface>,
+}
+
+/// One row of `/stats` per time step. Times in seconds, energies in joules.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepStats {
+    /// Time step index.
+    pub step: u64,
+    /// Simulated time at the end of the step (s).
+    pub time: f64,
+    /// Step size (s).
+    pub dt: f64,
+    /// Newton iterations taken by the step.
+    pub newton_iterations: u32,
+    /// Newton solves the step took: one per substep, plus one per re-solve after friction's
+    /// normal force was re-lagged or a mesh obstacle's planes were re-picked.
+    pub newton_solves: u32,
+    /// Linear-solver iterations summed over the step (one per Newton iteration for Cholesky).
+    pub linear_iterations: u32,
+    /// Numeric factorisations or multigrid set-ups in the step (Hessian refreshes, and those a
+    /// solve did itself when a reused preconditioner was too stale).
+    pub factorizations: u32,
+    /// Solves the step took (1, or more when Newton failed and the step was halved).
+    pub substeps: u32,
+    /// Final Newton residual, max |free-dof force imbalance| (N).
+    pub residual: f64,
+    /// Total energy (J).
+    pub energy: f64,
+    /// Kinetic energy (J).
+    pub kinetic_energy: f64,
+    /// Elastic strain energy (J).
+    pub elastic_energy: f64,
+    /// Potential (gravity / external) energy (J).
+    pub potential_energy: f64,
+    /// Penalty energy stored in contact (J).
+    pub contact_energy: f64,
+    /// Wall-clock time spent assembling (s).
+    pub t_assembly: f64,
+    /// Wall-clock time spent factorizing (s).
+    pub t_factorization: f64,
+    /// Wall-clock time spent in triangular / iterative solves (s).
+    pub t_solve: f64,
+    /// Wall-clock time of the whole step (s).
+    pub t_step: f64,
+    /// Elements after the step (fracture adds some).
+    pub elements: u64,
+    /// Crack faces after the step (both sides of every crack; 0 without fracture).
+    pub crack_faces: u64,
+    /// Node splits made after the step.
+    pub fracture_events: u32,
+    /// Largest separation stress v⁺ / A(n) after the step, before any split (Pa; 0 without
+    /// fracture).
+    pub separation_stress: f64,
+    /// Wall-clock time of the fracture check and splits after the step (s).
+    pub t_fracture: f64,
+    /// Wall-clock time of rebuilding the simulation on a split mesh (s).
+    pub t_remesh: f64,
+    /// Wall-clock time of taking the step again on the split meshes (s).
+    pub t_resolve: f64,
+}
+
+/// Errors of the output module. Every variant names the file concerned.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The HDF5 library reported an error.
+    #[error("{}: HDF5 error while {context}: {source}", path.display())]
+    Hdf5 {
+        /// File concerned.
+        path: PathBuf,
+        /// What was being done, e.g. "writing /frames/000003/positions [n, 3]".
+        context: String,
+        /// The library's error (includes its error stack message).
+        #[source]
+        source: hdf5::Error,
+    },
+    /// An operating-system I/O error (missing file, permissions, …).
+    #[error("{}: I/O error while {context}: {source}", path.display())]
+    Io {
+        /// File concerned.
+        path: PathBuf,
+        /// What was being done.
+        context: String,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file exists but carries no HDF5 signature.
+    #[error("{}: not an HDF5 file (no HDF5 signature found)", path.display())]
+    NotHdf5 {
+        /// File concerned.
+        path: PathBuf,
+    },
+    /// The file is HDF5 but lacks the icefem layout.
+    #[error("{}: HDF5 file is not icefem output: {reason}", path.display())]
+    NotIcefem {
+        /// File concerned.
+        path: PathBuf,
+        /// What is missing.
+        reason: String,
+    },
+    /// The file holds no frame with `complete = 1` (nothing to resume from or to show).
+    #[error("{}: no complete frame (the run wrote none before it ended)", path.display())]
+    NoCompleteFrame {
+        /// File concerned.
+        path: PathBuf,
+    },
+    /// A frame index that is not a complete frame of the file.
+    #[error("{}: no complete frame {index} (the file has {available})", path.display())]
+    NoSuchFrame {
+        /// File concerned.
+        path: PathBuf,
+        /// The index asked for.
+        index: usize,
+        /// What the file has, e.g. "2401 complete frames, 0 … 2400".
+        available: String,
+    },
+    /// The file has the icefem layout but some content is malformed.
+    #[error("{}: malformed icefem file: {reason}", path.display())]
+    Corrupt {
+        /// File concerned.
+        path: PathBuf,
+        /// What is malformed, naming the HDF5 object.
+        reason: String,
+    },
+    /// The caller passed inconsistent data; nothing of the offending frame was written.
+    #[error("{}: invalid output data: {reason}", path.display())]
+    InvalidInput {
+        /// File concerned.
+        path: PathBuf,
+        /// What is inconsistent.
+        reason: String,
+    },
+}
+
+/// An [`OutputError::Corrupt`] for `path`.
+fn corrupt(path: &Path, reason: impl Into<String>) -> OutputError {
+    OutputError::Corrupt {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+/// An [`OutputError::InvalidInput`] for `path`.
+fn invalid(path: &Path, reason: impl Into<String>) -> OutputError {
+    OutputError::InvalidInput {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}

@@ -1,0 +1,233 @@
+//! [`FrameReader`]: read-only access to the complete frames of a run's file, for `render`,
+//! `figure` and the like.
+
+use std::path::{Path, PathBuf};
+
+use hdf5::{File, Group};
+
+use super::hdf5_io::{
+    check_hdf5_signature, check_icefem_layout, close_on_exec, list_frames, open_2d, read_attr,
+    read_string_attr, read_tets, read_vec3, FrameEntry, Hdf5Context,
+};
+use super::resume::{read_frame, ResumeFrame};
+use super::{corrupt, OutputError};
+
+/// A crack triangle as drawn: its three vertices (m) and the crack it belongs to.
+pub type CrackTriangle = ([[f64; 3]; 3], usize);
+
+/// A mesh as stored: rest positions (m) and tets (0-based node indices).
+pub type StoredMesh = (Vec<[f64; 3]>, Vec<[usize; 4]>);
+
+/// One complete frame read back for viewing: the frame's state plus its stress and crack
+/// triangles (which [`ResumeFrame`] leaves out).
+#[derive(Debug, Clone)]
+pub struct StoredFrame {
+    /// Frame index (the number in `/frames/NNNNNN`).
+    pub index: usize,
+    /// Everything a resume reads (positions, topology, element and node fields).
+    pub state: ResumeFrame,
+    /// Per-element Cauchy stress (Pa), Voigt xx yy zz yz xz xy; empty if the frame has none.
+    pub stress: Vec<[f64; 6]>,
+    /// Crack triangles as drawn (fracture runs; empty otherwise).
+    pub crack_triangles: Vec<CrackTriangle>,
+}
+
+impl StoredFrame {
+    /// The per-element field `name` as `(cols, row-major values)`, if the frame has it.
+    pub fn element_field(&self, name: &str) -> Option<(usize, &[f64])> {
+        self.state
+            .element_fields
+            .iter()
+            .find(|f| f.name == name)
+            .map(|f| (f.columns, f.data.as_slice()))
+    }
+}
+
+/// Read-only access to the complete frames of an icefem file (a finished run or one that was
+/// cut off: incomplete frames are not listed).
+pub struct FrameReader {
+    path: PathBuf,
+    file: File,
+    /// Complete frames, by index.
+    frames: Vec<FrameEntry>,
+    /// The `step` attribute of each of `frames`.
+    steps: Vec<u64>,
+    scene_text: String,
+    scene_path: String,
+}
+
+impl FrameReader {
+    /// Opens `path`, checking that it is an icefem file with at least one complete frame.
+    pub fn open(path: &Path) -> Result<Self, OutputError> {
+        check_hdf5_signature(path)?;
+        let file = File::open(path).ctx(path, || "opening".into())?;
+        close_on_exec(&file);
+        check_icefem_layout(path, &file)?;
+        let scene_text = read_string_attr(path, &file, "scene")?;
+        let scene_path = read_string_attr(path, &file, "scene_path").unwrap_or_default();
+        let group = file
+            .group("frames")
+            .ctx(path, || "opening /frames".into())?;
+        let frames: Vec<FrameEntry> = list_frames(path, &group)?
+            .into_iter()
+            .filter(|f| f.complete)
+            .collect();
+        if frames.is_empty() {
+            return Err(OutputError::NoCompleteFrame {
+                path: path.to_path_buf(),
+            });
+        }
+        let steps = frames
+            .iter()
+            .map(|f| {
+                let g = group
+                    .group(&f.name)
+                    .ctx(path, || format!("opening /frames/{}", f.name))?;
+                read_attr::<u64>(path, &g, "step")
+            })
+            .collect::<Result<Vec<u64>, _>>()?;
+        Ok(FrameReader {
+            path: path.to_path_buf(),
+            file,
+            frames,
+            steps,
+            scene_text,
+            scene_path,
+        })
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The scene text the run was started with.
+    pub fn scene_text(&self) -> &str {
+        &self.scene_text
+    }
+
+    /// Where the run's scene was read from (empty if the file does not say).
+    pub fn scene_path(&self) -> &str {
+        &self.scene_path
+    }
+
+    /// Indices of the complete frames, ascending.
+    pub fn frame_indices(&self) -> Vec<usize> {
+        self.frames.iter().map(|f| f.index).collect()
+    }
+
+    /// The time step each complete frame was written at, in the order of
+    /// [`FrameReader::frame_indices`] (frame = step / output_every).
+    pub fn frame_steps(&self) -> &[u64] {
+        &self.steps
+    }
+
+    /// The run's initial mesh, `/mesh`: rest positions (m) and tets.
+    pub fn initial_mesh(&self) -> Result<StoredMesh, OutputError> {
+        let g = self
+            .file
+            .group("mesh")
+            .ctx(&self.path, || "opening /mesh".into())?;
+        let rest = read_vec3(&self.path, &g, "rest_positions")?;
+        let tets = read_tets(&self.path, &g, "tets", rest.len())?;
+        Ok((rest, tets))
+    }
+
+    /// Reads complete frame `index`; an index that is not a complete frame is an error that
+    /// names the frames there are.
+    pub fn read(&self, index: usize) -> Result<StoredFrame, OutputError> {
+        let path = &self.path;
+        let Some(entry) = self.frames.iter().find(|f| f.index == index) else {
+            let (first, last) = (
+                self.frames[0].index,
+                self.frames[self.frames.len() - 1].index,
+            );
+            return Err(OutputError::NoSuchFrame {
+                path: path.clone(),
+                index,
+                available: format!("{} complete frames, {first} … {last}", self.frames.len()),
+            });
+        };
+        let g = self
+            .file
+            .group(&format!("frames/{}", entry.name))
+            .ctx(path, || format!("opening /frames/{}", entry.name))?;
+        let state = read_frame(path, &g, self.scene_text.clone())?;
+        let stress = if g.link_exists("stress") {
+            let (ds, rows) = open_2d(path, &g, "stress", 6)?;
+            if rows != state.tets.len() {
+                return Err(corrupt(
+                    path,
+                    format!(
+                        "{}/stress has {rows} rows for {} tets",
+                        g.name(),
+                        state.tets.len()
+                    ),
+                ));
+            }
+            let flat = ds
+                .read_raw::<f64>()
+                .ctx(path, || format!("reading {}/stress", g.name()))?;
+            flat.chunks_exact(6)
+                .map(|c| std::array::from_fn(|k| c[k]))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let crack_triangles = if g.link_exists("cracks") {
+            read_crack_triangles(path, &g)?
+        } else {
+            Vec::new()
+        };
+        Ok(StoredFrame {
+            index,
+            state,
+            stress,
+            crack_triangles,
+        })
+    }
+}
+
+/// Reads `g/cracks/{vertices, triangles, crack}`.
+fn read_crack_triangles(path: &Path, g: &Group) -> Result<Vec<CrackTriangle>, OutputError> {
+    let cracks = g
+        .group("cracks")
+        .ctx(path, || format!("opening {}/cracks", g.name()))?;
+    let vertices = read_vec3(path, &cracks, "vertices")?;
+    let (ds, rows) = open_2d(path, &cracks, "triangles", 3)?;
+    let flat = ds
+        .read_raw::<i64>()
+        .ctx(path, || format!("reading {}/triangles", cracks.name()))?;
+    let ids = cracks
+        .dataset("crack")
+        .and_then(|d| d.read_raw::<i64>())
+        .ctx(path, || format!("reading {}/crack", cracks.name()))?;
+    if flat.len() != 3 * rows || ids.len() != rows {
+        return Err(corrupt(
+            path,
+            format!(
+                "{}: triangles and crack have different row counts",
+                cracks.name()
+            ),
+        ));
+    }
+    let vertex = |v: i64| {
+        usize::try_from(v)
+            .ok()
+            .and_then(|i| vertices.get(i).copied())
+            .ok_or_else(|| {
+                corrupt(
+                    path,
+                    format!("{}/triangles: vertex index {v} out of range", cracks.name()),
+                )
+            })
+    };
+    flat.chunks_exact(3)
+        .zip(&ids)
+        .map(|(t, &id)| {
+            let id = usize::try_from(id)
+                .map_err(|_| corrupt(path, format!("{}/crack: negative id", cracks.name())))?;
+            Ok(([vertex(t[0])?, vertex(t[1])?, vertex(t[2])?], id))
+        })
+        .collect()
+}

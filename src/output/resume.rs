@@ -1,0 +1,495 @@
+//! Resuming a run: [`OutputWriter::resume`] reopens the file after its last complete frame,
+//! discards what came after it, and reads that frame back as a [`ResumeFrame`] (which the
+//! frame reader also uses for every frame it reads).
+
+use std::path::Path;
+
+use hdf5::{File, Group};
+
+use super::hdf5_io::{
+    check_hdf5_signature, check_icefem_layout, close_on_exec, list_frames, read_attr, read_string,
+    read_string_attr, read_tets, read_vec3, Hdf5Context,
+};
+use super::writer::{crash_safe_options, create_stats_column, STATS_COLUMNS};
+use super::{corrupt, OutputError, OutputWriter, RESERVED_FRAME_NAMES};
+
+/// Everything read back from the last complete frame (owned), to restart a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResumeFrame {
+    /// Step index of the frame.
+    pub step: u64,
+    /// Simulated time of the frame (s).
+    pub time: f64,
+    /// The TOML scene stored at run start.
+    pub scene_text: String,
+    /// Node positions (m).
+    pub positions: Vec<[f64; 3]>,
+    /// Node velocities (m/s).
+    pub velocities: Vec<[f64; 3]>,
+    /// Reference node positions (m).
+    pub rest_positions: Vec<[f64; 3]>,
+    /// Tetrahedra, 0-based node indices (all checked to be < node count).
+    pub tets: Vec<[usize; 4]>,
+    /// Every per-element field, sorted by name.
+    /// Does not include `stress`; read it with the hdf5 crate if needed.
+    pub element_fields: Vec<StoredField>,
+    /// Every per-node field, sorted by name.
+    pub node_fields: Vec<StoredField>,
+}
+
+/// One per-element or per-node field read back from a frame (owned), row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoredField {
+    /// Dataset name inside the frame group, e.g. `eigenstrain` or `displacement`.
+    pub name: String,
+    /// Components per row (1 for a field stored as a 1-D dataset).
+    pub columns: usize,
+    /// Row-major values, `rows * columns` long, one row per element (element fields) or per
+    /// node (node fields), in the units the run wrote them in (e.g. displacement in m,
+    /// strains dimensionless).
+    pub data: Vec<f64>,
+}
+
+impl OutputWriter {
+    /// Opens an existing icefem file to continue it.
+    ///
+    /// Finds the last frame whose `complete` attribute is 1, deletes every
+    /// frame group after it, truncates each `/stats` column to the rows before
+    /// the first row whose step exceeds that frame's step (and to the shortest
+    /// column, in case a kill interrupted a stats append), and returns a
+    /// writer whose next frame follows it, plus the frame's data.
+    ///
+    /// Deleted groups' space is not reclaimed (an HDF5 limitation; `h5repack`
+    /// compacts the file).
+    pub fn resume(path: &Path) -> Result<(Self, ResumeFrame), OutputError> {
+        check_hdf5_signature(path)?;
+        let file = crash_safe_options()
+            .open_rw(path)
+            .ctx(path, || "opening for resume".into())?;
+        close_on_exec(&file);
+        check_icefem_layout(path, &file)?;
+        let scene_text = read_string_attr(path, &file, "scene")?;
+        let frames = file
+            .group("frames")
+            .ctx(path, || "opening /frames".into())?;
+        let list = list_frames(path, &frames)?;
+        let Some(last) = list.iter().rev().find(|f| f.complete) else {
+            return Err(OutputError::NoCompleteFrame {
+                path: path.to_path_buf(),
+            });
+        };
+        let last_index = last.index;
+        let last_name = last.name.clone();
+        for f in list.iter().filter(|f| f.index > last_index) {
+            frames.unlink(&f.name).ctx(path, || {
+                format!("deleting incomplete frame /frames/{}", f.name)
+            })?;
+        }
+
+        let g = frames
+            .group(&last_name)
+            .ctx(path, || format!("opening /frames/{last_name}"))?;
+        let rf = read_frame(path, &g, scene_text)?;
+
+        let stats_rows = truncate_stats(path, &file, rf.step)?;
+        file.flush()
+            .ctx(path, || "flushing after resume cleanup".into())?;
+
+        let writer = Self {
+            path: path.to_path_buf(),
+            file: Some(file),
+            next_frame: last_index + 1,
+            topology_rest_path: format!("/frames/{last_name}/rest_positions"),
+            topology_tets_path: format!("/frames/{last_name}/tets"),
+            n_nodes: rf.positions.len(),
+            n_elems: rf.tets.len(),
+            stats_rows,
+            pending_stats: Vec::new(),
+            uncommitted: Vec::new(),
+            last_commit: None,
+        };
+        Ok((writer, rf))
+    }
+}
+
+/// Truncates `/stats` for `resume`; returns the row count kept. A column the file lacks
+/// (written before the column existed) is created with 0 in every row it has.
+fn truncate_stats(path: &Path, file: &File, last_step: u64) -> Result<usize, OutputError> {
+    let stats = file.group("stats").ctx(path, || "opening /stats".into())?;
+    let rows = stats
+        .dataset("step")
+        .ctx(path, || "opening /stats/step".into())?
+        .shape()
+        .first()
+        .copied()
+        .unwrap_or(0);
+    let mut columns = Vec::with_capacity(STATS_COLUMNS.len());
+    for (name, col) in STATS_COLUMNS {
+        let ds = if stats.link_exists(name) {
+            stats
+                .dataset(name)
+                .ctx(path, || format!("opening /stats/{name}"))?
+        } else {
+            let ds = create_stats_column(path, &stats, name, col)?;
+            // Rows beyond the old extent read as the fill value, 0.
+            ds.resize(rows).ctx(path, || {
+                format!("sizing the new /stats/{name} to {rows} rows")
+            })?;
+            ds
+        };
+        let shape = ds.shape();
+        if shape.len() != 1 {
+            return Err(corrupt(
+                path,
+                format!("/stats/{name} has shape {shape:?}, expected 1-D"),
+            ));
+        }
+        columns.push((name, ds, shape[0]));
+    }
+    let min_len = columns.iter().map(|c| c.2).min().unwrap_or(0);
+    let steps: Vec<u64> = columns[0]
+        .1
+        .read_raw::<u64>()
+        .ctx(path, || "reading /stats/step".into())?;
+    let keep = steps
+        .iter()
+        .take(min_len)
+        .position(|&s| s > last_step)
+        .unwrap_or(min_len.min(steps.len()));
+    for (name, ds, len) in &columns {
+        if *len != keep {
+            ds.resize(keep)
+                .ctx(path, || format!("truncating /stats/{name} to {keep} rows"))?;
+        }
+    }
+    Ok(keep)
+}
+
+/// Reads a frame group back into owned data, validating shapes and indices.
+pub(super) fn read_frame(
+    path: &Path,
+    g: &Group,
+    scene_text: String,
+) -> Result<ResumeFrame, OutputError> {
+    let gname = g.name();
+    let step = read_attr::<u64>(path, g, "step")?;
+    let time = read_attr::<f64>(path, g, "time")?;
+    let positions = read_vec3(path, g, "positions")?;
+    let velocities = read_vec3(path, g, "velocities")?;
+    let rest_positions = read_vec3(path, g, "rest_positions")?;
+    let n = positions.len();
+    if velocities.len() != n || rest_positions.len() != n {
+        return Err(corrupt(
+            path,
+            format!("{gname}: positions, velocities and rest_positions row counts differ"),
+        ));
+    }
+    let tets = read_tets(path, g, "tets", n)?;
+    let m = tets.len();
+
+    let mut element_fields = Vec::new();
+    let mut node_fields = Vec::new();
+    let names = g.member_names().ctx(path, || format!("listing {gname}"))?;
+    for name in names {
+        if RESERVED_FRAME_NAMES.contains(&name.as_str()) {
+            continue;
+        }
+        let Ok(ds) = g.dataset(&name) else {
+            continue; // a subgroup or something else: not a field
+        };
+        let shape = ds.shape();
+        let (rows, cols) = match shape.as_slice() {
+            [r] => (*r, 1),
+            [r, c] => (*r, *c),
+            _ => {
+                return Err(corrupt(path, format!("{gname}/{name} has shape {shape:?}")));
+            }
+        };
+        let center = ds.attr("center").ok().and_then(|a| read_string(&a).ok());
+        // Without a `center` attribute, fall back to the row count
+        // (element first, matching how the writer validates).
+        let is_cell = match center.as_deref() {
+            Some("Cell") => true,
+            Some("Node") => false,
+            _ => rows == m,
+        };
+        let expected_rows = if is_cell { m } else { n };
+        if rows != expected_rows {
+            return Err(corrupt(
+                path,
+                format!("{gname}/{name} has {rows} rows, expected {expected_rows}"),
+            ));
+        }
+        let data = ds
+            .read_raw::<f64>()
+            .ctx(path, || format!("reading {gname}/{name}"))?;
+        let field = StoredField {
+            name,
+            columns: cols,
+            data,
+        };
+        if is_cell {
+            element_fields.push(field);
+        } else {
+            node_fields.push(field);
+        }
+    }
+    Ok(ResumeFrame {
+        step,
+        time,
+        scene_text,
+        positions,
+        velocities,
+        rest_positions,
+        tets,
+        element_fields,
+        node_fields,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use hdf5::File;
+
+    use super::super::hdf5_io::{write_attr, write_vec3};
+    use super::super::test_support::{
+        frame_data, hdf5_guard, header, mesh, read_f64, stats, write, SPAWN_GUARD,
+    };
+    use super::super::writer::STATS_COLUMNS;
+    use super::super::{describe, OutputError, OutputWriter};
+    use super::StoredField;
+
+    /// Environment variable through which the parent test tells the re-executed
+    /// test binary where to write the file it then "crashes" on.
+    const CRASH_ENV: &str = "ICEFEM_OUTPUT_CRASH_HELPER_PATH";
+
+    /// Not a real test: when `CRASH_ENV` is set, writes two complete frames,
+    /// starts a third (group without `complete`, extra stats rows, flushed),
+    /// then aborts — no destructors, no HDF5 close — like a SIGKILL.
+    #[test]
+    fn crash_helper() {
+        let Ok(path) = std::env::var(CRASH_ENV) else {
+            return;
+        };
+        let path = PathBuf::from(path);
+        let (p, t) = mesh();
+        let mut w = OutputWriter::create(&path, &header(&p, &t)).unwrap();
+        for k in 0..2 {
+            for step in (10 * k as u64).saturating_sub(9)..=10 * k as u64 {
+                w.append_stats(&stats(step)).unwrap();
+            }
+            write(&mut w, k, &frame_data(k, &p, &t), false);
+        }
+        // Frames are committed in batches; commit the two as the interval would.
+        let file = w.file.clone().unwrap();
+        w.commit(&file).unwrap();
+        for step in 11..=17 {
+            w.append_stats(&stats(step)).unwrap();
+        }
+        w.flush_stats().unwrap();
+        let file = w.file.as_ref().unwrap();
+        let g = file.create_group("frames/000002").unwrap();
+        write_attr(&path, &g, "step", &20u64).unwrap();
+        write_vec3(&path, &g, "positions", &p).unwrap();
+        file.flush().unwrap();
+        std::process::abort();
+    }
+
+    #[test]
+    fn resume_after_kill() {
+        let spawn_guard = SPAWN_GUARD.write().unwrap_or_else(|e| e.into_inner());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("killed.h5");
+        // Re-run this test binary on `crash_helper` only; its abort is the "kill".
+        let module = module_path!();
+        let test_name = match module.split_once("::") {
+            Some((_, rest)) => format!("{rest}::crash_helper"),
+            None => "crash_helper".into(),
+        };
+        let out = std::process::Command::new(std::env::current_exe().unwrap())
+            .args([
+                test_name.as_str(),
+                "--exact",
+                "--nocapture",
+                "--test-threads=1",
+            ])
+            .env(CRASH_ENV, &path)
+            .output()
+            .unwrap();
+        drop(spawn_guard);
+        let _guard = hdf5_guard();
+        assert!(!out.status.success(), "helper should have aborted: {out:?}");
+        assert!(path.exists(), "helper did not run: {out:?}");
+
+        let before = describe(&path).unwrap();
+        assert!(before.contains("2 complete, 1 incomplete"), "{before}");
+        assert!(before.contains("stats rows     : 18"), "{before}");
+
+        let (mut w, rf) = OutputWriter::resume(&path).unwrap();
+        assert_eq!(w.frame_count(), 2);
+        let (p, t) = mesh();
+        let d = frame_data(1, &p, &t);
+        assert_eq!(rf.step, 10);
+        assert_eq!(rf.time.to_bits(), (10.0f64 * 1e-3).to_bits());
+        assert_eq!(rf.scene_text, "[solver]\ndt = 1e-3 # ünïcode\n");
+        let bits = |v: &[[f64; 3]]| {
+            v.as_flattened()
+                .iter()
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&rf.positions), bits(&d.pos));
+        assert_eq!(bits(&rf.velocities), bits(&d.vel));
+        assert_eq!(bits(&rf.rest_positions), bits(&d.rest));
+        assert_eq!(rf.tets, d.tets);
+        assert_eq!(
+            rf.element_fields,
+            vec![
+                StoredField {
+                    name: "eigenstrain".to_string(),
+                    columns: 1,
+                    data: d.eig.clone()
+                },
+                StoredField {
+                    name: "plastic_strain".to_string(),
+                    columns: 6,
+                    data: d.plastic.clone()
+                }
+            ]
+        );
+        assert_eq!(
+            rf.node_fields,
+            vec![StoredField {
+                name: "temperature".to_string(),
+                columns: 1,
+                data: d.temp.clone()
+            }]
+        );
+
+        // Continue the run: frame 2 gets the same name the partial one had.
+        for step in 11..=20 {
+            w.append_stats(&stats(step)).unwrap();
+        }
+        write(&mut w, 2, &frame_data(2, &p, &t), false);
+        w.finish().unwrap();
+
+        let f = File::open(&path).unwrap();
+        let steps = f.dataset("stats/step").unwrap().read_raw::<u64>().unwrap();
+        assert_eq!(steps, (0..=20).collect::<Vec<u64>>());
+        for (name, _) in STATS_COLUMNS {
+            assert_eq!(
+                f.dataset(&format!("stats/{name}")).unwrap().shape(),
+                vec![21]
+            );
+        }
+        let g2 = f.group("frames/000002").unwrap();
+        assert_eq!(g2.attr("complete").unwrap().read_scalar::<u8>().unwrap(), 1);
+        assert_eq!(
+            read_f64(&f, "frames/000002/velocities"),
+            frame_data(2, &p, &t).vel.as_flattened()
+        );
+        // Still linked to the mesh topology through the resumed frame.
+        let tok = |p: &str| f.dataset(p).unwrap().loc_info().unwrap().token;
+        assert_eq!(tok("frames/000002/tets"), tok("mesh/tets"));
+        let after = describe(&path).unwrap();
+        assert!(after.contains("3 complete, 0 incomplete"), "{after}");
+    }
+
+    #[test]
+    fn resume_adds_a_stats_column_the_file_lacks() {
+        // A file written before `/stats/newton_solves` existed: resuming creates the column
+        // with 0 in the rows already there, and the resumed steps fill in their values.
+        let _guard = hdf5_guard();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("older.h5");
+        let (p, t) = mesh();
+        let mut w = OutputWriter::create(&path, &header(&p, &t)).unwrap();
+        for step in 0..=10 {
+            w.append_stats(&stats(step)).unwrap();
+        }
+        write(&mut w, 1, &frame_data(1, &p, &t), false);
+        w.finish().unwrap();
+        File::open_rw(&path)
+            .unwrap()
+            .group("stats")
+            .unwrap()
+            .unlink("newton_solves")
+            .unwrap();
+
+        let (mut w, rf) = OutputWriter::resume(&path).unwrap();
+        assert_eq!(rf.step, 10);
+        for step in 11..=12 {
+            w.append_stats(&stats(step)).unwrap();
+        }
+        w.finish().unwrap();
+        let f = File::open(&path).unwrap();
+        let solves = f
+            .dataset("stats/newton_solves")
+            .unwrap()
+            .read_raw::<u32>()
+            .unwrap();
+        let mut expected = vec![0; 11];
+        expected.extend([2, 2]);
+        assert_eq!(solves, expected);
+        for (name, _) in STATS_COLUMNS {
+            assert_eq!(
+                f.dataset(&format!("stats/{name}")).unwrap().shape(),
+                vec![13]
+            );
+        }
+    }
+
+    #[test]
+    fn resume_without_complete_frame() {
+        let _guard = hdf5_guard();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("empty.h5");
+        let (p, t) = mesh();
+        let w = OutputWriter::create(&path, &header(&p, &t)).unwrap();
+        drop(w);
+        let r = OutputWriter::resume(&path);
+        assert!(
+            matches!(r, Err(OutputError::NoCompleteFrame { .. })),
+            "{:?}",
+            r.err()
+        );
+    }
+
+    #[test]
+    fn malformed_frame_content_is_an_error_not_a_panic() {
+        let _guard = hdf5_guard();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("mal.h5");
+        let (p, t) = mesh();
+        let mut w = OutputWriter::create(&path, &header(&p, &t)).unwrap();
+        write(&mut w, 0, &frame_data(0, &p, &t), true);
+        drop(w);
+        {
+            // Replace the frame's tets by an out-of-range index set and
+            // velocities by a wrongly shaped array.
+            let f = File::open_rw(&path).unwrap();
+            let g = f.group("frames/000000").unwrap();
+            g.unlink("tets").unwrap();
+            g.new_dataset_builder()
+                .with_data(&ndarray::arr2(&[[0i64, 1, 2, 3], [0, 1, 2, -1]]))
+                .create("tets")
+                .unwrap();
+        }
+        let e = OutputWriter::resume(&path).err().unwrap();
+        assert!(matches!(e, OutputError::Corrupt { .. }), "{e:?}");
+        {
+            let f = File::open_rw(&path).unwrap();
+            let g = f.group("frames/000000").unwrap();
+            g.unlink("velocities").unwrap();
+            g.new_dataset_builder()
+                .with_data(&[1.0f64, 2.0])
+                .create("velocities")
+                .unwrap();
+        }
+        let e = OutputWriter::resume(&path).err();
+        assert!(matches!(e, Some(OutputError::Corrupt { .. })), "{e:?}");
+        assert!(describe(&path).is_ok());
+    }
+}
