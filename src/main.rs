@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use icefem::bench;
+use icefem::bench::{self, BenchCommand, SolverOptions};
 use icefem::output::FrameReader;
 use icefem::render::{self, ColorField, Cut, RenderOptions, Style, View};
 use icefem::run::{run, Progress, RunOptions};
@@ -147,21 +147,30 @@ fn main() {
             contact,
             fracture,
         } => {
-            if contact {
-                contact_bench(&tets, steps, repeats)
-            } else if fracture {
-                fracture_bench(&tets, repeats)
-            } else {
-                bench_command(
-                    &tets,
+            let options = SolverOptions {
+                steps,
+                linear: solver.into(),
+                ordering: ordering.into(),
+                amg_reuse: !no_amg_reuse,
+            };
+            let command = if contact {
+                BenchCommand::Contact {
+                    tets,
                     steps,
                     repeats,
-                    solver,
-                    ordering,
-                    !no_amg_reuse,
-                    single,
-                )
-            }
+                }
+            } else if fracture {
+                BenchCommand::Fracture { tets, repeats }
+            } else if let Some(tets) = single {
+                BenchCommand::Single { tets, options }
+            } else {
+                BenchCommand::Solver {
+                    tets,
+                    repeats,
+                    options,
+                }
+            };
+            bench::run(&command, |line| println!("{line}")).map_err(Into::into)
         }
         Command::Render {
             file,
@@ -352,17 +361,6 @@ enum SolverArg {
     Auto,
 }
 
-impl SolverArg {
-    fn name(self) -> &'static str {
-        match self {
-            SolverArg::Cholesky => "cholesky",
-            SolverArg::Cg => "cg",
-            SolverArg::Amg => "amg",
-            SolverArg::Auto => "auto",
-        }
-    }
-}
-
 impl From<SolverArg> for LinearSolverKind {
     fn from(s: SolverArg) -> Self {
         match s {
@@ -381,16 +379,6 @@ enum OrderingArg {
     Metis,
 }
 
-impl OrderingArg {
-    fn name(self) -> &'static str {
-        match self {
-            OrderingArg::Auto => "auto",
-            OrderingArg::Amd => "amd",
-            OrderingArg::Metis => "metis",
-        }
-    }
-}
-
 impl From<OrderingArg> for FillOrdering {
     fn from(o: OrderingArg) -> Self {
         match o {
@@ -399,195 +387,6 @@ impl From<OrderingArg> for FillOrdering {
             OrderingArg::Metis => FillOrdering::Metis,
         }
     }
-}
-
-const BENCH_FIELDS: usize = 20;
-
-/// `icefem bench --fracture`: prints a table of the fracture check and split costs.
-fn fracture_bench(sizes: &[usize], repeats: usize) -> Result<()> {
-    println!("icefem bench --fracture: a corotated 10 cm ice cube pulled to σ ≈ 1e7 Pa in one step of 1/30 s (τ = 3e6 Pa), then one split; Cholesky");
-    println!(
-        "{} threads; medians of {repeats} runs\n",
-        rayon::current_num_threads()
-    );
-    println!("| tets | step (ms) | fracture check (ms) | split (ms) | remesh (ms) | step re-solved (ms) |");
-    println!("|---|---|---|---|---|---|");
-    for &tets in sizes {
-        let mut runs = Vec::new();
-        for _ in 0..repeats.max(1) {
-            runs.push(bench::fracture_cost(tets)?);
-        }
-        let median = |f: &dyn Fn(&bench::FractureCost) -> f64| {
-            let mut v: Vec<f64> = runs.iter().map(f).collect();
-            v.sort_by(f64::total_cmp);
-            1e3 * v[v.len() / 2]
-        };
-        println!(
-            "| {} | {:.1} | {:.2} | {:.2} | {:.1} | {:.1} |",
-            runs[0].tets,
-            median(&|c| c.t_step),
-            median(&|c| c.t_check),
-            median(&|c| c.t_split),
-            median(&|c| c.t_remesh),
-            median(&|c| c.t_resolve),
-        );
-    }
-    Ok(())
-}
-
-/// `icefem bench --contact`: prints a table of contact cost per step.
-fn contact_bench(sizes: &[usize], steps: usize, repeats: usize) -> Result<()> {
-    println!("icefem bench --contact: two corotated ice cubes stacked (offset) in a container, friction 0.3, gravity, backward Euler dt = 1/30 s, Cholesky");
-    println!(
-        "{} threads; medians of {repeats} runs of the per-step medians over {steps} steps\n",
-        rayon::current_num_threads()
-    );
-    println!("| tets | container | boundary nodes | ice–ice pairs | Newton it./step | broad phase/step (ms) | narrow phase/step (ms) | elastic assembly/step (ms) | contact / elastic | step (ms) |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
-    for &tets in sizes {
-        for mesh_container in [false, true] {
-            let mut runs = Vec::new();
-            for _ in 0..repeats.max(1) {
-                runs.push(bench::contact_cost(tets, steps.max(1), mesh_container)?);
-            }
-            let median = |f: &dyn Fn(&bench::ContactCost) -> f64| {
-                let mut v: Vec<f64> = runs.iter().map(f).collect();
-                v.sort_by(f64::total_cmp);
-                v[v.len() / 2]
-            };
-            let r = &runs[0];
-            let (broad, narrow, elastic) = (
-                median(&|c| c.t_broad),
-                median(&|c| c.t_narrow),
-                median(&|c| c.t_elastic),
-            );
-            println!(
-                "| {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.1} |",
-                r.tets,
-                if mesh_container {
-                    "triangle mesh"
-                } else {
-                    "planes"
-                },
-                r.boundary_nodes,
-                r.candidates,
-                r.newton_iterations,
-                1e3 * broad,
-                1e3 * narrow,
-                1e3 * elastic,
-                (broad + narrow) / elastic,
-                1e3 * median(&|c| c.t_step),
-            );
-        }
-    }
-    Ok(())
-}
-
-fn bench_command(
-    sizes: &[usize],
-    steps: usize,
-    repeats: usize,
-    solver: SolverArg,
-    ordering: OrderingArg,
-    amg_reuse: bool,
-    single: Option<usize>,
-) -> Result<()> {
-    if let Some(tets) = single {
-        let r = bench::run_size(
-            tets,
-            steps.max(1),
-            solver.into(),
-            ordering.into(),
-            amg_reuse,
-        )?;
-        let m = r.peak_memory.unwrap_or(0) as f64;
-        let row = [
-            r.tets as f64,
-            r.dofs as f64,
-            r.nnz as f64,
-            r.factor_nnz as f64,
-            r.t_model,
-            r.t_pattern,
-            r.t_symbolic,
-            r.t_assembly,
-            r.t_factorization,
-            r.t_solve,
-            r.t_step,
-            r.newton_iterations as f64,
-            r.linear_iterations as f64,
-            m,
-            r.t_first_setup,
-            r.t_first_solve,
-            r.first_iterations as f64,
-            r.levels as f64,
-            r.operator_complexity,
-            r.setups as f64,
-        ];
-        println!("{}", row.map(|v| v.to_string()).join(" "));
-        return Ok(());
-    }
-    let exe = std::env::current_exe().context("locating the icefem executable")?;
-    let solver_name = solver.name();
-    println!("icefem bench: corotated ice cube (10 cm, base clamped, gravity), backward Euler dt = 1/30 s, {solver_name}{}, ordering {}", if amg_reuse { "" } else { " (no hierarchy reuse)" }, ordering.name());
-    println!("{} threads; medians of {repeats} runs (fresh process each) of the per-step medians over {steps} steps\n", rayon::current_num_threads());
-    println!("| tets | free dofs | nnz(K) | nnz(L) | pattern (s) | symbolic (s) | assembly/step (s) | factor/step (s) | solve/step (s) | step (s) | Newton it. | lin. it. | peak memory (MB) | first system: setup + solve (s) (it.) | AMG levels / op. complexity | set-ups per run |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
-    // (dofs, step time, first-system time) per size, for the scaling exponents.
-    let mut scaling: Vec<[f64; 3]> = Vec::new();
-    for &tets in sizes {
-        let mut rows: Vec<[f64; BENCH_FIELDS]> = Vec::new();
-        for _ in 0..repeats.max(1) {
-            let out = std::process::Command::new(&exe)
-                .args([
-                    "bench",
-                    "--single",
-                    &tets.to_string(),
-                    "--steps",
-                    &steps.to_string(),
-                    "--solver",
-                    solver_name,
-                    "--ordering",
-                    ordering.name(),
-                ])
-                .args((!amg_reuse).then_some("--no-amg-reuse"))
-                .output()
-                .context("running a benchmark process")?;
-            if !out.status.success() {
-                anyhow::bail!(
-                    "benchmark at {tets} tets failed: {}",
-                    String::from_utf8_lossy(&out.stderr)
-                );
-            }
-            let text = String::from_utf8_lossy(&out.stdout);
-            let values: Vec<f64> = text
-                .split_whitespace()
-                .filter_map(|v| v.parse().ok())
-                .collect();
-            let row: [f64; BENCH_FIELDS] = values
-                .try_into()
-                .map_err(|_| anyhow::anyhow!("malformed benchmark output: {text}"))?;
-            rows.push(row);
-        }
-        let med = |k: usize| {
-            let mut v: Vec<f64> = rows.iter().map(|r| r[k]).collect();
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        };
-        println!(
-            "| {} | {} | {:.2e} | {:.2e} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {} | {} | {:.0} | {:.3} + {:.3} = {:.3} ({}) | {} / {:.2} | {} |",
-            med(0), med(1), med(2), med(3), med(5), med(6), med(7), med(8), med(9), med(10), med(11), med(12), med(13) / 1e6,
-            med(14), med(15), med(14) + med(15), med(16), med(17), med(18), med(19)
-        );
-        scaling.push([med(1), med(10), med(14) + med(15)]);
-    }
-    if scaling.len() >= 2 {
-        println!(
-            "\nScaling exponent (least-squares slope of log time against log free dofs): step {:.2}, first system (set-up + solve) {:.2}",
-            bench::loglog_slope(&scaling.iter().map(|r| (r[0], r[1])).collect::<Vec<_>>()),
-            bench::loglog_slope(&scaling.iter().map(|r| (r[0], r[2])).collect::<Vec<_>>()),
-        );
-    }
-    Ok(())
 }
 
 fn run_command(scene_path: &Path, options: &RunOptions) -> Result<()> {

@@ -4,7 +4,10 @@ packages, the venv and the release build first).
 
 Runs icefem (`icefem bench --single N --steps 3 --solver cholesky|cg`) and the peer
 (`bench_peer.py --single N`: scikit-fem + scipy / CHOLMOD / pyamg) on the same meshes, every
-run in a fresh process, and writes validation/bench.md.
+run in a fresh process, and writes validation/bench.md. icefem's side of each run is the
+binary's own benchmark (src/bench/); this script adds what only it can: the peer runs
+interleaved with icefem's, the machine-load checks and retries, the companion `icefem run`
+scenes, and the side-by-side report. The problem's size and data come from bench_peer.py.
 """
 
 from __future__ import annotations
@@ -22,11 +25,15 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench_peer import CLAMP_Z, DT, GRAVITY, LAMBDA, MU, RHO, SIDE, cells_for
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 PEER = HERE / "bench_peer.py"
 
 STEPS = 3
+# The numbers `icefem bench --single` prints, in order: SINGLE_FIELDS in src/bench/driver.rs
+# (a test there checks that this list matches).
 ICEFEM_FIELDS = [
     "tets", "dofs", "nnz", "nnz_L", "t_model", "t_pattern", "t_symbolic", "t_assembly_step",
     "t_factor_step", "t_solve_step", "t_step", "newton", "lin_it", "peak_rss",
@@ -58,6 +65,57 @@ def log(msg: str) -> None:
     line = f"[{time.strftime('%H:%M:%S')}] {msg}"
     print(line, flush=True)
     LOG.append(line)
+
+
+# ---------------------------------------------------------------------------------------------
+# Report header: the machine, the software, the icefem build
+# ---------------------------------------------------------------------------------------------
+def output_of(cmd: list[str], default: str = "unknown") -> str:
+    """cmd's stdout, stripped, run from the repository root; default if it cannot run or fails."""
+    try:
+        r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    except OSError:
+        return default
+    return r.stdout.strip() if r.returncode == 0 else default
+
+
+def header_facts(icefem: Path, cholmod_note: str) -> dict:
+    """The report header's machine, software and icefem lines (taken before the runs);
+    cholmod_note is what the set-up says about scikit-sparse, unless it cannot be imported."""
+    import importlib.metadata
+
+    if subprocess.run([sys.executable, "-c", "import sksparse.cholmod"], capture_output=True).returncode:
+        cholmod_note = "scikit-sparse not importable: no CHOLMOD columns"
+
+    with open("/proc/cpuinfo") as f:
+        cpu = next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), "")
+    with open("/proc/meminfo") as f:
+        kb = next(int(line.split()[1]) for line in f if line.startswith("MemTotal"))
+    os_release = {}
+    with open("/etc/os-release") as f:
+        for line in f:
+            key, _, value = line.strip().partition("=")
+            os_release[key] = value.strip('"')
+    libblas = Path("/usr/lib/x86_64-linux-gnu/libblas.so.3")
+    blas = str(libblas.resolve()) if libblas.parent.is_dir() else "unknown"  # as `readlink -f`
+    versions = []
+    for name in ["scikit-fem", "numpy", "scipy", "scikit-sparse", "pyamg"]:
+        try:
+            versions.append(f"{name} {importlib.metadata.version(name)}")
+        except importlib.metadata.PackageNotFoundError:
+            versions.append(f"{name} (missing)")
+    commit = output_of(["git", "rev-parse", "--short", "HEAD"])
+    status = output_of(["git", "status", "--porcelain", "--untracked-files=no"], default="")
+    dirty = " ".join(line.split()[1] for line in status.splitlines() if line.split()[1:])
+    return dict(
+        machine=f"{cpu}, {len(os.sched_getaffinity(0))} cores, {kb / 1048576:.1f} GiB RAM; "
+                f"{os_release.get('PRETTY_NAME', '')}, Linux {platform.release()}",
+        software=f"Python {platform.python_version()}, {', '.join(versions)}; CHOLMOD from Debian "
+                 f"SuiteSparse (libcholmod3), BLAS {blas}; {cholmod_note}; {output_of(['rustc', '--version'])}",
+        icefem=f"{output_of([str(icefem), '--version'])}, git {commit}"
+               + (f" with uncommitted changes in {dirty}" if dirty else "")
+               + "; release build; rayon on all cores",
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -186,6 +244,19 @@ def estimate(job: str, n: int) -> float:
     return w0 * (n / n0) ** EXPONENT[job]
 
 
+SOLVER = {"chol": "cholesky", "cg": "cg", "amg": "amg"}
+
+
+def icefem_single(icefem: Path, n: int, job: str) -> list[str]:
+    """`icefem bench --single`: one run of icefem's benchmark at ≈n tets with job's solver."""
+    return [str(icefem), "bench", "--single", str(n), "--steps", str(STEPS), "--solver", SOLVER[job]]
+
+
+def peer_single(python: str, n: int, *flags: str) -> list[str]:
+    """`bench_peer.py --single`: one run of the peer at ≈n tets."""
+    return [python, str(PEER), "--single", str(n), *flags]
+
+
 def parse_icefem(text: str) -> dict:
     vals = [float(v) for v in text.split()]
     if len(vals) != len(ICEFEM_FIELDS):
@@ -196,44 +267,51 @@ def parse_icefem(text: str) -> dict:
 # ---------------------------------------------------------------------------------------------
 # Companion `icefem run` scenes: what `icefem bench` does not print
 # ---------------------------------------------------------------------------------------------
-COMPANION_SCENE = """\
+def cube_scene(cells, *, model: str, gravity, analysis: str, dt: float, end_time: float,
+               output_every: int | None = None, linear: str | None = None) -> str:
+    """The bench cube (bench_peer.py's size, material and clamp) as an `icefem run` scene on
+    cells = (nx, ny, nz) box cells of 6 tets each."""
+    nx, ny, nz = cells
+    g = ", ".join(repr(float(x)) for x in gravity)
+    text = f"""\
 [mesh]
-box = {{ origin = [0.0, 0.0, 0.0], size = [0.1, 0.1, 0.1], cells = [{c}, {c}, {c}], tets_per_cell = 6 }}
+box = {{ origin = [0.0, 0.0, 0.0], size = [{SIDE!r}, {SIDE!r}, {SIDE!r}], cells = [{nx}, {ny}, {nz}], tets_per_cell = 6 }}
 
 [material]
-density = 916.0
-lambda = 8.64e10
-mu = 3.70e10
-model = "corotated"
+density = {RHO!r}
+lambda = {LAMBDA!r}
+mu = {MU!r}
+model = "{model}"
 
 [physics]
-gravity = {gravity}
+gravity = [{g}]
 
 [[dirichlet]]
 min = [-1.0, -1.0, -1.0]
-max = [1.0, 1.0, 1e-9]
+max = [1.0, 1.0, {CLAMP_Z!r}]
 
 [time]
 analysis = "{analysis}"
 dt = {dt!r}
-end_time = {end!r}
-output_every = 100000
-
-[solver]
-linear = "{linear}"
-cg_tolerance = 1e-10
+end_time = {end_time!r}
 """
-H = 1.0 / 30.0
+    if output_every is not None:
+        text += f"output_every = {output_every}\n"
+    if linear is not None:
+        text += f'\n[solver]\nlinear = "{linear}"\ncg_tolerance = 1e-10\n'
+    return text
+
+
 COMPANIONS = {
     # Static equilibrium under the bench's gravity; step 1 solves it (Newton), steps 2-11 start
     # at the converged state and stop at iteration 0 after exactly one full assembly (energy,
     # gradient, Hessian) at a deformed state: their t_assembly is one full assembly.
-    "static": dict(gravity="[3.0, 0.0, -9.81]", analysis="static", dt=1.0, end=11.0, linear="cholesky"),
+    "static": dict(gravity=GRAVITY, analysis="static", dt=1.0, end_time=11.0, linear="cholesky"),
     # No loads, at rest: every step is one full assembly at F = I and nothing else (used where
     # the static solve is too expensive, i.e. 1e6 tets).
-    "rest": dict(gravity="[0.0, 0.0, 0.0]", analysis="dynamic", dt=H, end=10 * H, linear="cg"),
+    "rest": dict(gravity=(0.0, 0.0, 0.0), analysis="dynamic", dt=DT, end_time=10 * DT, linear="cg"),
     # The bench problem itself as a scene: factorisations per step from /stats.
-    "dyn": dict(gravity="[3.0, 0.0, -9.81]", analysis="dynamic", dt=H, end=3 * H, linear="cholesky"),
+    "dyn": dict(gravity=GRAVITY, analysis="dynamic", dt=DT, end_time=3 * DT, linear="cholesky"),
 }
 
 
@@ -243,7 +321,8 @@ def companion(icefem: Path, kind: str, cells: int, workdir: Path, what: str, dea
 
     scene = workdir / f"{kind}_{cells}.toml"
     h5 = workdir / f"{kind}_{cells}.h5"
-    scene.write_text(COMPANION_SCENE.format(c=cells, **COMPANIONS[kind]))
+    scene.write_text(cube_scene((cells, cells, cells), model="corotated", output_every=100000,
+                                **COMPANIONS[kind]))
 
     def parse(_stdout: str) -> dict:
         with h5py.File(h5, "r") as f:
@@ -281,11 +360,6 @@ def parse_peer(text: str) -> dict:
     if "t_amg_setup" in row:
         row["amg_total"] = row["t_amg_setup"] + row["t_amg_solve"]
     return row
-
-
-def cells_for(tets: int) -> int:
-    """src/bench.rs cells_for: round(cbrt(N / 6)), at least 1."""
-    return max(1, int(round((tets / 6.0) ** (1.0 / 3.0) + 1e-12)))
 
 
 def derive_icefem(res: dict) -> None:
@@ -326,36 +400,13 @@ def medians(rows: list[dict]) -> dict:
 # ---------------------------------------------------------------------------------------------
 # Mesh check: the peer's box mesh against a mesh written by icefem
 # ---------------------------------------------------------------------------------------------
-SCENE = """\
-[mesh]
-box = {{ origin = [0.0, 0.0, 0.0], size = [0.1, 0.1, 0.1], cells = [{nx}, {ny}, {nz}], tets_per_cell = 6 }}
-
-[material]
-density = 916.0
-lambda = 8.64e10
-mu = 3.70e10
-model = "linear"
-
-[physics]
-gravity = [3.0, 0.0, -9.81]
-
-[[dirichlet]]
-min = [-1.0, -1.0, -1.0]
-max = [1.0, 1.0, 1e-9]
-
-[time]
-analysis = "static"
-dt = 1.0
-end_time = 1.0
-"""
-
-
 def verify_meshes(icefem: Path, python: str) -> list[str]:
     lines = []
     with tempfile.TemporaryDirectory() as d:
         for cells in [(3, 4, 5), (6, 6, 6)]:
             scene = Path(d) / "mesh_check.toml"
-            scene.write_text(SCENE.format(nx=cells[0], ny=cells[1], nz=cells[2]))
+            scene.write_text(cube_scene(cells, model="linear", gravity=GRAVITY, analysis="static",
+                                        dt=1.0, end_time=1.0))
             h5 = Path(d) / "mesh_check.h5"
             r = subprocess.run([str(icefem), "run", str(scene), "--output", str(h5)],
                                capture_output=True, text=True, cwd=d)
@@ -653,13 +704,11 @@ def amg_main(a, icefem: Path, python: str, meta_extra: dict) -> int:
             for job in jobs:
                 log(f"{n} tets: {job} run {rep + 1}/{repeats}")
                 if job == "peer":
-                    cmd = [python, str(PEER), "--single", str(n), "--spsolve-max-dofs", "0", "--no-cholmod"]
+                    cmd = peer_single(python, n, "--spsolve-max-dofs", "0", "--no-cholmod")
                     r = measured(cmd, TIMEOUT["peer"], parse_peer, f"peer {n}", deadline)
                 else:
-                    cmd = [str(icefem), "bench", "--single", str(n), "--steps", str(STEPS),
-                           "--solver", "amg" if job == "amg" else "cholesky"]
-                    r = measured(cmd, TIMEOUT["cg" if job == "amg" else "chol"], parse_icefem,
-                                 f"icefem {job} {n}", deadline)
+                    r = measured(icefem_single(icefem, n, job), TIMEOUT["cg" if job == "amg" else "chol"],
+                                 parse_icefem, f"icefem {job} {n}", deadline)
                 if "error" in r:
                     notes.append(f"{n} tets, {job}: {r['error']}")
                     log(f"  {r['error']}")
@@ -759,7 +808,8 @@ def main() -> int:
     ap.add_argument("--amg", action="store_true",
                     help="instead: icefem AMG-CG vs pyamg up to 1e6 dofs (writes validation/bench_amg.md)")
     ap.add_argument("--command", default="validation/bench")
-    ap.add_argument("--extra-meta", default="")
+    ap.add_argument("--cholmod-note", default="scikit-sparse (CHOLMOD) installed",
+                    help="what the set-up found about scikit-sparse (report header)")
     a = ap.parse_args()
     start = time.monotonic()
     hard_end = start + a.budget * 60 - 30  # no run is started that is expected to end later
@@ -767,8 +817,9 @@ def main() -> int:
     icefem = Path(a.icefem)
     python = sys.executable
     notes: list[str] = []
+    facts = header_facts(icefem, a.cholmod_note)
     if a.amg:
-        return amg_main(a, icefem, python, json.loads(a.extra_meta) if a.extra_meta else {})
+        return amg_main(a, icefem, python, facts)
 
     log("mesh check: icefem box_mesh vs the peer's generator")
     mesh_check = verify_meshes(icefem, python)
@@ -824,18 +875,15 @@ def main() -> int:
                     continue
                 log(f"{n} tets: {job} run {rep + 1}/{plan['repeats']}")
                 if job in ("chol", "cg"):
-                    cmd = [str(icefem), "bench", "--single", str(n), "--steps", str(STEPS),
-                           "--solver", "cholesky" if job == "chol" else "cg"]
-                    r = measured(cmd, TIMEOUT[job], parse_icefem, f"icefem {job} {n}", deadline)
+                    r = measured(icefem_single(icefem, n, job), TIMEOUT[job], parse_icefem,
+                                 f"icefem {job} {n}", deadline)
                     if "error" not in r:
                         log(f"  {r['_wall']:.1f} s wall: step {r['t_step']:.4g} s, assembly/step "
                             f"{r['t_assembly_step']:.3g} s, {r['lin_it']:.0f} lin. it., "
                             f"{r['peak_rss'] / 1e6:.0f} MB, background {r['_background']:.2f}")
                 elif job == "peer":
-                    cmd = [python, str(PEER), "--single", str(n),
-                           "--spsolve-max-dofs", "20000" if plan["spsolve"] else "0"]
-                    if not plan["cholmod"]:
-                        cmd.append("--no-cholmod")
+                    cmd = peer_single(python, n, "--spsolve-max-dofs", "20000" if plan["spsolve"] else "0",
+                                      *([] if plan["cholmod"] else ["--no-cholmod"]))
                     r = measured(cmd, TIMEOUT["peer"], parse_peer, f"peer {n}", deadline)
                     if "error" not in r:
                         if "cholmod_error" in r:
@@ -845,8 +893,7 @@ def main() -> int:
                             + (f", pyamg {r['amg_total']:.3g} s ({r['amg_iterations']} it.)" if "amg_total" in r else "")
                             + f", {r['peak_rss'] / 1e6:.0f} MB, background {r['_background']:.2f}")
                 elif job == "peer1t":
-                    cmd = [python, str(PEER), "--single", str(n), "--cholmod-only"]
-                    r = measured(cmd, TIMEOUT["peer"], parse_peer, f"peer CHOLMOD 1 thread {n}", deadline,
+                    r = measured(peer_single(python, n, "--cholmod-only"), TIMEOUT["peer"], parse_peer, f"peer CHOLMOD 1 thread {n}", deadline,
                                  env={"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"})
                     if "error" not in r:
                         log(f"  CHOLMOD, 1 BLAS thread: {r.get('cholmod_total', float('nan')):.3g} s, "
@@ -885,7 +932,7 @@ def main() -> int:
 
     shutil.rmtree(workdir, ignore_errors=True)
     elapsed = time.monotonic() - start
-    meta = json.loads(a.extra_meta) if a.extra_meta else {}
+    meta = dict(facts)
     meta.update(
         command=a.command,
         date=dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
@@ -894,14 +941,10 @@ def main() -> int:
         notes=notes,
     )
     bg = max([r[k].get("_background_max", 0.0) for r in results for k in ("chol", "cg", "peer")] or [0.0])
-    meta.setdefault("load", "")
     meta["load"] = (f"each run starts once other processes use < 0.15 cores (waits up to 3 min, 5 min in "
                     f"all; {300 - WAIT_BUDGET[0]:.0f} s waited) and is "
                     f"repeated (up to twice) if they used > {BACKGROUND_LIMIT} cores during it; largest "
                     f"background load in a kept run: {bg:.2f} cores")
-    meta.setdefault("machine", platform.node())
-    meta.setdefault("software", "")
-    meta.setdefault("icefem", str(icefem))
     write_report(Path(a.output), results, meta)
     log(f"wrote {a.output} ({elapsed / 60:.1f} min)")
     return 0

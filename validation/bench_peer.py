@@ -9,7 +9,7 @@ One size per process (so the peak memory is per size):
     bench_peer.py --verify-mesh FILE.h5 --cells NX,NY,NZ --size SX,SY,SZ
         compares box_mesh() with /mesh/rest_positions and /mesh/tets of an icefem output file
 
-Problem (same as src/bench.rs): 10 cm ice cube, `cells_for(N)` = round(cbrt(N/6)) cells per
+Problem (same as src/bench/problems.rs): 10 cm ice cube, `cells_for(N)` = round(cbrt(N/6)) cells per
 axis, 6 Kuhn tets per cell, lambda = 8.64e10 Pa, mu = 3.70e10 Pa, rho = 916 kg/m^3, nodes with
 z <= 1e-9 clamped (all axes), gravity (3, 0, -9.81) m/s^2, backward Euler h = 1/30 s. The
 system timed is the first Newton system of icefem's first step, A = K + M/h^2 on the free
@@ -27,6 +27,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+# The problem's data (bench.py writes its `icefem run` scenes of the same cube from these too).
 LAMBDA, MU, RHO = 8.64e10, 3.70e10, 916.0
 GRAVITY = np.array([3.0, 0.0, -9.81])
 DT = 1.0 / 30.0
@@ -41,7 +42,7 @@ KUHN = np.array(
 
 
 def cells_for(tets: int) -> int:
-    """src/bench.rs cells_for: round(cbrt(N / 6)), at least 1 (Rust rounds half away from 0)."""
+    """src/bench/problems.rs cells_for: round(cbrt(N / 6)), at least 1 (Rust rounds half away from 0)."""
     return max(1, int(np.floor(np.cbrt(tets / 6.0) + 0.5)))
 
 

@@ -1,7 +1,10 @@
-//! Benchmark problems, used by `icefem bench`: an ice cube on box meshes of a chosen size,
-//! clamped at its base, under gravity, stepped with backward Euler at dt = 1/30 s; and, for
-//! the cost of contact, two such cubes stacked in a container.
+//! The benchmark problems, each run once in this process: an ice cube on box meshes of a
+//! chosen size, clamped at its base, under gravity, stepped with backward Euler at dt = 1/30 s
+//! ([`run_size`]); two such cubes stacked in a container, for the cost of contact
+//! ([`contact_cost`]); a pulled cube that splits once, for the cost of fracture
+//! ([`fracture_cost`]).
 
+use super::median;
 use crate::fem::{ElasticModel, Material};
 use crate::mesh::surface::TriSurface;
 use crate::mesh::{box_mesh, TetMesh};
@@ -65,11 +68,6 @@ pub struct BenchResult {
 /// Cells per axis of a cube box mesh with about `tets` tetrahedra (6 per cell).
 pub fn cells_for(tets: usize) -> usize {
     ((tets as f64 / 6.0).cbrt().round() as usize).max(1)
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// A 10 cm corotated ice cube of `cells`³ box cells (6 tets each), its base (z = 0) clamped,
@@ -394,18 +392,6 @@ pub fn fracture_cost(tets: usize) -> Result<FractureCost, SimError> {
         t_remesh: r.t_remesh,
         t_resolve: r.t_resolve,
     })
-}
-
-/// Least-squares slope of log y against log x over the points (x, y): the exponent p of
-/// y ∝ xᵖ. NaN for fewer than two distinct x.
-pub fn loglog_slope(points: &[(f64, f64)]) -> f64 {
-    let logs: Vec<(f64, f64)> = points.iter().map(|&(x, y)| (x.ln(), y.ln())).collect();
-    let n = logs.len() as f64;
-    let mx = logs.iter().map(|p| p.0).sum::<f64>() / n;
-    let my = logs.iter().map(|p| p.1).sum::<f64>() / n;
-    let sxy: f64 = logs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    let sxx: f64 = logs.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    sxy / sxx
 }
 
 /// Peak resident set size of this process (bytes), from /proc/self/status (Linux).
