@@ -262,12 +262,6 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
     }
 }
 
-/// `RUN.h5` → `RUN<suffix>` beside it.
-fn sibling(file: &Path, suffix: &str) -> PathBuf {
-    let stem = file.file_stem().unwrap_or_default().to_string_lossy();
-    file.with_file_name(format!("{stem}{suffix}"))
-}
-
 /// `icefem render`.
 fn render_command(
     file: &Path,
@@ -281,17 +275,8 @@ fn render_command(
         anyhow::bail!("--fps must be > 0, got {fps}");
     }
     let reader = FrameReader::open(file)?;
-    let available = reader.frame_indices();
-    let list = match (frame, frames) {
-        (Some(f), _) => vec![f],
-        (None, Some(spec)) => render::parse_frame_range(spec, &available)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?,
-        (None, None) => vec![available[available.len() - 1]],
-    };
-    let output = output.unwrap_or_else(|| match list.as_slice() {
-        [one] => sibling(file, &format!("_{one:06}.png")),
-        _ => sibling(file, ".gif"),
-    });
+    let list = render::select_frames(file, &reader, frame, frames)?;
+    let output = output.unwrap_or_else(|| render::default_output(file, &list));
     let summary = render::render_frames(&reader, &list, look.options(), &output, fps)?;
     let n = summary.frames.max(1) as f64;
     match summary.files.as_slice() {
@@ -331,7 +316,7 @@ fn figure_command(
             panel: look.options(),
         },
     )?;
-    let output = output.unwrap_or_else(|| sibling(file, "_figure.png"));
+    let output = output.unwrap_or_else(|| render::sibling(file, "_figure.png"));
     render::save_png(&picture, &output)?;
     println!(
         "wrote {} ({}x{}, {:.2} s)",

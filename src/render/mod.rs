@@ -18,7 +18,9 @@ pub use camera::{Camera, View};
 pub use encode::{save_png, GifWriter};
 pub use figure::{figure, FigureOptions};
 pub use raster::Picture;
-pub use sequence::{numbered_path, render_frames, RenderSummary};
+pub use sequence::{
+    default_output, numbered_path, render_frames, select_frames, sibling, RenderSummary,
+};
 
 use crate::fracture::cracks::OriginalBoundary;
 use crate::mesh::surface::TriSurface;

@@ -20,6 +20,43 @@ pub struct RenderSummary {
     pub t_encode: f64,
 }
 
+/// `RUN.h5` → `RUN<suffix>` beside it.
+pub fn sibling(file: &Path, suffix: &str) -> PathBuf {
+    let stem = file.file_stem().unwrap_or_default().to_string_lossy();
+    file.with_file_name(format!("{stem}{suffix}"))
+}
+
+/// The frames `icefem render` draws from `reader` (whose file is `file`): frame `frame` if
+/// given, else the range `frames` (`A:B:S`, see [`super::parse_frame_range`]), else the last
+/// complete frame.
+pub fn select_frames(
+    file: &Path,
+    reader: &FrameReader,
+    frame: Option<usize>,
+    frames: Option<&str>,
+) -> Result<Vec<usize>, RenderError> {
+    let available = reader.frame_indices();
+    Ok(match (frame, frames) {
+        (Some(f), _) => vec![f],
+        (None, Some(spec)) => {
+            super::parse_frame_range(spec, &available).map_err(|message| RenderError::Invalid {
+                path: file.to_path_buf(),
+                message,
+            })?
+        }
+        (None, None) => vec![available[available.len() - 1]],
+    })
+}
+
+/// Where `icefem render` writes `frames` of `file` by default: `RUN_NNNNNN.png` beside it for
+/// one frame, `RUN.gif` for several.
+pub fn default_output(file: &Path, frames: &[usize]) -> PathBuf {
+    match frames {
+        [one] => sibling(file, &format!("_{one:06}.png")),
+        _ => sibling(file, ".gif"),
+    }
+}
+
 /// The PNG file of frame `index` when a sequence is written to `path`: `stem_NNNNNN.png`.
 pub fn numbered_path(path: &Path, index: usize) -> PathBuf {
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
