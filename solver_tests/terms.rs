@@ -1186,9 +1186,6 @@ fn ice_friction_sticking() {
 }
 
 #[test]
-#[ignore = "IceStep::extrapolated_friction_frames zips the frames that exist with all \
-            candidates' earlier frames, so each normal force is extrapolated with another \
-            pair's: at rest it gives 2 λ instead of λ"]
 fn ice_friction_normal_force_at_rest_extrapolates_to_itself() {
     // With uₙ₋₁ = uₙ, λ = max(0, 2 λ(uₙ) − λ(uₙ₋₁)) must be λ(uₙ) for every pair.
     use icefem::physics::ice_contact::IceStep;

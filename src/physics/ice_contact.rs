@@ -533,8 +533,10 @@ impl<'a> IceStep<'a> {
     ) -> Vec<Option<FrictionFrame>> {
         let mut frames = self.friction_frames(rest, previous);
         let before = self.friction_frames(rest, earlier);
-        for (frame, b) in frames.iter_mut().flatten().zip(&before) {
-            frame.2 = (2.0 * frame.2 - b.map_or(0.0, |b| b.2)).max(0.0);
+        for (frame, b) in frames.iter_mut().zip(&before) {
+            if let Some(frame) = frame {
+                frame.2 = (2.0 * frame.2 - b.map_or(0.0, |b| b.2)).max(0.0);
+            }
         }
         frames
     }
