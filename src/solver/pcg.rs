@@ -16,6 +16,29 @@ pub trait PcgOperators {
     fn precondition(&mut self, r: &[f64], z: &mut [f64]);
 }
 
+/// A preconditioner of PCG.
+pub trait Preconditioner {
+    /// z = M⁻¹ r (M symmetric positive definite).
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]);
+}
+
+/// The free-system matrix of an [`Assembly`] with these values (its product by
+/// [`symmetric_multiply`]) and a preconditioner, as PCG's operators.
+pub struct MatrixOperators<'a, P> {
+    pub assembly: &'a Assembly,
+    pub values: &'a [f64],
+    pub preconditioner: P,
+}
+
+impl<P: Preconditioner> PcgOperators for MatrixOperators<'_, P> {
+    fn apply(&mut self, x: &[f64], y: &mut [f64]) {
+        symmetric_multiply(self.assembly, self.values, x, y);
+    }
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        self.preconditioner.precondition(r, z);
+    }
+}
+
 /// Why PCG stopped without converging.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PcgFailure {
