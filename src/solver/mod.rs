@@ -8,6 +8,7 @@ pub mod ordering;
 pub mod pcg;
 pub mod timestep;
 pub mod tree_solve;
+mod vector;
 
 pub use linear::{
     FactorPrecision, IterativeSettings, LinearError, LinearSolver, LinearSolverKind, LinearStats,

@@ -1,7 +1,7 @@
 //! Preconditioned conjugate gradients, parallel (rayon) and bit-reproducible: every product
 //! writes disjoint entries and every dot product sums fixed chunks in a fixed order.
 
-use super::amg::dot;
+use super::vector::dot;
 use crate::assembly::Assembly;
 use rayon::prelude::*;
 
