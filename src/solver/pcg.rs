@@ -25,8 +25,11 @@ pub trait Preconditioner {
 /// The free-system matrix of an [`Assembly`] with these values (its product by
 /// [`symmetric_multiply`]) and a preconditioner, as PCG's operators.
 pub struct MatrixOperators<'a, P> {
+    /// The pattern (both triangles of the free system).
     pub assembly: &'a Assembly,
+    /// The matrix values on that pattern.
     pub values: &'a [f64],
+    /// M⁻¹.
     pub preconditioner: P,
 }
 

@@ -8,7 +8,7 @@
 //! is made here.
 //!
 //! Layers, each importing only those below it: [`settings`] and [`error`]; [`reuse`] and
-//! [`triangular`]; [`cholesky`], [`cg`] and [`amg_cg`]; [`kept_factor`]; this dispatcher.
+//! `triangular`; [`cholesky`], [`cg`] and [`amg_cg`]; [`kept_factor`]; this dispatcher.
 
 pub mod amg_cg;
 pub mod cg;
@@ -57,6 +57,7 @@ pub enum LinearSolver {
     Cg(JacobiCg),
     /// Multigrid-preconditioned CG.
     Amg {
+        /// The solver, with its hierarchy and statistics.
         solver: Box<AmgCg>,
         /// `Auto`'s Cholesky solver for when multigrid struggles (see
         /// [`AMG_FALLBACK_ITERATIONS`]).
