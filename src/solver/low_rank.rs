@@ -17,7 +17,6 @@
 //! the factor's life) and H = Eᵀ Y. G is re-read from the current matrix at every solve, so a
 //! dof that changes further costs nothing more.
 
-use super::linear::LinearError;
 use crate::assembly::Assembly;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
@@ -68,13 +67,13 @@ impl LowRankCorrection {
     /// in one call of `solve_factor` (an n × k column-major block, X ← F⁻¹ X), and recomputes
     /// the gain from the current values. An error of `solve_factor` is returned, the
     /// correction left as it was.
-    pub fn update(
+    pub fn update<E>(
         &mut self,
         assembly: &Assembly,
         values: &[f64],
         factored: &[f64],
-        solve_factor: impl FnOnce(&mut [f64]) -> Result<(), LinearError>,
-    ) -> Result<(), LinearError> {
+        solve_factor: impl FnOnce(&mut [f64]) -> Result<(), E>,
+    ) -> Result<(), E> {
         let n = assembly.symbolic().nrows();
         if self.selected.len() != n {
             self.clear();

@@ -7,6 +7,7 @@ pub mod newton;
 pub mod ordering;
 pub mod pcg;
 pub mod tree_solve;
+mod vector;
 
 pub use linear::{
     FactorPrecision, IterativeSettings, LinearError, LinearSolver, LinearSolverKind, LinearStats,

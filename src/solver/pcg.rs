@@ -1,7 +1,7 @@
 //! Preconditioned conjugate gradients, parallel (rayon) and bit-reproducible: every product
 //! writes disjoint entries and every dot product sums fixed chunks in a fixed order.
 
-use super::amg::dot;
+use super::vector::dot;
 use crate::assembly::Assembly;
 use rayon::prelude::*;
 
@@ -14,6 +14,32 @@ pub trait PcgOperators {
     fn apply(&mut self, x: &[f64], y: &mut [f64]);
     /// z = M⁻¹ r (M symmetric positive definite).
     fn precondition(&mut self, r: &[f64], z: &mut [f64]);
+}
+
+/// A preconditioner of PCG.
+pub trait Preconditioner {
+    /// z = M⁻¹ r (M symmetric positive definite).
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]);
+}
+
+/// The free-system matrix of an [`Assembly`] with these values (its product by
+/// [`symmetric_multiply`]) and a preconditioner, as PCG's operators.
+pub struct MatrixOperators<'a, P> {
+    /// The pattern (both triangles of the free system).
+    pub assembly: &'a Assembly,
+    /// The matrix values on that pattern.
+    pub values: &'a [f64],
+    /// M⁻¹.
+    pub preconditioner: P,
+}
+
+impl<P: Preconditioner> PcgOperators for MatrixOperators<'_, P> {
+    fn apply(&mut self, x: &[f64], y: &mut [f64]) {
+        symmetric_multiply(self.assembly, self.values, x, y);
+    }
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        self.preconditioner.precondition(r, z);
+    }
 }
 
 /// Why PCG stopped without converging.
