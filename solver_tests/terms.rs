@@ -552,6 +552,18 @@ struct Start {
     dynamic: bool,
 }
 
+impl Start {
+    /// A static solve of step `h` (s) from `u` at rest.
+    fn at_rest(u: &[f64], h: f64) -> Self {
+        Start {
+            previous: u.to_vec(),
+            velocity: vec![0.0; u.len()],
+            h,
+            dynamic: false,
+        }
+    }
+}
+
 /// Starts `terms` on `mesh` as the simulation does (start of step, pattern, solve) and hands
 /// their step terms and the pattern to `f`. The terms must ask for the same couplings (the
 /// same term with and without friction do: friction does not enter the broad phase).
@@ -669,6 +681,16 @@ fn contact_forces(term: &dyn StepTerm, u: &[f64]) -> ContactForces {
     forces
 }
 
+/// Nodes pressed by a contact term at `u` (a normal force on them).
+fn pressed_nodes(term: &dyn StepTerm, u: &[f64]) -> usize {
+    let forces = contact_forces(term, u);
+    forces
+        .normal
+        .chunks(3)
+        .filter(|f| f.iter().any(|x| *x != 0.0))
+        .count()
+}
+
 fn node_vec(v: &[f64], i: usize) -> Vector3<f64> {
     Vector3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2])
 }
@@ -724,20 +746,12 @@ fn obstacle_penalty_compression_and_separation() {
     let mesh = block();
     let mut term = tilted_half_space(&mesh, 0.0, Vector3::zeros());
     let u = block_on_tilted_plane(&mesh, DEPTH);
-    let start = Start {
-        previous: u.clone(),
-        velocity: vec![0.0; u.len()],
-        h: 1.0,
-        dynamic: false,
-    };
+    let start = Start::at_rest(&u, 1.0);
     // The penalty ½ k A g² is piecewise quadratic: central differences are exact on one side
     // of g = 0, up to round-off (gaps to 1e-17 m of 1e-6 m, energy ~ 1e-2 J): at ε = 1e-9 m,
     // 1e-17 / 1e-9 relative to the force, 1e-8.
     let errors = with_step_term(&mut term, &mesh, &start, |t, asm| {
-        let forces = contact_forces(t, &u);
-        let pressed = (0..mesh.num_nodes())
-            .filter(|&i| node_vec(&forces.normal, i).norm() > 0.0)
-            .count();
+        let pressed = pressed_nodes(t, &u);
         // Two of the four columns of 4 bottom nodes are in.
         assert_eq!(pressed, 8, "pressed nodes");
         check(t, asm, &u, 1e-9, 23)
@@ -809,12 +823,7 @@ fn obstacle_container_corner_compression() {
         ObstacleContact::new(Contact::new(&mesh, vec![obstacle], 1e-4), mesh.num_nodes());
     let mut u = displacement_of(&mesh, |p| p - Vector3::repeat(DEPTH));
     jitter(&mesh, &mut u, 0.05 * DEPTH, None, 25);
-    let start = Start {
-        previous: u.clone(),
-        velocity: vec![0.0; u.len()],
-        h: 1.0,
-        dynamic: false,
-    };
+    let start = Start::at_rest(&u, 1.0);
     // As for the tilted plane: piecewise quadratic, gaps 1e-6 ± 5e-8 m, ε = 1e-9 m.
     with_step_term(&mut term, &mesh, &start, |t, asm| {
         check(t, asm, &u, 1e-9, 26)
@@ -1082,12 +1091,7 @@ fn ice_contact_pressed_cubes() {
     let mut errors = Vec::new();
     for depth in [ICE_DEPTH, 2.0 * ICE_DEPTH] {
         let u = pressed_cubes(&scene, depth);
-        let start = Start {
-            previous: u.clone(),
-            velocity: vec![0.0; u.len()],
-            h: scene.settings.dt,
-            dynamic: false,
-        };
+        let start = Start::at_rest(&u, scene.settings.dt);
         let e = with_step_term(ice_term(&scene).as_mut(), mesh, &start, |t, asm| {
             check(t, asm, &u, 1e-9, 42)
         });
@@ -1237,17 +1241,9 @@ fn ice_contact_crack_copies_pressed() {
         u[3 * i + 2] = -ICE_DEPTH;
     }
     jitter(&mesh, &mut u, 0.1 * ICE_DEPTH, None, 51);
-    let start = Start {
-        previous: u.clone(),
-        velocity: vec![0.0; u.len()],
-        h: 1e-2,
-        dynamic: false,
-    };
+    let start = Start::at_rest(&u, 1e-2);
     let errors = with_step_term(&mut term, &mesh, &start, |t, asm| {
-        let forces = contact_forces(t, &u);
-        let pressed = (0..mesh.num_nodes())
-            .filter(|&i| node_vec(&forces.normal, i).norm() > 0.0)
-            .count();
+        let pressed = pressed_nodes(t, &u);
         assert_eq!(pressed, 18, "9 copies a side");
         check(t, asm, &u, 1e-9, 52)
     });
