@@ -8,7 +8,7 @@
 
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: deps demo test bench figures
+.PHONY: deps demo test figures
 
 deps:
 	@pkg-config --exists hdf5 2>/dev/null || { \
