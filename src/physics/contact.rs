@@ -682,7 +682,7 @@ impl Term for ObstacleContact {
         Box::new(self.clone())
     }
     fn pattern_ready(&mut self, assembly: &Assembly, changed: bool) {
-        if changed || self.block_slots.is_empty() {
+        if changed {
             self.block_slots = (0..self.num_nodes)
                 .map(|i| assembly.node_block_slots(i))
                 .collect();

@@ -534,15 +534,13 @@ impl Simulation {
             newton_solves += 1;
         }
         let newton = newton.unwrap_or_default();
-        let contact_terms: Vec<&Box<dyn StepTerm + '_>> =
-            potential.terms.iter().filter(|t| t.is_contact()).collect();
-        if !contact_terms.is_empty() {
+        if potential.terms.iter().any(|t| t.is_contact()) {
             let n = u.len();
             let mut forces = ContactForces {
                 normal: vec![0.0; n],
                 friction: vec![0.0; n],
             };
-            for term in contact_terms {
+            for term in &potential.terms {
                 term.add_contact_forces(&u, &mut forces);
             }
             self.contact_forces = forces;
