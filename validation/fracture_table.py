@@ -282,7 +282,8 @@ def run_measures(path):
         r = {"file": path, "initial_elements": len(f["mesh/tets"]), "at": at,
              **stats_measures(f["stats"], onset_row)}
         ratio, capped = flow_ratios(frames, scene) if "plasticity" in scene else np.zeros((2, 0))
-    grow = lambda a, b: b / a if a else None
+    # Growth needs two different frames (a run that ends before step 2400 has none).
+    grow = lambda a, b: b / a if a and at[1]["step"] > at[0]["step"] else None
     e0 = r["initial_elements"]
     r["polygon_growth"] = grow(at[0].get("crack_polygons"), at[1].get("crack_polygons") or 0)
     r["element_growth"] = grow(at[0]["elements"] - e0, at[1]["elements"] - e0)
