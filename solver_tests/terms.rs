@@ -33,11 +33,12 @@ use icefem::assembly::{Assembly, DofMap};
 use icefem::fem::ElasticModel;
 use icefem::mesh::TetMesh;
 use icefem::physics::contact::{default_stiffness, ContactForces, ObstacleContact, Shape};
-use icefem::physics::elasticity::ElasticStep;
+use icefem::physics::elasticity::{ElasticStep, Volumetric};
 use icefem::physics::history::ElementHistory;
 use icefem::physics::ice_contact::IceContactTerm;
 use icefem::physics::inertia::{Inertia, StiffnessDamping};
 use icefem::physics::loads::{lumped_mass, DeadLoads};
+use icefem::physics::plasticity::Plasticity;
 use icefem::physics::term::{Solve, StepStartView, StepTerm, Term};
 use icefem::physics::{Contact, Elasticity, Model, Obstacle, Region, Traction};
 use icefem::scene::Scene;
@@ -308,8 +309,36 @@ fn check_elasticity(
     project: bool,
     seed: u64,
 ) -> Errors {
+    check_elasticity_with(
+        model,
+        strain,
+        eigenstrain,
+        project,
+        seed,
+        Volumetric::Element,
+        None,
+    )
+}
+
+/// As [`check_elasticity`], with the volumetric discretisation `volumetric` and, if
+/// `yield_limit` is given, plasticity with that elastic limit and a plastic strain of 5 × it
+/// already in the elements of y < 4 cm.
+fn check_elasticity_with(
+    model: ElasticModel,
+    strain: f64,
+    eigenstrain: f64,
+    project: bool,
+    seed: u64,
+    volumetric: Volumetric,
+    yield_limit: Option<f64>,
+) -> Errors {
     let mesh = irregular_box([2, 2, 2], [0.1, 0.08, 0.06], 0.2, seed);
-    let elasticity = Elasticity::new(&mesh, ICE, model);
+    let mut elasticity = Elasticity::new(&mesh, ICE, model);
+    elasticity.set_volumetric(&mesh, volumetric);
+    elasticity.plasticity = yield_limit.map(|elastic_limit| Plasticity {
+        elastic_limit,
+        cap: None,
+    });
     let offsets: Vec<f64> = mesh
         .tets
         .iter()
@@ -323,8 +352,21 @@ fn check_elasticity(
             }
         })
         .collect();
-    let history = ElementHistory::initial(&offsets, false);
-    let assembly = Assembly::new(&mesh, DofMap::new(&clamped_at_x0(&mesh)));
+    let mut history = ElementHistory::initial(&offsets, yield_limit.is_some());
+    if let Some(gamma) = yield_limit {
+        let shear = Matrix3::new(1.0, 0.5, 0.0, 0.5, -0.4, 0.2, 0.0, 0.2, -0.6) * (5.0 * gamma);
+        for (e, t) in mesh.tets.iter().enumerate() {
+            if t.iter().map(|&v| mesh.rest[v].y).sum::<f64>() / 4.0 < 0.04 {
+                history.plastic_strain[e] = shear;
+            }
+        }
+    }
+    let assembly = Assembly::with_couplings(
+        &mesh,
+        DofMap::new(&clamped_at_x0(&mesh)),
+        &elasticity.couplings(),
+    );
+    elasticity.pattern_ready(&assembly);
     let mut element_energy = vec![0.0; mesh.num_tets()];
     let mut term = ElasticStep {
         elasticity: &elasticity,
@@ -395,6 +437,43 @@ fn elasticity_with_eigenstrain_linear_and_corotated() {
         1e-8,
         1e-8,
     );
+}
+
+#[test]
+fn elasticity_with_nodal_volumetric_energy() {
+    // The averaged nodal pressure: its energy couples each node's star, so the Hessian also
+    // checks that the pattern holds those pairs. With eigenstrain, in tension and compression.
+    for (model, strain, seed) in [
+        (ElasticModel::Linear, 0.01, 11),
+        (ElasticModel::Corotated, 0.01, 13),
+        (ElasticModel::Corotated, -0.01, 15),
+    ] {
+        check_elasticity_with(model, strain, 0.02, false, seed, Volumetric::Nodal, None)
+            .assert_below(
+                &format!("elasticity, nodal volume, {model:?}, {strain}"),
+                1e-8,
+                1e-8,
+            );
+    }
+}
+
+#[test]
+fn elasticity_yielding_inside_the_solve() {
+    // Plasticity's incremental potential (consistent tangent) at strains 10 × the elastic
+    // limit, with plastic strain already in half the elements, per element and with the
+    // nodal volumetric energy. The yielding tangent 2μγ/r changes on the scale of the
+    // deviatoric strain r ≈ 1e-2 rather than 1, so the Hessian's truncation error is
+    // (ε / (ℓ r))² ≈ 2e-8 at ε = 5e-8 m, ℓ = 4 cm (measured 0.6–1.3e-8): 5e-8 for the Hessian.
+    for volumetric in [Volumetric::Element, Volumetric::Nodal] {
+        for (model, seed) in [(ElasticModel::Linear, 17), (ElasticModel::Corotated, 19)] {
+            check_elasticity_with(model, 0.01, 0.02, false, seed, volumetric, Some(1e-3))
+                .assert_below(
+                    &format!("elasticity, yielding, {model:?}, {volumetric:?}"),
+                    1e-8,
+                    5e-8,
+                );
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -65,6 +65,132 @@ pub enum ElasticModel {
     Corotated,
 }
 
+/// The constitutive law of one element: its strain measure, the solid's material (scaled ice
+/// while it freezes), the bulk modulus of its water part and, if it can yield, its elastic
+/// limit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Law {
+    /// Strain measure.
+    pub model: ElasticModel,
+    /// The solid's Lamé constants (Pa) and density (kg/m³).
+    pub material: Material,
+    /// Bulk modulus of the element's water part (Pa; 0 for none).
+    pub water_bulk: f64,
+    /// Elastic limit γ (dimensionless) if the element yields (see [`solid_response`]).
+    pub yield_limit: Option<f64>,
+}
+
+impl Law {
+    /// An elastic solid of `material` without water.
+    pub fn elastic(model: ElasticModel, material: Material) -> Self {
+        Law {
+            model,
+            material,
+            water_bulk: 0.0,
+            yield_limit: None,
+        }
+    }
+}
+
+/// The solid's response to an elastic strain ε (trial strain, with the plastic strain of the
+/// start of the step): energy density, stress, and what the tangent needs.
+#[derive(Clone, Copy, Debug)]
+pub struct SolidResponse {
+    /// Energy density Ψ (J/m³).
+    pub psi: f64,
+    /// Stress σ (Pa), on or inside the yield surface.
+    pub sigma: Matrix3<f64>,
+    /// Shear modulus acting on deviatoric strain (Pa): μ, or μ γφ/‖ε'‖ while yielding.
+    pub mu: f64,
+    /// The matching first Lamé constant K − 2μ_eff/3 (Pa).
+    pub lambda: f64,
+    /// Stiffness the flow direction n = ε'/‖ε'‖ loses while yielding (Pa):
+    /// 2 (μ_eff − μ φ′), 0 while elastic. The tangent is C_eff − flow_drop n⊗n.
+    pub flow_drop: f64,
+}
+
+/// Width δ of the yield transition relative to the elastic limit γ: the deviatoric response
+/// is elastic up to ‖ε'‖ = (1 − δ) γ, perfectly plastic from (1 + δ) γ, and blends between
+/// with a continuous tangent.
+///
+/// The return mapping's energy (below) is only once differentiable at ‖ε'‖ = γ: its tangent
+/// jumps from 2μ to 0 along the flow direction, and Newton then cycles between the two sides
+/// for elements near the limit (up to 269 iterations in a step of the paper's scene). The
+/// blend keeps the stress at or below the yield stress everywhere (it reaches it at
+/// (1 + δ) γ), so flowing elements are on the yield surface exactly.
+pub const YIELD_SMOOTHING: f64 = 0.1;
+
+/// The deviatoric elastic strain norm γ φ(r/γ) that a trial norm `r` keeps after the return
+/// mapping with elastic limit `gamma`, and φ′: r below (1 − δ)γ, γ from (1 + δ)γ, and
+/// φ(x) = x − (x − 1 + δ)²/(4δ) between (see [`YIELD_SMOOTHING`]).
+pub fn returned_norm(r: f64, gamma: f64) -> (f64, f64) {
+    let d = YIELD_SMOOTHING;
+    let x = r / gamma;
+    if x <= 1.0 - d {
+        (r, 1.0)
+    } else if x >= 1.0 + d {
+        (gamma, 0.0)
+    } else {
+        let y = x - (1.0 - d);
+        (gamma * (x - y * y / (4.0 * d)), 1.0 - y / (2.0 * d))
+    }
+}
+
+/// The solid's response to the elastic strain `eps` (SPEC eq. 3–5 as an incremental
+/// potential). Elastic: σ = C:ε, Ψ = ½ σ:ε. With an elastic limit γ and a deviator ε' whose
+/// norm r = ‖ε'‖ exceeds it, the return mapping Δε_p = (r − γ)/r ε' leaves the deviator at
+/// γ ε'/r; that is the minimiser over Δε_p of the elastic energy plus the plastic dissipation
+/// 2μγ ‖Δε_p‖, and the minimum is the convex
+///
+/// ```text
+/// Ψ = K/2 tr(ε)² + μ γ (2r − γ),   σ = K tr(ε) I + 2μγ ε'/r,
+/// ```
+///
+/// so Newton minimises it like an elastic energy, its converged stress is the returned one
+/// (‖σ'‖ = 2μγ: von Mises = √(3/2)·2μγ), and its Hessian is the consistent tangent
+/// K 1⊗1 + 2μγ/r (I_dev − n⊗n), n = ε'/r. Within δγ of the limit the deviatoric stress is
+/// 2μγφ(r/γ) n ([`returned_norm`]), whose energy is μr² − μγ²y³/(6δ) with y = r/γ − 1 + δ.
+pub fn solid_response(
+    mat: &Material,
+    yield_limit: Option<f64>,
+    eps: &Matrix3<f64>,
+) -> SolidResponse {
+    if let Some(gamma) = yield_limit {
+        let tr = eps.trace();
+        let dev = eps - Matrix3::identity() * (tr / 3.0);
+        let r = dev.norm();
+        let d = YIELD_SMOOTHING;
+        if r > (1.0 - d) * gamma {
+            let k = mat.bulk();
+            let (kept, slope) = returned_norm(r, gamma);
+            let mu = mat.mu * kept / r;
+            let x = r / gamma;
+            let deviatoric = if x >= 1.0 + d {
+                let at_end = (1.0 + d) * (1.0 + d) - 4.0 * d * d / 3.0;
+                mat.mu * gamma * gamma * at_end + 2.0 * mat.mu * gamma * (r - gamma * (1.0 + d))
+            } else {
+                let y = x - (1.0 - d);
+                mat.mu * r * r - mat.mu * gamma * gamma * y * y * y / (6.0 * d)
+            };
+            return SolidResponse {
+                psi: 0.5 * k * tr * tr + deviatoric,
+                sigma: Matrix3::identity() * (k * tr) + 2.0 * mu * dev,
+                mu,
+                lambda: k - 2.0 * mu / 3.0,
+                flow_drop: 2.0 * (mu - mat.mu * slope),
+            };
+        }
+    }
+    let sigma = mat.hooke(eps);
+    SolidResponse {
+        psi: 0.5 * sigma.dot(eps),
+        sigma,
+        mu: mat.mu,
+        lambda: mat.lambda,
+        flow_drop: 0.0,
+    }
+}
+
 /// Rest data of one tet.
 #[derive(Clone, Copy, Debug)]
 pub struct ElementRest {
@@ -128,9 +254,11 @@ impl Default for ElementEval {
 
 /// Energy density Ψ (J/m³), first Piola–Kirchhoff stress P (Pa) and, if asked, the tangent
 /// dP/dF for the elastic displacement gradient `He = Fe − I`.
+/// The solid may yield with elastic limit `yield_limit` (see [`solid_response`]).
 pub fn constitutive(
     model: ElasticModel,
     mat: &Material,
+    yield_limit: Option<f64>,
     He: &Matrix3<f64>,
     tangent: Option<&mut Tangent>,
     project: bool,
@@ -138,28 +266,34 @@ pub fn constitutive(
     match model {
         ElasticModel::Linear => {
             let eps = 0.5 * (He + He.transpose());
-            let sigma = mat.hooke(&eps);
+            let response = solid_response(mat, yield_limit, &eps);
             if let Some(t) = tangent {
-                *t = linear_tangent(mat);
+                *t = linear_tangent(response.mu, response.lambda);
+                if response.flow_drop != 0.0 {
+                    // − flow_drop n⊗n with n = ε'/‖ε'‖ (symmetric, so n : dF = n : sym(dF)).
+                    let dev = response.sigma - Matrix3::identity() * (response.sigma.trace() / 3.0);
+                    let n = SMatrix::<f64, 9, 1>::from_column_slice(dev.normalize().as_slice());
+                    *t -= response.flow_drop * n * n.transpose();
+                }
             }
-            (0.5 * sigma.dot(&eps), sigma)
+            (response.psi, response.sigma)
         }
-        ElasticModel::Corotated => corotated(mat, He, tangent, project),
+        ElasticModel::Corotated => corotated(mat, yield_limit, He, tangent, project),
     }
 }
 
-/// dP/dF of the small-strain law: C acting on sym(dF).
-fn linear_tangent(mat: &Material) -> Tangent {
+/// dP/dF of the small-strain law with Lamé constants `lambda`, `mu` (Pa): C acting on sym(dF).
+fn linear_tangent(mu: f64, lambda: f64) -> Tangent {
     let mut t = Tangent::zeros();
     for a in 0..3 {
         for k in 0..3 {
             let row = a + 3 * k;
             // 2μ sym(dF): μ (dF_ak + dF_ka)
-            t[(row, a + 3 * k)] += mat.mu;
-            t[(row, k + 3 * a)] += mat.mu;
+            t[(row, a + 3 * k)] += mu;
+            t[(row, k + 3 * a)] += mu;
             if a == k {
                 for b in 0..3 {
-                    t[(row, b + 3 * b)] += mat.lambda;
+                    t[(row, b + 3 * b)] += lambda;
                 }
             }
         }
@@ -272,24 +406,31 @@ fn polar_rotation_newton(F: &Matrix3<f64>) -> Option<Matrix3<f64>> {
 /// way; with |·| (the absolute-eigenvalue projection) it runs its 2400 steps.
 fn corotated(
     mat: &Material,
+    yield_limit: Option<f64>,
     He: &Matrix3<f64>,
     tangent: Option<&mut Tangent>,
 
     project: bool,
 ) -> (f64, Matrix3<f64>) {
     let F = Matrix3::identity() + He;
-    let (mu, lambda) = (mat.mu, mat.lambda);
     let R = polar_rotation(&F);
     let strain = corotated_strain(&R, He);
-    let sigma = mat.hooke(&strain);
-    let energy = 0.5 * sigma.dot(&strain);
+    let response = solid_response(mat, yield_limit, &strain);
+    let (mu, lambda) = (response.mu, response.lambda);
     // For this energy P = 2μ(F − R) + λ tr(S − I) R = R σ(S − I).
-    let P = R * sigma;
+    let P = R * response.sigma;
     if let Some(t) = tangent {
         // The tangent needs the singular vectors; U Vᵀ equals R to round-off.
         let (U, s, V) = signed_svd(&F);
         let tr = s.sum() - 3.0;
         let psi = s.map(|si| 2.0 * mu * (si - 1.0) + lambda * tr);
+        // Yielding: the flow direction (deviator of the strain in singular values) loses
+        // stiffness, − flow_drop n nᵀ.
+        let flow = if response.flow_drop != 0.0 {
+            s.map(|si| si - 1.0 - tr / 3.0).normalize()
+        } else {
+            Vector3::zeros()
+        };
         t.fill(0.0);
         // Basis tensors D_ij = U e_i e_jᵀ Vᵀ, vectorised column-major.
         let basis = |i: usize, j: usize| -> SMatrix<f64, 9, 1> {
@@ -299,13 +440,14 @@ fn corotated(
         let d = [basis(0, 0), basis(1, 1), basis(2, 2)];
         for i in 0..3 {
             for j in 0..3 {
-                let h = 2.0 * mu * f64::from(i == j) + lambda;
+                let h =
+                    2.0 * mu * f64::from(i == j) - response.flow_drop * flow[i] * flow[j] + lambda;
                 *t += h * d[i] * d[j].transpose();
             }
         }
         for (i, j) in [(0, 1), (0, 2), (1, 2)] {
             let (bij, bji) = (basis(i, j), basis(j, i));
-            // Symmetric (shear) mode: (ψᵢ − ψⱼ)/(sᵢ − sⱼ) = 2μ exactly for this energy.
+            // Symmetric (shear) mode: (ψᵢ − ψⱼ)/(sᵢ − sⱼ) = 2μ_eff exactly for this energy.
             let flip = (bij + bji) * std::f64::consts::FRAC_1_SQRT_2;
             *t += 2.0 * mu * flip * flip.transpose();
             // Rotational mode; the denominator is guarded for elements inverted to s_i ≈ −s_j.
@@ -315,7 +457,7 @@ fn corotated(
             *t += c2 * twist * twist.transpose();
         }
     }
-    (energy, P)
+    (response.psi, P)
 }
 
 /// Energy density, stress and (added into `tangent`) the tangent of unfrozen water with bulk
@@ -344,34 +486,38 @@ fn water(
         }
         ElasticModel::Corotated => {
             let F = Matrix3::identity() + He;
-            let f = [
-                F.column(0).into_owned(),
-                F.column(1).into_owned(),
-                F.column(2).into_owned(),
-            ];
-            // ∂J/∂fₖ = f_{k+1} × f_{k+2} (columns cyclic): the cofactor matrix.
-            let cof = [f[1].cross(&f[2]), f[2].cross(&f[0]), f[0].cross(&f[1])];
+            let cof = cofactor(&F);
             let j1 = det_minus_one(He);
-            let P = Matrix3::from_columns(&cof) * (bulk * j1);
+            let P = cof * (bulk * j1);
             if let Some(t) = tangent {
-                let g =
-                    SMatrix::<f64, 9, 1>::from_iterator(cof.iter().flat_map(|c| c.iter().copied()));
+                let g = SMatrix::<f64, 9, 1>::from_column_slice(cof.as_slice());
                 *t += bulk * g * g.transpose();
                 if !project {
-                    // ∂²J/∂fₖ∂f_{k+1} = −[f_{k+2}]ₓ and its transpose for the reverse pair.
-                    for k in 0..3 {
-                        let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
-                        let block = -f[k2].cross_matrix() * (bulk * j1);
-                        for a in 0..3 {
-                            for b in 0..3 {
-                                t[(a + 3 * k, b + 3 * k1)] += block[(a, b)];
-                                t[(b + 3 * k1, a + 3 * k)] += block[(a, b)];
-                            }
-                        }
-                    }
+                    add_det_hessian(&F, bulk * j1, t);
                 }
             }
             (0.5 * bulk * j1 * j1, P)
+        }
+    }
+}
+
+/// The cofactor matrix ∂ det F / ∂F: column k is f_{k+1} × f_{k+2} (columns cyclic).
+fn cofactor(F: &Matrix3<f64>) -> Matrix3<f64> {
+    let f = [F.column(0), F.column(1), F.column(2)];
+    Matrix3::from_columns(&[f[1].cross(&f[2]), f[2].cross(&f[0]), f[0].cross(&f[1])])
+}
+
+/// Adds `scale` × ∂² det F / ∂F² to `t`: ∂²J/∂fₖ∂f_{k+1} = −[f_{k+2}]ₓ and its transpose for
+/// the reverse pair.
+fn add_det_hessian(F: &Matrix3<f64>, scale: f64, t: &mut Tangent) {
+    for k in 0..3 {
+        let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
+        let block = -F.column(k2).into_owned().cross_matrix() * scale;
+        for a in 0..3 {
+            for b in 0..3 {
+                t[(a + 3 * k, b + 3 * k1)] += block[(a, b)];
+                t[(b + 3 * k1, a + 3 * k)] += block[(a, b)];
+            }
         }
     }
 }
@@ -385,8 +531,8 @@ fn det_minus_one(H: &Matrix3<f64>) -> f64 {
 }
 
 /// Evaluates one element: energy `V Ψ`, gradient `V P ∇Nᵢ` and, if `with_hessian`, the stiffness
-/// `V Bᵀ (dP/dF) B`. The law is `mat`'s (scaled ice while freezing) plus, if `water_bulk` > 0,
-/// the water term of [`water`] with that bulk modulus (Pa).
+/// `V Bᵀ (dP/dF) B`. The law is the solid's (scaled ice while freezing, yielding if the law
+/// has an elastic limit) plus, if its `water_bulk` > 0, the water term of [`water`].
 ///
 /// The strain offset ε* (eigenstrain, plastic strain) enters as σ = C : (ε − ε*) in the linear
 /// model, and multiplicatively, `Fe = F F*⁻¹`, in the corotated one (see
@@ -395,9 +541,7 @@ fn det_minus_one(H: &Matrix3<f64>) -> f64 {
 // The arguments are the element's independent inputs; bundling them would only add a type.
 #[allow(clippy::too_many_arguments)]
 pub fn element_eval(
-    model: ElasticModel,
-    mat: &Material,
-    water_bulk: f64,
+    law: &Law,
     rest: &ElementRest,
     u: &[Vector3<f64>; 4],
     offset: &Matrix3<f64>,
@@ -407,10 +551,18 @@ pub fn element_eval(
 ) {
     let H = rest.displacement_gradient(u);
     let mut tangent = Tangent::zeros();
+    let model = law.model;
     let law = |He: &Matrix3<f64>, mut t: Option<&mut Tangent>| {
-        let (psi, P) = constitutive(model, mat, He, t.as_deref_mut(), project);
-        if water_bulk > 0.0 {
-            let (psi_w, P_w) = water(model, water_bulk, He, t, project);
+        let (psi, P) = constitutive(
+            model,
+            &law.material,
+            law.yield_limit,
+            He,
+            t.as_deref_mut(),
+            project,
+        );
+        if law.water_bulk > 0.0 {
+            let (psi_w, P_w) = water(model, law.water_bulk, He, t, project);
             (psi + psi_w, P + P_w)
         } else {
             (psi, P)
@@ -425,16 +577,7 @@ pub fn element_eval(
             let (A, He) = offset_elastic_gradient(offset, &H);
             let (psi, Pe) = law(&He, t);
             if with_hessian {
-                // vec(dF A) = (Aᵀ ⊗ I) vec(dF) and vec(Pe Aᵀ) = (A ⊗ I) vec(Pe).
-                let mut K = Tangent::zeros();
-                for r in 0..3 {
-                    for c in 0..3 {
-                        for a in 0..3 {
-                            K[(a + 3 * r, a + 3 * c)] = A[(c, r)];
-                        }
-                    }
-                }
-                tangent = K.transpose() * tangent * K;
+                tangent = through_offset(&A, &tangent);
             }
             (psi, Pe * A.transpose())
         }
@@ -446,6 +589,28 @@ pub fn element_eval(
         out.gradient[3 * i..3 * i + 3].copy_from_slice(g.as_slice());
     }
     if with_hessian {
+        out.hessian = [0.0; 144];
+        add_stiffness(rest, v, &tangent, &mut out.hessian);
+    }
+}
+
+/// dP/dF of a law evaluated at Fe = F A, from its tangent dPe/dFe, for P = Pe Aᵀ:
+/// vec(dF A) = (Aᵀ ⊗ I) vec(dF) and vec(Pe Aᵀ) = (A ⊗ I) vec(Pe).
+fn through_offset(A: &Matrix3<f64>, tangent: &Tangent) -> Tangent {
+    let mut K = Tangent::zeros();
+    for r in 0..3 {
+        for c in 0..3 {
+            for a in 0..3 {
+                K[(a + 3 * r, a + 3 * c)] = A[(c, r)];
+            }
+        }
+    }
+    K.transpose() * tangent * K
+}
+
+/// Adds the element stiffness `v Bᵀ T B` (row-major 12 × 12) of the tangent `T` = dP/dF.
+fn add_stiffness(rest: &ElementRest, v: f64, tangent: &Tangent, hessian: &mut [f64; 144]) {
+    {
         // K(3i+a, 3j+b) = V Σ_{k,l} T[a+3k, b+3l] g_i[k] g_j[l]
         for i in 0..4 {
             let gi = rest.grads[i];
@@ -459,9 +624,80 @@ pub fn element_eval(
                                 sum += tangent[(a + 3 * k, b + 3 * l)] * gi[k] * gj[l];
                             }
                         }
-                        out.hessian[(3 * i + a) * 12 + 3 * j + b] = v * sum;
+                        hessian[(3 * i + a) * 12 + 3 * j + b] += v * sum;
                     }
                 }
+            }
+        }
+    }
+}
+
+/// The volume change θ of an element's elastic deformation and its derivatives, for the
+/// averaged-nodal-pressure volumetric energy (`physics::volumetric`).
+#[derive(Clone, Copy, Debug)]
+pub struct VolumeChange {
+    /// θ: tr(ε) − tr(ε*) (linear) or det Fe − 1 (corotated), dimensionless.
+    pub theta: f64,
+    /// ∂θ/∂F (3 × 3).
+    pub gradient: Matrix3<f64>,
+    /// ∂²θ/∂F² (9 × 9; zero for the linear model), if asked for.
+    pub hessian: Option<Tangent>,
+}
+
+impl VolumeChange {
+    /// ∂θ/∂x for the 12 vertex coordinates of the element (1/m).
+    pub fn nodal_gradient(&self, rest: &ElementRest) -> [f64; 12] {
+        let mut g = [0.0; 12];
+        for i in 0..4 {
+            let gi = self.gradient * rest.grads[i];
+            g[3 * i..3 * i + 3].copy_from_slice(gi.as_slice());
+        }
+        g
+    }
+
+    /// Adds the forces and stiffness of a pressure `p` (Pa) acting through θ on an element
+    /// of rest volume V: gradient V p ∂θ/∂x and, if `out_hessian`, V p ∂²θ/∂x² (an indefinite
+    /// matrix, left out by callers that need a positive semi-definite stiffness).
+    pub fn add_pressure(&self, rest: &ElementRest, p: f64, out: &mut ElementEval, hessian: bool) {
+        let v = rest.volume;
+        for (o, g) in out.gradient.iter_mut().zip(self.nodal_gradient(rest)) {
+            *o += v * p * g;
+        }
+        if let (true, Some(t)) = (hessian, &self.hessian) {
+            add_stiffness(rest, v * p, t, &mut out.hessian);
+        }
+    }
+}
+
+/// The volume change of an element's elastic deformation (see [`VolumeChange`]), with its
+/// second derivative if `with_hessian`. Corotated: θ = J − 1 of Fe = F A (the exact volume
+/// ratio, as for water), formed without cancellation.
+pub fn volume_change(
+    model: ElasticModel,
+    rest: &ElementRest,
+    u: &[Vector3<f64>; 4],
+    offset: &Matrix3<f64>,
+    with_hessian: bool,
+) -> VolumeChange {
+    let H = rest.displacement_gradient(u);
+    match model {
+        ElasticModel::Linear => VolumeChange {
+            theta: H.trace() - offset.trace(),
+            gradient: Matrix3::identity(),
+            hessian: with_hessian.then(Tangent::zeros),
+        },
+        ElasticModel::Corotated => {
+            let (A, He) = offset_elastic_gradient(offset, &H);
+            let Fe = Matrix3::identity() + He;
+            let hessian = with_hessian.then(|| {
+                let mut t = Tangent::zeros();
+                add_det_hessian(&Fe, 1.0, &mut t);
+                through_offset(&A, &t)
+            });
+            VolumeChange {
+                theta: det_minus_one(&He),
+                gradient: cofactor(&Fe) * A.transpose(),
+                hessian,
             }
         }
     }
@@ -489,17 +725,18 @@ pub fn elastic_strain(
 
 /// Cauchy stress of an element in the world frame (Pa), Voigt order xx yy zz yz xz xy.
 /// Linear: σ = C:(ε − ε*). Corotated: σ = R (C:(S − I)) Rᵀ for Fe = F (I + ε*)⁻¹ = R S.
-/// Water adds its pressure: −K tr(ε) (linear) or −K (J − 1) (corotated) on the diagonal.
+/// A yielding solid's stress is the returned one ([`solid_response`]). Water adds its
+/// pressure: −K tr(ε) (linear) or −K (J − 1) (corotated) on the diagonal.
 pub fn element_stress(
-    model: ElasticModel,
-    mat: &Material,
-    water_bulk: f64,
+    law: &Law,
     rest: &ElementRest,
     u: &[Vector3<f64>; 4],
     offset: &Matrix3<f64>,
 ) -> [f64; 6] {
+    let (model, water_bulk) = (law.model, law.water_bulk);
     let (strain, R) = elastic_strain(model, rest, u, offset);
-    let mut sigma = R * mat.hooke(&strain) * R.transpose();
+    let solid = solid_response(&law.material, law.yield_limit, &strain).sigma;
+    let mut sigma = R * solid * R.transpose();
     if water_bulk > 0.0 {
         let volume_change = match model {
             ElasticModel::Linear => strain.trace(),
@@ -585,7 +822,7 @@ pub(crate) mod tests {
 
     /// Gradient and Hessian against central finite differences of the energy / gradient.
     fn check_derivatives(model: ElasticModel, offset: Matrix3<f64>, strain: f64) {
-        check_law_derivatives(model, &ICE, 0.0, offset, strain);
+        check_law_derivatives(model, &ICE, 0.0, None, offset, strain);
     }
 
     /// Gradient and Hessian of `mat` plus water of bulk modulus `water` against finite
@@ -594,6 +831,7 @@ pub(crate) mod tests {
         model: ElasticModel,
         mat: &Material,
         water: f64,
+        yield_limit: Option<f64>,
         offset: Matrix3<f64>,
         strain: f64,
     ) {
@@ -603,8 +841,14 @@ pub(crate) mod tests {
         let G = Matrix3::new(0.3, -0.7, 0.2, 0.5, 0.1, -0.4, -0.2, 0.6, 0.25) * strain;
         let R = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.9).into_inner();
         let x = x0.map(|p| R * (p + G * p) - p);
+        let law = Law {
+            model,
+            material: *mat,
+            water_bulk: water,
+            yield_limit,
+        };
         let mut e = ElementEval::default();
-        element_eval(model, mat, water, &rest, &x, &offset, true, false, &mut e);
+        element_eval(&law, &rest, &x, &offset, true, false, &mut e);
         let h = 1e-9;
         let scale = e.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
         let hscale = e.hessian.iter().map(|g| g.abs()).fold(0.0, f64::max);
@@ -614,12 +858,8 @@ pub(crate) mod tests {
             xp[d / 3][d % 3] += h;
             xm[d / 3][d % 3] -= h;
             let (mut ep, mut em) = (ElementEval::default(), ElementEval::default());
-            element_eval(
-                model, mat, water, &rest, &xp, &offset, false, false, &mut ep,
-            );
-            element_eval(
-                model, mat, water, &rest, &xm, &offset, false, false, &mut em,
-            );
+            element_eval(&law, &rest, &xp, &offset, false, false, &mut ep);
+            element_eval(&law, &rest, &xm, &offset, false, false, &mut em);
             let fd = (ep.energy - em.energy) / (2.0 * h);
             // Energy differences lose ~8 digits to cancellation at h = 1e-9: 1e-5 relative.
             assert!(
@@ -648,15 +888,22 @@ pub(crate) mod tests {
             density: ICE.density,
         };
         for model in [ElasticModel::Linear, ElasticModel::Corotated] {
-            check_law_derivatives(model, &half, 1.1e9, Matrix3::identity() * 0.0145, 0.02);
-            check_law_derivatives(model, &half, 1.1e9, Matrix3::identity() * -0.03, 0.01);
+            check_law_derivatives(
+                model,
+                &half,
+                1.1e9,
+                None,
+                Matrix3::identity() * 0.0145,
+                0.02,
+            );
+            check_law_derivatives(model, &half, 1.1e9, None, Matrix3::identity() * -0.03, 0.01);
             // Pure water (no shear stiffness at all).
             let none = Material {
                 lambda: 0.0,
                 mu: 0.0,
                 density: ICE.density,
             };
-            check_law_derivatives(model, &none, 2.2e9, Matrix3::zeros(), 0.02);
+            check_law_derivatives(model, &none, 2.2e9, None, Matrix3::zeros(), 0.02);
         }
     }
 
@@ -690,22 +937,54 @@ pub(crate) mod tests {
         let x = x0.map(|p| p * e);
         let offset = Matrix3::identity() * e;
         let mut out = ElementEval::default();
-        element_eval(
-            ElasticModel::Corotated,
-            &ICE,
-            0.0,
-            &rest,
-            &x,
-            &offset,
-            false,
-            false,
-            &mut out,
-        );
+        let law = Law::elastic(ElasticModel::Corotated, ICE);
+        element_eval(&law, &rest, &x, &offset, false, false, &mut out);
         let gmax = out.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
         // Forces of a 2 % strain would be ~1e7 N here; round-off leaves ~1e-16 of that.
         assert!(gmax < 1e-6, "{gmax}");
-        let s = element_stress(ElasticModel::Corotated, &ICE, 0.0, &rest, &x, &offset);
+        let s = element_stress(&law, &rest, &x, &offset);
         assert!(s.iter().all(|v| v.abs() < 1e-2), "{s:?}");
+    }
+
+    #[test]
+    fn yielding_derivatives_match_finite_differences() {
+        // The strains below are 10–100 × the elastic limit: every case yields. Half-frozen
+        // ice with water and an expansion offset, and ice with a plastic strain offset.
+        let half = Material {
+            lambda: 0.5 * ICE.lambda,
+            mu: 0.5 * ICE.mu,
+            density: ICE.density,
+        };
+        let plastic = Matrix3::new(0.01, 0.002, 0.0, 0.002, -0.004, 0.001, 0.0, 0.001, -0.006);
+        for model in [ElasticModel::Linear, ElasticModel::Corotated] {
+            check_law_derivatives(model, &ICE, 0.0, Some(1e-3), Matrix3::zeros(), 0.02);
+            check_law_derivatives(model, &ICE, 0.0, Some(1e-4), plastic, 0.01);
+            let offset = Matrix3::identity() * 0.0145;
+            check_law_derivatives(model, &half, 1.1e9, Some(1e-4), offset, 0.02);
+        }
+    }
+
+    #[test]
+    fn yielding_stress_is_on_the_yield_surface_and_keeps_the_volume_response() {
+        let gamma = 1e-4;
+        let eps = Matrix3::new(3e-3, 1e-3, 0.0, 1e-3, -1e-3, 2e-4, 0.0, 2e-4, 5e-4);
+        let r = solid_response(&ICE, Some(gamma), &eps);
+        assert!(r.flow_drop > 0.0);
+        let dev = r.sigma - Matrix3::identity() * (r.sigma.trace() / 3.0);
+        // ‖σ'‖ = 2μγ to round-off; the pressure is the elastic one, K tr ε.
+        assert!((dev.norm() - 2.0 * ICE.mu * gamma).abs() < 1e-9 * ICE.mu * gamma);
+        assert!((r.sigma.trace() / 3.0 - ICE.bulk() * eps.trace()).abs() < 1e-6);
+        // The radial return of the trial stress gives the same stress.
+        let trial = ICE.hooke(&eps);
+        let tdev = trial - Matrix3::identity() * (trial.trace() / 3.0);
+        let returned = trial - tdev * (1.0 - 2.0 * ICE.mu * gamma / tdev.norm());
+        assert!((returned - r.sigma).norm() < 1e-9 * trial.norm());
+        // Below the limit: Hooke's law, bit for bit.
+        let small = eps * 1e-3;
+        assert_eq!(
+            solid_response(&ICE, Some(gamma), &small).sigma,
+            ICE.hooke(&small)
+        );
     }
 
     #[test]

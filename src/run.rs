@@ -198,6 +198,12 @@ fn stats_row(
         crack_faces: fracture.map_or(0, |f| f.faces.len() as u64),
         fracture_events: cracked.events.len() as u32,
         separation_stress: cracked.largest_stress,
+        eligible_nodes: cracked.eligible_nodes as u64,
+        nodes_above_toughness: cracked.nodes_above as u64,
+        refused_nodes: cracked.refused_above as u64,
+        refused_splits: cracked.refused as u32,
+        crack_area: fracture.map_or(0.0, |f| f.crack_area(&sim.model.mesh.rest)),
+        crack_polygons: fracture.map_or(0, |f| f.crack_polygons(&sim.model.mesh.rest) as u64),
         t_fracture: cracked.t_check + cracked.t_split,
         t_remesh: cracked.t_remesh,
         t_resolve: cracked.t_resolve,
@@ -297,6 +303,17 @@ fn write_frame(
             data: &origin,
         });
     }
+    // Refused splits (reason code and crack normal per node): what a resumed run must not
+    // retry either.
+    let refused: Vec<f64> =
+        fracture.map_or(Vec::new(), |f| f.refusals_as_rows(sim.model.num_nodes()));
+    if fracture.is_some() {
+        node_fields.push(Field {
+            name: "refused_split",
+            cols: 4,
+            data: &refused,
+        });
+    }
     let cracks = fracture.map(|f| f.surface(sim));
     writer.write_frame(&Frame {
         step: sim.state.step,
@@ -320,7 +337,7 @@ fn from_voigt(v: &[f64]) -> nalgebra::Matrix3<f64> {
 
 fn restore(
     sim: &mut Simulation,
-    fracture: Option<&mut Fracture>,
+    mut fracture: Option<&mut Fracture>,
     path: &Path,
     frame: &crate::output::ResumeFrame,
     scene_text: &str,
@@ -337,7 +354,7 @@ fn restore(
     let rest = rows(&sim.model.mesh.rest);
     if frame.rest_positions != rest || frame.tets != sim.model.mesh.tets {
         // A fractured run: rebuild its mesh from the scene's, element by element.
-        let Some(fracture) = fracture else {
+        let Some(fracture) = fracture.as_deref_mut() else {
             return Err(bad("its mesh differs from the scene's mesh".into()));
         };
         let origin: Vec<usize> = frame
@@ -363,6 +380,14 @@ fn restore(
     }
     let rest = rows(&sim.model.mesh.rest);
     let n = 3 * rest.len();
+    if let (Some(fracture), Some(f)) = (
+        fracture,
+        frame.node_fields.iter().find(|f| {
+            f.name == "refused_split" && f.columns == 4 && f.data.len() == 4 * rest.len()
+        }),
+    ) {
+        fracture.restore_refusals(&f.data);
+    }
     let field = |name: &str| {
         frame
             .node_fields
@@ -390,7 +415,7 @@ fn restore(
         }
     }
     sim.model.apply_schedule(frame.time, &mut sim.state.history);
-    if sim.model.plasticity.is_some() {
+    if sim.model.elasticity.plasticity.is_some() {
         let p = frame
             .element_fields
             .iter()

@@ -25,6 +25,7 @@ use crate::fracture::FractureSettings;
 use crate::mesh::surface::TriSurface;
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
 use crate::physics::contact::{default_stiffness, Shape};
+use crate::physics::elasticity::Volumetric;
 use crate::physics::freezing::{Freezing, Water};
 use crate::physics::ice_contact::IceContactTerm;
 use crate::physics::obstacle_mesh::ObstacleSurface;
@@ -166,6 +167,9 @@ pub struct MaterialSection {
     pub poisson_ratio: Option<f64>,
     /// Strain measure, default corotated.
     pub model: Option<ElasticModel>,
+    /// Volumetric discretisation, `"element"` (default) or `"nodal"` (average nodal
+    /// pressure: no volumetric locking).
+    pub volumetric: Option<Volumetric>,
 }
 
 /// `[physics]`.
@@ -556,6 +560,7 @@ impl Validator<'_> {
             factor_precision: solver.factor_precision.unwrap_or(FactorPrecision::Single),
         };
         let mut elasticity = Elasticity::new(&mesh, material, model);
+        elasticity.set_volumetric(&mesh, raw.material.volumetric.unwrap_or_default());
         for (i, section) in raw.eigenstrain.iter().enumerate() {
             let field = format!("eigenstrain[{i}]");
             let region = self.region(&field, section.min, section.max)?;
@@ -612,7 +617,7 @@ impl Validator<'_> {
                 .max_plastic_strain
                 .map(|c| self.positive("plasticity.max_plastic_strain", c))
                 .transpose()?;
-            model.plasticity = Some(Plasticity { elastic_limit, cap });
+            model.elasticity.plasticity = Some(Plasticity { elastic_limit, cap });
         }
         let fracture = raw
             .fracture

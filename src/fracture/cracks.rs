@@ -114,6 +114,64 @@ pub fn crack_faces(
     faces
 }
 
+/// Total area of the crack surfaces at rest (m²), one side: half the rest area of `faces`
+/// (both sides of every crack) of a mesh with rest positions `rest`.
+pub fn crack_area(faces: &[CrackFace], rest: &[Vector3<f64>]) -> f64 {
+    let twice: f64 = faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.nodes.map(|i| rest[i]);
+            (b - a).cross(&(c - a)).norm()
+        })
+        .sum();
+    0.25 * twice
+}
+
+/// Number of crack polygons: the planar pieces of the crack surfaces inside one scene element
+/// each, counted once for the two sides of a crack.
+///
+/// A split cuts the elements around a node with one plane, and later splits subdivide the
+/// faces it made; so the crack faces of one side that lie in one scene element and in one
+/// rest plane are one polygon (the paper's count of crack-surface polygons), however many
+/// triangles it has become. The faces are grouped by scene element (`origin` of their
+/// element), rest plane (unit normal and offset, to 1e-9 of the mesh size) and side (the
+/// sign of their outward normal against the plane's): a crack through an element gives two
+/// groups there, one per side, and a crack along a face between two scene elements one in
+/// each; the count is half the number of groups, rounded up.
+pub fn crack_polygons(faces: &[CrackFace], rest: &[Vector3<f64>], origin: &[usize]) -> usize {
+    let Some(scale) = rest
+        .iter()
+        .map(|x| x.amax())
+        .reduce(f64::max)
+        .filter(|s| *s > 0.0)
+    else {
+        return 0;
+    };
+    let quantum = 1e-9;
+    let mut groups = std::collections::HashSet::new();
+    for f in faces {
+        let [a, b, c] = f.nodes.map(|i| rest[i]);
+        let cross = (b - a).cross(&(c - a));
+        if cross.norm() == 0.0 {
+            continue;
+        }
+        let outward = cross.normalize();
+        // The plane's normal, signed so that its largest component is positive.
+        let k = outward.iamax();
+        let side = outward[k].signum();
+        let n = outward * side;
+        let round = |v: f64| (v / quantum).round() as i64;
+        let key = (
+            origin[f.element],
+            [round(n.x), round(n.y), round(n.z)],
+            round(n.dot(&a) / scale),
+            side > 0.0,
+        );
+        groups.insert(key);
+    }
+    groups.len().div_ceil(2)
+}
+
 /// Crack faces as triangles for rendering: three own vertices per face (m), displaced where
 /// the crack is closed (see the module docs), and each triangle's crack.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -1,5 +1,5 @@
 //! Fracture between time steps: find the node whose separation most exceeds the toughness,
-//! split it, take the step again on the new mesh, and repeat.
+//! split it, take the step again on the new mesh, and repeat until no node is above it.
 //!
 //! After every converged step the separation tensor of every node is evaluated in the step's
 //! equilibrium. While some node's v⁺/A(n) exceeds the toughness τ and fewer than
@@ -12,22 +12,26 @@
 //! crack, loaded only because the crack has not yet relaxed the stress around it, would
 //! otherwise split next and send the crack off its plane (a bar pulled apart breaks along a
 //! clean plane with it, and chips off corners without). The cap bounds the work of one step;
-//! what exceeds it is reconsidered after the next step. If taking the step again fails, the
-//! split is kept with the step's end state (as O'Brien & Hodgins keep every split) and no
-//! further splits are made in that step. A node whose plane cannot split its star (all its
-//! tets on one side) is skipped for the rest of the step; after 4 × `max_events_per_step` such
-//! refusals the step's fracture check ends.
+//! what exceeds it is reconsidered after the next step (and counted in the step's report).
+//! If taking the step again fails, the split is kept with the step's end state (as O'Brien &
+//! Hodgins keep every split) and no further splits are made in that step.
 //!
-//! A split that would cut off a piece smaller than the scene's mean element volume is not
-//! made (the node is skipped): such a chip is below what the mesh resolves, and a free piece
-//! of one or two tiny tets, held only by stiff contact, stalls the Newton solve.
+//! A split can be refused: the plane misses the node's star (all its tets on one side), or
+//! it would cut off a piece smaller than the scene's mean element volume (below what the mesh
+//! resolves; a free piece of one or two tiny tets, held only by stiff contact, stalls the
+//! Newton solve). A refused node is recorded with its reason and crack normal and is not
+//! tried again until its crack normal has turned by more than [`CONTINUE_ANGLE`] or a split
+//! changes its star: the same refusal would otherwise be retried, on a copy of the mesh,
+//! every step.
 //!
 //! A node on an existing crack (a crack tip, or a face of one) is split like any other: its
 //! star is one side of the crack only, so the new plane continues the crack from there.
 
-use super::cracks::{crack_faces, CrackFace, CrackSurface, OriginalBoundary};
-use super::separation;
+use super::cracks::{
+    crack_area, crack_faces, crack_polygons, CrackFace, CrackSurface, OriginalBoundary,
+};
 use super::split::Fracturable;
+use super::{separation, NodeSeparation};
 use crate::mesh::TetMesh;
 use crate::physics::history::ElementHistory;
 use crate::physics::ice_contact::parts_of;
@@ -43,11 +47,11 @@ pub const CONTINUE_ANGLE: f64 = 20.0 * std::f64::consts::PI / 180.0;
 /// crossing that would cut a smaller one snaps instead (as for poor quality).
 pub const MIN_ELEMENT_FRACTION: f64 = 1e-2;
 
-/// Separation tensors of `sim`'s nodes in the equilibrium its last step found: with the
-/// plastic strains the step was solved with (the return mapping after it relaxes the stress
-/// and unbalances the nodes by up to ~10 % of their forces, which the formula reads as
-/// separation), and the contact forces counted as pressing (see [`separation`]).
-fn equilibrium_separation(sim: &mut Simulation) -> Vec<super::NodeSeparation> {
+/// Separation tensors of `sim`'s nodes in the equilibrium its last step found: the stress
+/// of the solve (returned onto the yield surface from the plastic strains of the step's
+/// start, exactly the forces the solve balanced), and the contact forces counted as pressing
+/// (see [`separation`]).
+fn equilibrium_separation(sim: &mut Simulation, area_floor: f64) -> Vec<super::NodeSeparation> {
     let pressing: Vec<f64> = sim.contact_forces().map_or(Vec::new(), |c| {
         c.normal
             .iter()
@@ -71,13 +75,40 @@ fn equilibrium_separation(sim: &mut Simulation) -> Vec<super::NodeSeparation> {
         &model.mesh.tets,
         &sim.state.u,
         &pressing,
+        area_floor,
     )
 }
 
-/// Refused split attempts allowed per permitted event in one step: each costs a split attempt
-/// on a copy of the mesh, and in a crowded crack zone dozens of nodes above the toughness can
-/// be unsplittable every step (0.66 s of failed attempts per step at 1 900 tets).
-pub const MAX_REFUSALS_PER_EVENT: usize = 4;
+/// Why a node's split was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refusal {
+    /// All of the node's tets lie on one side of its crack plane.
+    PlaneMissesStar,
+    /// The split would cut off a piece smaller than the scene's mean element volume.
+    PieceTooSmall,
+}
+
+/// A node whose split was refused, and the crack normal it was refused for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefusedNode {
+    /// Why.
+    pub reason: Refusal,
+    /// The crack normal (unit) of the refused split.
+    pub normal: Vector3<f64>,
+}
+
+/// A split made on a copy of the mesh.
+struct SplitAttempt {
+    /// The split mesh, carrying the state and (in `extra`) the step's start displacements and
+    /// velocities.
+    mesh: Fracturable,
+    /// The crack normal used.
+    normal: Vector3<f64>,
+    /// The step's start state (on the mesh before the split).
+    start: Option<State>,
+    /// The split node, its copy, and the nodes the split added.
+    touched: Vec<usize>,
+}
 
 /// Fracture parameters of a scene (`[fracture]`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -124,9 +155,18 @@ pub struct FractureReport {
     pub t_remesh: f64,
     /// Wall-clock time of taking the step again on the new meshes (s).
     pub t_resolve: f64,
-    /// Nodes above the toughness whose split was refused (plane missing their star, or a piece
-    /// below the smallest allowed).
+    /// Splits refused in this step (plane missing the star, or a piece below the smallest
+    /// allowed); each refused node is recorded (see [`Fracture::refused`]).
     pub refused: usize,
+    /// Nodes eligible for fracture after the step's processing: every element around them
+    /// fully frozen.
+    pub eligible_nodes: usize,
+    /// Eligible nodes still above the toughness after the processing, not counting those
+    /// whose split is refused: nonzero only when the step's cap on splits was reached or a
+    /// re-solve failed.
+    pub nodes_above: usize,
+    /// Eligible nodes above the toughness whose split is refused.
+    pub refused_above: usize,
     /// Whether taking the step again on a split mesh failed (the split was kept with the
     /// step's end state, and no further splits were made in this step).
     pub resolve_failed: bool,
@@ -146,6 +186,11 @@ pub struct Fracture {
     /// Smallest rest volume of a piece a split may cut off (m³): the scene's mean element
     /// volume.
     min_piece_volume: f64,
+    /// Smallest area A(n) a node's separation stress is divided by (m²), see
+    /// [`super::area_floor`].
+    pub area_floor: f64,
+    /// Per node, its refused split, if any.
+    pub refused: Vec<Option<RefusedNode>>,
 }
 
 impl Fracture {
@@ -157,6 +202,8 @@ impl Fracture {
             original: OriginalBoundary::new(mesh),
             faces: Vec::new(),
             min_piece_volume: mesh.volume() / mesh.num_tets() as f64,
+            area_floor: super::area_floor(mesh),
+            refused: Vec::new(),
         }
     }
 
@@ -184,6 +231,52 @@ impl Fracture {
     /// Number of distinct cracks.
     pub fn cracks(&self) -> usize {
         self.faces.iter().map(|f| f.crack + 1).max().unwrap_or(0)
+    }
+
+    /// The refused splits of a mesh of `nodes` nodes as rows of four: the reason (0 none,
+    /// 1 [`Refusal::PlaneMissesStar`], 2 [`Refusal::PieceTooSmall`]) and the crack normal.
+    pub fn refusals_as_rows(&self, nodes: usize) -> Vec<f64> {
+        (0..nodes)
+            .flat_map(|i| match self.refused.get(i).copied().flatten() {
+                None => [0.0; 4],
+                Some(r) => {
+                    let code = match r.reason {
+                        Refusal::PlaneMissesStar => 1.0,
+                        Refusal::PieceTooSmall => 2.0,
+                    };
+                    [code, r.normal.x, r.normal.y, r.normal.z]
+                }
+            })
+            .collect()
+    }
+
+    /// Restores the refused splits from rows written by [`Fracture::refusals_as_rows`]
+    /// (unknown codes read as none).
+    pub fn restore_refusals(&mut self, rows: &[f64]) {
+        self.refused = rows
+            .chunks_exact(4)
+            .map(|r| {
+                let reason = match r[0] {
+                    1.0 => Refusal::PlaneMissesStar,
+                    2.0 => Refusal::PieceTooSmall,
+                    _ => return None,
+                };
+                Some(RefusedNode {
+                    reason,
+                    normal: Vector3::new(r[1], r[2], r[3]),
+                })
+            })
+            .collect();
+    }
+
+    /// Total crack area at rest, one side (m²), on the mesh with rest positions `rest`.
+    pub fn crack_area(&self, rest: &[Vector3<f64>]) -> f64 {
+        crack_area(&self.faces, rest)
+    }
+
+    /// Number of crack polygons (see [`crack_polygons`]) on the mesh with rest positions `rest`.
+    pub fn crack_polygons(&self, rest: &[Vector3<f64>]) -> usize {
+        crack_polygons(&self.faces, rest, &self.origin)
     }
 
     /// The crack faces as triangles at the simulation's current positions.
@@ -250,63 +343,83 @@ impl Fracture {
         volume.into_iter().fold(f64::INFINITY, f64::min)
     }
 
+    /// Whether `node`, with separation `s`, is a candidate for a split: eligible, above the
+    /// toughness, and not refused for a crack normal within [`CONTINUE_ANGLE`] of its own.
+    fn candidate(&self, node: usize, s: &NodeSeparation) -> bool {
+        s.eligible
+            && s.stress() > self.settings.toughness
+            && self.refused[node]
+                .is_none_or(|r| r.normal.dot(&s.normal).abs() < CONTINUE_ANGLE.cos())
+    }
+
     /// Fractures `sim` after a converged step (see the module docs).
     pub fn after_step(&mut self, sim: &mut Simulation) -> Result<FractureReport, SimError> {
-        let tau = self.settings.toughness;
         let mut report = FractureReport::default();
-        let mut skipped: Vec<bool> = Vec::new();
-        while report.events.len() < self.settings.max_events_per_step {
+        loop {
             let clock = Instant::now();
-            let sep = equilibrium_separation(sim);
-            let model = &sim.model;
-            if report.events.is_empty() && skipped.is_empty() {
+            let sep = equilibrium_separation(sim, self.area_floor);
+            self.refused.resize(sep.len(), None);
+            if report.events.is_empty() {
                 report.largest_stress = sep.iter().map(|s| s.stress()).fold(0.0, f64::max);
                 report.t_check = clock.elapsed().as_secs_f64();
             } else {
                 report.t_split += clock.elapsed().as_secs_f64();
             }
-            skipped.resize(sep.len(), false);
-            let worst = sep
+            let mut candidates: Vec<(usize, NodeSeparation)> = sep
                 .iter()
                 .enumerate()
-                .filter(|(i, s)| !skipped[*i] && s.stress() > tau)
-                .max_by(|a, b| a.1.stress().total_cmp(&b.1.stress()));
-            let Some((node, &s)) = worst else { break };
+                .filter(|(i, s)| self.candidate(*i, s))
+                .map(|(i, s)| (i, *s))
+                .collect();
+            if report.events.len() >= self.settings.max_events_per_step || report.resolve_failed {
+                self.count_above(&sep, candidates.len(), &mut report);
+                break;
+            }
+            // Worst first; each refusal is recorded and the next candidate tried on the same
+            // equilibrium (a refusal changes nothing).
+            candidates.sort_by(|a, b| b.1.stress().total_cmp(&a.1.stress()));
             let clock = Instant::now();
-            let mut f = Fracturable::new(
-                model.mesh.rest.clone(),
-                model.mesh.tets.clone(),
-                sim.state.u.clone(),
-                sim.state.v.clone(),
-            );
-            let start = sim.step_start().cloned();
-            f.min_volume = MIN_ELEMENT_FRACTION * self.min_piece_volume;
-            if let Some(start) = &start {
-                f.extra = vec![start.u.clone(), start.v.clone()];
-            }
-            let normal = self.continued(&f, node, &s.normal);
-            let split = f
-                .split_node(node, &normal, self.settings.snap, self.settings.min_quality)
-                .filter(|_| self.smallest_piece(&f) >= self.min_piece_volume);
-            report.t_split += clock.elapsed().as_secs_f64();
-            if split.is_none() {
-                skipped[node] = true;
-                report.refused += 1;
-                if report.refused >= MAX_REFUSALS_PER_EVENT * self.settings.max_events_per_step {
-                    break;
+            let mut made = None;
+            for &(node, s) in &candidates {
+                match self.try_split(sim, node, &s) {
+                    Ok(split) => {
+                        made = Some((split, node, s));
+                        break;
+                    }
+                    Err(refused) => {
+                        self.refused[node] = Some(refused);
+                        report.refused += 1;
+                    }
                 }
-                continue;
             }
+            report.t_split += clock.elapsed().as_secs_f64();
+            let Some((attempt, node, s)) = made else {
+                // Every candidate refused (or none): no node is left above the toughness
+                // unrecorded.
+                self.count_above(&sep, 0, &mut report);
+                break;
+            };
             report.events.push(FractureEvent {
-                rest: f.rest[node],
-                normal,
+                rest: attempt.mesh.rest[node],
+                normal: attempt.normal,
                 stress: s.stress(),
             });
-            let origin = f.parent.iter().map(|&p| self.origin[p]).collect();
             let clock = Instant::now();
+            let f = attempt.mesh;
+            // The star of every node around the split changed: their refusals lapse.
+            for tet in &f.tets {
+                if tet.iter().any(|i| attempt.touched.contains(i)) {
+                    for &i in tet {
+                        if let Some(r) = self.refused.get_mut(i) {
+                            *r = None;
+                        }
+                    }
+                }
+            }
+            let origin = f.parent.iter().map(|&p| self.origin[p]).collect();
             // The step's start state on the new mesh: nodal fields were carried through the
             // split (`extra`), element fields follow the parent element.
-            let start = start.map(|st| State {
+            let start = attempt.start.map(|st| State {
                 u: f.extra[0].clone(),
                 v: f.extra[1].clone(),
                 history: st.history.inherit(&f.parent),
@@ -316,15 +429,66 @@ impl Fracture {
             report.t_remesh += clock.elapsed().as_secs_f64();
             if let Some(start) = start {
                 let clock = Instant::now();
-                if !self.retake(sim, start) {
-                    report.resolve_failed = true;
-                    report.t_resolve += clock.elapsed().as_secs_f64();
-                    break;
-                }
+                report.resolve_failed = !self.retake(sim, start);
                 report.t_resolve += clock.elapsed().as_secs_f64();
             }
         }
         Ok(report)
+    }
+
+    /// Records in `report` the eligible nodes and those above the toughness in `sep`, the
+    /// separation after the step's last split; `unresolved` of them are candidates left.
+    fn count_above(&self, sep: &[NodeSeparation], unresolved: usize, report: &mut FractureReport) {
+        let tau = self.settings.toughness;
+        report.eligible_nodes = sep.iter().filter(|s| s.eligible).count();
+        let above = sep
+            .iter()
+            .filter(|s| s.eligible && s.stress() > tau)
+            .count();
+        report.nodes_above = unresolved;
+        report.refused_above = above - unresolved;
+    }
+
+    /// Splits `node` of `sim`'s mesh (separation `s`) on a copy of the mesh carrying the
+    /// step's start state; the refusal if the split is not made.
+    fn try_split(
+        &self,
+        sim: &Simulation,
+        node: usize,
+        s: &NodeSeparation,
+    ) -> Result<SplitAttempt, RefusedNode> {
+        let model = &sim.model;
+        let mut f = Fracturable::new(
+            model.mesh.rest.clone(),
+            model.mesh.tets.clone(),
+            sim.state.u.clone(),
+            sim.state.v.clone(),
+        );
+        let start = sim.step_start().cloned();
+        f.min_volume = MIN_ELEMENT_FRACTION * self.min_piece_volume;
+        if let Some(start) = &start {
+            f.extra = vec![start.u.clone(), start.v.clone()];
+        }
+        let normal = self.continued(&f, node, &s.normal);
+        let refused = |reason| RefusedNode {
+            reason,
+            normal: s.normal,
+        };
+        let split = f
+            .split_node(node, &normal, self.settings.snap, self.settings.min_quality)
+            .ok_or(refused(Refusal::PlaneMissesStar))?;
+        if self.smallest_piece(&f) < self.min_piece_volume {
+            return Err(refused(Refusal::PieceTooSmall));
+        }
+        let mut touched = split.edge_nodes;
+        touched.extend(split.pinched);
+        touched.extend([node, split.new_node]);
+        Ok(SplitAttempt {
+            mesh: f,
+            normal,
+            start,
+            touched,
+        })
     }
 
     /// Takes the step that ended in `sim`'s current state again from `start` on the split

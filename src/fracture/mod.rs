@@ -34,7 +34,7 @@ pub mod split;
 
 pub use driver::{Fracture, FractureEvent, FractureReport, FractureSettings};
 
-use crate::fem::{elastic_strain, offset_elastic_gradient, ElasticModel};
+use crate::fem::{elastic_strain, offset_elastic_gradient, solid_response, ElasticModel};
 use crate::physics::elasticity::Elasticity;
 use crate::physics::history::ElementHistory;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
@@ -48,8 +48,10 @@ pub struct NodeSeparation {
     pub largest: f64,
     /// Its unit eigenvector: the crack normal.
     pub normal: Vector3<f64>,
-    /// The node's share A(n) of the plane with that normal (m²).
+    /// The node's share A(n) of the plane with that normal (m²), at least the area floor.
     pub area: f64,
+    /// Whether the criterion applies: every element around the node is fully frozen ice.
+    pub eligible: bool,
 }
 
 impl NodeSeparation {
@@ -61,6 +63,21 @@ impl NodeSeparation {
             0.0
         }
     }
+}
+
+/// The smallest area A(n) of a node (m²) for a mesh like `mesh`: ¼ h², with h = (6 V̄)^⅓ the
+/// mesh's length scale from its mean element volume V̄ (the cell size of a box mesh of six
+/// tets per cell).
+///
+/// A(n) is the node's share of the crack plane through it. Next to a small element (a sliver
+/// left by an earlier split) or on a crack face it can be far below what a node of the scene's
+/// mesh has (6e-7 m² against ~1e-3 m² in the paper's scene), and v⁺/A(n) then reads a modest
+/// nodal force as a huge stress: one node read 5e8 Pa from 330 N. The floor is what a node on
+/// an edge of a box mesh has for a plane across it (h²/4), and it stays tied to the scene's
+/// mesh (evaluated once, before any split), so it scales with the mesh like A(n) does.
+pub fn area_floor(mesh: &crate::mesh::TetMesh) -> f64 {
+    let h = (6.0 * mesh.volume() / mesh.num_tets() as f64).cbrt();
+    0.25 * h * h
 }
 
 /// m(a) = a aᵀ / |a|, 0 for a = 0.
@@ -91,7 +108,8 @@ fn split(sigma: &Matrix3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
 }
 
 /// Separation tensors of every node of `tets` at displacements `u` (m), with `pressing` the
-/// contact forces on the nodes (N, 3 per node, normal and friction; empty for none).
+/// contact forces on the nodes (N, 3 per node, normal and friction; empty for none) and
+/// `area_floor` the smallest A(n) (m², see [`area_floor`]).
 ///
 /// Contact forces push (and rub), and they are counted with the compressive forces (in F⁻ and
 /// Σ m(f⁻)): a node on a closed crack or on a container wall is then judged like one inside
@@ -106,6 +124,7 @@ pub fn separation(
     tets: &[[usize; 4]],
     u: &[f64],
     pressing: &[f64],
+    area_floor: f64,
 ) -> Vec<NodeSeparation> {
     let nodes = u.len() / 3;
     let mut f_plus = vec![Vector3::zeros(); nodes];
@@ -120,6 +139,7 @@ pub fn separation(
     // Rotated shape-function gradients scaled by the volume, per (element, vertex), for A(n).
     let mut weighted_grads: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nodes];
     let mut touches_water = vec![false; nodes];
+    let mut has_ice = vec![false; nodes];
     for (e, tet) in tets.iter().enumerate() {
         if !history.is_frozen(e) {
             for &i in tet {
@@ -141,8 +161,9 @@ pub fn separation(
                     .transpose()
             }
         };
-        let (material, _) = elasticity.material_of(history, e);
-        let sigma = material.hooke(&strain);
+        // The solid's stress as the solve balanced it: returned onto the yield surface.
+        let law = elasticity.law_of(history, e);
+        let sigma = solid_response(&law.material, law.yield_limit, &strain).sigma;
         let (plus, minus) = split(&sigma);
         for (k, &i) in tet.iter().enumerate() {
             let g = frame * rest.grads[k] * rest.volume;
@@ -155,6 +176,7 @@ pub fn separation(
             s_plus[i] += m(&fp);
             s_minus[i] += m(&fm);
             weighted_grads[i].push(g);
+            has_ice[i] = true;
         }
     }
     (0..nodes)
@@ -176,7 +198,8 @@ pub fn separation(
                 tensor,
                 largest: eig.eigenvalues[k],
                 normal,
-                area,
+                area: area.max(area_floor),
+                eligible: has_ice[i] && !touches_water[i],
             }
         })
         .collect()
@@ -199,7 +222,7 @@ mod tests {
             .flat_map(|x| (g * x).iter().copied().collect::<Vec<_>>())
             .collect();
         let history = el.initial_history();
-        let sep = separation(&el, &history, &mesh.tets, &u, &[]);
+        let sep = separation(&el, &history, &mesh.tets, &u, &[], 0.0);
         let node = mesh
             .rest
             .iter()

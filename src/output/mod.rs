@@ -199,6 +199,18 @@ pub struct StepStats {
     /// Largest separation stress v⁺ / A(n) after the step, before any split (Pa; 0 without
     /// fracture).
     pub separation_stress: f64,
+    /// Nodes the fracture criterion applies to after the step (all their elements frozen).
+    pub eligible_nodes: u64,
+    /// Eligible nodes above the toughness after the step's splits, not counting refused ones.
+    pub nodes_above_toughness: u64,
+    /// Eligible nodes above the toughness after the step's splits whose split is refused.
+    pub refused_nodes: u64,
+    /// Splits refused during the step.
+    pub refused_splits: u32,
+    /// Total crack area at rest after the step, one side (m²).
+    pub crack_area: f64,
+    /// Crack polygons after the step (planar crack pieces per scene element, counted once).
+    pub crack_polygons: u64,
     /// Wall-clock time of the fracture check and splits after the step (s).
     pub t_fracture: f64,
     /// Wall-clock time of rebuilding the simulation on a split mesh (s).

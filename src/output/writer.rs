@@ -33,7 +33,7 @@ pub(super) enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 25] = [
+pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 31] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -65,6 +65,15 @@ pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 25] = [
         "separation_stress",
         StatsColumn::F64(|s| s.separation_stress),
     ),
+    ("eligible_nodes", StatsColumn::U64(|s| s.eligible_nodes)),
+    (
+        "nodes_above_toughness",
+        StatsColumn::U64(|s| s.nodes_above_toughness),
+    ),
+    ("refused_nodes", StatsColumn::U64(|s| s.refused_nodes)),
+    ("refused_splits", StatsColumn::U32(|s| s.refused_splits)),
+    ("crack_area", StatsColumn::F64(|s| s.crack_area)),
+    ("crack_polygons", StatsColumn::U64(|s| s.crack_polygons)),
     ("t_fracture", StatsColumn::F64(|s| s.t_fracture)),
     ("t_remesh", StatsColumn::F64(|s| s.t_remesh)),
     ("t_resolve", StatsColumn::F64(|s| s.t_resolve)),

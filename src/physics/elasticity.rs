@@ -2,18 +2,35 @@
 //!
 //! Each element's stress is σ = C : (ε − ε*) with the strain offset ε* = e I + ε_p: an
 //! isotropic eigenstrain e (a scene's `[[eigenstrain]]` plus the freezing expansion) and, with
-//! plasticity on, the element's plastic strain ε_p. While freezing, an element's material
-//! blends from water to ice with its freeze state. The strain offsets and freeze states are
-//! per-element history and live in the simulation state ([`ElementHistory`]).
+//! plasticity on, the element's plastic strain ε_p. With plasticity an element containing ice
+//! yields inside the solve: its energy is the incremental potential of the return mapping
+//! (`fem::solid_response`), so the converged stress is on the yield surface. While freezing,
+//! an element's material blends from water to ice with its freeze state. The strain offsets
+//! and freeze states are per-element history and live in the simulation state
+//! ([`ElementHistory`]).
 
 use super::history::ElementHistory;
+use super::plasticity::Plasticity;
 use super::term::StepTerm;
+use super::volumetric::NodalVolume;
 use crate::assembly::Assembly;
 use crate::fem::{
-    elastic_strain, element_eval, element_stress, ElasticModel, ElementEval, ElementRest, Material,
+    elastic_strain, element_eval, element_stress, volume_change, ElasticModel, ElementEval,
+    ElementRest, Law, Material, VolumeChange,
 };
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
+
+/// How the volumetric part of the elastic energy is discretised.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Volumetric {
+    /// Per element: the plain linear tet (it locks when the volume is nearly fixed).
+    #[default]
+    Element,
+    /// Averaged at the nodes (Bonet & Burton's average nodal pressure; see `volumetric`).
+    Nodal,
+}
 
 /// The elastic term: one ice material and model for all elements, their rest data, and the
 /// scene's prescribed eigenstrain.
@@ -34,6 +51,11 @@ pub struct Elasticity {
     pub water_bulk: f64,
     /// Regularising shear modulus of unfrozen water (Pa), see `freezing`.
     pub water_shear: f64,
+    /// Plasticity, if on (none: no plastic state at all).
+    pub plasticity: Option<Plasticity>,
+    /// The nodal averaging of the volumetric energy, if on (`[material] volumetric =
+    /// "nodal"`; none: per element).
+    pub nodal: Option<NodalVolume>,
 }
 
 impl Elasticity {
@@ -46,23 +68,58 @@ impl Elasticity {
             eigenstrain: vec![0.0; mesh.num_tets()],
             water_bulk: 0.0,
             water_shear: 0.0,
+            plasticity: None,
+            nodal: None,
+        }
+    }
+
+    /// Switches the volumetric discretisation of this elasticity on `mesh`.
+    pub fn set_volumetric(&mut self, mesh: &TetMesh, volumetric: Volumetric) {
+        self.nodal = match volumetric {
+            Volumetric::Element => None,
+            Volumetric::Nodal => Some(NodalVolume::new(mesh, &self.rest)),
+        };
+    }
+
+    /// The volumetric discretisation.
+    pub fn volumetric(&self) -> Volumetric {
+        if self.nodal.is_some() {
+            Volumetric::Nodal
+        } else {
+            Volumetric::Element
+        }
+    }
+
+    /// Node pairs the elastic energy couples beyond the elements (the nodal volumetric
+    /// energy's stars; none per element).
+    pub fn couplings(&self) -> Vec<(usize, usize)> {
+        self.nodal.as_ref().map_or(Vec::new(), |n| n.couplings())
+    }
+
+    /// Lets the nodal volumetric energy find its slots in a new pattern.
+    pub fn pattern_ready(&mut self, assembly: &Assembly) {
+        if let Some(n) = &mut self.nodal {
+            n.pattern_ready(assembly);
         }
     }
 
     /// This elasticity on `mesh`, made from this one's mesh by splitting elements: new element
     /// `e` inherits the prescribed eigenstrain of element `parent[e]`.
     pub fn remeshed(&self, mesh: &TetMesh, parent: &[usize]) -> Self {
-        Elasticity {
+        let mut el = Elasticity {
             rest: ElementRest::of_mesh(mesh),
             eigenstrain: parent.iter().map(|&p| self.eigenstrain[p]).collect(),
+            nodal: None,
             ..*self
-        }
+        };
+        el.set_volumetric(mesh, self.volumetric());
+        el
     }
 
-    /// The history of these elements at the start of a run without plasticity or freezing:
-    /// the prescribed eigenstrain only.
+    /// The history of these elements at the start of a run without freezing: the prescribed
+    /// eigenstrain, and zero plastic strain with plasticity.
     pub fn initial_history(&self) -> ElementHistory {
-        ElementHistory::initial(&self.eigenstrain, false)
+        ElementHistory::initial(&self.eigenstrain, self.plasticity.is_some())
     }
 
     /// Displacements of the four vertices of `tet` from the global dof vector `u` (m).
@@ -86,6 +143,79 @@ impl Elasticity {
             ),
             _ => (self.material, 0.0),
         }
+    }
+
+    /// The constitutive law of element `e`: its material and water (see
+    /// [`Elasticity::material_of`]) and, with plasticity, its elastic limit if it contains ice
+    /// (freeze state above 0: a partly frozen element yields at its ice's share of the yield
+    /// stress, 2 μ_s γ) and its plastic strain is below the cap, if the scene sets one (a
+    /// capped element is elastic).
+    ///
+    /// With the nodal volumetric energy the element's law is deviatoric only (K = 0: λ = −2μ/3,
+    /// no water): its volumetric part is [`Elasticity::bulk_of`], averaged at the nodes.
+    pub fn law_of(&self, history: &ElementHistory, e: usize) -> Law {
+        let (mut material, mut water_bulk) = self.material_of(history, e);
+        if self.nodal.is_some() {
+            material.lambda = -2.0 * material.mu / 3.0;
+            water_bulk = 0.0;
+        }
+        let yield_limit = self.plasticity.and_then(|p| {
+            let plastic = history.plastic_strain.get(e)?;
+            let ice = history.freeze_state.get(e).is_none_or(|&s| s > 0.0);
+            let below_cap = p.cap.is_none_or(|cap| plastic.norm() < cap);
+            (ice && below_cap).then_some(p.elastic_limit)
+        });
+        Law {
+            model: self.model,
+            material,
+            water_bulk,
+            yield_limit,
+        }
+    }
+
+    /// The bulk modulus of element `e` (Pa): its solid's K = λ + 2μ/3 plus its water's.
+    pub fn bulk_of(&self, history: &ElementHistory, e: usize) -> f64 {
+        let (material, water_bulk) = self.material_of(history, e);
+        material.bulk() + water_bulk
+    }
+
+    /// The volume changes and bulk moduli of every element at `u`, for the nodal volumetric
+    /// energy.
+    fn volume_changes(
+        &self,
+        tets: &[[usize; 4]],
+        history: &ElementHistory,
+        u: &[f64],
+        with_hessian: bool,
+    ) -> (Vec<VolumeChange>, Vec<f64>) {
+        use rayon::prelude::*;
+        (0..tets.len())
+            .into_par_iter()
+            .map(|e| {
+                let change = volume_change(
+                    self.model,
+                    &self.rest[e],
+                    &Self::local(u, &tets[e]),
+                    &history.offset_of(e),
+                    with_hessian,
+                );
+                (change, self.bulk_of(history, e))
+            })
+            .unzip()
+    }
+
+    /// With the nodal volumetric energy: each element's pressure p̄ₑ (Pa) at `u`, and the
+    /// volumetric energy (J); none per element.
+    pub fn nodal_pressures(
+        &self,
+        tets: &[[usize; 4]],
+        history: &ElementHistory,
+        u: &[f64],
+    ) -> Option<(Vec<f64>, f64)> {
+        let nodal = self.nodal.as_ref()?;
+        let (change, bulk) = self.volume_changes(tets, history, u, false);
+        let theta: Vec<f64> = change.iter().map(|c| c.theta).collect();
+        Some(nodal.pressures(&theta, &bulk, &self.rest, tets))
     }
 
     /// Energy, gradient and optionally the exact stiffness of element `e` for displacements `u`.
@@ -115,11 +245,8 @@ impl Elasticity {
         project: bool,
         out: &mut ElementEval,
     ) {
-        let (material, water_bulk) = self.material_of(history, e);
         element_eval(
-            self.model,
-            &material,
-            water_bulk,
+            &self.law_of(history, e),
             &self.rest[e],
             &Self::local(u, &tets[e]),
             &history.offset_of(e),
@@ -174,18 +301,23 @@ impl Elasticity {
         u: &[f64],
     ) -> Vec<[f64; 6]> {
         use rayon::prelude::*;
+        let pressure = self.nodal_pressures(tets, history, u).map(|(p, _)| p);
         (0..tets.len())
             .into_par_iter()
             .map(|e| {
-                let (material, water_bulk) = self.material_of(history, e);
-                element_stress(
-                    self.model,
-                    &material,
-                    water_bulk,
+                let mut s = element_stress(
+                    &self.law_of(history, e),
                     &self.rest[e],
                     &Self::local(u, &tets[e]),
                     &history.offset_of(e),
-                )
+                );
+                // The averaged pressure (the elements' own laws are deviatoric then).
+                if let Some(p) = &pressure {
+                    for v in &mut s[..3] {
+                        *v += p[e];
+                    }
+                }
+                s
             })
             .collect()
     }
@@ -203,8 +335,11 @@ impl Elasticity {
             |e, out| self.element(tets, history, u, e, false, out),
             element_energy,
         );
+        let volumetric = self
+            .nodal_pressures(tets, history, u)
+            .map_or(0.0, |(_, energy)| energy);
         // Summed in order so the result does not depend on thread scheduling.
-        element_energy.iter().sum()
+        element_energy.iter().sum::<f64>() + volumetric
     }
 }
 
@@ -236,13 +371,37 @@ impl StepTerm for ElasticStep<'_> {
         match gradient {
             Some(gradient) => {
                 let project = self.project;
+                let Some(nodal) = &el.nodal else {
+                    self.assembly.assemble(
+                        |e, with_h, out| el.element_with(tets, history, u, e, with_h, project, out),
+                        self.element_energy,
+                        gradient,
+                        hessian,
+                    );
+                    *energy += self.element_energy.iter().sum::<f64>();
+                    return;
+                };
+                // Nodal volumetric energy: element pressures first, then the elements'
+                // deviatoric energy with their pressure's forces and stiffness (its ∂²θ part
+                // is indefinite and left out when projecting), then the nodes' Σ Vₐ κₐ ∇θ̄ₐ ∇θ̄ₐᵀ.
+                let with_h = hessian.is_some();
+                let (change, bulk) = el.volume_changes(tets, history, u, with_h && !project);
+                let theta: Vec<f64> = change.iter().map(|c| c.theta).collect();
+                let (pressure, volumetric) = nodal.pressures(&theta, &bulk, &el.rest, tets);
+                let mut hessian = hessian;
                 self.assembly.assemble(
-                    |e, with_h, out| el.element_with(tets, history, u, e, with_h, project, out),
+                    |e, with_h, out| {
+                        el.element_with(tets, history, u, e, with_h, project, out);
+                        change[e].add_pressure(&el.rest[e], pressure[e], out, with_h);
+                    },
                     self.element_energy,
                     gradient,
-                    hessian,
+                    hessian.as_deref_mut(),
                 );
-                *energy += self.element_energy.iter().sum::<f64>();
+                if let Some(h) = hessian {
+                    nodal.add_hessian(&change, &bulk, &el.rest, h);
+                }
+                *energy += self.element_energy.iter().sum::<f64>() + volumetric;
             }
             None => {
                 *energy += el.energy(self.assembly, tets, history, u, self.element_energy);

@@ -15,6 +15,7 @@ pub mod loads;
 pub mod obstacle_mesh;
 pub mod plasticity;
 pub mod term;
+pub mod volumetric;
 
 pub use contact::{Contact, Obstacle};
 pub use dirichlet::Dirichlet;
@@ -73,8 +74,6 @@ pub struct Model {
     pub terms: Vec<Box<dyn Term>>,
     /// Freezing schedule, if the scene freezes (none: every element is ice throughout).
     pub freezing: Option<freezing::Freezing>,
-    /// Plasticity, if on (none: no plastic state at all).
-    pub plasticity: Option<plasticity::Plasticity>,
     /// Gravity (m/s²), kept to rebuild the loads after a topology change.
     pub gravity: Vector3<f64>,
     /// Surface tractions, kept likewise.
@@ -110,7 +109,6 @@ impl Model {
             dirichlet,
             terms: vec![Box::new(IceContactTerm::inactive(0.0, 0.0, 1e-4))],
             freezing: None,
-            plasticity: None,
             gravity,
             tractions: tractions.to_vec(),
         })
@@ -133,7 +131,9 @@ impl Model {
         let mesh = TetMesh::from_arrays(&rows, tets)?;
         let old = &self.elasticity;
         let elasticity = old.remeshed(&mesh, parent);
-        let inherit = |v: &[f64]| parent.iter().map(|&p| v[p]).collect::<Vec<f64>>();
+        fn inherit<T: Copy>(v: &[T], parent: &[usize]) -> Vec<T> {
+            parent.iter().map(|&p| v[p]).collect()
+        }
         let mut model = Model::new(
             mesh,
             elasticity,
@@ -150,11 +150,10 @@ impl Model {
         };
         model.terms = self.terms.iter().map(|t| t.remeshed(&remesh)).collect();
         model.freezing = self.freezing.as_ref().map(|f| freezing::Freezing {
-            arrival: inherit(&f.arrival),
-            base_eigenstrain: inherit(&f.base_eigenstrain),
+            arrival: inherit(&f.arrival, parent),
+            base_eigenstrain: inherit(&f.base_eigenstrain, parent),
             ..f.clone()
         });
-        model.plasticity = self.plasticity;
         Ok(model)
     }
 
@@ -200,7 +199,7 @@ impl Model {
     /// Return mapping of the plastic strains in `history` for converged displacements `u`
     /// (m); returns the largest plastic strain norm (0 without plasticity).
     pub fn update_plastic_strain(&self, history: &mut ElementHistory, u: &[f64]) -> f64 {
-        match &self.plasticity {
+        match &self.elasticity.plasticity {
             Some(p) => p.update(&self.elasticity, history, &self.mesh.tets, u),
             None => 0.0,
         }

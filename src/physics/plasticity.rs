@@ -1,17 +1,31 @@
-//! Plasticity by return mapping after each converged step (SPEC eq. 3–5, O'Brien et al. 2002).
+//! Plasticity by return mapping (SPEC eq. 3–5, O'Brien et al. 2002).
 //!
 //! With the elastic strain ε_e = ε − ε_p − ε_exp of an element and its deviatoric part
 //! ε' = ε_e − tr(ε_e)/3 I, an element whose ‖ε'‖ (Frobenius) exceeds the elastic limit γ moves
 //! the excess into its plastic strain: Δε_p = (‖ε'‖ − γ)/‖ε'‖ ε'. Afterwards ‖ε'‖ = γ: the
-//! element stays on the yield surface. An optional cap bounds ‖ε_p‖ (O'Brien's plastic limit).
-//! Only the deviatoric part yields, so the volumetric freezing expansion never becomes
-//! plastic; water and partly frozen elements do not yield.
+//! element stays on the yield surface. The transition is smoothed over ±δγ
+//! (`fem::YIELD_SMOOTHING`): between (1 − δ)γ and (1 + δ)γ the element keeps γφ(‖ε'‖/γ) ≤ γ. Only the deviatoric part yields, so the volumetric
+//! freezing expansion never becomes plastic.
 //!
-//! The step itself is solved with ε_p fixed (so it is a minimisation with an exact Jacobian);
-//! the mapping then updates ε_p from the converged displacement.
+//! The mapping is part of the step's solve: each element's energy is the incremental
+//! potential of the mapping from the plastic strain of the step's start
+//! (`fem::solid_response`), a convex energy whose Hessian is the consistent tangent, so the
+//! solve converges to displacements whose stress is the returned one. After the step,
+//! [`Plasticity::update`] stores the mapped plastic strain for the next step. Every element
+//! containing ice yields, a partly frozen one at its ice's share of the yield stress (see
+//! `Elasticity::law_of`); water does not.
+//!
+//! An optional cap bounds ‖ε_p‖ (O'Brien's plastic limit; not in the paper). An element at
+//! the cap is elastic from then on, so its stress is no longer bounded by the yield stress.
+//!
+//! In the corotated model the plastic strain is the logarithm of the natural shape's
+//! deviatoric stretch (`fem::offset_elastic_gradient`) and the mapping adds the increment
+//! found in the element's frame: exact to first order in the increment, so the next step's
+//! trial stress at the same displacements is the returned stress to that order.
 
 use super::elasticity::Elasticity;
 use super::history::ElementHistory;
+use crate::fem::returned_norm;
 use nalgebra::Matrix3;
 
 /// Plasticity parameters.
@@ -29,11 +43,12 @@ impl Plasticity {
     pub fn return_map(&self, elastic: &Matrix3<f64>, plastic: &Matrix3<f64>) -> Matrix3<f64> {
         let deviator = elastic - Matrix3::identity() * (elastic.trace() / 3.0);
         let norm = deviator.norm();
-        if norm <= self.elastic_limit {
+        let (kept, _) = returned_norm(norm, self.elastic_limit);
+        if kept >= norm {
             return *plastic;
         }
         // Symmetrise against round-off so ε_p stays a symmetric tensor.
-        let delta = (norm - self.elastic_limit) / norm * deviator;
+        let delta = (norm - kept) / norm * deviator;
         let mut updated = plastic + 0.5 * (delta + delta.transpose());
         if let Some(cap) = self.cap {
             let n = updated.norm();
@@ -44,8 +59,9 @@ impl Plasticity {
         updated
     }
 
-    /// Updates every fully frozen element's plastic strain in `history` for the converged
-    /// displacements `u` (m); returns the largest ‖ε_p‖ afterwards.
+    /// Updates the plastic strain in `history` of every element that yields (see
+    /// `Elasticity::law_of`) for the converged displacements `u` (m); returns the largest
+    /// ‖ε_p‖ afterwards.
     pub fn update(
         &self,
         elasticity: &Elasticity,
@@ -62,7 +78,7 @@ impl Plasticity {
         let updated: Vec<Matrix3<f64>> = (0..n)
             .into_par_iter()
             .map(|e| {
-                if h.is_frozen(e) {
+                if elasticity.law_of(h, e).yield_limit.is_some() {
                     let elastic = elasticity.elastic_strain(tets, h, u, e);
                     self.return_map(&elastic, &h.plastic_strain[e])
                 } else {

@@ -209,8 +209,11 @@ pub struct Simulation {
     damping_stiffness: Vec<f64>,
     /// Contact forces on the ice after the last step (N, 3 per node; empty without contact).
     contact_forces: ContactForces,
-    /// Node pairs the terms couple in the pattern beyond the elements (sorted, unique).
+    /// Node pairs the pattern couples beyond the elements (sorted, unique): the elastic
+    /// energy's and the terms'.
     couplings: Vec<(usize, usize)>,
+    /// The elastic energy's part of them.
+    elastic_couplings: Vec<(usize, usize)>,
     /// Where the last step started (none before the first step or after a remesh).
     start: Option<State>,
 }
@@ -234,14 +237,17 @@ impl Simulation {
             model.elasticity.water_bulk = f.water_bulk();
             model.elasticity.water_shear = f.water_shear;
         }
-        let mut history =
-            ElementHistory::initial(&model.elasticity.eigenstrain, model.plasticity.is_some());
+        let mut history = model.elasticity.initial_history();
         model.apply_schedule(0.0, &mut history);
         let constrained = model.constrained_dofs();
         if settings.analysis == Analysis::Static && !constrained.iter().any(|c| *c) {
             return Err(SimError::NoDirichlet);
         }
-        let assembly = Assembly::new(&model.mesh, DofMap::new(&constrained));
+        // The elastic energy's own couplings (nodal volumetric averaging) are always in the
+        // pattern; the terms' are added at the start of each step.
+        let couplings = model.elasticity.couplings();
+        let assembly = Assembly::with_couplings(&model.mesh, DofMap::new(&constrained), &couplings);
+        model.elasticity.pattern_ready(&assembly);
         let linear = LinearSolver::new(
             settings.linear,
             settings.ordering,
@@ -268,7 +274,8 @@ impl Simulation {
             previous: vec![0.0; n],
             predictor: vec![0.0; n],
             contact_forces: ContactForces::default(),
-            couplings: Vec::new(),
+            elastic_couplings: couplings.clone(),
+            couplings,
             start: None,
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
@@ -388,6 +395,7 @@ impl Simulation {
         let Some(mut couplings) = asked else {
             return Ok(());
         };
+        couplings.extend_from_slice(&self.elastic_couplings);
         couplings.sort_unstable();
         couplings.dedup();
         let changed = couplings != self.couplings;
@@ -403,6 +411,7 @@ impl Simulation {
                 &s.iterative(),
             )?;
             self.workspace = NewtonWorkspace::new(&self.assembly);
+            self.model.elasticity.pattern_ready(&self.assembly);
             if !self.damping_stiffness.is_empty() {
                 self.damping_stiffness = vec![0.0; self.assembly.nnz()];
             }
