@@ -117,13 +117,15 @@ pub struct SolidResponse {
 /// jumps from 2μ to 0 along the flow direction, and Newton then cycles between the two sides
 /// for elements near the limit (up to 269 iterations in a step of the paper's scene). The
 /// blend keeps the stress at or below the yield stress everywhere (it reaches it at
-/// (1 + δ) γ), so flowing elements are on the yield surface exactly.
+/// (1 + δ) γ), so flowing elements are on the yield surface exactly. The blend is reversible
+/// (a softening of the elastic response); plastic strain is the excess beyond (1 + δ) γ
+/// (`physics::plasticity`), so the law at an updated state gives the converged stress again.
 pub const YIELD_SMOOTHING: f64 = 0.1;
 
-/// The deviatoric elastic strain norm γ φ(r/γ) that a trial norm `r` keeps after the return
-/// mapping with elastic limit `gamma`, and φ′: r below (1 − δ)γ, γ from (1 + δ)γ, and
+/// The deviatoric stress, as γ φ(r/γ) = ‖σ'‖/2μ, of a deviatoric elastic strain norm `r`
+/// with elastic limit `gamma`, and φ′: r below (1 − δ)γ, γ from (1 + δ)γ, and
 /// φ(x) = x − (x − 1 + δ)²/(4δ) between (see [`YIELD_SMOOTHING`]).
-pub fn returned_norm(r: f64, gamma: f64) -> (f64, f64) {
+pub fn deviatoric_stress_norm(r: f64, gamma: f64) -> (f64, f64) {
     let d = YIELD_SMOOTHING;
     let x = r / gamma;
     if x <= 1.0 - d {
@@ -149,7 +151,7 @@ pub fn returned_norm(r: f64, gamma: f64) -> (f64, f64) {
 /// so Newton minimises it like an elastic energy, its converged stress is the returned one
 /// (‖σ'‖ = 2μγ: von Mises = √(3/2)·2μγ), and its Hessian is the consistent tangent
 /// K 1⊗1 + 2μγ/r (I_dev − n⊗n), n = ε'/r. Within δγ of the limit the deviatoric stress is
-/// 2μγφ(r/γ) n ([`returned_norm`]), whose energy is μr² − μγ²y³/(6δ) with y = r/γ − 1 + δ.
+/// 2μγφ(r/γ) n ([`deviatoric_stress_norm`]), whose energy is μr² − μγ²y³/(6δ) with y = r/γ − 1 + δ.
 pub fn solid_response(
     mat: &Material,
     yield_limit: Option<f64>,
@@ -162,7 +164,7 @@ pub fn solid_response(
         let d = YIELD_SMOOTHING;
         if r > (1.0 - d) * gamma {
             let k = mat.bulk();
-            let (kept, slope) = returned_norm(r, gamma);
+            let (kept, slope) = deviatoric_stress_norm(r, gamma);
             let mu = mat.mu * kept / r;
             let x = r / gamma;
             let deviatoric = if x >= 1.0 + d {

@@ -4,7 +4,8 @@
 //! ε' = ε_e − tr(ε_e)/3 I, an element whose ‖ε'‖ (Frobenius) exceeds the elastic limit γ moves
 //! the excess into its plastic strain: Δε_p = (‖ε'‖ − γ)/‖ε'‖ ε'. Afterwards ‖ε'‖ = γ: the
 //! element stays on the yield surface. The transition is smoothed over ±δγ
-//! (`fem::YIELD_SMOOTHING`): between (1 − δ)γ and (1 + δ)γ the element keeps γφ(‖ε'‖/γ) ≤ γ. Only the deviatoric part yields, so the volumetric
+//! (`fem::YIELD_SMOOTHING`): between (1 − δ)γ and (1 + δ)γ the deviatoric response softens
+//! reversibly to the yield stress, and the plastic strain takes the excess beyond (1 + δ)γ. Only the deviatoric part yields, so the volumetric
 //! freezing expansion never becomes plastic.
 //!
 //! The mapping is part of the step's solve: each element's energy is the incremental
@@ -25,7 +26,7 @@
 
 use super::elasticity::Elasticity;
 use super::history::ElementHistory;
-use crate::fem::returned_norm;
+use crate::fem::YIELD_SMOOTHING;
 use nalgebra::Matrix3;
 
 /// Plasticity parameters.
@@ -43,8 +44,11 @@ impl Plasticity {
     pub fn return_map(&self, elastic: &Matrix3<f64>, plastic: &Matrix3<f64>) -> Matrix3<f64> {
         let deviator = elastic - Matrix3::identity() * (elastic.trace() / 3.0);
         let norm = deviator.norm();
-        let (kept, _) = returned_norm(norm, self.elastic_limit);
-        if kept >= norm {
+        // The elastic strain the element keeps: up to the end of the yield transition, where
+        // the law's stress reaches the yield stress, so that the law at the updated state
+        // gives exactly the stress the solve converged to.
+        let kept = (1.0 + YIELD_SMOOTHING) * self.elastic_limit;
+        if norm <= kept {
             return *plastic;
         }
         // Symmetrise against round-off so ε_p stays a symmetric tensor.
@@ -106,7 +110,8 @@ mod tests {
         let plastic = p.return_map(&strain, &Matrix3::zeros());
         let remaining = strain - plastic;
         let dev = remaining - Matrix3::identity() * (remaining.trace() / 3.0);
-        assert!((dev.norm() - 1e-3).abs() < 1e-18);
+        // It keeps the deviatoric strain at the end of the yield transition, (1 + δ)γ.
+        assert!((dev.norm() - (1.0 + crate::fem::YIELD_SMOOTHING) * 1e-3).abs() < 1e-18);
         assert!(plastic.trace().abs() < 1e-18 && plastic == plastic.transpose());
         // Pure volume change never yields, however large.
         assert_eq!(
