@@ -326,13 +326,13 @@ fn figure_command(
         start.elapsed().as_secs_f64()
     );
     println!(
-        "| frame | step | time (s) | elements | crack polygons (triangles, both sides) | cracks |"
+        "| frame | step | time (s) | elements | crack polygons | crack triangles (both sides) | cracks |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|");
     for p in panels {
         println!(
-            "| {} | {} | {:.1} | {} | {} | {} |",
-            p.frame, p.step, p.time, p.elements, p.crack_polygons, p.cracks
+            "| {} | {} | {:.1} | {} | {} | {} | {} |",
+            p.frame, p.step, p.time, p.elements, p.crack_polygons, p.crack_triangles, p.cracks
         );
     }
     Ok(())

@@ -172,6 +172,26 @@ pub fn crack_polygons(faces: &[CrackFace], rest: &[Vector3<f64>], origin: &[usiz
     groups.len().div_ceil(2)
 }
 
+/// Crack polygons (see [`crack_polygons`]) of a stored mesh made by splitting the elements of
+/// the scene mesh whose boundary is `original`: rest positions `rest` (m), `tets`, and each
+/// element's scene element `origin`; 0 if the arrays do not form a valid mesh.
+pub fn count_polygons(
+    original: &OriginalBoundary,
+    rest: &[[f64; 3]],
+    tets: &[[usize; 4]],
+    origin: &[usize],
+) -> usize {
+    match TetMesh::from_arrays(rest, tets.to_vec()) {
+        Ok(mesh)
+            if origin.len() == mesh.num_tets()
+                && origin.iter().all(|&o| o < original.num_elements()) =>
+        {
+            crack_polygons(&crack_faces(&mesh, origin, original), &mesh.rest, origin)
+        }
+        _ => 0,
+    }
+}
+
 /// Crack faces as triangles for rendering: three own vertices per face (m), displaced where
 /// the crack is closed (see the module docs), and each triangle's crack.
 #[derive(Clone, Debug, Default, PartialEq)]

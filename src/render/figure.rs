@@ -4,6 +4,8 @@
 use super::{
     color_bar, draw_text, to_u8, Picture, RenderError, RenderOptions, Renderer, BAR_STRIP, SKY_TOP,
 };
+use crate::fracture::cracks::{count_polygons, OriginalBoundary};
+use crate::mesh::TetMesh;
 use crate::output::{FrameReader, StoredFrame};
 use embedded_graphics::text::Alignment;
 use std::collections::HashSet;
@@ -34,20 +36,38 @@ pub struct Panel {
     pub time: f64,
     /// Tetrahedra in the frame.
     pub elements: usize,
-    /// Crack polygons (triangles, both sides of each crack).
+    /// Crack polygons: planar crack pieces per scene element, counted once for both sides
+    /// (`fracture::cracks::crack_polygons`).
     pub crack_polygons: usize,
+    /// Crack triangles, both sides of each crack.
+    pub crack_triangles: usize,
     /// Connected crack surfaces.
     pub cracks: usize,
 }
 
 impl Panel {
-    fn of(frame: &StoredFrame) -> Panel {
+    /// The captions of `frame` of a run whose scene mesh has the boundary `original` (none:
+    /// no crack polygons counted).
+    fn of(frame: &StoredFrame, original: Option<&OriginalBoundary>) -> Panel {
+        let origin: Option<Vec<usize>> = frame
+            .element_field("origin")
+            .map(|(_, data)| data.iter().map(|&o| o.max(0.0) as usize).collect());
+        let crack_polygons = match (original, origin) {
+            (Some(original), Some(origin)) => count_polygons(
+                original,
+                &frame.state.rest_positions,
+                &frame.state.tets,
+                &origin,
+            ),
+            _ => 0,
+        };
         Panel {
             frame: frame.index,
             step: frame.state.step,
             time: frame.state.time,
             elements: frame.state.tets.len(),
-            crack_polygons: frame.crack_triangles.len(),
+            crack_polygons,
+            crack_triangles: frame.crack_triangles.len(),
             cracks: frame
                 .crack_triangles
                 .iter()
@@ -132,11 +152,15 @@ pub fn figure(
         .to_string_lossy();
     let title = format!("icefem: {scene} ({file})");
     draw_text(&mut picture, &title, MARGIN, 6, Alignment::Left);
+    let (rest, tets) = reader.initial_mesh()?;
+    let original = TetMesh::from_arrays(&rest, tets)
+        .ok()
+        .map(|mesh| OriginalBoundary::new(&mesh));
     let mut panels = Vec::with_capacity(n);
     for (k, frame) in frames.iter().enumerate() {
         let x = MARGIN + k * (panel.width + MARGIN);
         picture.blit(&renderer.draw_scene(reader, frame)?, x, TITLE);
-        let p = Panel::of(frame);
+        let p = Panel::of(frame, original.as_ref());
         let centre = x + panel.width / 2;
         let letter = (b'a' + (k % 26) as u8) as char;
         let line1 = format!("({letter}) step {}, t = {:.1} s", p.step, p.time);
