@@ -19,7 +19,7 @@ demo: deps
 	cargo run --release -- run scenes/freezing_container_fracture.toml --output freezing_container_fracture.h5
 	cargo run --release -- figure freezing_container_fracture.h5
 
-# The README's figures (docs/*.png) from the paper's scene without and with fracture (~5 min).
+# The README's figures (docs/*.png) from the paper's scene without and with fracture (~25 s).
 FIG := target/figures
 figures: deps
 	cargo build --release
