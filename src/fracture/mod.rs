@@ -142,9 +142,7 @@ pub fn separation(
     let mut has_ice = vec![false; nodes];
     // With the nodal volumetric energy the elements' own laws are deviatoric: their pressure
     // p̄ₑ acts through their volume change θₑ.
-    let pressure = elasticity
-        .nodal_pressures(tets, history, u)
-        .map(|(p, _)| p);
+    let pressure = elasticity.nodal_pressures(tets, history, u).map(|(p, _)| p);
     for (e, tet) in tets.iter().enumerate() {
         if !history.is_frozen(e) {
             for &i in tet {
@@ -225,8 +223,8 @@ pub fn separation(
 mod tests {
     use super::*;
     use crate::fem::tests::ICE;
-    use crate::physics::elasticity::Volumetric;
     use crate::mesh::box_mesh;
+    use crate::physics::elasticity::Volumetric;
 
     /// A 4 × 3 × 2 cm box of 4 × 3 × 2 cells (1 cm cubes) under the homogeneous displacement
     /// u = G x; returns the separation of the interior node at (2, 1, 1) cm and the stress.
@@ -302,7 +300,10 @@ mod tests {
         let s = 3e6;
         let (e, nu) = (ICE.young(), ICE.poisson());
         let g = Matrix3::from_diagonal(&Vector3::new(s / e, -nu * s / e, -nu * s / e));
-        for (model, tol) in [(ElasticModel::Linear, 1e-9), (ElasticModel::Corotated, 1e-4)] {
+        for (model, tol) in [
+            (ElasticModel::Linear, 1e-9),
+            (ElasticModel::Corotated, 1e-4),
+        ] {
             let (sep, _) = homogeneous_with(model, g, Volumetric::Nodal);
             assert!(
                 (sep.stress() - s).abs() < tol * s,
