@@ -409,7 +409,7 @@ fn a_notched_plate_cracks_at_the_notch_root_first() {
 
 #[test]
 fn the_paper_scene_cracks_as_it_freezes() {
-    // scenes/freezing_container_fracture.toml, all 2400 frames (~40 s): every step converges,
+    // scenes/freezing_container_fracture.toml, all 2400 frames (~20 s): every step converges,
     // cracks appear once the outer shell has frozen (frame ~650), multiply as the freezing goes
     // on, and every step's fracture processing leaves no node above the toughness that it
     // could split.

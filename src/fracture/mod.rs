@@ -4,10 +4,12 @@
 //!
 //! Per element, the stress is split by its eigen-decomposition into a tensile part
 //! σ⁺ = Σ max(0, vᵢ) nᵢnᵢᵀ and a compressive part σ⁻ = Σ min(0, vᵢ) nᵢnᵢᵀ; each part exerts
-//! nodal forces by the elastic force formula, f = −V R σ F*⁻ᵀ ∇Nᵢ in the world frame (σ
-//! the corotated stress in the element's frame, R its rotation, F* the natural shape of its
-//! strain offset (`fem::offset_elastic_gradient`); the
-//! linear model has R = I and no offset factor) — exactly the forces the simulation balances. At node i, with F± = Σₑ f± and
+//! nodal forces by the elastic force formula, f = −V R σ F*⁻ᵀ ∇Nᵢ in the world frame (σ the
+//! corotated stress in the element's frame, R its rotation, F* the natural shape of its strain
+//! offset (`fem::offset_elastic_gradient`); the linear model has R = I and no offset factor) —
+//! exactly the forces the simulation balances. The stress is the one the step converged to:
+//! returned onto the yield surface, and with the nodal volumetric energy the deviatoric stress
+//! plus the element pressure acting through its volume change. At node i, with F± = Σₑ f± and
 //! m(a) = a aᵀ/|a| (0 for a = 0),
 //!
 //! ```text
@@ -17,10 +19,10 @@
 //! Its largest eigenvalue v⁺ is a force (N); its eigenvector the crack normal n. Toughness is
 //! given as a stress (Pa, the paper's 3.0e6 N/m² — ice's tensile strength): the node fractures
 //! when v⁺ exceeds τ A(n), with A(n) = ½ Σₑ Vₑ |n · R∇Nᵢ| the node's share of the plane through
-//! it with normal n. For a uniform uniaxial stress s along n, v⁺ = s A(n) exactly (tested), and
-//! on a grid A(n) is the node's cross-section h_y h_z: v⁺ is the force the node's share of the
-//! plane carries, and the criterion v⁺/A > τ is mesh independent, unlike a force threshold (see
-//! SPEC's calibration note). Only ice fractures: only fully frozen elements contribute, and a
+//! it with normal n, at least [`area_floor`]. For a uniform uniaxial stress s along n,
+//! v⁺ = s A(n) exactly (tested), and on a grid A(n) is the node's cross-section h_y h_z: v⁺ is
+//! the force the node's share of the plane carries, and the criterion v⁺/A > τ is mesh
+//! independent, unlike a force threshold (see SPEC's calibration note). Only ice fractures: only fully frozen elements contribute, and a
 //! node touching an element that is still (partly) water gets ς = 0 — the water's pressure,
 //! which balances the ice there, is not in the sums, and the unbalanced ice forces would
 //! otherwise read as separation all along the freezing front.
