@@ -17,6 +17,11 @@ struct Reference {
     material: Material,
 }
 
+/// A 2-D dataset's values, row-major.
+fn flat(dataset: &hdf5::Dataset) -> Vec<f64> {
+    dataset.read_2d::<f64>().unwrap().iter().copied().collect()
+}
+
 fn open(name: &str) -> Reference {
     let path = format!(
         "{}/validation/reference/{name}.h5",
@@ -58,14 +63,7 @@ impl Reference {
         Vector3::new(v[0], v[1], v[2])
     }
     fn flat(&self, dataset: &str) -> Vec<f64> {
-        self.file
-            .dataset(dataset)
-            .unwrap()
-            .read_2d::<f64>()
-            .unwrap()
-            .iter()
-            .copied()
-            .collect()
+        flat(&self.file.dataset(dataset).unwrap())
     }
     fn simulation(
         &self,
@@ -180,22 +178,8 @@ fn backward_euler_matches_scikit_fem_step_for_step() {
                 worst = worst.max((sim.state.u[3 * tip + a] - history[[n, a]]).abs() / scale);
             }
         }
-        let u_ref: Vec<f64> = group
-            .dataset("u")
-            .unwrap()
-            .read_2d::<f64>()
-            .unwrap()
-            .iter()
-            .copied()
-            .collect();
-        let v_ref: Vec<f64> = group
-            .dataset("v")
-            .unwrap()
-            .read_2d::<f64>()
-            .unwrap()
-            .iter()
-            .copied()
-            .collect();
+        let u_ref: Vec<f64> = flat(&group.dataset("u").unwrap());
+        let v_ref: Vec<f64> = flat(&group.dataset("v").unwrap());
         let eu = rel_l2(&sim.state.u, &u_ref);
         // v = (uₙ₊₁ − uₙ)/h: its error is that of u times 2/h, so measure it on the scale of
         // ‖u‖/h (the final v itself is ~0 once the beam has settled).
@@ -275,14 +259,7 @@ fn locking_beam(nu: &str) -> Vec<(f64, f64, f64)> {
         };
         let plain = solve(Volumetric::Element);
         let nodal = solve(Volumetric::Nodal);
-        let reference: Vec<f64> = group
-            .dataset(&format!("anp/u_{cells}"))
-            .unwrap()
-            .read_2d::<f64>()
-            .unwrap()
-            .iter()
-            .copied()
-            .collect();
+        let reference = flat(&group.dataset(&format!("anp/u_{cells}")).unwrap());
         (tip(&plain), tip(&nodal), rel_l2(&nodal, &reference))
     })
     .collect()

@@ -903,15 +903,20 @@ pub(crate) mod tests {
         }
     }
 
+    /// Half-frozen ice: half the ice's Lamé constants.
+    fn half_frozen() -> Material {
+        Material {
+            lambda: 0.5 * ICE.lambda,
+            mu: 0.5 * ICE.mu,
+            density: ICE.density,
+        }
+    }
+
     #[test]
     fn water_derivatives_match_finite_differences() {
         // Half-frozen: half the ice's Lamé constants plus half the water's bulk modulus, with
         // the expansion offset, stretched and compressed.
-        let half = Material {
-            lambda: 0.5 * ICE.lambda,
-            mu: 0.5 * ICE.mu,
-            density: ICE.density,
-        };
+        let half = half_frozen();
         for model in [ElasticModel::Linear, ElasticModel::Corotated] {
             check_law_derivatives(
                 model,
@@ -975,11 +980,7 @@ pub(crate) mod tests {
     fn yielding_derivatives_match_finite_differences() {
         // The strains below are 10–100 × the elastic limit: every case yields. Half-frozen
         // ice with water and an expansion offset, and ice with a plastic strain offset.
-        let half = Material {
-            lambda: 0.5 * ICE.lambda,
-            mu: 0.5 * ICE.mu,
-            density: ICE.density,
-        };
+        let half = half_frozen();
         let plastic = Matrix3::new(0.01, 0.002, 0.0, 0.002, -0.004, 0.001, 0.0, 0.001, -0.006);
         for model in [ElasticModel::Linear, ElasticModel::Corotated] {
             check_law_derivatives(model, &ICE, 0.0, Some(1e-3), Matrix3::zeros(), 0.02);

@@ -276,31 +276,6 @@ def solve_quadratic(cells, nu: float, taylor_hood: bool) -> dict:
 # ----------------------------------------------------------------------------
 # P1 and ANP (numpy assembly on the icefem meshes)
 # ----------------------------------------------------------------------------
-def p1_geometry(p: np.ndarray, t: np.ndarray):
-    """volumes (m,), gradients dN (m,3,4) [dN_a/dx_i], strain matrices B (m,6,12)
-    (Voigt xx,yy,zz,yz,xz,xy, engineering shear; dof = 3*node + comp) and the
-    divergence rows bdiv (m,12)."""
-    X = p[t]
-    D = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]], axis=1)
-    det = np.linalg.det(D)
-    assert np.all(det > 0), "non-positive tet orientation"
-    vol = det / 6.0
-    Dinv = np.linalg.inv(D)
-    dN = np.concatenate([-Dinv.sum(axis=2, keepdims=True), Dinv], axis=2)
-    m = len(t)
-    B = np.zeros((m, 6, 12))
-    for a in range(4):
-        gx, gy, gz = dN[:, 0, a], dN[:, 1, a], dN[:, 2, a]
-        B[:, 0, 3 * a] = gx
-        B[:, 1, 3 * a + 1] = gy
-        B[:, 2, 3 * a + 2] = gz
-        B[:, 3, 3 * a + 1], B[:, 3, 3 * a + 2] = gz, gy
-        B[:, 4, 3 * a], B[:, 4, 3 * a + 2] = gz, gx
-        B[:, 5, 3 * a], B[:, 5, 3 * a + 1] = gy, gx
-    bdiv = B[:, 0] + B[:, 1] + B[:, 2]
-    return vol, B, bdiv
-
-
 def elem_dofs(t: np.ndarray) -> np.ndarray:
     return (3 * t[:, :, None] + np.arange(3)[None, None, :]).reshape(len(t), 12)
 
@@ -316,7 +291,7 @@ def p1_matrices(p: np.ndarray, t: np.ndarray, lam: float, mu: float):
     """(K_p1, K_anp): plain P1 stiffness and the ANP stiffness
     K_dev + kappa S^T diag(1/V_a) S, where (S u)_a = sum_{e contains a} (V_e/4) div(u)_e."""
     n = 3 * len(p)
-    vol, B, bdiv = p1_geometry(p, t)
+    vol, B, bdiv = mr.p1_geometry(p, t)
     dofs = elem_dofs(t)
     kappa = lam + 2 * mu / 3
     Cdev = np.zeros((6, 6))

@@ -528,6 +528,29 @@ def case_dynamics() -> dict:
 # re-assemble K and f from /mesh and the root attributes exactly as the layout
 # documents them, and check K u = f on the free dofs.
 # ----------------------------------------------------------------------------
+def p1_geometry(p: np.ndarray, t: np.ndarray, name: str = "mesh"):
+    """P1 tet data for nodes p and positively oriented tets t: volumes (m,), strain matrices
+    B (m,6,12) (Voigt xx,yy,zz,yz,xz,xy, engineering shear; dof = 3*node + comp) and the
+    divergence rows bdiv (m,12)."""
+    X = p[t]
+    D = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]], axis=1)
+    det = np.linalg.det(D)
+    assert np.all(det > 0), f"{name}: non-positive tet orientation"
+    vol = det / 6.0
+    Dinv = np.linalg.inv(D)
+    dN = np.concatenate([-Dinv.sum(axis=2, keepdims=True), Dinv], axis=2)  # (m,3,4) dN_a/dx_i
+    B = np.zeros((len(t), 6, 12))
+    for a in range(4):
+        gx, gy, gz = dN[:, 0, a], dN[:, 1, a], dN[:, 2, a]
+        B[:, 0, 3 * a] = gx
+        B[:, 1, 3 * a + 1] = gy
+        B[:, 2, 3 * a + 2] = gz
+        B[:, 3, 3 * a + 1], B[:, 3, 3 * a + 2] = gz, gy
+        B[:, 4, 3 * a], B[:, 4, 3 * a + 2] = gz, gx
+        B[:, 5, 3 * a], B[:, 5, 3 * a + 1] = gy, gx
+    return vol, B, B[:, 0] + B[:, 1] + B[:, 2]
+
+
 def numpy_check_file(path: Path) -> float:
     with h5py.File(path, "r") as h5:
         p = h5["mesh/nodes"][...]
@@ -540,24 +563,8 @@ def numpy_check_file(path: Path) -> float:
         trac = h5.attrs["traction"][...] if "traction" in h5.attrs else None
         xmin = float(h5.attrs["traction_face_x_min"]) if trac is not None else None
     n = len(p)
-    X = p[t]
-    D = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]], axis=1)
-    det = np.linalg.det(D)
-    assert np.all(det > 0), f"{path.name}: non-positive tet orientation"
-    vol = det / 6.0
-    Dinv = np.linalg.inv(D)
-    dN = np.concatenate([-Dinv.sum(axis=2, keepdims=True), Dinv], axis=2)  # (m,3,4) dN_a/dx_i
-    # B (m,6,12), Voigt (xx,yy,zz,yz,xz,xy), engineering shear; dof = 3*node + comp
     m = len(t)
-    B = np.zeros((m, 6, 12))
-    for a in range(4):
-        gx, gy, gz = dN[:, 0, a], dN[:, 1, a], dN[:, 2, a]
-        B[:, 0, 3 * a] = gx
-        B[:, 1, 3 * a + 1] = gy
-        B[:, 2, 3 * a + 2] = gz
-        B[:, 3, 3 * a + 1], B[:, 3, 3 * a + 2] = gz, gy
-        B[:, 4, 3 * a], B[:, 4, 3 * a + 2] = gz, gx
-        B[:, 5, 3 * a], B[:, 5, 3 * a + 1] = gy, gx
+    vol, B, _ = p1_geometry(p, t, path.name)
     C = np.zeros((6, 6))
     C[:3, :3] = lam
     C[np.arange(3), np.arange(3)] += 2 * mu

@@ -209,10 +209,10 @@ pub struct Simulation {
     damping_stiffness: Vec<f64>,
     /// Contact forces on the ice after the last step (N, 3 per node; empty without contact).
     contact_forces: ContactForces,
-    /// Node pairs the pattern couples beyond the elements (sorted, unique): the elastic
-    /// energy's and the terms'.
+    /// Node pairs the terms couple in the pattern beyond the elements (sorted, unique).
     couplings: Vec<(usize, usize)>,
-    /// The elastic energy's part of them.
+    /// Node pairs the elastic energy couples beyond the elements (the nodal volumetric
+    /// energy's stars), always in the pattern.
     elastic_couplings: Vec<(usize, usize)>,
     /// Where the last step started (none before the first step or after a remesh).
     start: Option<State>,
@@ -274,8 +274,8 @@ impl Simulation {
             previous: vec![0.0; n],
             predictor: vec![0.0; n],
             contact_forces: ContactForces::default(),
-            elastic_couplings: couplings.clone(),
-            couplings,
+            elastic_couplings: couplings,
+            couplings: Vec::new(),
             start: None,
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
@@ -395,13 +395,14 @@ impl Simulation {
         let Some(mut couplings) = asked else {
             return Ok(());
         };
-        couplings.extend_from_slice(&self.elastic_couplings);
         couplings.sort_unstable();
         couplings.dedup();
         let changed = couplings != self.couplings;
         if changed {
             let dofs = self.assembly.dofs().clone();
-            self.assembly = Assembly::with_couplings(&self.model.mesh, dofs, &couplings);
+            // The elastic energy's pairs are fixed for the mesh: added here, not compared.
+            let all = [&couplings[..], &self.elastic_couplings[..]].concat();
+            self.assembly = Assembly::with_couplings(&self.model.mesh, dofs, &all);
             let s = &self.settings;
             self.linear = LinearSolver::new(
                 s.linear,
