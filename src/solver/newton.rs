@@ -179,6 +179,34 @@ impl NewtonWorkspace {
     }
 }
 
+/// Prepares `linear` for the Hessian in `work`: the exact Hessian first; if it is indefinite
+/// (compressed corotated elements), its positive semi-definite projection for the rest of
+/// this solve, re-evaluated at `u` (updating `energy` and the gradient).
+fn factorize_or_project(
+    potential: &mut impl Potential,
+    u: &[f64],
+    assembly: &Assembly,
+    linear: &mut LinearSolver,
+    work: &mut NewtonWorkspace,
+    report: &mut NewtonReport,
+    energy: &mut f64,
+) -> Result<(), NewtonError> {
+    let t = match linear.factorize(assembly, &work.hessian) {
+        Err(e) if e.is_indefinite() && potential.project_hessian() => {
+            let start = Instant::now();
+            *energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
+            report.t_assembly += start.elapsed().as_secs_f64();
+            linear.factorize(assembly, &work.hessian)?
+        }
+        other => other?,
+    };
+    if let Some(t) = t {
+        report.t_factorization += t;
+        report.factorizations += 1;
+    }
+    Ok(())
+}
+
 /// Minimises `potential` over the free dofs of `u` (constrained dofs keep their values).
 /// `force_floor` (N) is a force scale of the problem (external and inertial forces per node);
 /// the residual is judged against it (or the support reactions when it is zero), and never
@@ -270,21 +298,7 @@ pub fn minimize(
             report.t_assembly += start.elapsed().as_secs_f64();
         }
         if refresh {
-            // The exact Hessian first; if it is indefinite (compressed corotated elements),
-            // its positive semi-definite projection for the rest of this solve.
-            let t = match linear.factorize(assembly, &work.hessian) {
-                Err(e) if e.is_indefinite() && potential.project_hessian() => {
-                    let start = Instant::now();
-                    energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
-                    report.t_assembly += start.elapsed().as_secs_f64();
-                    linear.factorize(assembly, &work.hessian)?
-                }
-                other => other?,
-            };
-            if let Some(t) = t {
-                report.t_factorization += t;
-                report.factorizations += 1;
-            }
+            factorize_or_project(potential, u, assembly, linear, work, &mut report, &mut energy)?;
         }
         for (r, &d) in work.rhs.iter_mut().zip(dofs.free_dofs()) {
             *r = -work.gradient[d];
@@ -325,10 +339,7 @@ pub fn minimize(
             let start = Instant::now();
             energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
             report.t_assembly += start.elapsed().as_secs_f64();
-            if let Some(t) = linear.factorize(assembly, &work.hessian)? {
-                report.t_factorization += t;
-                report.factorizations += 1;
-            }
+            factorize_or_project(potential, u, assembly, linear, work, &mut report, &mut energy)?;
             stats = linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?;
             report.add_solve(&stats);
         }
@@ -447,4 +458,107 @@ pub fn roundoff_floor(assembly: &Assembly, hessian: &[f64], u: &[f64]) -> f64 {
         .fold(0.0, f64::max);
     let max_u = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     10.0 * f64::EPSILON * max_diag * max_u
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::assembly::DofMap;
+    use crate::mesh::TetMesh;
+    use crate::solver::linear::{FactorPrecision, IterativeSettings, LinearSolverKind};
+    use crate::solver::ordering::FillOrdering;
+
+    /// ½ |u − c|², whose exact Hessian turns indefinite once a contact is anticipated (as a
+    /// compressed corotated element's does) until it is projected.
+    struct AnticipatedIndefinite {
+        target: Vec<f64>,
+        /// Value slot of each free dof's diagonal entry.
+        diagonal: Vec<usize>,
+        anticipated: bool,
+        projected: bool,
+    }
+
+    impl Potential for AnticipatedIndefinite {
+        fn energy(&mut self, u: &[f64]) -> f64 {
+            u.iter()
+                .zip(&self.target)
+                .map(|(a, c)| 0.5 * (a - c) * (a - c))
+                .sum()
+        }
+        fn evaluate(&mut self, u: &[f64], gradient: &mut [f64], hessian: &mut [f64]) -> f64 {
+            let energy = self.gradient(u, gradient);
+            hessian.fill(0.0);
+            for (k, &slot) in self.diagonal.iter().enumerate() {
+                hessian[slot] = if k == 0 && self.anticipated && !self.projected {
+                    -1.0
+                } else {
+                    1.0
+                };
+            }
+            energy
+        }
+        fn gradient(&mut self, u: &[f64], gradient: &mut [f64]) -> f64 {
+            for ((g, a), c) in gradient.iter_mut().zip(u).zip(&self.target) {
+                *g = a - c;
+            }
+            self.energy(u)
+        }
+        fn project_hessian(&mut self) -> bool {
+            !std::mem::replace(&mut self.projected, true)
+        }
+        fn anticipate(&mut self, _u: &[f64], _trial: &[f64]) -> bool {
+            !std::mem::replace(&mut self.anticipated, true)
+        }
+    }
+
+    #[test]
+    fn an_indefinite_hessian_after_anticipation_is_projected_not_fatal() {
+        let mesh = TetMesh::from_arrays(
+            &[
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
+            vec![[0, 1, 2, 3]],
+        )
+        .unwrap();
+        let assembly = Assembly::new(&mesh, DofMap::new(&[false; 12]));
+        let settings = IterativeSettings {
+            tolerance: 1e-12,
+            max_iterations: 100,
+            amg_reuse: false,
+            factor_reuse: false,
+            factor_precision: FactorPrecision::Double,
+        };
+        let mut linear = LinearSolver::new(
+            LinearSolverKind::Cholesky,
+            FillOrdering::Auto,
+            &assembly,
+            &mesh.rest,
+            &settings,
+        )
+        .unwrap();
+        let target: Vec<f64> = (0..12).map(|d| 0.1 * d as f64).collect();
+        let mut potential = AnticipatedIndefinite {
+            target: target.clone(),
+            diagonal: (0..12).map(|f| assembly.diagonal_slot(f)).collect(),
+            anticipated: false,
+            projected: false,
+        };
+        let mut u = vec![0.0; 12];
+        let params = NewtonParams {
+            tolerance: 1e-10,
+            step_tolerance: 0.0,
+            max_iterations: 10,
+        };
+        let mut work = NewtonWorkspace::new(&assembly);
+        minimize(&mut potential, &mut u, &assembly, &mut linear, &params, 1.0, &mut work)
+            .expect("the projected Hessian is positive definite");
+        assert!(potential.projected);
+        // The minimiser of a quadratic: exact to round-off.
+        for (a, c) in u.iter().zip(&target) {
+            assert!((a - c).abs() < 1e-12, "{a} vs {c}");
+        }
+    }
 }
