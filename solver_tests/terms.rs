@@ -232,22 +232,15 @@ impl StepTerm for Minus<'_> {
         let mut g = gradient.as_ref().map(|g| vec![0.0; g.len()]);
         let mut h = hessian.as_ref().map(|h| vec![0.0; h.len()]);
         self.1.add(u, &mut e, g.as_deref_mut(), h.as_deref_mut());
-        self.0.add(
-            u,
-            energy,
-            gradient.map(|x| {
-                for (x, y) in x.iter_mut().zip(g.as_deref().unwrap()) {
+        let (mut gradient, mut hessian) = (gradient, hessian);
+        for (x, y) in [(gradient.as_deref_mut(), &g), (hessian.as_deref_mut(), &h)] {
+            if let (Some(x), Some(y)) = (x, y) {
+                for (x, y) in x.iter_mut().zip(y) {
                     *x -= y;
                 }
-                x
-            }),
-            hessian.map(|x| {
-                for (x, y) in x.iter_mut().zip(h.as_deref().unwrap()) {
-                    *x -= y;
-                }
-                x
-            }),
-        );
+            }
+        }
+        self.0.add(u, energy, gradient, hessian);
         *energy -= e;
     }
 }
