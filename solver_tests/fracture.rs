@@ -183,6 +183,7 @@ fn fracture_settings(toughness: f64) -> FractureSettings {
         snap: 0.2,
         min_quality: 0.1,
         render_gap: 1e-5,
+        nonlocal_length: 0.0,
     }
 }
 

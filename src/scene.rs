@@ -325,6 +325,9 @@ pub struct FractureSection {
     /// Smallest opening drawn between crack sides in the output (m). Default 1e-3 × the
     /// mesh's bounding-box diagonal.
     pub render_gap: Option<f64>,
+    /// Length ℓ (m) over which the separation is averaged (`fracture::nonlocal`); 0 or absent:
+    /// each node on its own, as in the paper.
+    pub nonlocal_length: Option<f64>,
 }
 
 /// `[time]`.
@@ -686,6 +689,8 @@ impl Validator<'_> {
                 Some(g) => self.non_negative("fracture.render_gap", g)?,
                 None => 1e-3 * (hi - lo).norm(),
             },
+            nonlocal_length: self
+                .non_negative("fracture.nonlocal_length", f.nonlocal_length.unwrap_or(0.0))?,
         })
     }
 

@@ -373,6 +373,7 @@ pub fn fracture_cost(tets: usize) -> Result<FractureCost, SimError> {
             snap: 0.2,
             min_quality: 0.1,
             render_gap: 0.0,
+            nonlocal_length: 0.0,
         },
         &sim.model.mesh,
     );

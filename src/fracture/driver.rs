@@ -31,7 +31,7 @@ use super::cracks::{
     crack_area, crack_faces, crack_polygons, CrackFace, CrackSurface, OriginalBoundary,
 };
 use super::split::Fracturable;
-use super::{separation, NodeSeparation};
+use super::{separation, Averaging, NodeSeparation};
 use crate::mesh::TetMesh;
 use crate::physics::history::ElementHistory;
 use crate::physics::ice_contact::parts_of;
@@ -51,7 +51,11 @@ pub const MIN_ELEMENT_FRACTION: f64 = 1e-2;
 /// of the solve (returned onto the yield surface from the plastic strains of the step's
 /// start, exactly the forces the solve balanced), and the contact forces counted as pressing
 /// (see [`separation`]).
-fn equilibrium_separation(sim: &mut Simulation, area_floor: f64) -> Vec<super::NodeSeparation> {
+fn equilibrium_separation(
+    sim: &mut Simulation,
+    area_floor: f64,
+    averaging: Option<&Averaging>,
+) -> Vec<super::NodeSeparation> {
     let pressing: Vec<f64> = sim.contact_forces().map_or(Vec::new(), |c| {
         c.normal
             .iter()
@@ -76,7 +80,13 @@ fn equilibrium_separation(sim: &mut Simulation, area_floor: f64) -> Vec<super::N
         &sim.state.u,
         &pressing,
         area_floor,
+        averaging,
     )
+}
+
+/// The nonlocal neighbourhoods of `mesh` for `settings`, if it asks for averaging.
+fn averaging(settings: &FractureSettings, mesh: &TetMesh) -> Option<Averaging> {
+    (settings.nonlocal_length > 0.0).then(|| Averaging::new(mesh, settings.nonlocal_length))
 }
 
 /// Why a node's split was refused.
@@ -126,6 +136,9 @@ pub struct FractureSettings {
     /// Smallest opening drawn between the two sides of a crack in the crack-surface output
     /// (m).
     pub render_gap: f64,
+    /// Length over which the separation is averaged (m; 0: each node on its own), see
+    /// [`super::nonlocal`].
+    pub nonlocal_length: f64,
 }
 
 /// One node split.
@@ -191,6 +204,8 @@ pub struct Fracture {
     pub area_floor: f64,
     /// Per node, its refused split, if any.
     pub refused: Vec<Option<RefusedNode>>,
+    /// The neighbourhoods of the nonlocal separation on the current mesh (none: local).
+    averaging: Option<Averaging>,
 }
 
 impl Fracture {
@@ -204,6 +219,7 @@ impl Fracture {
             min_piece_volume: mesh.volume() / mesh.num_tets() as f64,
             area_floor: super::area_floor(mesh),
             refused: Vec::new(),
+            averaging: averaging(&settings, mesh),
         }
     }
 
@@ -220,6 +236,7 @@ impl Fracture {
         let mesh = TetMesh::new(f.rest, f.tets).map_err(invalid)?;
         self.origin = origin;
         self.faces = crack_faces(&mesh, &self.origin, &self.original);
+        self.averaging = averaging(&self.settings, &mesh);
         let cracks: Vec<[usize; 3]> = self.faces.iter().map(|c| c.nodes).collect();
         let model = sim
             .model
@@ -357,7 +374,7 @@ impl Fracture {
         let mut report = FractureReport::default();
         loop {
             let clock = Instant::now();
-            let sep = equilibrium_separation(sim, self.area_floor);
+            let sep = equilibrium_separation(sim, self.area_floor, self.averaging.as_ref());
             self.refused.resize(sep.len(), None);
             if report.events.is_empty() {
                 report.largest_stress = sep.iter().map(|s| s.stress()).fold(0.0, f64::max);

@@ -32,9 +32,11 @@
 
 pub mod cracks;
 pub mod driver;
+pub mod nonlocal;
 pub mod split;
 
 pub use driver::{Fracture, FractureEvent, FractureReport, FractureSettings};
+pub use nonlocal::Averaging;
 
 use crate::fem::{elastic_strain, offset_elastic_gradient, solid_response, ElasticModel};
 use crate::physics::elasticity::Elasticity;
@@ -111,7 +113,8 @@ fn split(sigma: &Matrix3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
 
 /// Separation tensors of every node of `tets` at displacements `u` (m), with `pressing` the
 /// contact forces on the nodes (N, 3 per node, normal and friction; empty for none) and
-/// `area_floor` the smallest A(n) (m², see [`area_floor`]).
+/// `area_floor` the smallest A(n) (m², see [`area_floor`]); with `averaging`, each node's
+/// separation is the nonlocal average over its neighbourhood (see [`nonlocal`]).
 ///
 /// Contact forces push (and rub), and they are counted with the compressive forces (in F⁻ and
 /// Σ m(f⁻)): a node on a closed crack or on a container wall is then judged like one inside
@@ -127,6 +130,7 @@ pub fn separation(
     u: &[f64],
     pressing: &[f64],
     area_floor: f64,
+    averaging: Option<&Averaging>,
 ) -> Vec<NodeSeparation> {
     let nodes = u.len() / 3;
     let mut f_plus = vec![Vector3::zeros(); nodes];
@@ -195,30 +199,63 @@ pub fn separation(
             has_ice[i] = true;
         }
     }
-    (0..nodes)
-        .map(|i| {
-            let tensor = if touches_water[i] {
+    let nodes: Vec<NodeForces> = (0..nodes)
+        .map(|i| NodeForces {
+            tensor: if touches_water[i] {
                 Matrix3::zeros()
             } else {
                 0.5 * (-m(&f_plus[i]) + s_plus[i] + m(&f_minus[i]) - s_minus[i])
-            };
-            let eig = SymmetricEigen::new(tensor);
-            let k = eig.eigenvalues.imax();
-            let normal: Vector3<f64> = eig.eigenvectors.column(k).into_owned();
-            let area = 0.5
-                * weighted_grads[i]
-                    .iter()
-                    .map(|g| normal.dot(g).abs())
-                    .sum::<f64>();
-            NodeSeparation {
-                tensor,
-                largest: eig.eigenvalues[k],
-                normal,
-                area: area.max(area_floor),
-                eligible: has_ice[i] && !touches_water[i],
-            }
+            },
+            weighted_grads: std::mem::take(&mut weighted_grads[i]),
+            eligible: has_ice[i] && !touches_water[i],
         })
-        .collect()
+        .collect();
+    match averaging {
+        Some(averaging) => averaging.average(&nodes, area_floor),
+        None => nodes
+            .iter()
+            .map(|n| {
+                let (largest, normal) = largest_eigen(&n.tensor);
+                NodeSeparation {
+                    tensor: n.tensor,
+                    largest,
+                    normal,
+                    area: n.area(&normal, area_floor),
+                    eligible: n.eligible,
+                }
+            })
+            .collect(),
+    }
+}
+
+/// What the criterion needs of one node before any averaging.
+pub(crate) struct NodeForces {
+    /// ς (N).
+    pub tensor: Matrix3<f64>,
+    /// Vₑ R∇Nᵢ of the node's ice elements (m²), for A(n).
+    pub weighted_grads: Vec<Vector3<f64>>,
+    /// Every element around the node is fully frozen ice.
+    pub eligible: bool,
+}
+
+impl NodeForces {
+    /// A(n) = ½ Σₑ Vₑ |n · R∇Nᵢ| (m²), at least `floor`.
+    pub fn area(&self, normal: &Vector3<f64>, floor: f64) -> f64 {
+        let area = 0.5
+            * self
+                .weighted_grads
+                .iter()
+                .map(|g| normal.dot(g).abs())
+                .sum::<f64>();
+        area.max(floor)
+    }
+}
+
+/// The largest eigenvalue of a symmetric tensor and its unit eigenvector.
+fn largest_eigen(tensor: &Matrix3<f64>) -> (f64, Vector3<f64>) {
+    let eig = SymmetricEigen::new(*tensor);
+    let k = eig.eigenvalues.imax();
+    (eig.eigenvalues[k], eig.eigenvectors.column(k).into_owned())
 }
 
 #[cfg(test)]
@@ -249,7 +286,7 @@ mod tests {
             .flat_map(|x| (g * x).iter().copied().collect::<Vec<_>>())
             .collect();
         let history = el.initial_history();
-        let sep = separation(&el, &history, &mesh.tets, &u, &[], 0.0);
+        let sep = separation(&el, &history, &mesh.tets, &u, &[], 0.0, None);
         let node = mesh
             .rest
             .iter()

@@ -1,0 +1,195 @@
+//! Nonlocal separation: the criterion read over a fixed length ℓ instead of one node.
+//!
+//! A node's separation v⁺/A(n) is a nodal force over a nodal area, so it resolves the stress
+//! at the scale of the elements around the node. At a crack's front the stress grows like
+//! 1/√r; a finer mesh puts its front node closer to the tip and reads a larger stress there,
+//! so the same crack runs further on a finer mesh, and where the stress hovers near τ the
+//! outcome turns on mesh-scale detail. Averaging over a fixed length ℓ (a material scale of
+//! the criterion, not of the mesh) reads every mesh the same way once its elements are
+//! smaller than ℓ:
+//!
+//! ```text
+//! ς̄ᵢ = Σⱼ wᵢⱼ ςⱼ,   v̄⁺, n̄ = largest eigenpair of ς̄ᵢ,   Āᵢ = Σⱼ wᵢⱼ Aⱼ(n̄),
+//! wᵢⱼ = (1 − (dᵢⱼ/ℓ)²)²  for dᵢⱼ < ℓ,
+//! ```
+//!
+//! over the eligible nodes j, with dᵢⱼ the shortest path from i to j along the mesh's edges
+//! (rest lengths). The path runs through the material: it goes around a crack, never across
+//! it, so the two sides of a crack do not see each other's stress. The criterion is then
+//! v̄⁺/Āᵢ > τ with the split plane normal to n̄. A uniform stress s reads s exactly (ςⱼ =
+//! s Aⱼ(n) n nᵀ, so v̄⁺ = s Σ wᵢⱼ Aⱼ(n) = s Āᵢ); ℓ shorter than every edge is the local
+//! criterion.
+
+use super::{largest_eigen, NodeForces, NodeSeparation};
+use crate::mesh::TetMesh;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+/// Each node's neighbours within the averaging length and their weights.
+#[derive(Clone, Debug, Default)]
+pub struct Averaging {
+    /// Neighbours of node i (itself first): `neighbours[ptr[i]..ptr[i + 1]]`.
+    ptr: Vec<usize>,
+    neighbours: Vec<(u32, f64)>,
+}
+
+impl Averaging {
+    /// The neighbourhoods of `mesh`'s nodes for the averaging length `length` (m, > 0).
+    pub fn new(mesh: &TetMesh, length: f64) -> Self {
+        let n = mesh.num_nodes();
+        let mut edges: Vec<(u32, u32)> = Vec::with_capacity(12 * mesh.num_tets());
+        for tet in &mesh.tets {
+            for a in 0..4 {
+                for b in 0..4 {
+                    if a != b {
+                        edges.push((tet[a] as u32, tet[b] as u32));
+                    }
+                }
+            }
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        let mut start = vec![0usize; n + 1];
+        for &(a, _) in &edges {
+            start[a as usize + 1] += 1;
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let rest = &mesh.rest;
+        let mut averaging = Averaging {
+            ptr: vec![0],
+            neighbours: Vec::new(),
+        };
+        // Bounded Dijkstra from every node; distances as integer nanometres for the heap's
+        // ordering (exact enough for weights, and no float ordering to work around).
+        let mut distance: Vec<f64> = vec![f64::INFINITY; n];
+        let mut reached: Vec<u32> = Vec::new();
+        let mut heap = BinaryHeap::new();
+        for source in 0..n {
+            distance[source] = 0.0;
+            reached.push(source as u32);
+            heap.push(Reverse((0u64, source as u32)));
+            while let Some(Reverse((_, a))) = heap.pop() {
+                let a = a as usize;
+                let da = distance[a];
+                for &(_, b) in &edges[start[a]..start[a + 1]] {
+                    let b = b as usize;
+                    let d = da + (rest[a] - rest[b]).norm();
+                    if d < length && d < distance[b] {
+                        if distance[b].is_infinite() {
+                            reached.push(b as u32);
+                        }
+                        distance[b] = d;
+                        heap.push(Reverse(((d * 1e9) as u64, b as u32)));
+                    }
+                }
+            }
+            for &j in &reached {
+                let r = distance[j as usize] / length;
+                averaging.neighbours.push((j, (1.0 - r * r).powi(2)));
+                distance[j as usize] = f64::INFINITY;
+            }
+            reached.clear();
+            averaging.ptr.push(averaging.neighbours.len());
+        }
+        averaging
+    }
+
+    /// The averaged separation of every node from the nodes' own (see the module docs);
+    /// every Aⱼ is at least `area_floor` (m²).
+    pub(crate) fn average(&self, nodes: &[NodeForces], area_floor: f64) -> Vec<NodeSeparation> {
+        (0..nodes.len())
+            .map(|i| {
+                let around = &self.neighbours[self.ptr[i]..self.ptr[i + 1]];
+                let eligible = |j: &&(u32, f64)| nodes[j.0 as usize].eligible;
+                let tensor = around
+                    .iter()
+                    .filter(eligible)
+                    .map(|&(j, w)| w * nodes[j as usize].tensor)
+                    .sum();
+                let (largest, normal) = largest_eigen(&tensor);
+                let area = around
+                    .iter()
+                    .filter(eligible)
+                    .map(|&(j, w)| w * nodes[j as usize].area(&normal, area_floor))
+                    .sum();
+                NodeSeparation {
+                    tensor,
+                    largest,
+                    normal,
+                    area,
+                    eligible: nodes[i].eligible,
+                }
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::tests::ICE;
+    use crate::fem::ElasticModel;
+    use crate::fracture::separation;
+    use crate::mesh::box_mesh;
+    use crate::physics::elasticity::Elasticity;
+    use nalgebra::{Matrix3, Vector3};
+
+    /// Local and averaged separations of a 6 cm cube of 1 cm cells (6 tets each) under the
+    /// uniform uniaxial stress `s` along x (linear elasticity: exact nodal forces), averaged
+    /// over `length`; and the index of the centre node.
+    fn uniaxial(s: f64, length: f64) -> (Vec<NodeSeparation>, Vec<NodeSeparation>, usize) {
+        let mesh = box_mesh([0.0; 3], [0.06; 3], [6, 6, 6], 6).unwrap();
+        let el = Elasticity::new(&mesh, ICE, ElasticModel::Linear);
+        let (e, nu) = (ICE.young(), ICE.poisson());
+        let g = Matrix3::from_diagonal(&Vector3::new(s / e, -nu * s / e, -nu * s / e));
+        let u: Vec<f64> = mesh.rest.iter().flat_map(|x| (g * x).data.0[0]).collect();
+        let history = el.initial_history();
+        let local = separation(&el, &history, &mesh.tets, &u, &[], 0.0, None);
+        let averaging = Averaging::new(&mesh, length);
+        let averaged = separation(&el, &history, &mesh.tets, &u, &[], 0.0, Some(&averaging));
+        let centre = mesh
+            .rest
+            .iter()
+            .position(|x| (x - Vector3::repeat(0.03)).norm() < 1e-12)
+            .unwrap();
+        (local, averaged, centre)
+    }
+
+    #[test]
+    fn a_uniform_stress_reads_the_same_averaged() {
+        // ℓ = 1.5 cm: the centre's neighbourhood (edges of 1 and 1.41 cm) stays inside the
+        // cube, where every node's ς is s Aⱼ(n) n nᵀ; the average is then s exactly (round-off).
+        let s = 3e6;
+        let (local, averaged, centre) = uniaxial(s, 0.015);
+        let a = &averaged[centre];
+        assert!((a.stress() - s).abs() < 1e-9 * s, "{} Pa", a.stress());
+        assert!(a.normal.x.abs() > 1.0 - 1e-12, "normal {}", a.normal);
+        // It is an average: more area than the node's own.
+        assert!(a.area > 2.0 * local[centre].area, "{} vs {}", a.area, local[centre].area);
+    }
+
+    #[test]
+    fn a_length_below_every_edge_is_the_local_criterion() {
+        let (local, averaged, _) = uniaxial(3e6, 0.005);
+        assert_eq!(local, averaged);
+    }
+
+    #[test]
+    fn the_average_does_not_reach_across_a_gap() {
+        // Two cubes face to face (the two sides of a crack: coincident nodes, no shared
+        // element): no node of one is a neighbour of the other, however long ℓ.
+        let a = box_mesh([0.0; 3], [0.02; 3], [2, 2, 2], 6).unwrap();
+        let b = box_mesh([0.02, 0.0, 0.0], [0.02; 3], [2, 2, 2], 6).unwrap();
+        let first = a.num_nodes();
+        let mesh = TetMesh::concat(vec![a, b]).unwrap();
+        let averaging = Averaging::new(&mesh, 1.0);
+        for i in 0..mesh.num_nodes() {
+            let around = &averaging.neighbours[averaging.ptr[i]..averaging.ptr[i + 1]];
+            assert_eq!(around.len(), first, "node {i}: the whole of its own cube");
+            assert!(around.iter().all(|&(j, _)| (j as usize >= first) == (i >= first)));
+            assert_eq!(around[0], (i as u32, 1.0), "itself first, at full weight");
+        }
+    }
+}
