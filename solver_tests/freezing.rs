@@ -479,6 +479,7 @@ fn paper_scene_freezes_2400_frames_with_bounded_energy() {
                         .collect()
                 }),
                 icefem::fracture::area_floor(&sim.model.mesh),
+                None,
             )
             .iter()
             .map(|s| s.stress())
