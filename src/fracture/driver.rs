@@ -157,7 +157,7 @@ pub struct FractureEvent {
 pub struct FractureReport {
     /// Node splits made, in order.
     pub events: Vec<FractureEvent>,
-    /// Largest v⁺ / A(n) before any split (Pa).
+    /// Largest v⁺ / A(n) of an eligible node before any split (Pa).
     pub largest_stress: f64,
     /// Wall-clock time of the first separation evaluation (s): the cost of a step without
     /// fracture.
@@ -377,7 +377,11 @@ impl Fracture {
             let sep = equilibrium_separation(sim, self.area_floor, self.averaging.as_ref());
             self.refused.resize(sep.len(), None);
             if report.events.is_empty() {
-                report.largest_stress = sep.iter().map(|s| s.stress()).fold(0.0, f64::max);
+                report.largest_stress = sep
+                    .iter()
+                    .filter(|s| s.eligible)
+                    .map(|s| s.stress())
+                    .fold(0.0, f64::max);
                 report.t_check = clock.elapsed().as_secs_f64();
             } else {
                 report.t_split += clock.elapsed().as_secs_f64();

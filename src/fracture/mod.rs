@@ -212,19 +212,7 @@ pub fn separation(
         .collect();
     match averaging {
         Some(averaging) => averaging.average(&nodes, area_floor),
-        None => nodes
-            .iter()
-            .map(|n| {
-                let (largest, normal) = largest_eigen(&n.tensor);
-                NodeSeparation {
-                    tensor: n.tensor,
-                    largest,
-                    normal,
-                    area: n.area(&normal, area_floor),
-                    eligible: n.eligible,
-                }
-            })
-            .collect(),
+        None => nodes.iter().map(|n| n.local(area_floor)).collect(),
     }
 }
 
@@ -239,6 +227,18 @@ pub(crate) struct NodeForces {
 }
 
 impl NodeForces {
+    /// The node's own separation, A(n) at least `floor` (m²).
+    pub fn local(&self, floor: f64) -> NodeSeparation {
+        let (largest, normal) = largest_eigen(&self.tensor);
+        NodeSeparation {
+            tensor: self.tensor,
+            largest,
+            normal,
+            area: self.area(&normal, floor),
+            eligible: self.eligible,
+        }
+    }
+
     /// A(n) = ½ Σₑ Vₑ |n · R∇Nᵢ| (m²), at least `floor`.
     pub fn area(&self, normal: &Vector3<f64>, floor: f64) -> f64 {
         let area = 0.5

@@ -101,6 +101,10 @@ impl Averaging {
     pub(crate) fn average(&self, nodes: &[NodeForces], area_floor: f64) -> Vec<NodeSeparation> {
         (0..nodes.len())
             .map(|i| {
+                // An ineligible node is not averaged: it reads its own (zero next to water).
+                if !nodes[i].eligible {
+                    return nodes[i].local(area_floor);
+                }
                 let around = &self.neighbours[self.ptr[i]..self.ptr[i + 1]];
                 let eligible = |j: &&(u32, f64)| nodes[j.0 as usize].eligible;
                 let tensor = around
@@ -119,7 +123,7 @@ impl Averaging {
                     largest,
                     normal,
                     area,
-                    eligible: nodes[i].eligible,
+                    eligible: true,
                 }
             })
             .collect()
