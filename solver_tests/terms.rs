@@ -361,14 +361,14 @@ fn check_elasticity_with(
     );
     elasticity.pattern_ready(&assembly);
     let mut element_energy = vec![0.0; mesh.num_tets()];
-    let mut term = ElasticStep {
-        elasticity: &elasticity,
-        tets: &mesh.tets,
-        history: &history,
-        assembly: &assembly,
-        element_energy: &mut element_energy,
+    let mut term = ElasticStep::new(
+        &elasticity,
+        &mesh.tets,
+        &history,
+        &assembly,
+        &mut element_energy,
         project,
-    };
+    );
     let u = deformed(&mesh, strain, seed + 1);
     // Strains s = 1 % on elements of ℓ ≈ 4 cm: the energy's curvature is C and its gradient only
     // C s, so the truncation relative to the gradient is ~ (ε/ℓ)² / s: 2e-9 at ε = 5e-7 m,
@@ -577,14 +577,14 @@ fn stiffness_damping() {
     let beta = 2e-4;
     let mut beta_k = vec![0.0; assembly.nnz()];
     let mut element_energy = vec![0.0; mesh.num_tets()];
-    ElasticStep {
-        elasticity: &elasticity,
-        tets: &mesh.tets,
-        history: &history,
-        assembly: &assembly,
-        element_energy: &mut element_energy,
-        project: true,
-    }
+    ElasticStep::new(
+        &elasticity,
+        &mesh.tets,
+        &history,
+        &assembly,
+        &mut element_energy,
+        true,
+    )
     .add(
         &previous,
         &mut 0.0,

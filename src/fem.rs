@@ -546,7 +546,7 @@ pub fn element_eval(
     law: &Law,
     rest: &ElementRest,
     u: &[Vector3<f64>; 4],
-    offset: &Matrix3<f64>,
+    offset: &StrainOffset,
     with_hessian: bool,
     project: bool,
     out: &mut ElementEval,
@@ -573,8 +573,8 @@ pub fn element_eval(
     let t = with_hessian.then_some(&mut tangent);
     let (psi, P) = match model {
         // σ = C:(sym H − ε*); the tangent does not depend on ε*.
-        ElasticModel::Linear => law(&(H - offset), t),
-        ElasticModel::Corotated if offset.iter().all(|v| *v == 0.0) => law(&H, t),
+        ElasticModel::Linear => law(&(H - offset.strain), t),
+        ElasticModel::Corotated if offset.is_zero() => law(&H, t),
         ElasticModel::Corotated => {
             let (A, He) = offset_elastic_gradient(offset, &H);
             let (psi, Pe) = law(&He, t);
@@ -678,13 +678,13 @@ pub fn volume_change(
     model: ElasticModel,
     rest: &ElementRest,
     u: &[Vector3<f64>; 4],
-    offset: &Matrix3<f64>,
+    offset: &StrainOffset,
     with_hessian: bool,
 ) -> VolumeChange {
     let H = rest.displacement_gradient(u);
     match model {
         ElasticModel::Linear => VolumeChange {
-            theta: H.trace() - offset.trace(),
+            theta: H.trace() - offset.strain.trace(),
             gradient: Matrix3::identity(),
             hessian: with_hessian.then(Tangent::zeros),
         },
@@ -712,11 +712,14 @@ pub fn elastic_strain(
     model: ElasticModel,
     rest: &ElementRest,
     u: &[Vector3<f64>; 4],
-    offset: &Matrix3<f64>,
+    offset: &StrainOffset,
 ) -> (Matrix3<f64>, Matrix3<f64>) {
     let H = rest.displacement_gradient(u);
     match model {
-        ElasticModel::Linear => (0.5 * (H + H.transpose()) - offset, Matrix3::identity()),
+        ElasticModel::Linear => (
+            0.5 * (H + H.transpose()) - offset.strain,
+            Matrix3::identity(),
+        ),
         ElasticModel::Corotated => {
             let (_, He) = offset_elastic_gradient(offset, &H);
             let R = polar_rotation(&(Matrix3::identity() + He));
@@ -733,7 +736,7 @@ pub fn element_stress(
     law: &Law,
     rest: &ElementRest,
     u: &[Vector3<f64>; 4],
-    offset: &Matrix3<f64>,
+    offset: &StrainOffset,
 ) -> [f64; 6] {
     let (model, water_bulk) = (law.model, law.water_bulk);
     let (strain, R) = elastic_strain(model, rest, u, offset);
@@ -752,31 +755,60 @@ pub fn element_stress(
     to_voigt(&sigma)
 }
 
-/// The corotated model's offset factor A = F*⁻¹ of a strain offset ε* = e I + d (d its
-/// deviatoric part, the plastic strain), F* = (1 + e) exp(d), and the elastic displacement
-/// gradient He = (I + H) A − I for the displacement gradient H.
+/// A strain offset ε* = e I + d (the expansion e and the plastic strain d, deviatoric) with
+/// the corotated model's offset factor A = F*⁻¹ computed once, for F* = (1 + e) exp(d): ε* is
+/// fixed during a solve, and A's matrix exponential would otherwise be the costliest part of
+/// every element evaluation.
 ///
 /// F* is the natural shape of the element: isotropic growth by 1 + e (the expansion, exact for
 /// a free body) and the plastic shape change exp(d), which keeps volume exactly (det = e^tr d
 /// = 1). With I + d instead, the natural volume would shrink by ½ tr(d²) at second order —
 /// 1 % at ‖ε_p‖ = 0.14, a hydrostatic tension of K · 1 % ≈ 1e9 Pa that was pure artefact (and
-/// read as fracture). He is formed as H A + (A − I) with A − I from exp_m1, without
-/// cancellation.
+/// read as fracture). A − I is formed from exp_m1, without cancellation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StrainOffset {
+    /// ε* (dimensionless): σ = C:(ε − ε*) in the linear model.
+    pub strain: Matrix3<f64>,
+    /// A − I.
+    factor_minus_i: Matrix3<f64>,
+}
+
+impl StrainOffset {
+    /// The offset ε* = `strain` (symmetric).
+    pub fn new(strain: Matrix3<f64>) -> Self {
+        let e = strain.trace() / 3.0;
+        let d = strain - Matrix3::identity() * e;
+        // A − I = (exp(−d) − I − e I) / (1 + e).
+        let exp_m1 = if d.iter().all(|v| *v == 0.0) {
+            Matrix3::zeros()
+        } else {
+            expm1_symmetric(&(-d))
+        };
+        StrainOffset {
+            strain,
+            factor_minus_i: (exp_m1 - Matrix3::identity() * e) / (1.0 + e),
+        }
+    }
+
+    /// No offset.
+    pub fn zero() -> Self {
+        Self::new(Matrix3::zeros())
+    }
+
+    /// Whether ε* = 0.
+    pub fn is_zero(&self) -> bool {
+        self.strain.iter().all(|v| *v == 0.0)
+    }
+}
+
+/// The corotated model's offset factor A = F*⁻¹ of `offset` and the elastic displacement
+/// gradient He = (I + H) A − I for the displacement gradient H, formed as H A + (A − I).
 pub(crate) fn offset_elastic_gradient(
-    offset: &Matrix3<f64>,
+    offset: &StrainOffset,
     H: &Matrix3<f64>,
 ) -> (Matrix3<f64>, Matrix3<f64>) {
-    let e = offset.trace() / 3.0;
-    let d = offset - Matrix3::identity() * e;
-    // A − I = (exp(−d) − I − e I) / (1 + e).
-    let exp_m1 = if d.iter().all(|v| *v == 0.0) {
-        Matrix3::zeros()
-    } else {
-        expm1_symmetric(&(-d))
-    };
-    let a_minus_i = (exp_m1 - Matrix3::identity() * e) / (1.0 + e);
-    let a = Matrix3::identity() + a_minus_i;
-    (a, H * a + a_minus_i)
+    let a = Matrix3::identity() + offset.factor_minus_i;
+    (a, H * a + offset.factor_minus_i)
 }
 
 /// exp(X) − I of a symmetric 3 × 3 matrix without cancellation, by scaling and squaring: X is
@@ -873,7 +905,15 @@ pub(crate) mod tests {
             yield_limit,
         };
         let mut e = ElementEval::default();
-        element_eval(&law, &rest, &x, &offset, true, false, &mut e);
+        element_eval(
+            &law,
+            &rest,
+            &x,
+            &StrainOffset::new(offset),
+            true,
+            false,
+            &mut e,
+        );
         let h = 1e-9;
         let scale = e.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
         let hscale = e.hessian.iter().map(|g| g.abs()).fold(0.0, f64::max);
@@ -883,8 +923,24 @@ pub(crate) mod tests {
             xp[d / 3][d % 3] += h;
             xm[d / 3][d % 3] -= h;
             let (mut ep, mut em) = (ElementEval::default(), ElementEval::default());
-            element_eval(&law, &rest, &xp, &offset, false, false, &mut ep);
-            element_eval(&law, &rest, &xm, &offset, false, false, &mut em);
+            element_eval(
+                &law,
+                &rest,
+                &xp,
+                &StrainOffset::new(offset),
+                false,
+                false,
+                &mut ep,
+            );
+            element_eval(
+                &law,
+                &rest,
+                &xm,
+                &StrainOffset::new(offset),
+                false,
+                false,
+                &mut em,
+            );
             let fd = (ep.energy - em.energy) / (2.0 * h);
             // Energy differences lose ~8 digits to cancellation at h = 1e-9: 1e-5 relative.
             assert!(
@@ -965,7 +1021,7 @@ pub(crate) mod tests {
         let (rest, x0) = tet();
         let e = 0.0291;
         let x = x0.map(|p| p * e);
-        let offset = Matrix3::identity() * e;
+        let offset = StrainOffset::new(Matrix3::identity() * e);
         let mut out = ElementEval::default();
         let law = Law::elastic(ElasticModel::Corotated, ICE);
         element_eval(&law, &rest, &x, &offset, false, false, &mut out);

@@ -171,7 +171,12 @@ mod tests {
         assert!((a.stress() - s).abs() < 1e-9 * s, "{} Pa", a.stress());
         assert!(a.normal.x.abs() > 1.0 - 1e-12, "normal {}", a.normal);
         // It is an average: more area than the node's own.
-        assert!(a.area > 2.0 * local[centre].area, "{} vs {}", a.area, local[centre].area);
+        assert!(
+            a.area > 2.0 * local[centre].area,
+            "{} vs {}",
+            a.area,
+            local[centre].area
+        );
     }
 
     #[test]
@@ -192,7 +197,9 @@ mod tests {
         for i in 0..mesh.num_nodes() {
             let around = &averaging.neighbours[averaging.ptr[i]..averaging.ptr[i + 1]];
             assert_eq!(around.len(), first, "node {i}: the whole of its own cube");
-            assert!(around.iter().all(|&(j, _)| (j as usize >= first) == (i >= first)));
+            assert!(around
+                .iter()
+                .all(|&(j, _)| (j as usize >= first) == (i >= first)));
             assert_eq!(around[0], (i as u32, 1.0), "itself first, at full weight");
         }
     }

@@ -16,7 +16,7 @@ use super::volumetric::NodalVolume;
 use crate::assembly::Assembly;
 use crate::fem::{
     elastic_strain, element_eval, element_stress, volume_change, ElasticModel, ElementEval,
-    ElementRest, Law, Material, VolumeChange,
+    ElementRest, Law, Material, StrainOffset, VolumeChange,
 };
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
@@ -185,6 +185,7 @@ impl Elasticity {
         &self,
         tets: &[[usize; 4]],
         history: &ElementHistory,
+        offsets: &[StrainOffset],
         u: &[f64],
         with_hessian: bool,
     ) -> (Vec<VolumeChange>, Vec<f64>) {
@@ -196,7 +197,7 @@ impl Elasticity {
                     self.model,
                     &self.rest[e],
                     &Self::local(u, &tets[e]),
-                    &history.offset_of(e),
+                    &offsets[e],
                     with_hessian,
                 );
                 (change, self.bulk_of(history, e))
@@ -213,7 +214,7 @@ impl Elasticity {
         u: &[f64],
     ) -> Option<(Vec<f64>, f64)> {
         let nodal = self.nodal.as_ref()?;
-        let (change, bulk) = self.volume_changes(tets, history, u, false);
+        let (change, bulk) = self.volume_changes(tets, history, &history.offsets(), u, false);
         let theta: Vec<f64> = change.iter().map(|c| c.theta).collect();
         Some(nodal.pressures(&theta, &bulk, &self.rest, tets))
     }
@@ -228,11 +229,12 @@ impl Elasticity {
         with_hessian: bool,
         out: &mut ElementEval,
     ) {
-        self.element_with(tets, history, u, e, with_hessian, false, out);
+        let offset = history.offset_of(e);
+        self.element_with(tets, history, u, e, &offset, with_hessian, false, out);
     }
 
-    /// As [`Elasticity::element`]; with `project` the stiffness is made positive semi-definite
-    /// (see `fem::constitutive`).
+    /// As [`Elasticity::element`], with the element's strain `offset` given; with `project`
+    /// the stiffness is made positive semi-definite (see `fem::constitutive`).
     // The element's inputs: mesh, history, state, which element and what to compute.
     #[allow(clippy::too_many_arguments)]
     pub fn element_with(
@@ -241,6 +243,7 @@ impl Elasticity {
         history: &ElementHistory,
         u: &[f64],
         e: usize,
+        offset: &StrainOffset,
         with_hessian: bool,
         project: bool,
         out: &mut ElementEval,
@@ -249,7 +252,7 @@ impl Elasticity {
             &self.law_of(history, e),
             &self.rest[e],
             &Self::local(u, &tets[e]),
-            &history.offset_of(e),
+            offset,
             with_hessian,
             project,
             out,
@@ -264,7 +267,7 @@ impl Elasticity {
             .filter(|&e| history.eigenstrain[e] != 0.0 || !history.plastic_strain.is_empty())
             .map(|e| {
                 let (material, water_bulk) = self.material_of(history, e);
-                let offset = history.offset_of(e);
+                let offset = history.offset_of(e).strain;
                 let stress =
                     material.hooke(&offset) + Matrix3::identity() * (water_bulk * offset.trace());
                 let r = &self.rest[e];
@@ -357,6 +360,30 @@ pub struct ElasticStep<'a> {
     pub element_energy: &'a mut [f64],
     /// Whether element stiffnesses are projected to be positive semi-definite.
     pub project: bool,
+    /// Each element's strain offset, fixed during the solve (`history.offsets()`).
+    pub offsets: Vec<StrainOffset>,
+}
+
+impl<'a> ElasticStep<'a> {
+    /// The elastic term of a solve, with the elements' strain offsets taken from `history`.
+    pub fn new(
+        elasticity: &'a Elasticity,
+        tets: &'a [[usize; 4]],
+        history: &'a ElementHistory,
+        assembly: &'a Assembly,
+        element_energy: &'a mut [f64],
+        project: bool,
+    ) -> Self {
+        ElasticStep {
+            elasticity,
+            tets,
+            history,
+            assembly,
+            element_energy,
+            project,
+            offsets: history.offsets(),
+        }
+    }
 }
 
 impl StepTerm for ElasticStep<'_> {
@@ -367,13 +394,16 @@ impl StepTerm for ElasticStep<'_> {
         gradient: Option<&mut [f64]>,
         hessian: Option<&mut [f64]>,
     ) {
-        let (el, tets, history) = (self.elasticity, self.tets, self.history);
+        let (el, tets, history, offsets) =
+            (self.elasticity, self.tets, self.history, &self.offsets[..]);
         match gradient {
             Some(gradient) => {
                 let project = self.project;
                 let Some(nodal) = &el.nodal else {
                     self.assembly.assemble(
-                        |e, with_h, out| el.element_with(tets, history, u, e, with_h, project, out),
+                        |e, with_h, out| {
+                            el.element_with(tets, history, u, e, &offsets[e], with_h, project, out)
+                        },
                         self.element_energy,
                         gradient,
                         hessian,
@@ -385,13 +415,14 @@ impl StepTerm for ElasticStep<'_> {
                 // deviatoric energy with their pressure's forces and stiffness (its ∂²θ part
                 // is indefinite and left out when projecting), then the nodes' Σ Vₐ κₐ ∇θ̄ₐ ∇θ̄ₐᵀ.
                 let with_h = hessian.is_some();
-                let (change, bulk) = el.volume_changes(tets, history, u, with_h && !project);
+                let (change, bulk) =
+                    el.volume_changes(tets, history, offsets, u, with_h && !project);
                 let theta: Vec<f64> = change.iter().map(|c| c.theta).collect();
                 let (pressure, volumetric) = nodal.pressures(&theta, &bulk, &el.rest, tets);
                 let mut hessian = hessian;
                 self.assembly.assemble(
                     |e, with_h, out| {
-                        el.element_with(tets, history, u, e, with_h, project, out);
+                        el.element_with(tets, history, u, e, &offsets[e], with_h, project, out);
                         change[e].add_pressure(&el.rest[e], pressure[e], out, with_h);
                     },
                     self.element_energy,

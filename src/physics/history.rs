@@ -2,6 +2,7 @@
 //! state, eigenstrain). It is part of the simulation state, so rolling a step back is
 //! restoring a copy of the state, and it follows the elements through remeshing.
 
+use crate::fem::StrainOffset;
 use nalgebra::Matrix3;
 
 /// The per-element state that changes during a run.
@@ -49,12 +50,22 @@ impl ElementHistory {
     }
 
     /// Strain offset ε* = e I + ε_p of element `e`.
-    pub fn offset_of(&self, e: usize) -> Matrix3<f64> {
+    pub fn offset_of(&self, e: usize) -> StrainOffset {
         let iso = Matrix3::identity() * self.eigenstrain[e];
-        match self.plastic_strain.get(e) {
+        StrainOffset::new(match self.plastic_strain.get(e) {
             Some(p) => iso + p,
             None => iso,
-        }
+        })
+    }
+
+    /// The strain offsets of all elements, computed in parallel (for a solve, during which
+    /// they are fixed).
+    pub fn offsets(&self) -> Vec<StrainOffset> {
+        use rayon::prelude::*;
+        (0..self.eigenstrain.len())
+            .into_par_iter()
+            .map(|e| self.offset_of(e))
+            .collect()
     }
 
     /// Whether element `e` is fully frozen (always, without a freezing schedule).

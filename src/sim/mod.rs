@@ -506,14 +506,14 @@ impl Simulation {
             times: (self.state.time, t_new),
         };
         let mut terms: Vec<Box<dyn StepTerm + '_>> = vec![
-            Box::new(ElasticStep {
-                elasticity: &model.elasticity,
-                tets: &model.mesh.tets,
-                history: &self.state.history,
-                assembly: &self.assembly,
-                element_energy: &mut self.element_energy,
-                project: false,
-            }),
+            Box::new(ElasticStep::new(
+                &model.elasticity,
+                &model.mesh.tets,
+                &self.state.history,
+                &self.assembly,
+                &mut self.element_energy,
+                false,
+            )),
             Box::new(DeadLoads {
                 force: &model.external_force,
             }),
@@ -596,15 +596,15 @@ impl Simulation {
 
     /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.
     fn stiffness_at_previous(&mut self, beta: f64) {
-        let mut elastic = ElasticStep {
-            elasticity: &self.model.elasticity,
-            tets: &self.model.mesh.tets,
-            history: &self.state.history,
-            assembly: &self.assembly,
-            element_energy: &mut self.element_energy,
+        let mut elastic = ElasticStep::new(
+            &self.model.elasticity,
+            &self.model.mesh.tets,
+            &self.state.history,
+            &self.assembly,
+            &mut self.element_energy,
             // β K must be positive semi-definite to damp.
-            project: true,
-        };
+            true,
+        );
         let mut gradient = vec![0.0; self.previous.len()];
         self.damping_stiffness.fill(0.0);
         elastic.add(

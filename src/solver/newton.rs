@@ -298,7 +298,15 @@ pub fn minimize(
             report.t_assembly += start.elapsed().as_secs_f64();
         }
         if refresh {
-            factorize_or_project(potential, u, assembly, linear, work, &mut report, &mut energy)?;
+            factorize_or_project(
+                potential,
+                u,
+                assembly,
+                linear,
+                work,
+                &mut report,
+                &mut energy,
+            )?;
         }
         for (r, &d) in work.rhs.iter_mut().zip(dofs.free_dofs()) {
             *r = -work.gradient[d];
@@ -339,7 +347,15 @@ pub fn minimize(
             let start = Instant::now();
             energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
             report.t_assembly += start.elapsed().as_secs_f64();
-            factorize_or_project(potential, u, assembly, linear, work, &mut report, &mut energy)?;
+            factorize_or_project(
+                potential,
+                u,
+                assembly,
+                linear,
+                work,
+                &mut report,
+                &mut energy,
+            )?;
             stats = linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?;
             report.add_solve(&stats);
         }
@@ -553,8 +569,16 @@ mod tests {
             max_iterations: 10,
         };
         let mut work = NewtonWorkspace::new(&assembly);
-        minimize(&mut potential, &mut u, &assembly, &mut linear, &params, 1.0, &mut work)
-            .expect("the projected Hessian is positive definite");
+        minimize(
+            &mut potential,
+            &mut u,
+            &assembly,
+            &mut linear,
+            &params,
+            1.0,
+            &mut work,
+        )
+        .expect("the projected Hessian is positive definite");
         assert!(potential.projected);
         // The minimiser of a quadratic: exact to round-off.
         for (a, c) in u.iter().zip(&target) {
