@@ -815,7 +815,7 @@ pub(crate) fn offset_elastic_gradient(
 /// halved s times until ‖X/2ˢ‖_F ≤ 1/8, exp − I of that by its Taylor series to degree 10
 /// (truncation below 1e-17 relative), then squared back as E ← 2E + E² (the identity for
 /// exp(2Y) − I). A twentieth of the cost of an eigendecomposition, which the corotated
-/// model's plastic offset needs in every element evaluation; equal to it to round-off.
+/// model's plastic offset needs for every element at every solve; equal to it to round-off.
 fn expm1_symmetric(x: &Matrix3<f64>) -> Matrix3<f64> {
     let norm = x.norm();
     let halvings = if norm > 0.125 {
