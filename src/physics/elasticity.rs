@@ -267,7 +267,7 @@ impl Elasticity {
             .filter(|&e| history.eigenstrain[e] != 0.0 || !history.plastic_strain.is_empty())
             .map(|e| {
                 let (material, water_bulk) = self.material_of(history, e);
-                let offset = history.offset_of(e).strain;
+                let offset = history.offset_strain(e);
                 let stress =
                     material.hooke(&offset) + Matrix3::identity() * (water_bulk * offset.trace());
                 let r = &self.rest[e];

@@ -49,13 +49,18 @@ impl ElementHistory {
         }
     }
 
-    /// Strain offset ε* = e I + ε_p of element `e`.
-    pub fn offset_of(&self, e: usize) -> StrainOffset {
+    /// Strain ε* = e I + ε_p of element `e` (its offset without the corotated factor).
+    pub fn offset_strain(&self, e: usize) -> Matrix3<f64> {
         let iso = Matrix3::identity() * self.eigenstrain[e];
-        StrainOffset::new(match self.plastic_strain.get(e) {
+        match self.plastic_strain.get(e) {
             Some(p) => iso + p,
             None => iso,
-        })
+        }
+    }
+
+    /// Strain offset ε* = e I + ε_p of element `e`.
+    pub fn offset_of(&self, e: usize) -> StrainOffset {
+        StrainOffset::new(self.offset_strain(e))
     }
 
     /// The strain offsets of all elements, computed in parallel (for a solve, during which

@@ -207,6 +207,32 @@ fn factorize_or_project(
     Ok(())
 }
 
+/// Solves for the Newton direction with the prepared `linear`. An iterative solver finds
+/// indefiniteness only while solving: it then switches to the projected Hessian as a failed
+/// factorisation does ([`factorize_or_project`]) and solves again.
+fn solve_or_project(
+    potential: &mut impl Potential,
+    u: &[f64],
+    assembly: &Assembly,
+    linear: &mut LinearSolver,
+    work: &mut NewtonWorkspace,
+    report: &mut NewtonReport,
+) -> Result<LinearStats, NewtonError> {
+    match linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction) {
+        Err(e) if e.is_indefinite() && potential.project_hessian() => {
+            let start = Instant::now();
+            potential.evaluate(u, &mut work.gradient, &mut work.hessian);
+            report.t_assembly += start.elapsed().as_secs_f64();
+            if let Some(t) = linear.factorize(assembly, &work.hessian)? {
+                report.t_factorization += t;
+                report.factorizations += 1;
+            }
+            Ok(linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?)
+        }
+        other => Ok(other?),
+    }
+}
+
 /// Minimises `potential` over the free dofs of `u` (constrained dofs keep their values).
 /// `force_floor` (N) is a force scale of the problem (external and inertial forces per node);
 /// the residual is judged against it (or the support reactions when it is zero), and never
@@ -312,22 +338,7 @@ pub fn minimize(
             *r = -work.gradient[d];
         }
         linear.set_forcing(forcing(residual, previous_residual, target));
-        let mut stats = match linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)
-        {
-            // An iterative solver finds indefiniteness only while solving: switch to the
-            // projected Hessian as a failed factorisation does.
-            Err(e) if e.is_indefinite() && potential.project_hessian() => {
-                let start = Instant::now();
-                potential.evaluate(u, &mut work.gradient, &mut work.hessian);
-                report.t_assembly += start.elapsed().as_secs_f64();
-                if let Some(t) = linear.factorize(assembly, &work.hessian)? {
-                    report.t_factorization += t;
-                    report.factorizations += 1;
-                }
-                linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?
-            }
-            other => other?,
-        };
+        let mut stats = solve_or_project(potential, u, assembly, linear, work, &mut report)?;
         report.add_solve(&stats);
         // Contacts the step would create: put their stiffness into the Hessian and solve again
         // (a few rounds at most; each marks pairs for good within this solve).
@@ -356,7 +367,7 @@ pub fn minimize(
                 &mut report,
                 &mut energy,
             )?;
-            stats = linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?;
+            stats = solve_or_project(potential, u, assembly, linear, work, &mut report)?;
             report.add_solve(&stats);
         }
         // Slope of the potential along the direction (J per unit step).
