@@ -22,10 +22,13 @@
 //! it with normal n, at least [`area_floor`]. For a uniform uniaxial stress s along n,
 //! v⁺ = s A(n) exactly (tested), and on a grid A(n) is the node's cross-section h_y h_z: v⁺ is
 //! the force the node's share of the plane carries, and the criterion v⁺/A > τ is mesh
-//! independent, unlike a force threshold (see SPEC's calibration note). Only ice fractures: only fully frozen elements contribute, and a
-//! node touching an element that is still (partly) water gets ς = 0 — the water's pressure,
-//! which balances the ice there, is not in the sums, and the unbalanced ice forces would
-//! otherwise read as separation all along the freezing front.
+//! independent, unlike a force threshold (see SPEC's calibration note). Only ice fractures: elements that hold ice (freeze
+//! state s > 0, partly frozen ones with the stress the solve balanced) contribute, and a node
+//! touching an element that is still all water gets ς = 0 — the water's pressure, which
+//! balances the ice there, is not in the sums, and the unbalanced ice forces would otherwise
+//! read as separation all along the freezing front. A node is thus eligible once the front
+//! has passed it, whatever the element size; waiting for its whole star to finish freezing
+//! would delay it by the time the front takes to cross an element.
 //!
 //! `driver` applies the criterion between time steps, `split` remeshes, `cracks` extracts the
 //! crack surfaces.
@@ -150,7 +153,7 @@ pub fn separation(
     // p̄ₑ acts through their volume change θₑ.
     let pressure = elasticity.nodal_pressures(tets, history, u).map(|(p, _)| p);
     for (e, tet) in tets.iter().enumerate() {
-        if !history.is_frozen(e) {
+        if !history.holds_ice(e) {
             for &i in tet {
                 touches_water[i] = true;
             }
@@ -350,6 +353,32 @@ mod tests {
                 sep.stress()
             );
         }
+    }
+
+    #[test]
+    fn a_node_is_eligible_once_every_element_around_it_holds_ice() {
+        // The front has passed a node when each element of its star has started to freeze:
+        // one element around it still all water (s = 0) makes it ineligible, with ς = 0; the
+        // same element a tenth frozen contributes its stress and the node is eligible.
+        let mesh = box_mesh([0.0; 3], [0.04, 0.03, 0.02], [4, 3, 2], 6).unwrap();
+        let el = Elasticity::new(&mesh, ICE, ElasticModel::Linear);
+        let node = mesh
+            .rest
+            .iter()
+            .position(|x| (x - Vector3::new(0.02, 0.01, 0.01)).norm() < 1e-12)
+            .unwrap();
+        let neighbour = mesh.tets.iter().position(|t| t.contains(&node)).unwrap();
+        let u: Vec<f64> = mesh.rest.iter().flat_map(|x| [1e-4 * x.x, 0.0, 0.0]).collect();
+        let read = |state: f64| {
+            let mut history = el.initial_history();
+            history.freeze_state = vec![1.0; mesh.tets.len()];
+            history.freeze_state[neighbour] = state;
+            separation(&el, &history, &mesh.tets, &u, &[], 0.0, None)[node]
+        };
+        let water = read(0.0);
+        assert!(!water.eligible && water.largest == 0.0);
+        let freezing = read(0.1);
+        assert!(freezing.eligible && freezing.largest > 0.0);
     }
 
     #[test]

@@ -73,8 +73,9 @@ impl ElementHistory {
             .collect()
     }
 
-    /// Whether element `e` is fully frozen (always, without a freezing schedule).
-    pub fn is_frozen(&self, e: usize) -> bool {
-        self.freeze_state.get(e).is_none_or(|&s| s >= 1.0)
+    /// Whether element `e` holds any ice: its freeze state is above 0 (always, without a
+    /// freezing schedule).
+    pub fn holds_ice(&self, e: usize) -> bool {
+        self.freeze_state.get(e).is_none_or(|&s| s > 0.0)
     }
 }
