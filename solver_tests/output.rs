@@ -295,6 +295,7 @@ fn killed_process_leaves_a_readable_file_that_resumes() {
             .arg(&path)
             .arg("--output")
             .arg(&out)
+            .arg("--force")
             .stderr(std::process::Stdio::piped())
             .spawn()
             .unwrap();

@@ -323,7 +323,10 @@ fn bad_files_and_frames_are_clear_errors() {
         rest_positions: &rest,
         tets: &mesh.tets,
     };
-    drop(OutputWriter::create(&empty, &header).unwrap());
+    OutputWriter::create(&empty, &header)
+        .unwrap()
+        .finish()
+        .unwrap();
     let e = FrameReader::open(&empty).err().unwrap();
     assert!(matches!(e, OutputError::NoCompleteFrame { .. }), "{e}");
     assert!(e.to_string().contains("empty.h5") && e.to_string().contains("no complete frame"));

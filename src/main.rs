@@ -44,6 +44,10 @@ enum Command {
         /// Continue FILE from its last complete frame (same scene).
         #[arg(long, value_name = "FILE", conflicts_with = "output")]
         resume: Option<PathBuf>,
+        /// Replace the output file if it exists (only an icefem file that no run is writing;
+        /// the old file stays until the new run has written a frame after its first step).
+        #[arg(long, conflicts_with = "resume")]
+        force: bool,
     },
     /// Time the solver on ice cubes of several sizes and print a markdown table (medians).
     Bench {
@@ -127,12 +131,14 @@ fn main() {
             end_time,
             dt,
             resume,
+            force,
         } => {
             let options = RunOptions {
                 output: resume.clone().or(output),
                 end_time,
                 dt,
                 resume: resume.is_some(),
+                force,
             };
             run_command(&scene, &options)
         }
@@ -191,9 +197,25 @@ fn main() {
             .map_err(Into::into),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", message(&e));
         std::process::exit(1);
     }
+}
+
+/// An error and its causes on one line, each cause once: a cause whose text its error already
+/// shows (many errors quote their cause) is not repeated.
+fn message(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let line = cause.to_string();
+        if !text.contains(&line) {
+            if !text.is_empty() {
+                text.push_str(": ");
+            }
+            text.push_str(&line);
+        }
+    }
+    text
 }
 
 /// How pictures look (`render` and `figure`).
@@ -379,13 +401,22 @@ fn run_command(scene_path: &Path, options: &RunOptions) -> Result<()> {
     let interrupt = Arc::new(AtomicBool::new(false));
     {
         let flag = interrupt.clone();
-        // A second Ctrl-C while the first is being honoured kills the process the usual way.
+        // Ctrl-C, SIGTERM (what `kill`, `timeout` and schedulers send) and SIGHUP all stop the
+        // run after its current step, with the last state written. A second one while the
+        // first is being honoured kills the process the usual way.
         ctrlc::set_handler(move || {
             if flag.swap(true, Ordering::SeqCst) {
                 std::process::exit(130);
             }
         })
         .context("installing the Ctrl-C handler")?;
+    }
+    // Past a file-size limit (ulimit -f) a write fails with EFBIG instead of killing the
+    // process, so the output's own check can report it (and the committed frames stay).
+    // SAFETY: setting a signal's disposition to "ignore" is async-signal-safe and has no
+    // handler to race with.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
     }
     let m = &scene.model;
     eprintln!(
@@ -444,11 +475,18 @@ fn run_command(scene_path: &Path, options: &RunOptions) -> Result<()> {
         summary.output.display()
     );
     if summary.interrupted {
-        eprintln!(
-            "resume with: icefem run {} --resume {}",
+        let mut again = format!(
+            "icefem run {} --resume {}",
             scene_path.display(),
             summary.output.display()
         );
+        if let Some(t) = options.end_time {
+            again += &format!(" --end-time {t}");
+        }
+        if let Some(dt) = options.dt {
+            again += &format!(" --dt {dt}");
+        }
+        eprintln!("resume with: {again}");
         std::process::exit(130);
     }
     Ok(())

@@ -20,6 +20,14 @@ pub enum RunError {
     /// Output failed.
     #[error(transparent)]
     Output(#[from] OutputError),
+    /// The scene's problem cannot be set up (e.g. a Dirichlet region that holds no node).
+    #[error("{}: {error}", path.display())]
+    Setup {
+        /// The scene file.
+        path: PathBuf,
+        /// What is wrong.
+        error: SimError,
+    },
     /// The file to resume does not belong to this scene or mesh.
     #[error("cannot resume {path}: {reason}")]
     Resume { path: PathBuf, reason: String },
@@ -36,6 +44,9 @@ pub struct RunOptions {
     pub dt: Option<f64>,
     /// Continue this file from its last complete frame instead of starting anew.
     pub resume: bool,
+    /// Replace an existing icefem output file (never another kind of file, nor a file another
+    /// run is writing); without it an existing output is an error.
+    pub force: bool,
 }
 
 /// What a finished (or interrupted) run did.
@@ -108,7 +119,11 @@ pub fn run(
         .output
         .clone()
         .unwrap_or_else(|| scene.output.clone());
-    let mut sim = Simulation::new(scene.model.clone(), settings)?;
+    let mut sim =
+        Simulation::new(scene.model.clone(), settings).map_err(|error| RunError::Setup {
+            path: scene.path.clone(),
+            error,
+        })?;
     let mut fracture = scene.fracture.map(|f| Fracture::new(f, &sim.model.mesh));
     let mut writer = if options.resume {
         let (writer, frame) = OutputWriter::resume(&output)?;
@@ -123,11 +138,27 @@ pub fn run(
             rest_positions: &rest,
             tets: &sim.model.mesh.tets,
         };
-        let mut writer = OutputWriter::create(&output, &header)?;
+        let mut writer = if options.force {
+            OutputWriter::replace(&output, &header)?
+        } else {
+            OutputWriter::create(&output, &header)?
+        };
         write_frame(&mut writer, &sim, fracture.as_ref(), true)?;
         writer
     };
-    let total_steps = step_count(end_time, settings.dt);
+    // Steps from the state reached (a resumed file's last frame, possibly written with
+    // another dt) to the last whole step not past the end time.
+    let remaining = end_time - sim.state.time;
+    if remaining < -1e-9 * end_time {
+        return Err(RunError::Resume {
+            path: output.clone(),
+            reason: format!(
+                "it already reaches t = {} s (step {}), past the end time {end_time} s; give a later --end-time",
+                sim.state.time, sim.state.step
+            ),
+        });
+    }
+    let total_steps = sim.state.step + step_count(remaining.max(0.0), settings.dt);
     let mut summary = RunSummary {
         output: output.clone(),
         ..Default::default()

@@ -48,12 +48,48 @@ pub(super) trait Hdf5Context<T> {
 
 impl<T> Hdf5Context<T> for hdf5::Result<T> {
     fn ctx(self, path: &Path, context: impl FnOnce() -> String) -> Result<T, OutputError> {
-        self.map_err(|source| OutputError::Hdf5 {
+        self.map_err(|error| OutputError::Hdf5 {
             path: path.to_path_buf(),
             context: context(),
-            source,
+            error,
         })
     }
+}
+
+/// The gist of an HDF5 error for a message: its stack reads like "H5Fcreate(): unable to
+/// create file: unable to open file: name = '…', errno = 2, error message = 'No such file or
+/// directory', flags = 15, o_flags = c2" (and more); this keeps the innermost "unable to …"
+/// and what follows it, with the operating system's message in place of the raw fields.
+pub(super) fn concise(error: &hdf5::Error) -> String {
+    let text = error.to_string();
+    let text = match text.split_once("(): ") {
+        Some((function, rest)) if function.starts_with("H5") && !function.contains(' ') => rest,
+        _ => text.as_str(),
+    };
+    let segments: Vec<&str> = text.split(": ").collect();
+    let innermost = segments
+        .iter()
+        .rposition(|s| s.starts_with("unable to"))
+        .unwrap_or(0);
+    segments[innermost..]
+        .iter()
+        .map(|s| os_message(s).unwrap_or_else(|| s.to_string()))
+        .collect::<Vec<_>>()
+        .join(": ")
+}
+
+/// "No such file or directory (errno 2)" from a segment holding HDF5's raw
+/// "errno = 2, error message = 'No such file or directory'" fields, if it does.
+fn os_message(segment: &str) -> Option<String> {
+    let (_, after) = segment.split_once("error message = '")?;
+    let message = after.split('\'').next()?;
+    let errno = segment
+        .split_once("errno = ")
+        .and_then(|(_, e)| e.split(',').next());
+    Some(match errno {
+        Some(n) => format!("{message} (errno {n})"),
+        None => message.to_string(),
+    })
 }
 
 /// Makes an HDF5 variable-length UTF-8 string (rejects interior NULs).

@@ -52,9 +52,25 @@
 //! HDF5 1.8 format, which the file-space setting needs), not version 3, whose
 //! "open for writing" flag would make a killed run's file unopenable without
 //! `h5clear`.
+//!
+//! The XDMF sidecars are rewritten (atomically) after the commits, so a killed run's file
+//! opens in ParaView with its committed frames. A frame is begun only when the file system
+//! (and the process's file-size limit) has room for it, the uncommitted frames and a reserve
+//! for the commit ([`OutputError::NoSpace`] otherwise): a full disk stops the run with every
+//! committed frame readable, and `--resume` continues it once there is room.
+//!
+//! # Ownership
+//!
+//! See `ownership.rs`: a run holds a lock on its file that other runs see and readers do not
+//! (HDF5's own locking is off, so `info`, `render`, h5py and ParaView read a live run's
+//! complete frames); a new run writes beside its target and takes its place only after a
+//! frame past its first step, so a run that fails at its start leaves the old file as it was;
+//! an existing file is replaced only on request ([`OutputWriter::replace`]) and only if it is
+//! an icefem file no run is writing.
 
 mod describe;
 mod hdf5_io;
+mod ownership;
 mod reader;
 mod resume;
 #[cfg(test)]
@@ -223,15 +239,14 @@ pub struct StepStats {
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
     /// The HDF5 library reported an error.
-    #[error("{}: HDF5 error while {context}: {source}", path.display())]
+    #[error("{}: HDF5 error while {context}: {}", path.display(), hdf5_io::concise(error))]
     Hdf5 {
         /// File concerned.
         path: PathBuf,
         /// What was being done, e.g. "writing /frames/000003/positions [n, 3]".
         context: String,
-        /// The library's error (includes its error stack message).
-        #[source]
-        source: hdf5::Error,
+        /// The library's error (its whole error stack; the message shows its gist).
+        error: hdf5::Error,
     },
     /// An operating-system I/O error (missing file, permissions, …).
     #[error("{}: I/O error while {context}: {source}", path.display())]
@@ -282,6 +297,39 @@ pub enum OutputError {
         /// What is malformed, naming the HDF5 object.
         reason: String,
     },
+    /// Another icefem run is writing the file (it holds the run lock).
+    #[error("{}: another icefem run is writing this file; wait for it to end or choose another output", path.display())]
+    InUse {
+        /// File concerned.
+        path: PathBuf,
+    },
+    /// A new run was asked to write over an existing run's file without leave to replace it.
+    #[error("{} exists: pass --force to replace it, or --resume {} to continue it", path.display(), path.display())]
+    Exists {
+        /// File concerned.
+        path: PathBuf,
+    },
+    /// The output path holds something that is not an icefem file; it is never replaced.
+    #[error("{}: refusing to write the output over it: {reason}", path.display())]
+    Foreign {
+        /// File concerned.
+        path: PathBuf,
+        /// What the path holds.
+        reason: String,
+    },
+    /// The disk (or the process's file-size limit) has no room for the next frame; the frames
+    /// committed so far stay readable.
+    #[error("{}: no room for frame {frame} ({needed} bytes needed with the reserve, {available} available); frames up to {last_committed} are kept", path.display(), needed = bytes(*needed), available = bytes(*available), last_committed = frame.saturating_sub(1))]
+    NoSpace {
+        /// File concerned.
+        path: PathBuf,
+        /// Index of the frame that was not written.
+        frame: usize,
+        /// Bytes the frame and the commit reserve need.
+        needed: u64,
+        /// Bytes available (free space on the file system, or below the file-size limit).
+        available: u64,
+    },
     /// The caller passed inconsistent data; nothing of the offending frame was written.
     #[error("{}: invalid output data: {reason}", path.display())]
     InvalidInput {
@@ -290,6 +338,16 @@ pub enum OutputError {
         /// What is inconsistent.
         reason: String,
     },
+}
+
+/// A byte count in the unit that reads best (B, kB, MB, GB; decimal).
+fn bytes(n: u64) -> String {
+    match n {
+        0..1_000 => format!("{n} B"),
+        1_000..1_000_000 => format!("{:.1} kB", n as f64 / 1e3),
+        1_000_000..1_000_000_000 => format!("{:.1} MB", n as f64 / 1e6),
+        _ => format!("{:.2} GB", n as f64 / 1e9),
+    }
 }
 
 /// An [`OutputError::Corrupt`] for `path`.

@@ -10,6 +10,7 @@ use super::hdf5_io::{
     check_hdf5_signature, check_icefem_layout, close_on_exec, list_frames, read_attr, read_string,
     read_string_attr, read_tets, read_vec3, Hdf5Context,
 };
+use super::ownership::RunLock;
 use super::writer::{crash_safe_options, create_stats_column, STATS_COLUMNS};
 use super::{corrupt, OutputError, OutputWriter, RESERVED_FRAME_NAMES};
 
@@ -63,6 +64,7 @@ impl OutputWriter {
     /// compacts the file).
     pub fn resume(path: &Path) -> Result<(Self, ResumeFrame), OutputError> {
         check_hdf5_signature(path)?;
+        let lock = RunLock::acquire(path)?;
         let file = crash_safe_options()
             .open_rw(path)
             .ctx(path, || "opening for resume".into())?;
@@ -96,7 +98,11 @@ impl OutputWriter {
             .ctx(path, || "flushing after resume cleanup".into())?;
 
         let writer = Self {
-            path: path.to_path_buf(),
+            location: path.to_path_buf(),
+            target: path.to_path_buf(),
+            _lock: lock,
+            committed: 0,
+            uncommitted_bytes: 0,
             file: Some(file),
             next_frame: last_index + 1,
             topology_rest_path: format!("/frames/{last_name}/rest_positions"),
@@ -107,6 +113,7 @@ impl OutputWriter {
             pending_stats: Vec::new(),
             uncommitted: Vec::new(),
             last_commit: None,
+            last_sidecars: None,
         };
         Ok((writer, rf))
     }
@@ -284,7 +291,7 @@ mod tests {
         }
         // Frames are committed in batches; commit the two as the interval would.
         let file = w.file.clone().unwrap();
-        w.commit(&file).unwrap();
+        w.commit(&file, false).unwrap();
         for step in 11..=17 {
             w.append_stats(&stats(step)).unwrap();
         }
@@ -448,7 +455,7 @@ mod tests {
         let path = dir.path().join("empty.h5");
         let (p, t) = mesh();
         let w = OutputWriter::create(&path, &header(&p, &t)).unwrap();
-        drop(w);
+        w.finish().unwrap();
         let r = OutputWriter::resume(&path);
         assert!(
             matches!(r, Err(OutputError::NoCompleteFrame { .. })),
@@ -465,7 +472,7 @@ mod tests {
         let (p, t) = mesh();
         let mut w = OutputWriter::create(&path, &header(&p, &t)).unwrap();
         write(&mut w, 0, &frame_data(0, &p, &t), true);
-        drop(w);
+        w.finish().unwrap();
         {
             // Replace the frame's tets by an out-of-range index set and
             // velocities by a wrongly shaped array.

@@ -9,7 +9,8 @@ use super::hdf5_io::{
     check_tets, close_on_exec, vlen_str, write_attr, write_indices, write_matrix, write_tets,
     write_vec3, Hdf5Context,
 };
-use super::xdmf::write_xdmf;
+use super::ownership::{check_target, partial_path, take_place, RunLock};
+use super::xdmf::write_sidecars;
 use super::{
     corrupt, invalid, Frame, OutputError, RunHeader, StepStats, FORMAT_VERSION,
     RESERVED_FRAME_NAMES,
@@ -90,7 +91,18 @@ fn frame_name(index: usize) -> String {
 /// Dropping a writer without [`finish`](Self::finish) still writes buffered
 /// stats rows (best effort) but produces no XDMF sidecar.
 pub struct OutputWriter {
-    pub(super) path: PathBuf,
+    /// Where the file is now: `target`, or the hidden partial file of a new run not yet in its
+    /// place (see `ownership`).
+    pub(super) location: PathBuf,
+    /// Where the run's file belongs.
+    pub(super) target: PathBuf,
+    /// This run's write lock on its file.
+    pub(super) _lock: RunLock,
+    /// Frames marked complete so far by this writer.
+    pub(super) committed: usize,
+    /// Bytes of the frames written since the last commit (what the commit's flush may still
+    /// have to put on disk).
+    pub(super) uncommitted_bytes: u64,
     /// `None` only after `finish` took it, so `Drop` knows there is nothing to do.
     pub(super) file: Option<File>,
     /// Index of the next frame group to create.
@@ -110,6 +122,8 @@ pub struct OutputWriter {
     pub(super) uncommitted: Vec<String>,
     /// When the last commit happened (`None`: never).
     pub(super) last_commit: Option<std::time::Instant>,
+    /// When the sidecars were last rewritten and how long that took (`None`: never).
+    pub(super) last_sidecars: Option<(std::time::Instant, std::time::Duration)>,
 }
 
 /// How a run's file is created and reopened for writing, so that between commits nothing the
@@ -134,28 +148,136 @@ pub(super) fn crash_safe_options() -> hdf5::file::FileBuilder {
         ..Default::default()
     };
     let mut builder = File::with_options();
+    // HDF5's own file lock off: readers may open the file while it is written (the run's
+    // lock is `ownership::RunLock`).
     builder
-        .with_fapl(|fapl| fapl.mdc_config(&cache))
+        .with_fapl(|fapl| fapl.mdc_config(&cache).file_locking(false))
         .with_fcpl(|fcpl| fcpl.file_space_strategy(FileSpaceStrategy::None));
     builder
 }
+
+/// Bytes one `/stats` row takes (31 columns of 8 bytes at most).
+const STATS_ROW_BYTES: u64 = 8 * STATS_COLUMNS.len() as u64;
+
+/// Room kept free beyond the frames for a commit's metadata and the XDMF sidecars (bytes);
+/// [`OutputWriter::check_room`] adds 2 % of the file for the metadata that grows with it.
+const COMMIT_RESERVE: u64 = 1 << 20;
+
+/// Bytes a frame's datasets take uncompressed (an upper bound of what it adds to the file),
+/// plus its groups' and attributes' headers.
+fn frame_bytes(frame: &Frame) -> u64 {
+    let rows3 = 24 * frame.positions.len() as u64;
+    let mut bytes = 16_384 + 2 * rows3 + 48 * frame.stress.len() as u64;
+    if frame.topology_changed {
+        bytes += rows3 + 32 * frame.tets.len() as u64;
+    }
+    for f in frame.element_fields.iter().chain(frame.node_fields) {
+        bytes += 8 * f.data.len() as u64;
+    }
+    if let Some(c) = frame.cracks {
+        bytes += 24 * (c.vertices.len() + c.triangles.len()) as u64 + 8 * c.crack.len() as u64;
+    }
+    bytes
+}
+
+/// Bytes that may still be written to `path`, now `written` bytes long: the free space of its
+/// file system for unprivileged users, and below the process's file-size limit if it has one;
+/// `None` when neither can be read.
+fn available_bytes(path: &Path, written: u64) -> Option<u64> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let free = free_space(dir);
+    // SAFETY: getrlimit fills the struct it is given.
+    let limit = unsafe {
+        let mut l = std::mem::zeroed::<libc::rlimit>();
+        (libc::getrlimit(libc::RLIMIT_FSIZE, &mut l) == 0 && l.rlim_cur != libc::RLIM_INFINITY)
+            .then(|| (l.rlim_cur as u64).saturating_sub(written))
+    };
+    match (free, limit) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// Free bytes of the file system holding `dir`, for unprivileged users.
+fn free_space(dir: &Path) -> Option<u64> {
+    use std::os::unix::ffi::OsStrExt as _;
+    let c = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
+    // SAFETY: `c` is a NUL-terminated path and `s` a struct statvfs fills.
+    unsafe {
+        let mut s = std::mem::zeroed::<libc::statvfs>();
+        (libc::statvfs(c.as_ptr(), &mut s) == 0).then(|| s.f_bavail as u64 * s.f_frsize as u64)
+    }
+}
+
+/// The sidecars are rewritten at a commit when the time since their last rewrite is at least
+/// this many times what that rewrite took (at most 1/20 of a run's time goes to them).
+const SIDECAR_SHARE: u32 = 20;
 
 /// Longest wall time between two commits of written frames (see the module docs).
 pub const COMMIT_INTERVAL: std::time::Duration = std::time::Duration::from_millis(500);
 
 impl OutputWriter {
-    /// Creates (truncating) the file at `path` and writes the run header:
-    /// root attributes, `/mesh`, empty `/frames` and empty `/stats` columns.
-    pub fn create(path: &Path, header: &RunHeader) -> Result<Self, OutputError> {
+    /// Starts a new run's file for `target` and writes the run header: root attributes,
+    /// `/mesh`, empty `/frames` and empty `/stats` columns. An existing `target` is an error
+    /// ([`OutputError::Exists`]); see [`replace`](Self::replace).
+    ///
+    /// The file is written beside `target` and takes its place once a frame after the first
+    /// is committed, or at [`finish`](Self::finish); a writer dropped before that removes it.
+    pub fn create(target: &Path, header: &RunHeader) -> Result<Self, OutputError> {
+        Self::start(target, header, false)
+    }
+
+    /// As [`create`](Self::create), but an existing icefem file at `target` that no run is
+    /// writing is replaced (when the new run takes its place). Anything else at `target` —
+    /// another kind of file, a directory, a file a run is writing — is still refused.
+    pub fn replace(target: &Path, header: &RunHeader) -> Result<Self, OutputError> {
+        Self::start(target, header, true)
+    }
+
+    fn start(target: &Path, header: &RunHeader, replace: bool) -> Result<Self, OutputError> {
+        check_target(target, replace)?;
+        let path = &partial_path(target);
+        match Self::write_header(path, header) {
+            Ok((file, lock)) => Ok(Self {
+                location: path.clone(),
+                target: target.to_path_buf(),
+                _lock: lock,
+                committed: 0,
+                uncommitted_bytes: 0,
+                file: Some(file),
+                next_frame: 0,
+                topology_rest_path: "/mesh/rest_positions".into(),
+                topology_tets_path: "/mesh/tets".into(),
+                n_nodes: header.rest_positions.len(),
+                n_elems: header.tets.len(),
+                stats_rows: 0,
+                pending_stats: Vec::new(),
+                uncommitted: Vec::new(),
+                last_commit: None,
+                last_sidecars: None,
+            }),
+            Err(e) => {
+                let _ = std::fs::remove_file(path);
+                Err(e)
+            }
+        }
+    }
+
+    /// Creates the file at `path`, locks it and writes the run header.
+    fn write_header(path: &Path, header: &RunHeader) -> Result<(File, RunLock), OutputError> {
         check_tets(path, "mesh", header.tets, header.rest_positions.len())?;
         let scene = vlen_str(path, "scene", header.scene_text)?;
         let scene_path = vlen_str(path, "scene_path", header.scene_path)?;
         let version = vlen_str(path, "icefem_version", header.version)?;
 
         let file = crash_safe_options()
-            .create(path)
+            .create_excl(path)
             .ctx(path, || "creating the file".into())?;
         close_on_exec(&file);
+        let lock = RunLock::acquire(path)?;
         let root: &Group = &file;
         write_attr(path, root, "scene", &scene)?;
         write_attr(path, root, "scene_path", &scene_path)?;
@@ -176,20 +298,7 @@ impl OutputWriter {
             create_stats_column(path, &stats, name, col)?;
         }
         file.flush().ctx(path, || "flushing the header".into())?;
-
-        Ok(Self {
-            path: path.to_path_buf(),
-            file: Some(file),
-            next_frame: 0,
-            topology_rest_path: "/mesh/rest_positions".into(),
-            topology_tets_path: "/mesh/tets".into(),
-            n_nodes: header.rest_positions.len(),
-            n_elems: header.tets.len(),
-            stats_rows: 0,
-            pending_stats: Vec::new(),
-            uncommitted: Vec::new(),
-            last_commit: None,
-        })
+        Ok((file, lock))
     }
 
     /// Number of frames in the file (the index the next frame will get).
@@ -197,16 +306,16 @@ impl OutputWriter {
         self.next_frame
     }
 
-    /// Path of the HDF5 file being written.
+    /// Path of the run's HDF5 file (where it is, or will be once the run takes its place).
     pub fn path(&self) -> &Path {
-        &self.path
+        &self.target
     }
 
     fn file(&self) -> Result<&File, OutputError> {
         // Only reachable if a method were called after `finish`, which takes `self`.
         self.file
             .as_ref()
-            .ok_or_else(|| invalid(&self.path, "writer already finished"))
+            .ok_or_else(|| invalid(&self.location, "writer already finished"))
     }
 
     /// Appends one frame as group `/frames/NNNNNN` and writes pending stats; the
@@ -216,14 +325,16 @@ impl OutputWriter {
     /// `InvalidInput` error leaves the file untouched.
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), OutputError> {
         self.validate_frame(frame)?;
+        let size = frame_bytes(frame) + STATS_ROW_BYTES * self.pending_stats.len() as u64;
+        self.check_room(size)?;
         let name = frame_name(self.next_frame);
         let file = self.file()?.clone();
         let frames = file
             .group("frames")
-            .ctx(&self.path, || "opening /frames".into())?;
+            .ctx(&self.location, || "opening /frames".into())?;
         if frames.link_exists(&name) {
             return Err(corrupt(
-                &self.path,
+                &self.location,
                 format!("/frames/{name} already exists"),
             ));
         }
@@ -244,7 +355,7 @@ impl OutputWriter {
         frames: &Group,
         name: &str,
     ) -> Result<(), OutputError> {
-        let path = self.path.clone();
+        let path = self.location.clone();
         let g = frames
             .create_group(name)
             .ctx(&path, || format!("creating /frames/{name}"))?;
@@ -296,11 +407,12 @@ impl OutputWriter {
         }
         self.flush_stats()?;
         self.uncommitted.push(name.to_string());
+        self.uncommitted_bytes += frame_bytes(frame);
         if self
             .last_commit
             .is_none_or(|t| t.elapsed() >= COMMIT_INTERVAL)
         {
-            self.commit(file)?;
+            self.commit(file, false)?;
         }
 
         if frame.topology_changed {
@@ -314,7 +426,7 @@ impl OutputWriter {
     }
 
     fn validate_frame(&self, frame: &Frame) -> Result<(), OutputError> {
-        let path = &self.path;
+        let path = &self.location;
         let n = frame.positions.len();
         let m = frame.tets.len();
         if frame.velocities.len() != n || frame.rest_positions.len() != n {
@@ -423,32 +535,78 @@ impl OutputWriter {
     /// Marks every uncommitted frame complete: a first flush puts all their
     /// datasets in the file before any marker exists, so no crash can leave a
     /// "complete" frame with missing data; a second flush writes the markers.
-    pub(super) fn commit(&mut self, file: &File) -> Result<(), OutputError> {
+    ///
+    /// Then the sidecars are rewritten, so a run that dies opens in ParaView with every
+    /// committed frame; a new run's file takes its target's place first once it holds a frame
+    /// after the first (or when `finishing`).
+    pub(super) fn commit(&mut self, file: &File, finishing: bool) -> Result<(), OutputError> {
         self.last_commit = Some(std::time::Instant::now());
-        if self.uncommitted.is_empty() {
+        let path = self.location.clone();
+        if !self.uncommitted.is_empty() {
+            file.flush()
+                .ctx(&path, || "flushing frames before commit".into())?;
+            for name in std::mem::take(&mut self.uncommitted) {
+                let g = file
+                    .group(&format!("frames/{name}"))
+                    .ctx(&path, || format!("opening /frames/{name} to commit it"))?;
+                write_attr(&path, &g, "complete", &1u8)?;
+                self.committed += 1;
+            }
+            file.flush()
+                .ctx(&path, || "flushing frame completion".into())?;
+            self.uncommitted_bytes = 0;
+        } else if !finishing {
             return Ok(());
         }
-        let path = self.path.clone();
-        file.flush()
-            .ctx(&path, || "flushing frames before commit".into())?;
-        for name in std::mem::take(&mut self.uncommitted) {
-            let g = file
-                .group(&format!("frames/{name}"))
-                .ctx(&path, || format!("opening /frames/{name} to commit it"))?;
-            write_attr(&path, &g, "complete", &1u8)?;
+        if self.location != self.target && (self.committed >= 2 || finishing) {
+            take_place(&self.location, &self.target)?;
+            self.location = self.target.clone();
         }
-        file.flush()
-            .ctx(&path, || "flushing frame completion".into())
+        // Rewriting the sidecars reads every frame's layout again, so a long run does it only
+        // when that keeps it under 1/SIDECAR_SHARE of the time since the last rewrite.
+        let due = self
+            .last_sidecars
+            .is_none_or(|(at, took)| at.elapsed() >= took * SIDECAR_SHARE);
+        if self.location == self.target && (due || finishing) {
+            let start = std::time::Instant::now();
+            write_sidecars(&self.target, file)?;
+            self.last_sidecars = Some((start, start.elapsed()));
+        }
+        Ok(())
+    }
+
+    /// Fails with [`OutputError::NoSpace`] unless the file system (and the process's file-size
+    /// limit) leaves room for `size` more bytes, the frames not yet committed and a reserve
+    /// for the commit's metadata and the sidecars: a frame that does not fit is not begun, so
+    /// a full disk never interrupts a write and the committed frames stay readable.
+    fn check_room(&self, size: u64) -> Result<(), OutputError> {
+        let written = std::fs::metadata(&self.location).map_or(0, |m| m.len());
+        let needed = size + self.uncommitted_bytes + COMMIT_RESERVE + written / 50;
+        let available = available_bytes(&self.location, written);
+        if available.is_some_and(|a| a < needed) {
+            return Err(OutputError::NoSpace {
+                path: self.target.clone(),
+                frame: self.next_frame,
+                needed,
+                available: available.unwrap_or(0),
+            });
+        }
+        Ok(())
     }
 
     /// Writes pending stats rows to `/stats` (without H5Fflush).
     pub(super) fn flush_stats(&mut self) -> Result<(), OutputError> {
+        let file = self.file()?.clone();
+        self.flush_stats_to(&file)
+    }
+
+    /// As [`flush_stats`](Self::flush_stats), into `file`.
+    fn flush_stats_to(&mut self, file: &File) -> Result<(), OutputError> {
         if self.pending_stats.is_empty() {
             return Ok(());
         }
-        let path = self.path.clone();
-        let stats = self
-            .file()?
+        let path = self.location.clone();
+        let stats = file
             .group("stats")
             .ctx(&path, || "opening /stats".into())?;
         let old = self.stats_rows;
@@ -488,13 +646,13 @@ impl OutputWriter {
     /// `path.with_extension("xdmf")`.
     pub fn finish(mut self) -> Result<(), OutputError> {
         self.flush_stats()?;
-        let path = self.path.clone();
-        if let Some(file) = self.file.take() {
-            self.commit(&file)?;
+        if let Some(file) = self.file.clone() {
+            self.commit(&file, true)?;
+            self.file = None;
+            let path = self.location.clone();
             file.flush().ctx(&path, || "flushing before close".into())?;
             file.close().ctx(&path, || "closing the file".into())?;
         }
-        write_xdmf(&path)?;
         Ok(())
     }
 }
@@ -503,10 +661,13 @@ impl Drop for OutputWriter {
     fn drop(&mut self) {
         // Best effort: an error here cannot be reported, and `finish` already
         // emptied the buffer on the normal path.
-        if self.file.is_some() {
-            let _ = self.flush_stats();
-            if let Some(f) = self.file.clone() {
-                let _ = self.commit(&f);
+        if let Some(f) = self.file.take() {
+            let _ = self.flush_stats_to(&f);
+            let _ = self.commit(&f, false);
+            if self.location != self.target {
+                // The run never got past its start: the target keeps what it held.
+                drop(f);
+                let _ = std::fs::remove_file(&self.location);
             }
         }
     }

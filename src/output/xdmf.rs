@@ -139,6 +139,21 @@ fn xdmf_cracks(h5_path: &Path, h5_name: &str, frames: &Group) -> Result<String, 
     ))
 }
 
+/// Writes `text` to `path` through a temporary file renamed into place, so a reader sees the
+/// old file or the new one, never half of one.
+fn replace_file(path: &Path, text: &str, what: &str) -> Result<(), OutputError> {
+    let tmp = path.with_extension("xdmf.tmp");
+    let io = |context: String| {
+        move |source| OutputError::Io {
+            path: path.to_path_buf(),
+            context,
+            source,
+        }
+    };
+    std::fs::write(&tmp, text).map_err(io(format!("writing {what}")))?;
+    std::fs::rename(&tmp, path).map_err(io(format!("renaming {what} into place")))
+}
+
 /// Writes `<file>.xdmf` next to the HDF5 file: an XDMF 3 temporal collection
 /// with one uniform grid per complete frame (incomplete frames are skipped).
 ///
@@ -155,6 +170,12 @@ pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
     let file = File::open(h5_path).ctx(h5_path, || "opening to write the XDMF sidecar".into())?;
     close_on_exec(&file);
     check_icefem_layout(h5_path, &file)?;
+    write_sidecars(h5_path, &file)
+}
+
+/// As [`write_xdmf`], from `file`, the open HDF5 file at `h5_path` (the writer's own handle:
+/// a run rewrites its sidecars at every commit without opening its file a second time).
+pub(super) fn write_sidecars(h5_path: &Path, file: &File) -> Result<PathBuf, OutputError> {
     let h5_name = h5_path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -260,33 +281,29 @@ pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
     xml.push_str("    </Grid>\n  </Domain>\n</Xdmf>\n");
     let cracks = xdmf_cracks(h5_path, &h5_name, &frames)?;
     drop(frames);
-    drop(file);
 
     let xdmf_path = h5_path.with_extension("xdmf");
-    let tmp = xdmf_path.with_extension("xdmf.tmp");
-    let io = |context: &'static str| {
-        let p = xdmf_path.clone();
-        move |source| OutputError::Io {
-            path: p,
-            context: context.into(),
-            source,
+    replace_file(&xdmf_path, &xml, "the XDMF sidecar")?;
+    // A file of its own: readers that take one grid collection per file (meshio, and
+    // ParaView's default view of it) keep reading the tet mesh from RUN.xdmf. Without cracks,
+    // a crack sidecar left by an earlier run of the same name is removed.
+    let path = h5_path.with_extension("cracks.xdmf");
+    if cracks.is_empty() {
+        match std::fs::remove_file(&path) {
+            Err(source) if source.kind() != std::io::ErrorKind::NotFound => {
+                return Err(OutputError::Io {
+                    path,
+                    context: "removing a crack-surface sidecar of an earlier run".into(),
+                    source,
+                })
+            }
+            _ => {}
         }
-    };
-    std::fs::write(&tmp, xml).map_err(io("writing the XDMF sidecar"))?;
-    std::fs::rename(&tmp, &xdmf_path).map_err(io("renaming the XDMF sidecar into place"))?;
-    if !cracks.is_empty() {
-        // A file of its own: readers that take one grid collection per file (meshio, and
-        // ParaView's default view of it) keep reading the tet mesh from RUN.xdmf.
-        let path = h5_path.with_extension("cracks.xdmf");
-        let io = |source| OutputError::Io {
-            path: path.clone(),
-            context: "writing the crack-surface XDMF sidecar".into(),
-            source,
-        };
+    } else {
         let xml = format!(
             "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<Xdmf xmlns:xi=\"http://www.w3.org/2001/XInclude\" Version=\"3.0\">\n  <Domain>\n{cracks}  </Domain>\n</Xdmf>\n"
         );
-        std::fs::write(&path, xml).map_err(io)?;
+        replace_file(&path, &xml, "the crack-surface XDMF sidecar")?;
     }
     Ok(xdmf_path)
 }

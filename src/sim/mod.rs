@@ -168,7 +168,7 @@ pub enum SimError {
     #[error("singular: no Dirichlet conditions, so a static solve has unconstrained rigid-body modes; add a [[dirichlet]] region or use analysis = \"dynamic\"")]
     NoDirichlet,
     /// A Dirichlet region matched no node.
-    #[error("dirichlet condition {index} (region {min:?} – {max:?}) holds no node of the mesh")]
+    #[error("[[dirichlet]] number {} (region {min:?} – {max:?} m) holds no node of the mesh", index + 1)]
     EmptyDirichlet {
         index: usize,
         min: [f64; 3],

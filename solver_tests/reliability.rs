@@ -1,0 +1,439 @@
+//! What a run does to files when users and machines misbehave, through the command line where
+//! they meet it: an output that exists, is held by a reader, is written by another run or is
+//! not an icefem file; a rerun that fails; a full disk; SIGTERM and SIGKILL; a reader of a live
+//! run.
+
+use std::os::unix::process::CommandExt as _;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+
+use icefem::output::FrameReader;
+
+/// A clamped bar sagging under gravity: 60 tets, a frame every `output_every` steps.
+const BAR: &str = r#"
+[mesh]
+box = { size = [0.2, 0.02, 0.02], cells = [10, 1, 1] }
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[physics]
+gravity = [0.0, -3.0, -9.81]
+damping = { mass = 0.5, stiffness = 1e-5 }
+[[dirichlet]]
+min = [-1.0, -1.0, -1.0]
+max = [1e-9, 1.0, 1.0]
+[time]
+dt = 0.002
+end_time = 0.02
+output_every = 2
+"#;
+
+/// The bar with a Newton limit it cannot meet: the run fails at step 1.
+fn failing_bar() -> String {
+    BAR.replace("[time]", "[solver]\nmax_iterations = 1\ntolerance = 1e-12\n[time]")
+        .replace(
+            "gravity = [0.0, -3.0, -9.81]",
+            "gravity = [0.0, -3000.0, -9810.0]",
+        )
+        .replace("[material]", "[material]\nmodel = \"corotated\"")
+}
+
+/// The bar run long, a frame every step: still running when a test stops it.
+fn long_bar() -> String {
+    BAR.replace("end_time = 0.02", "end_time = 1000.0")
+        .replace("output_every = 2", "output_every = 1")
+}
+
+fn exe() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_icefem"))
+}
+
+fn write_scene(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// `icefem run SCENE --output OUT [extra…]`.
+fn run(scene: &Path, out: &Path, extra: &[&str]) -> Output {
+    exe()
+        .arg("run")
+        .arg(scene)
+        .arg("--output")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Starts `icefem run` on `scene` and returns once `out` holds at least `frames` complete
+/// frames (the run has taken its target's place and is writing it).
+fn start(mut command: Command, scene: &Path, out: &Path, frames: usize) -> Child {
+    let child = command
+        .arg("run")
+        .arg(scene)
+        .arg("--output")
+        .arg(out)
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    while FrameReader::open(out).map_or(0, |r| r.frame_indices().len()) < frames {
+        assert!(std::time::Instant::now() < deadline, "the run wrote no frames");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child
+}
+
+fn frames(path: &Path) -> usize {
+    FrameReader::open(path).unwrap().frame_indices().len()
+}
+
+/// The files in `dir` (names), sorted: what a run leaves behind.
+fn listing(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// Every frame group the XDMF sidecar of `h5` names is a complete frame of the file (what
+/// ParaView and meshio open).
+fn assert_sidecar_matches(h5: &Path) {
+    let xdmf = std::fs::read_to_string(h5.with_extension("xdmf")).unwrap();
+    let named: Vec<usize> = xdmf
+        .match_indices("Name=\"frame_")
+        .map(|(i, _)| xdmf[i + 12..i + 18].parse().unwrap())
+        .collect();
+    assert!(!named.is_empty(), "sidecar lists no frame");
+    let complete = FrameReader::open(h5).unwrap().frame_indices();
+    assert!(
+        named.iter().all(|i| complete.contains(i)),
+        "sidecar frames {named:?}, complete {complete:?}"
+    );
+}
+
+#[test]
+fn an_existing_output_is_replaced_only_with_force_and_a_failing_rerun_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "bar.toml", BAR);
+    let out = dir.path().join("bar.h5");
+    assert!(run(&scene, &out, &[]).status.success());
+    let original = std::fs::read(&out).unwrap();
+    let sidecar = std::fs::read(out.with_extension("xdmf")).unwrap();
+    assert_eq!(frames(&out), 6);
+
+    // Without --force: refused, the file untouched.
+    let o = run(&scene, &out, &[]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&out).unwrap(), original);
+
+    // With --force, a rerun that fails at step 1: the old file and its sidecar stay as they
+    // were, and nothing is left beside them.
+    let failing = write_scene(dir.path(), "failing.toml", &failing_bar());
+    let o = run(&failing, &out, &["--force"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("step 1"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&out).unwrap(), original);
+    assert_eq!(std::fs::read(out.with_extension("xdmf")).unwrap(), sidecar);
+    assert_eq!(
+        listing(dir.path()),
+        ["bar.h5", "bar.toml", "bar.xdmf", "failing.toml"]
+    );
+
+    // With --force, a run that succeeds replaces it.
+    let short = write_scene(
+        dir.path(),
+        "short.toml",
+        &BAR.replace("end_time = 0.02", "end_time = 0.008"),
+    );
+    assert!(run(&short, &out, &["--force"]).status.success());
+    assert_eq!(frames(&out), 3);
+    assert_sidecar_matches(&out);
+}
+
+#[test]
+fn an_output_held_open_by_a_reader_is_not_damaged() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "bar.toml", BAR);
+    let out = dir.path().join("bar.h5");
+    assert!(run(&scene, &out, &[]).status.success());
+    // A reader (h5py, ParaView) holds the file open, with HDF5's file locking on.
+    let held = hdf5::File::open(&out).unwrap();
+    let short = write_scene(
+        dir.path(),
+        "short.toml",
+        &BAR.replace("end_time = 0.02", "end_time = 0.008"),
+    );
+    let o = run(&short, &out, &["--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The reader still reads the old run whole; the path holds the new one.
+    assert_eq!(held.group("frames").unwrap().member_names().unwrap().len(), 6);
+    let positions = held.dataset("frames/000005/positions").unwrap();
+    assert_eq!(positions.read_raw::<f64>().unwrap().len(), 44 * 3);
+    assert_eq!(frames(&out), 3);
+}
+
+#[test]
+fn a_file_that_is_not_icefem_output_is_never_written_over() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "bar.toml", BAR);
+    for force in [false, true] {
+        let extra: &[&str] = if force { &["--force"] } else { &[] };
+        // The scene itself as the output.
+        let o = run(&scene, &scene, extra);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains("not an HDF5 file"), "{}", stderr(&o));
+        assert_eq!(std::fs::read_to_string(&scene).unwrap(), BAR);
+        // A directory.
+        let o = run(&scene, dir.path(), extra);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains("not a regular file"), "{}", stderr(&o));
+    }
+    // An HDF5 file of someone else's.
+    let other = dir.path().join("other.h5");
+    hdf5::File::create(&other)
+        .unwrap()
+        .new_dataset::<f64>()
+        .shape(3)
+        .create("data")
+        .unwrap();
+    let before = std::fs::read(&other).unwrap();
+    let o = run(&scene, &other, &["--force"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("not icefem output"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&other).unwrap(), before);
+}
+
+#[test]
+fn a_second_run_on_a_file_being_written_is_refused_and_readers_see_its_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "long.toml", &long_bar());
+    let out = dir.path().join("long.h5");
+    let mut first = start(exe(), &scene, &out, 20);
+    for extra in [&[][..], &["--force"][..]] {
+        let o = run(&scene, &out, extra);
+        assert!(!o.status.success());
+        assert!(
+            stderr(&o).contains("another icefem run is writing this file"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    let resumed = exe()
+        .args(["run"])
+        .arg(&scene)
+        .arg("--resume")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(stderr(&resumed).contains("another icefem run is writing this file"));
+    // Readers open the live file and read its complete frames.
+    let info = exe().arg("info").arg(&out).output().unwrap();
+    assert!(info.status.success(), "{}", stderr(&info));
+    let reader = FrameReader::open(&out).unwrap();
+    let last = *reader.frame_indices().last().unwrap();
+    reader.read(last).unwrap();
+    // (Closed before the file is opened again below: HDF5 shares one open file per process,
+    // with the metadata this open read.)
+    drop(reader);
+    // SIGTERM stops the run like Ctrl-C: after its step, with its last state written.
+    // SAFETY: signalling our own child process.
+    unsafe { libc::kill(first.id() as i32, libc::SIGTERM) };
+    let status = first.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    assert_sidecar_matches(&out);
+    assert!(frames(&out) > last);
+}
+
+#[test]
+fn sigterm_then_resume_ends_bit_identical_to_an_uninterrupted_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = BAR
+        .replace("end_time = 0.02", "end_time = 20.0")
+        .replace("output_every = 2", "output_every = 10");
+    let scene = write_scene(dir.path(), "bar.toml", &text);
+    let whole = dir.path().join("whole.h5");
+    assert!(run(&scene, &whole, &[]).status.success());
+    let cut = dir.path().join("cut.h5");
+    let mut child = start(exe(), &scene, &cut, 3);
+    // SAFETY: signalling our own child process.
+    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    assert_eq!(child.wait().unwrap().code(), Some(130));
+    assert_sidecar_matches(&cut);
+    let stopped = frames(&cut);
+    assert!(stopped < 1001, "the run ended before the signal");
+    let o = exe()
+        .arg("run")
+        .arg(&scene)
+        .arg("--resume")
+        .arg(&cut)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, b) = (
+        FrameReader::open(&whole).unwrap(),
+        FrameReader::open(&cut).unwrap(),
+    );
+    // The stopped run wrote its last state as a frame of its own: compare the last frames.
+    let last = |r: &FrameReader| r.read(*r.frame_indices().last().unwrap()).unwrap();
+    let (fa, fb) = (last(&a), last(&b));
+    assert_eq!(fa.state.step, 10_000);
+    assert_eq!(fb.state.step, 10_000);
+    assert_eq!(fa.state.positions, fb.state.positions);
+    assert_eq!(fa.state.velocities, fb.state.velocities);
+}
+
+#[test]
+fn a_killed_run_leaves_a_sidecar_of_its_committed_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "long.toml", &long_bar());
+    let out = dir.path().join("long.h5");
+    let mut child = start(exe(), &scene, &out, 50);
+    std::thread::sleep(std::time::Duration::from_millis(1200));
+    child.kill().unwrap(); // SIGKILL: nothing of the run's own runs after it
+    child.wait().unwrap();
+    assert!(frames(&out) >= 50);
+    assert_sidecar_matches(&out);
+}
+
+#[test]
+fn a_full_disk_stops_the_run_with_its_committed_frames_readable() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "long.toml", &long_bar());
+    let out = dir.path().join("long.h5");
+    // A 3 MB file-size limit stands in for a full disk (writes past it fail with EFBIG).
+    let mut limited = exe();
+    // SAFETY: setrlimit is async-signal-safe; the closure runs in the child before exec.
+    unsafe {
+        limited.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: 3_000_000,
+                rlim_max: 3_000_000,
+            };
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) == 0 {
+                Ok(())
+            } else {
+                Err(std::io::Error::last_os_error())
+            }
+        });
+    }
+    let o = limited
+        .arg("run")
+        .arg(&scene)
+        .arg("--output")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no room for frame"), "{}", stderr(&o));
+    let kept = frames(&out);
+    assert!(kept > 10, "{kept} frames");
+    assert_sidecar_matches(&out);
+    let info = exe().arg("info").arg(&out).output().unwrap();
+    assert!(info.status.success(), "{}", stderr(&info));
+    // With room again the run resumes from its last frame.
+    let o = exe()
+        .arg("run")
+        .arg(&scene)
+        .arg("--resume")
+        .arg(&out)
+        .args(["--end-time", "1.0"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(frames(&out), 501);
+}
+
+/// The time of the last complete frame of `path` (s).
+fn last_time(path: &Path) -> f64 {
+    let reader = FrameReader::open(path).unwrap();
+    let last = *reader.frame_indices().last().unwrap();
+    reader.read(last).unwrap().state.time
+}
+
+#[test]
+fn a_resume_with_another_dt_ends_at_the_asked_end_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "bar.toml", BAR);
+    let out = dir.path().join("bar.h5");
+    assert!(run(&scene, &out, &["--end-time", "0.01"]).status.success());
+    let resume = |extra: &[&str]| {
+        exe()
+            .arg("run")
+            .arg(&scene)
+            .arg("--resume")
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    // An end time the file has passed: an error, the file as it was.
+    let o = resume(&["--end-time", "0.005"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("past the end time"), "{}", stderr(&o));
+    assert!((last_time(&out) - 0.01).abs() < 1e-12);
+    // A smaller step: 10 steps of 1 ms reach 0.02 s.
+    let o = resume(&["--end-time", "0.02", "--dt", "0.001"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!((last_time(&out) - 0.02).abs() < 1e-12);
+    // A step that does not divide the rest: the last whole step before the end time.
+    let o = resume(&["--end-time", "0.03", "--dt", "0.003"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let t = last_time(&out);
+    assert!(t <= 0.03 + 1e-12 && t > 0.03 - 0.003, "t = {t}");
+    // At the end time already: nothing to do, and not an error.
+    let o = resume(&["--end-time", &format!("{t}")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn errors_name_the_file_and_say_each_cause_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let one_line = |o: &Output| {
+        let text = stderr(o);
+        let errors: Vec<&str> = text.lines().filter(|l| l.starts_with("error: ")).collect();
+        assert_eq!(errors.len(), 1, "{text}");
+        errors[0].to_string()
+    };
+    // A directory given as a run's file.
+    let o = exe().arg("info").arg(dir.path()).output().unwrap();
+    let line = one_line(&o);
+    assert_eq!(line.matches("Is a directory").count(), 1, "{line}");
+    // A truncated HDF5 file: the gist of HDF5's error, not its whole stack.
+    let scene = write_scene(dir.path(), "bar.toml", BAR);
+    let out = dir.path().join("bar.h5");
+    assert!(run(&scene, &out, &[]).status.success());
+    let cut = dir.path().join("cut.h5");
+    std::fs::write(&cut, &std::fs::read(&out).unwrap()[..3000]).unwrap();
+    let line = one_line(&exe().arg("info").arg(&cut).output().unwrap());
+    assert!(line.contains("cut.h5") && line.contains("truncated file"), "{line}");
+    assert_eq!(line.matches("unable to open file").count(), 1, "{line}");
+    assert!(!line.contains("H5Fopen"), "{line}");
+    // An output directory that does not exist: said so, naming the file asked for.
+    let missing = dir.path().join("no/such/dir/out.h5");
+    let line = one_line(&run(&scene, &missing, &[]));
+    assert!(
+        line.contains("out.h5") && line.contains("does not exist") && !line.contains("partial"),
+        "{line}"
+    );
+    // A Dirichlet region that holds no node: the scene file and the entry, counted from 1.
+    let empty = write_scene(
+        dir.path(),
+        "empty.toml",
+        &BAR.replace("max = [1e-9, 1.0, 1.0]", "max = [-0.5, 1.0, 1.0]"),
+    );
+    let line = one_line(&run(&empty, &dir.path().join("e.h5"), &[]));
+    assert!(
+        line.contains("empty.toml") && line.contains("[[dirichlet]] number 1"),
+        "{line}"
+    );
+}
