@@ -368,6 +368,16 @@ fn fractured_run_resumes_bit_identically_on_its_split_mesh() {
     // The crack surfaces get an XDMF sidecar of their own (triangles with a crack index).
     let cracks = std::fs::read_to_string(full.with_extension("cracks.xdmf")).unwrap();
     assert!(cracks.contains("TopologyType=\"Triangle\"") && cracks.contains("Name=\"crack\""));
+    // The sidecars a run writes from what it wrote (resumed or not) are those read from the
+    // file afterwards.
+    for path in [&full, &half] {
+        let sidecars = |p: &Path| {
+            ["xdmf", "cracks.xdmf"].map(|e| std::fs::read_to_string(p.with_extension(e)).unwrap())
+        };
+        let written = sidecars(path);
+        icefem::output::write_xdmf(path).unwrap();
+        assert_eq!(written, sidecars(path), "{}", path.display());
+    }
     assert_eq!(
         last_frame(&full),
         last_frame(&half),

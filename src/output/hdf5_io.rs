@@ -92,6 +92,61 @@ fn os_message(segment: &str) -> Option<String> {
     })
 }
 
+/// Runs an HDF5 C call under the library's lock; a negative status becomes the library's error.
+fn h5_call(call: impl FnOnce() -> hdf5_sys::h5::herr_t) -> hdf5::Result<()> {
+    let status = hdf5::sync::sync(call);
+    if status < 0 {
+        Err(hdf5::Error::query().unwrap_or_else(|e| e))
+    } else {
+        Ok(())
+    }
+}
+
+/// Links `object` (an anonymous group) into `parent` as `name`: from then on it is part of the
+/// file's tree.
+pub(super) fn link_object(
+    path: &Path,
+    object: &Group,
+    parent: &Group,
+    name: &str,
+) -> Result<(), OutputError> {
+    let c_name = std::ffi::CString::new(name).map_err(|_| invalid(path, "NUL in a link name"))?;
+    // SAFETY: both ids are open objects of the same file; the name is NUL-terminated.
+    h5_call(|| unsafe {
+        hdf5_sys::h5o::H5Olink(
+            object.id(),
+            parent.id(),
+            c_name.as_ptr(),
+            hdf5_sys::h5p::H5P_DEFAULT,
+            hdf5_sys::h5p::H5P_DEFAULT,
+        )
+    })
+    .ctx(path, || format!("linking {name} into {}", parent.name()))
+}
+
+/// Hard-links the dataset `name` of group `from` into group `to` under the same name (`from`
+/// may be a group not linked into the file yet).
+pub(super) fn link_dataset(
+    path: &Path,
+    from: &Group,
+    to: &Group,
+    name: &str,
+) -> Result<(), OutputError> {
+    let c_name = std::ffi::CString::new(name).map_err(|_| invalid(path, "NUL in a link name"))?;
+    // SAFETY: both ids are open groups of the same file; the name is NUL-terminated.
+    h5_call(|| unsafe {
+        hdf5_sys::h5l::H5Lcreate_hard(
+            from.id(),
+            c_name.as_ptr(),
+            to.id(),
+            c_name.as_ptr(),
+            hdf5_sys::h5p::H5P_DEFAULT,
+            hdf5_sys::h5p::H5P_DEFAULT,
+        )
+    })
+    .ctx(path, || format!("hard-linking {name} from {}", from.name()))
+}
+
 /// Makes an HDF5 variable-length UTF-8 string (rejects interior NULs).
 pub(super) fn vlen_str(path: &Path, what: &str, s: &str) -> Result<VarLenUnicode, OutputError> {
     VarLenUnicode::from_str(s).map_err(|e| invalid(path, format!("{what}: {e}")))

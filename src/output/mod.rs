@@ -35,20 +35,21 @@
 //!
 //! # Crash safety
 //!
-//! Frames are committed in batches: a file flush, then the `complete` attribute
-//! on every frame written since the last commit, then a second flush. A commit
-//! happens after the first frame, whenever [`COMMIT_INTERVAL`] has passed since
-//! the last one, and when the writer finishes or is dropped — so a run writing a
-//! frame every few milliseconds does not spend its time flushing, and a killed
-//! run loses at most the last interval. Between commits the file on disk does not
-//! change under what it already holds: HDF5's metadata cache writes only when
-//! flushed, and freed space is never reused (see `crash_safe_options`). A process
-//! killed between commits therefore leaves a readable file in which every frame
-//! carrying `complete = 1` is fully on disk; [`OutputWriter::resume`] discards
-//! whatever came after it. (A kill during a commit's own flushes, a few
-//! milliseconds per interval, could still leave the groups half updated. H5Fflush
-//! hands the data to the OS; it does not fsync, so this protects against a killed
-//! process, not against a power loss.) The file has superblock version 2 (the
+//! Each frame is written as an anonymous group (marked `complete = 1`) that nothing in the
+//! file's tree refers to yet. Frames are committed in batches: a first flush puts the batch's
+//! groups on disk; then the `/stats` rows are written and each group is linked into `/frames`
+//! as `NNNNNN`, and a second flush writes those links. A commit happens after the first
+//! frame, whenever [`COMMIT_INTERVAL`] has passed since the last one, and when the writer
+//! finishes or is dropped — so a run writing a frame every few milliseconds does not spend its
+//! time flushing, and a killed run loses at most the last interval. Between commits the file
+//! on disk does not change under what it already holds: HDF5's metadata cache writes only
+//! when flushed, and freed space is never reused (see `crash_safe_options`); the first flush
+//! of a commit writes only objects that nothing reaches yet. A process killed at any moment
+//! but the second flush of a commit (the `/frames` index and `/stats`, a few kilobytes)
+//! therefore leaves a readable file in which every linked frame is whole;
+//! [`OutputWriter::resume`] continues after the last. (H5Fflush hands the data to the OS; it
+//! does not fsync, so this protects against a killed process, not against a power loss.)
+//! The file has superblock version 2 (the
 //! HDF5 1.8 format, which the file-space setting needs), not version 3, whose
 //! "open for writing" flag would make a killed run's file unopenable without
 //! `h5clear`.

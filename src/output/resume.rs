@@ -11,6 +11,7 @@ use super::hdf5_io::{
     read_string_attr, read_tets, read_vec3, Hdf5Context,
 };
 use super::ownership::RunLock;
+use super::xdmf::read_records;
 use super::writer::{crash_safe_options, create_stats_column, STATS_COLUMNS};
 use super::{corrupt, OutputError, OutputWriter, RESERVED_FRAME_NAMES};
 
@@ -93,6 +94,7 @@ impl OutputWriter {
             .ctx(path, || format!("opening /frames/{last_name}"))?;
         let rf = read_frame(path, &g, scene_text)?;
 
+        let records = read_records(path, &file)?;
         let stats_rows = truncate_stats(path, &file, rf.step)?;
         file.flush()
             .ctx(path, || "flushing after resume cleanup".into())?;
@@ -105,13 +107,14 @@ impl OutputWriter {
             uncommitted_bytes: 0,
             file: Some(file),
             next_frame: last_index + 1,
-            topology_rest_path: format!("/frames/{last_name}/rest_positions"),
-            topology_tets_path: format!("/frames/{last_name}/tets"),
+            topology: format!("/frames/{last_name}"),
+            unlinked_topology: None,
             n_nodes: rf.positions.len(),
             n_elems: rf.tets.len(),
             stats_rows,
             pending_stats: Vec::new(),
             uncommitted: Vec::new(),
+            records,
             last_commit: None,
             last_sidecars: None,
         };

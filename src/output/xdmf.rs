@@ -1,8 +1,15 @@
 //! The XDMF 3 sidecars of a run's file: `RUN.xdmf` (the tet mesh of every complete frame,
 //! for ParaView / meshio) and, with fracture, `RUN.cracks.xdmf` (the crack surfaces).
+//!
+//! The sidecars are made from a [`FrameRecord`] per complete frame — the names, shapes and
+//! types of its datasets — which the writer keeps as it writes frames, so a running run rewrites
+//! its sidecars without reading its file back (that would load every frame's metadata into
+//! HDF5's cache). [`write_xdmf`] reads the records of a finished file.
 
 use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
 use hdf5::types::{FloatSize, IntSize, TypeDescriptor};
 use hdf5::{Dataset, File, Group};
@@ -11,7 +18,113 @@ use super::hdf5_io::{
     check_hdf5_signature, check_icefem_layout, close_on_exec, list_frames, open_2d, read_attr,
     read_string, Hdf5Context,
 };
-use super::{corrupt, invalid, OutputError, RESERVED_FRAME_NAMES};
+use super::{corrupt, invalid, Frame, OutputError, RESERVED_FRAME_NAMES};
+
+/// One dataset as a sidecar describes it: shape and number type.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Item {
+    /// Rows.
+    rows: usize,
+    /// Columns; 0 for a 1-D dataset.
+    cols: usize,
+    /// XDMF `DataType` ("Float", "Int", "UInt").
+    kind: &'static str,
+    /// Bytes per number.
+    precision: usize,
+}
+
+/// A f64 dataset of `rows` × `cols` (0: 1-D), as the writer stores them.
+fn float(rows: usize, cols: usize) -> Item {
+    Item {
+        rows,
+        cols,
+        kind: "Float",
+        precision: 8,
+    }
+}
+
+/// An i64 index dataset of `rows` × `cols` (0: 1-D), as the writer stores them.
+fn indices(rows: usize, cols: usize) -> Item {
+    Item {
+        rows,
+        cols,
+        kind: "Int",
+        precision: 8,
+    }
+}
+
+/// One `<Attribute>` of a frame's grid: its name in the sidecar, the dataset inside the
+/// frame group, centering and item.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct AttributeRecord {
+    name: String,
+    dataset: String,
+    center: &'static str,
+    item: Item,
+}
+
+/// What the sidecars say of one complete frame.
+#[derive(Clone, Debug)]
+pub(super) struct FrameRecord {
+    /// Frame index (group `/frames/NNNNNN`).
+    index: usize,
+    /// Simulated time (s).
+    time: f64,
+    /// `positions` and `tets`.
+    positions: Item,
+    tets: Item,
+    /// Attributes in sidecar order; shared between consecutive frames with the same layout.
+    attributes: Rc<[AttributeRecord]>,
+    /// `cracks/triangles`, `cracks/vertices`, `cracks/crack`, when the frame has crack faces.
+    cracks: Option<[Item; 3]>,
+}
+
+impl FrameRecord {
+    /// The record of `frame`, written as group `index`; `previous` (the last record) lends its
+    /// attribute list when the layout is the same.
+    pub(super) fn of(index: usize, frame: &Frame, previous: Option<&FrameRecord>) -> Self {
+        let (n, m) = (frame.positions.len(), frame.tets.len());
+        let mut attributes = vec![
+            builtin("velocity", "velocities", "Node", float(n, 3)),
+            builtin("rest_position", "rest_positions", "Node", float(n, 3)),
+            builtin("stress", "stress", "Cell", float(m, 6)),
+        ];
+        for (fields, center, rows) in [(frame.element_fields, "Cell", m), (frame.node_fields, "Node", n)]
+        {
+            for f in fields {
+                let cols = if f.cols == 1 { 0 } else { f.cols };
+                attributes.push(builtin(f.name, f.name, center, float(rows, cols)));
+            }
+        }
+        // Fields in name order (as `read_record` lists them).
+        attributes[3..].sort_by(|a, b| a.dataset.cmp(&b.dataset));
+        let attributes = match previous {
+            Some(p) if *p.attributes == *attributes => p.attributes.clone(),
+            _ => attributes.into(),
+        };
+        let cracks = frame.cracks.filter(|c| !c.triangles.is_empty()).map(|c| {
+            let t = c.triangles.len();
+            [indices(t, 3), float(c.vertices.len(), 3), indices(t, 0)]
+        });
+        Self {
+            index,
+            time: frame.time,
+            positions: float(n, 3),
+            tets: indices(m, 4),
+            attributes,
+            cracks,
+        }
+    }
+}
+
+fn builtin(name: &str, dataset: &str, center: &'static str, item: Item) -> AttributeRecord {
+    AttributeRecord {
+        name: name.into(),
+        dataset: dataset.into(),
+        center,
+        item,
+    }
+}
 
 fn xml_escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
@@ -28,30 +141,46 @@ fn xml_escape(s: &str) -> String {
     out
 }
 
-/// XDMF `DataType` and `Precision` of a dataset, or `None` for types XDMF cannot describe.
-fn xdmf_number_type(ds: &Dataset) -> Option<(&'static str, usize)> {
+/// The item of dataset `ds`, or `None` for a type XDMF cannot describe or a shape that is
+/// not 1-D or 2-D.
+fn item_of(ds: &Dataset) -> Option<Item> {
     let desc = ds.dtype().ok()?.to_descriptor().ok()?;
     let size = |s: IntSize| s as usize;
-    match desc {
-        TypeDescriptor::Float(FloatSize::U4) => Some(("Float", 4)),
-        TypeDescriptor::Float(FloatSize::U8) => Some(("Float", 8)),
-        TypeDescriptor::Integer(s) => Some(("Int", size(s))),
-        TypeDescriptor::Unsigned(s) => Some(("UInt", size(s))),
-        _ => None,
-    }
+    let (kind, precision) = match desc {
+        TypeDescriptor::Float(FloatSize::U4) => ("Float", 4),
+        TypeDescriptor::Float(FloatSize::U8) => ("Float", 8),
+        TypeDescriptor::Integer(s) => ("Int", size(s)),
+        TypeDescriptor::Unsigned(s) => ("UInt", size(s)),
+        _ => return None,
+    };
+    let (rows, cols) = match ds.shape().as_slice() {
+        [r] => (*r, 0),
+        [r, c] => (*r, *c),
+        _ => return None,
+    };
+    Some(Item {
+        rows,
+        cols,
+        kind,
+        precision,
+    })
 }
 
-/// One `<DataItem>` referencing `h5_name:h5_path`, or `None` if the dataset's
-/// type is not expressible in XDMF.
-fn xdmf_data_item(ds: &Dataset, h5_name: &str, indent: &str) -> Option<String> {
-    let (ty, prec) = xdmf_number_type(ds)?;
-    let dims: Vec<String> = ds.shape().iter().map(|d| d.to_string()).collect();
-    Some(format!(
-        "{indent}<DataItem Dimensions=\"{}\" DataType=\"{ty}\" Precision=\"{prec}\" Format=\"HDF\">{}:{}</DataItem>\n",
-        dims.join(" "),
+/// One `<DataItem>` referencing `h5_name:/frames/NNNNNN/dataset`.
+fn data_item(xml: &mut String, item: &Item, h5_name: &str, frame: &str, dataset: &str) {
+    let dims = if item.cols == 0 {
+        item.rows.to_string()
+    } else {
+        format!("{} {}", item.rows, item.cols)
+    };
+    let _ = writeln!(
+        xml,
+        "          <DataItem Dimensions=\"{dims}\" DataType=\"{}\" Precision=\"{}\" Format=\"HDF\">{}:/frames/{frame}/{}</DataItem>",
+        item.kind,
+        item.precision,
         xml_escape(h5_name),
-        xml_escape(&ds.name())
-    ))
+        xml_escape(dataset)
+    );
 }
 
 /// XDMF attribute type for a dataset of per-row values.
@@ -60,99 +189,43 @@ fn xdmf_data_item(ds: &Dataset, h5_name: &str, indent: &str) -> Option<String> {
 /// `Tensor6`: XDMF's Tensor6 component order is xx xy xz yy yz zz, while
 /// icefem stores Voigt order xx yy zz yz xz xy, so `Tensor6` would make
 /// ParaView silently mislabel components.
-fn xdmf_attribute_type(shape: &[usize]) -> &'static str {
-    match shape {
-        [_] | [_, 1] => "Scalar",
-        [_, 3] => "Vector",
+fn attribute_type(item: &Item) -> &'static str {
+    match item.cols {
+        0 | 1 => "Scalar",
+        3 => "Vector",
         _ => "Matrix",
     }
 }
 
-/// Opens one time step's `<Grid>` in `xml`: its time, topology (type, element count, nodes per
-/// element, index data item) and geometry (XYZ data item). The caller adds attributes and
-/// closes it.
-fn xdmf_grid_start(
+/// Opens one time step's `<Grid>` in `xml`: its time, topology and geometry. The caller adds
+/// attributes and closes it.
+fn grid_start(
     xml: &mut String,
-    name: &str,
-    time: f64,
-    (kind, count, nodes): (&str, usize, usize),
-    topology: &str,
-    geometry: &str,
+    (name, time): (&str, f64),
+    (kind, nodes): (&str, usize),
+    (topology, geometry): (&Item, &Item),
+    (h5_name, frame, topology_set, geometry_set): (&str, &str, &str, &str),
 ) {
     let _ = writeln!(xml, "      <Grid Name=\"{name}\" GridType=\"Uniform\">");
     let _ = writeln!(xml, "        <Time Value=\"{time:e}\"/>");
     let _ = writeln!(
         xml,
-        "        <Topology TopologyType=\"{kind}\" NumberOfElements=\"{count}\" NodesPerElement=\"{nodes}\">"
+        "        <Topology TopologyType=\"{kind}\" NumberOfElements=\"{}\" NodesPerElement=\"{nodes}\">",
+        topology.rows
     );
-    xml.push_str(topology);
+    data_item(xml, topology, h5_name, frame, topology_set);
     xml.push_str("        </Topology>\n        <Geometry GeometryType=\"XYZ\">\n");
-    xml.push_str(geometry);
+    data_item(xml, geometry, h5_name, frame, geometry_set);
     xml.push_str("        </Geometry>\n");
 }
 
-/// The crack surfaces of the frames that have any, as a temporal collection (`icefem_cracks`:
-/// triangles, with the crack index per triangle) for `RUN.cracks.xdmf`; empty without
-/// fracture.
-fn xdmf_cracks(h5_path: &Path, h5_name: &str, frames: &Group) -> Result<String, OutputError> {
-    let mut xml = String::new();
-    let ind = "          ";
-    for entry in list_frames(h5_path, frames)?
-        .into_iter()
-        .filter(|f| f.complete)
-    {
-        let g = frames
-            .group(&entry.name)
-            .ctx(h5_path, || format!("opening /frames/{}", entry.name))?;
-        let Ok(cracks) = g.group("cracks") else {
-            continue;
-        };
-        let (Ok(triangles), Ok(vertices), Ok(crack)) = (
-            cracks.dataset("triangles"),
-            cracks.dataset("vertices"),
-            cracks.dataset("crack"),
-        ) else {
-            continue;
-        };
-        let count = triangles.shape().first().copied().unwrap_or(0);
-        let items = [&triangles, &vertices, &crack].map(|d| xdmf_data_item(d, h5_name, ind));
-        let [Some(t), Some(v), Some(c)] = items else {
-            continue;
-        };
-        if count == 0 {
-            continue;
-        }
-        let time = read_attr::<f64>(h5_path, &g, "time")?;
-        let name = format!("cracks_{}", entry.name);
-        xdmf_grid_start(&mut xml, &name, time, ("Triangle", count, 3), &t, &v);
-        xml.push_str(
-            "        <Attribute Name=\"crack\" AttributeType=\"Scalar\" Center=\"Cell\">\n",
-        );
-        xml.push_str(&c);
-        xml.push_str("        </Attribute>\n      </Grid>\n");
-    }
-    if xml.is_empty() {
-        return Ok(xml);
-    }
-    Ok(format!(
-        "    <Grid Name=\"icefem_cracks\" GridType=\"Collection\" CollectionType=\"Temporal\">\n{xml}    </Grid>\n"
-    ))
+/// The name of frame group `index` (6+ digits, as the writer names them).
+fn group_name(index: usize) -> String {
+    format!("{index:06}")
 }
 
-/// Writes `text` to `path` through a temporary file renamed into place, so a reader sees the
-/// old file or the new one, never half of one.
-fn replace_file(path: &Path, text: &str, what: &str) -> Result<(), OutputError> {
-    let tmp = path.with_extension("xdmf.tmp");
-    let io = |context: String| {
-        move |source| OutputError::Io {
-            path: path.to_path_buf(),
-            context,
-            source,
-        }
-    };
-    std::fs::write(&tmp, text).map_err(io(format!("writing {what}")))?;
-    std::fs::rename(&tmp, path).map_err(io(format!("renaming {what} into place")))
-}
+const HEADER: &str = "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<Xdmf xmlns:xi=\"http://www.w3.org/2001/XInclude\" Version=\"3.0\">\n  <Domain>\n";
+const FOOTER: &str = "  </Domain>\n</Xdmf>\n";
 
 /// Writes `<file>.xdmf` next to the HDF5 file: an XDMF 3 temporal collection
 /// with one uniform grid per complete frame (incomplete frames are skipped).
@@ -170,12 +243,121 @@ pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
     let file = File::open(h5_path).ctx(h5_path, || "opening to write the XDMF sidecar".into())?;
     close_on_exec(&file);
     check_icefem_layout(h5_path, &file)?;
-    write_sidecars(h5_path, &file)
+    let records = read_records(h5_path, &file)?;
+    drop(file);
+    write_sidecars(h5_path, &records)
 }
 
-/// As [`write_xdmf`], from `file`, the open HDF5 file at `h5_path` (the writer's own handle:
-/// a run rewrites its sidecars at every commit without opening its file a second time).
-pub(super) fn write_sidecars(h5_path: &Path, file: &File) -> Result<PathBuf, OutputError> {
+/// The records of the complete frames of `file` (at `h5_path`).
+pub(super) fn read_records(h5_path: &Path, file: &File) -> Result<Vec<FrameRecord>, OutputError> {
+    let frames = file
+        .group("frames")
+        .ctx(h5_path, || "opening /frames".into())?;
+    let mut records: Vec<FrameRecord> = Vec::new();
+    for entry in list_frames(h5_path, &frames)?
+        .into_iter()
+        .filter(|f| f.complete)
+    {
+        let g = frames
+            .group(&entry.name)
+            .ctx(h5_path, || format!("opening /frames/{}", entry.name))?;
+        let record = read_record(h5_path, &g, entry.index, records.last())?;
+        records.push(record);
+    }
+    Ok(records)
+}
+
+/// The record of frame group `g` (index `index`).
+fn read_record(
+    h5_path: &Path,
+    g: &Group,
+    index: usize,
+    previous: Option<&FrameRecord>,
+) -> Result<FrameRecord, OutputError> {
+    let time = read_attr::<f64>(h5_path, g, "time")?;
+    let undescribable = |ds: &Dataset| {
+        corrupt(
+            h5_path,
+            format!("{} has a type XDMF cannot describe", ds.name()),
+        )
+    };
+    let (tets, m) = open_2d(h5_path, g, "tets", 4)?;
+    let (positions, n) = open_2d(h5_path, g, "positions", 3)?;
+    let tets = item_of(&tets).ok_or_else(|| undescribable(&tets))?;
+    let positions = item_of(&positions).ok_or_else(|| undescribable(&positions))?;
+
+    // Built-ins first, then fields by name.
+    let mut found: Vec<(String, String, &'static str)> = [
+        ("velocity", "velocities", "Node"),
+        ("rest_position", "rest_positions", "Node"),
+        ("stress", "stress", "Cell"),
+    ]
+    .iter()
+    .map(|&(x, d, c)| (x.to_string(), d.to_string(), c))
+    .collect();
+    let names = g
+        .member_names()
+        .ctx(h5_path, || format!("listing {}", g.name()))?;
+    for name in names {
+        if RESERVED_FRAME_NAMES.contains(&name.as_str()) {
+            continue;
+        }
+        let Ok(ds) = g.dataset(&name) else { continue };
+        let center = ds.attr("center").ok().and_then(|a| read_string(&a).ok());
+        match center.as_deref() {
+            Some("Cell") => found.push((name.clone(), name, "Cell")),
+            Some("Node") => found.push((name.clone(), name, "Node")),
+            _ => {} // unknown centering: cannot place it on the mesh
+        }
+    }
+    // Fields in name order, whatever order the group lists its links in.
+    found[3..].sort_by(|a, b| a.1.cmp(&b.1));
+    let mut attributes = Vec::new();
+    for (name, dataset, center) in found {
+        let Ok(ds) = g.dataset(&dataset) else { continue };
+        // Skip anything whose shape does not fit the grid rather than emit a sidecar that
+        // crashes the reader.
+        let Some(item) = item_of(&ds) else { continue };
+        let expected = if center == "Node" { n } else { m };
+        if item.rows != expected {
+            continue;
+        }
+        attributes.push(AttributeRecord {
+            name,
+            dataset,
+            center,
+            item,
+        });
+    }
+    let attributes = match previous {
+        Some(p) if *p.attributes == *attributes => p.attributes.clone(),
+        _ => attributes.into(),
+    };
+    let cracks = g.group("cracks").ok().and_then(|c| {
+        let items = ["triangles", "vertices", "crack"]
+            .map(|name| c.dataset(name).ok().as_ref().and_then(item_of));
+        match items {
+            [Some(t), Some(v), Some(k)] if t.rows > 0 => Some([t, v, k]),
+            _ => None,
+        }
+    });
+    Ok(FrameRecord {
+        index,
+        time,
+        positions,
+        tets,
+        attributes,
+        cracks,
+    })
+}
+
+/// Writes the sidecars of the HDF5 file at `h5_path` from the records of its complete frames:
+/// `RUN.xdmf`, and `RUN.cracks.xdmf` when a frame has crack faces (removed otherwise, so one
+/// left by an earlier run of the same name does not stay).
+pub(super) fn write_sidecars(
+    h5_path: &Path,
+    records: &[FrameRecord],
+) -> Result<PathBuf, OutputError> {
     let h5_name = h5_path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -187,123 +369,106 @@ pub(super) fn write_sidecars(h5_path: &Path, file: &File) -> Result<PathBuf, Out
             "file name contains ':', which XDMF cannot reference",
         ));
     }
-    let frames = file
-        .group("frames")
-        .ctx(h5_path, || "opening /frames".into())?;
-
-    let mut xml = String::new();
-    xml.push_str("<?xml version=\"1.0\" encoding=\"utf-8\"?>\n");
-    xml.push_str("<Xdmf xmlns:xi=\"http://www.w3.org/2001/XInclude\" Version=\"3.0\">\n");
-    xml.push_str("  <Domain>\n");
-    xml.push_str(
-        "    <Grid Name=\"icefem\" GridType=\"Collection\" CollectionType=\"Temporal\">\n",
-    );
-    for entry in list_frames(h5_path, &frames)?
-        .into_iter()
-        .filter(|f| f.complete)
-    {
-        let g = frames
-            .group(&entry.name)
-            .ctx(h5_path, || format!("opening /frames/{}", entry.name))?;
-        let time = read_attr::<f64>(h5_path, &g, "time")?;
-        let (tets, m) = open_2d(h5_path, &g, "tets", 4)?;
-        let (positions, n) = open_2d(h5_path, &g, "positions", 3)?;
-        let ind = "          ";
-        let item = |ds: &Dataset| {
-            xdmf_data_item(ds, &h5_name, ind).ok_or_else(|| {
-                corrupt(
-                    h5_path,
-                    format!("{} has a type XDMF cannot describe", ds.name()),
-                )
-            })
-        };
-        let name = format!("frame_{}", entry.name);
-        let (topology, geometry) = (item(&tets)?, item(&positions)?);
-        xdmf_grid_start(
-            &mut xml,
-            &name,
-            time,
-            ("Tetrahedron", m, 4),
-            &topology,
-            &geometry,
-        );
-
-        // (xdmf name, dataset, center). Built-ins first, then fields by name.
-        let mut attrs: Vec<(String, Dataset, &str)> = Vec::new();
-        for (xname, dname, center) in [
-            ("velocity", "velocities", "Node"),
-            ("rest_position", "rest_positions", "Node"),
-            ("stress", "stress", "Cell"),
-        ] {
-            if let Ok(ds) = g.dataset(dname) {
-                attrs.push((xname.into(), ds, center));
-            }
-        }
-        let names = g
-            .member_names()
-            .ctx(h5_path, || format!("listing /frames/{}", entry.name))?;
-        for name in names {
-            if RESERVED_FRAME_NAMES.contains(&name.as_str()) {
-                continue;
-            }
-            let Ok(ds) = g.dataset(&name) else { continue };
-            let center = ds.attr("center").ok().and_then(|a| read_string(&a).ok());
-            let center = match center.as_deref() {
-                Some("Cell") => "Cell",
-                Some("Node") => "Node",
-                _ => continue, // unknown centering: cannot place it on the mesh
-            };
-            attrs.push((name, ds, center));
-        }
-        for (xname, ds, center) in attrs {
-            let shape = ds.shape();
-            let rows = shape.first().copied().unwrap_or(0);
-            let expected = if center == "Node" { n } else { m };
-            // Skip anything whose shape does not fit the grid rather than
-            // emit a sidecar that crashes the reader.
-            if shape.is_empty() || shape.len() > 2 || rows != expected {
-                continue;
-            }
-            let Some(di) = xdmf_data_item(&ds, &h5_name, ind) else {
-                continue;
-            };
-            let _ = writeln!(
-                xml,
-                "        <Attribute Name=\"{}\" AttributeType=\"{}\" Center=\"{center}\">",
-                xml_escape(&xname),
-                xdmf_attribute_type(&shape)
-            );
-            xml.push_str(&di);
-            xml.push_str("        </Attribute>\n");
-        }
-        xml.push_str("      </Grid>\n");
-    }
-    xml.push_str("    </Grid>\n  </Domain>\n</Xdmf>\n");
-    let cracks = xdmf_cracks(h5_path, &h5_name, &frames)?;
-    drop(frames);
-
     let xdmf_path = h5_path.with_extension("xdmf");
-    replace_file(&xdmf_path, &xml, "the XDMF sidecar")?;
+    replace_file(&xdmf_path, "the XDMF sidecar", |out| {
+        out.write_all(HEADER.as_bytes())?;
+        out.write_all(
+            b"    <Grid Name=\"icefem\" GridType=\"Collection\" CollectionType=\"Temporal\">\n",
+        )?;
+        let mut xml = String::new();
+        for r in records {
+            xml.clear();
+            let frame = group_name(r.index);
+            grid_start(
+                &mut xml,
+                (&format!("frame_{frame}"), r.time),
+                ("Tetrahedron", 4),
+                (&r.tets, &r.positions),
+                (&h5_name, &frame, "tets", "positions"),
+            );
+            for a in r.attributes.iter() {
+                let _ = writeln!(
+                    xml,
+                    "        <Attribute Name=\"{}\" AttributeType=\"{}\" Center=\"{}\">",
+                    xml_escape(&a.name),
+                    attribute_type(&a.item),
+                    a.center
+                );
+                data_item(&mut xml, &a.item, &h5_name, &frame, &a.dataset);
+                xml.push_str("        </Attribute>\n");
+            }
+            xml.push_str("      </Grid>\n");
+            out.write_all(xml.as_bytes())?;
+        }
+        out.write_all(b"    </Grid>\n")?;
+        out.write_all(FOOTER.as_bytes())
+    })?;
+
     // A file of its own: readers that take one grid collection per file (meshio, and
-    // ParaView's default view of it) keep reading the tet mesh from RUN.xdmf. Without cracks,
-    // a crack sidecar left by an earlier run of the same name is removed.
+    // ParaView's default view of it) keep reading the tet mesh from RUN.xdmf.
     let path = h5_path.with_extension("cracks.xdmf");
-    if cracks.is_empty() {
-        match std::fs::remove_file(&path) {
+    if records.iter().all(|r| r.cracks.is_none()) {
+        return match std::fs::remove_file(&path) {
             Err(source) if source.kind() != std::io::ErrorKind::NotFound => {
-                return Err(OutputError::Io {
+                Err(OutputError::Io {
                     path,
                     context: "removing a crack-surface sidecar of an earlier run".into(),
                     source,
                 })
             }
-            _ => {}
-        }
-    } else {
-        let xml = format!(
-            "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<Xdmf xmlns:xi=\"http://www.w3.org/2001/XInclude\" Version=\"3.0\">\n  <Domain>\n{cracks}  </Domain>\n</Xdmf>\n"
-        );
-        replace_file(&path, &xml, "the crack-surface XDMF sidecar")?;
+            _ => Ok(xdmf_path),
+        };
     }
+    replace_file(&path, "the crack-surface XDMF sidecar", |out| {
+        out.write_all(HEADER.as_bytes())?;
+        out.write_all(b"    <Grid Name=\"icefem_cracks\" GridType=\"Collection\" CollectionType=\"Temporal\">\n")?;
+        let mut xml = String::new();
+        for r in records {
+            let Some([triangles, vertices, crack]) = &r.cracks else {
+                continue;
+            };
+            xml.clear();
+            let frame = group_name(r.index);
+            grid_start(
+                &mut xml,
+                (&format!("cracks_{frame}"), r.time),
+                ("Triangle", 3),
+                (triangles, vertices),
+                (&h5_name, &frame, "cracks/triangles", "cracks/vertices"),
+            );
+            xml.push_str(
+                "        <Attribute Name=\"crack\" AttributeType=\"Scalar\" Center=\"Cell\">\n",
+            );
+            data_item(&mut xml, crack, &h5_name, &frame, "cracks/crack");
+            xml.push_str("        </Attribute>\n      </Grid>\n");
+            out.write_all(xml.as_bytes())?;
+        }
+        out.write_all(b"    </Grid>\n")?;
+        out.write_all(FOOTER.as_bytes())
+    })?;
     Ok(xdmf_path)
+}
+
+/// Writes `path` through a temporary file renamed into place, so a reader sees the old file or
+/// the new one, never half of one; `write` streams the text.
+fn replace_file(
+    path: &Path,
+    what: &str,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), OutputError> {
+    let tmp = path.with_extension("xdmf.tmp");
+    let io = |context: String| {
+        move |source| OutputError::Io {
+            path: path.to_path_buf(),
+            context,
+            source,
+        }
+    };
+    let file = std::fs::File::create(&tmp).map_err(io(format!("creating {what}")))?;
+    let mut out = std::io::BufWriter::new(file);
+    write(&mut out)
+        .and_then(|()| out.flush())
+        .map_err(io(format!("writing {what}")))?;
+    drop(out);
+    std::fs::rename(&tmp, path).map_err(io(format!("renaming {what} into place")))
 }
