@@ -31,12 +31,15 @@ output_every = 2
 
 /// The bar with a Newton limit it cannot meet: the run fails at step 1.
 fn failing_bar() -> String {
-    BAR.replace("[time]", "[solver]\nmax_iterations = 1\ntolerance = 1e-12\n[time]")
-        .replace(
-            "gravity = [0.0, -3.0, -9.81]",
-            "gravity = [0.0, -3000.0, -9810.0]",
-        )
-        .replace("[material]", "[material]\nmodel = \"corotated\"")
+    BAR.replace(
+        "[time]",
+        "[solver]\nmax_iterations = 1\ntolerance = 1e-12\n[time]",
+    )
+    .replace(
+        "gravity = [0.0, -3.0, -9.81]",
+        "gravity = [0.0, -3000.0, -9810.0]",
+    )
+    .replace("[material]", "[material]\nmodel = \"corotated\"")
 }
 
 /// The bar run long, a frame every step: still running when a test stops it.
@@ -84,7 +87,10 @@ fn start(mut command: Command, scene: &Path, out: &Path, frames: usize) -> Child
         .unwrap();
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
     while FrameReader::open(out).map_or(0, |r| r.frame_indices().len()) < frames {
-        assert!(std::time::Instant::now() < deadline, "the run wrote no frames");
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the run wrote no frames"
+        );
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
     child
@@ -176,7 +182,10 @@ fn an_output_held_open_by_a_reader_is_not_damaged() {
     let o = run(&short, &out, &["--force"]);
     assert!(o.status.success(), "{}", stderr(&o));
     // The reader still reads the old run whole; the path holds the new one.
-    assert_eq!(held.group("frames").unwrap().member_names().unwrap().len(), 6);
+    assert_eq!(
+        held.group("frames").unwrap().member_names().unwrap().len(),
+        6
+    );
     let positions = held.dataset("frames/000005/positions").unwrap();
     assert_eq!(positions.read_raw::<f64>().unwrap().len(), 44 * 3);
     assert_eq!(frames(&out), 3);
@@ -415,7 +424,10 @@ fn errors_name_the_file_and_say_each_cause_once() {
     let cut = dir.path().join("cut.h5");
     std::fs::write(&cut, &std::fs::read(&out).unwrap()[..3000]).unwrap();
     let line = one_line(&exe().arg("info").arg(&cut).output().unwrap());
-    assert!(line.contains("cut.h5") && line.contains("truncated file"), "{line}");
+    assert!(
+        line.contains("cut.h5") && line.contains("truncated file"),
+        "{line}"
+    );
     assert_eq!(line.matches("unable to open file").count(), 1, "{line}");
     assert!(!line.contains("H5Fopen"), "{line}");
     // An output directory that does not exist: said so, naming the file asked for.
@@ -435,5 +447,94 @@ fn errors_name_the_file_and_say_each_cause_once() {
     assert!(
         line.contains("empty.toml") && line.contains("[[dirichlet]] number 1"),
         "{line}"
+    );
+}
+
+/// A cube of `cells`³ cells in an open container `[0, 0.1]² × [floor, 0.3]` m.
+fn cube_in_container(cells: &str, floor: f64, wall: f64) -> String {
+    format!(
+        r#"
+[mesh]
+box = {{ size = [0.1, 0.1, 0.1], cells = [{cells}] }}
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[physics]
+gravity = [0.0, 0.0, -9.81]
+[[obstacle]]
+type = "container"
+min = [{wall}, 0.0, {floor}]
+max = [0.1, 0.1, 0.3]
+[time]
+dt = 0.01
+end_time = 0.02
+"#
+    )
+}
+
+#[test]
+fn a_mesh_that_cannot_fit_is_refused_at_once_without_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    for cells in ["1000, 1000, 1000", "100000, 100000, 100000"] {
+        let scene = write_scene(dir.path(), "huge.toml", &cube_in_container(cells, 0.0, 0.0));
+        let start = std::time::Instant::now();
+        let o = run(&scene, &dir.path().join("huge.h5"), &[]);
+        assert!(!o.status.success());
+        // Process start and the check: well under a second on any machine that runs the
+        // suite (it takes ~10 ms here).
+        assert!(start.elapsed().as_secs_f64() < 1.0);
+        let text = stderr(&o);
+        assert!(
+            text.contains("mesh.box") && text.contains("use fewer cells"),
+            "{text}"
+        );
+    }
+    // The largest resident size of the children so far (kB): nothing near a mesh's worth.
+    // SAFETY: getrusage fills the struct it is given.
+    let peak_kb = unsafe {
+        let mut usage = std::mem::zeroed::<libc::rusage>();
+        libc::getrusage(libc::RUSAGE_CHILDREN, &mut usage);
+        usage.ru_maxrss
+    };
+    assert!(peak_kb < 200_000, "a child reached {peak_kb} kB");
+}
+
+#[test]
+fn ice_that_starts_inside_an_obstacle_or_another_body_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.h5");
+    // Half the cube behind a wall, and the cube under the floor.
+    for (floor, wall, deepest) in [(0.0, 0.05, "5.000e-2"), (0.5, 0.0, "5.000e-1")] {
+        let scene = write_scene(
+            dir.path(),
+            "inside.toml",
+            &cube_in_container("2, 2, 2", floor, wall)
+                .replace("max = [0.1, 0.1, 0.3]", "max = [0.1, 0.1, 0.9]"),
+        );
+        let text = stderr(&run(&scene, &out, &[]));
+        assert!(
+            text.contains("obstacle[0]") && text.contains("start inside this obstacle"),
+            "{text}"
+        );
+        assert!(text.contains(deepest), "{text}");
+    }
+    // Resting exactly on the floor and against the walls is not inside.
+    let scene = write_scene(
+        dir.path(),
+        "touching.toml",
+        &cube_in_container("2, 2, 2", 0.0, 0.0),
+    );
+    assert!(run(&scene, &out, &[]).status.success());
+    // Two boxes overlapping by 1 mm.
+    let text = cube_in_container("2, 2, 2", 0.0, 0.0).replace(
+        "box = { size = [0.1, 0.1, 0.1], cells = [2, 2, 2] }",
+        "boxes = [{ size = [0.1, 0.1, 0.1], cells = [2, 2, 2] }, { origin = [0.0, 0.0, 0.099], size = [0.1, 0.1, 0.1], cells = [2, 2, 2] }]",
+    );
+    let scene = write_scene(dir.path(), "overlap.toml", &text);
+    let text = stderr(&run(&scene, &dir.path().join("o.h5"), &[]));
+    assert!(
+        text.contains("mesh.boxes[1]") && text.contains("overlaps mesh.boxes[0]"),
+        "{text}"
     );
 }

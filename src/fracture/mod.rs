@@ -368,7 +368,11 @@ mod tests {
             .position(|x| (x - Vector3::new(0.02, 0.01, 0.01)).norm() < 1e-12)
             .unwrap();
         let neighbour = mesh.tets.iter().position(|t| t.contains(&node)).unwrap();
-        let u: Vec<f64> = mesh.rest.iter().flat_map(|x| [1e-4 * x.x, 0.0, 0.0]).collect();
+        let u: Vec<f64> = mesh
+            .rest
+            .iter()
+            .flat_map(|x| [1e-4 * x.x, 0.0, 0.0])
+            .collect();
         let read = |state: f64| {
             let mut history = el.initial_history();
             history.freeze_state = vec![1.0; mesh.tets.len()];

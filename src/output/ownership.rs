@@ -117,7 +117,9 @@ pub(super) fn check_target(target: &Path, replace: bool) -> Result<(), OutputErr
     close_on_exec(&file);
     match check_icefem_layout(target, &file) {
         Err(OutputError::NotIcefem { reason, .. }) => {
-            return Err(foreign(format!("an HDF5 file that is not icefem output: {reason}")))
+            return Err(foreign(format!(
+                "an HDF5 file that is not icefem output: {reason}"
+            )))
         }
         other => other?,
     }

@@ -11,8 +11,8 @@ use super::hdf5_io::{
     read_string_attr, read_tets, read_vec3, Hdf5Context,
 };
 use super::ownership::RunLock;
-use super::xdmf::read_records;
 use super::writer::{crash_safe_options, create_stats_column, STATS_COLUMNS};
+use super::xdmf::read_records;
 use super::{corrupt, OutputError, OutputWriter, RESERVED_FRAME_NAMES};
 
 /// Everything read back from the last complete frame (owned), to restart a run.

@@ -622,10 +622,11 @@ impl OutputWriter {
         self.flush_stats()?;
         let path = self.location.clone();
         let file = self.file.take().expect("checked above");
-        file.close().ctx(&path, || "closing to empty the metadata cache".into())?;
-        let file = crash_safe_options()
-            .open_rw(&path)
-            .ctx(&path, || "reopening after emptying the metadata cache".into())?;
+        file.close()
+            .ctx(&path, || "closing to empty the metadata cache".into())?;
+        let file = crash_safe_options().open_rw(&path).ctx(&path, || {
+            "reopening after emptying the metadata cache".into()
+        })?;
         close_on_exec(&file);
         self.file = Some(file);
         Ok(())
@@ -662,9 +663,7 @@ impl OutputWriter {
             return Ok(());
         }
         let path = self.location.clone();
-        let stats = file
-            .group("stats")
-            .ctx(&path, || "opening /stats".into())?;
+        let stats = file.group("stats").ctx(&path, || "opening /stats".into())?;
         let old = self.stats_rows;
         let new = old + self.pending_stats.len();
         for (name, col) in STATS_COLUMNS {
@@ -884,7 +883,10 @@ mod tests {
         // 9.4 MB here (and the 3 000 frames took 6× longer).
         assert!(largest < 5 << 18, "metadata cache reached {largest} bytes");
         let f = File::open(&path).unwrap();
-        assert_eq!(f.group("frames").unwrap().member_names().unwrap().len(), 3000);
+        assert_eq!(
+            f.group("frames").unwrap().member_names().unwrap().len(),
+            3000
+        );
     }
 
     #[test]

@@ -89,8 +89,10 @@ impl FrameRecord {
             builtin("rest_position", "rest_positions", "Node", float(n, 3)),
             builtin("stress", "stress", "Cell", float(m, 6)),
         ];
-        for (fields, center, rows) in [(frame.element_fields, "Cell", m), (frame.node_fields, "Node", n)]
-        {
+        for (fields, center, rows) in [
+            (frame.element_fields, "Cell", m),
+            (frame.node_fields, "Node", n),
+        ] {
             for f in fields {
                 let cols = if f.cols == 1 { 0 } else { f.cols };
                 attributes.push(builtin(f.name, f.name, center, float(rows, cols)));
@@ -314,7 +316,9 @@ fn read_record(
     found[3..].sort_by(|a, b| a.1.cmp(&b.1));
     let mut attributes = Vec::new();
     for (name, dataset, center) in found {
-        let Ok(ds) = g.dataset(&dataset) else { continue };
+        let Ok(ds) = g.dataset(&dataset) else {
+            continue;
+        };
         // Skip anything whose shape does not fit the grid rather than emit a sidecar that
         // crashes the reader.
         let Some(item) = item_of(&ds) else { continue };
@@ -409,13 +413,11 @@ pub(super) fn write_sidecars(
     let path = h5_path.with_extension("cracks.xdmf");
     if records.iter().all(|r| r.cracks.is_none()) {
         return match std::fs::remove_file(&path) {
-            Err(source) if source.kind() != std::io::ErrorKind::NotFound => {
-                Err(OutputError::Io {
-                    path,
-                    context: "removing a crack-surface sidecar of an earlier run".into(),
-                    source,
-                })
-            }
+            Err(source) if source.kind() != std::io::ErrorKind::NotFound => Err(OutputError::Io {
+                path,
+                context: "removing a crack-surface sidecar of an earlier run".into(),
+                source,
+            }),
             _ => Ok(xdmf_path),
         };
     }
