@@ -538,3 +538,28 @@ fn ice_that_starts_inside_an_obstacle_or_another_body_is_refused() {
         "{text}"
     );
 }
+
+#[test]
+fn a_penalty_stiffness_far_from_the_ice_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for k in ["1e25", "1e3"] {
+        let text = cube_in_container("2, 2, 2", 0.0, 0.0).replace(
+            "max = [0.1, 0.1, 0.3]",
+            &format!("max = [0.1, 0.1, 0.3]\nstiffness = {k}"),
+        );
+        let scene = write_scene(dir.path(), "k.toml", &text);
+        let text = stderr(&run(&scene, &dir.path().join("k.h5"), &[]));
+        assert!(
+            text.contains("obstacle[0].stiffness") && text.contains("the default 10 E / h"),
+            "{text}"
+        );
+    }
+    // 100 × the default is accepted.
+    let text = cube_in_container("2, 2, 2", 0.0, 0.0).replace(
+        "max = [0.1, 0.1, 0.3]",
+        "max = [0.1, 0.1, 0.3]\nstiffness = 1.7e15",
+    );
+    let scene = write_scene(dir.path(), "ok.toml", &text);
+    let o = run(&scene, &dir.path().join("ok.h5"), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -403,6 +403,10 @@ pub struct Scene {
     pub fracture: Option<FractureSettings>,
 }
 
+/// Allowed penalty stiffnesses, as factors of the default 10 E / h (h: the ice's mean boundary
+/// edge): the penetration under a load stays between 1e-4 and 1e2 times what the default gives.
+const PENALTY_RANGE: (f64, f64) = (1e-2, 1e4);
+
 /// Memory a tet of a scene takes in a run, for refusing a mesh that cannot fit before it is
 /// built (bytes): the benchmarks measured 2.6 GB for 2e6 tets with the Cholesky solver.
 const BYTES_PER_TET: f64 = 1.3e3;
@@ -645,10 +649,12 @@ impl Validator<'_> {
             "physics.ice_friction",
             raw.physics.ice_friction.unwrap_or(0.0),
         )?;
-        let ice_stiffness = match raw.physics.ice_stiffness {
-            Some(k) => self.positive("physics.ice_stiffness", k)?,
-            None => default_stiffness(&model.mesh, material.young()),
-        };
+        let ice_stiffness = self.penalty(
+            "physics.ice_stiffness",
+            raw.physics.ice_stiffness,
+            &model.mesh,
+            &material,
+        )?;
         model.set_ice_contact(IceContactTerm::new(
             &model.mesh,
             ice_stiffness,
@@ -826,6 +832,35 @@ impl Validator<'_> {
         Ok(())
     }
 
+    /// A penalty stiffness (N/m³): `given`, within [`PENALTY_RANGE`] times the default 10 E / h,
+    /// or that default. Far above it the contact force of a step's penetration dwarfs the ice's
+    /// own stiffness (1e25 N/m³ kicked a resting cube to 4 m/s); far below, the ice sinks into
+    /// the obstacle (1e3 N/m³: 0.7 m).
+    fn penalty(
+        &self,
+        field: &str,
+        given: Option<f64>,
+        mesh: &TetMesh,
+        material: &Material,
+    ) -> Result<f64, SceneError> {
+        let default = default_stiffness(mesh, material.young());
+        let Some(k) = given else {
+            return Ok(default);
+        };
+        let k = self.positive(field, k)?;
+        let (low, high) = (PENALTY_RANGE.0 * default, PENALTY_RANGE.1 * default);
+        if !(low..=high).contains(&k) {
+            return Err(self.invalid(
+                field,
+                format!(
+                    "{k:e} N/m³ is outside {low:.3e} … {high:.3e} N/m³ ({:e} … {:e} × the default 10 E / h = {default:.3e} N/m³ for this ice and mesh); leave it out for the default",
+                    PENALTY_RANGE.0, PENALTY_RANGE.1
+                ),
+            ));
+        }
+        Ok(k)
+    }
+
     /// The ice must start outside every obstacle with planes (half-spaces, containers): a node
     /// behind a plane by more than round-off (1e-6 of the mesh's size) would be thrown out by
     /// the penalty force in the first step (a cube 0.5 m under a floor left it at 57 m/s).
@@ -991,10 +1026,7 @@ impl Validator<'_> {
                 ))
             }
         };
-        let stiffness = match o.stiffness {
-            Some(k) => self.positive(&f("stiffness"), k)?,
-            None => default_stiffness(mesh, material.young()),
-        };
+        let stiffness = self.penalty(&f("stiffness"), o.stiffness, mesh, material)?;
         Ok(Obstacle {
             shape,
             velocity: self.vector(&f("velocity"), o.velocity.unwrap_or_default())?,
