@@ -16,7 +16,7 @@ deps:
 		$(SUDO) apt-get update -qq && $(SUDO) DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libhdf5-dev pkg-config; }
 
 demo: deps
-	cargo run --release -- run scenes/freezing_container_fracture.toml --output freezing_container_fracture.h5
+	cargo run --release -- run scenes/freezing_container_fracture.toml --output freezing_container_fracture.h5 --force
 	cargo run --release -- figure freezing_container_fracture.h5
 
 # The README's figures (docs/*.png) from the paper's scene without and with fracture (~25 s).
@@ -24,9 +24,9 @@ FIG := target/figures
 figures: deps
 	cargo build --release
 	mkdir -p $(FIG) docs
-	./target/release/icefem run scenes/freezing_container.toml --output $(FIG)/freezing_container.h5
+	./target/release/icefem run scenes/freezing_container.toml --output $(FIG)/freezing_container.h5 --force
 	./target/release/icefem figure $(FIG)/freezing_container.h5 --size 400x400 --cut y=0.05 --color-by freeze --style solid --output docs/freezing_container_figure.png
-	./target/release/icefem run scenes/freezing_container_fracture.toml --output $(FIG)/freezing_container_fracture.h5
+	./target/release/icefem run scenes/freezing_container_fracture.toml --output $(FIG)/freezing_container_fracture.h5 --force
 	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 400x400 --output docs/freezing_container_fracture_figure.png
 	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 400x400 --cut y=0.05 --color-by plastic --style solid --output docs/freezing_container_fracture_plastic.png
 

@@ -345,7 +345,7 @@ def companion(icefem: Path, kind: str, cells: int, workdir: Path, what: str, dea
         return out
 
     try:
-        return measured([str(icefem), "run", str(scene), "--output", str(h5)], 900, parse, what, deadline)
+        return measured([str(icefem), "run", str(scene), "--output", str(h5), "--force"], 900, parse, what, deadline)
     except (ValueError, KeyError, OSError) as e:
         return dict(error=str(e))
     finally:
@@ -408,7 +408,7 @@ def verify_meshes(icefem: Path, python: str) -> list[str]:
             scene.write_text(cube_scene(cells, model="linear", gravity=GRAVITY, analysis="static",
                                         dt=1.0, end_time=1.0))
             h5 = Path(d) / "mesh_check.h5"
-            r = subprocess.run([str(icefem), "run", str(scene), "--output", str(h5)],
+            r = subprocess.run([str(icefem), "run", str(scene), "--output", str(h5), "--force"],
                                capture_output=True, text=True, cwd=d)
             if r.returncode != 0:
                 lines.append(f"icefem run failed for cells {cells}: {r.stderr.strip()[-300:]}")

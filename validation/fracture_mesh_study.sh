@@ -26,7 +26,7 @@ grep -q 'cells = \[16, 16, 16\]' "$OUT/freezing_container_16.toml"
 run() { # name scene
     echo "== $1: $2"
     # Progress goes to the run's log; its last line (the summary, or the error) is shown.
-    if ! "$ICEFEM" run "$2" --output "$OUT/$1.h5" > "$OUT/$1.log" 2>&1; then
+    if ! "$ICEFEM" run "$2" --output "$OUT/$1.h5" --force > "$OUT/$1.log" 2>&1; then
         tail -1 "$OUT/$1.log"
         exit 1
     fi

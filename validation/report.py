@@ -174,7 +174,7 @@ class Icefem:
         out = self.work / f"{name}.h5"
         best = None
         for _ in range(self.repeats):
-            cmd = [str(self.binary), "run", str(scene), "--output", str(out)]
+            cmd = [str(self.binary), "run", str(scene), "--output", str(out), "--force"]
             t0 = time.perf_counter()
             proc = subprocess.run(cmd, capture_output=True, text=True, cwd=self.work)
             wall = time.perf_counter() - t0
