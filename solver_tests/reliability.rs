@@ -437,6 +437,10 @@ fn errors_name_the_file_and_say_each_cause_once() {
         line.contains("out.h5") && line.contains("does not exist") && !line.contains("partial"),
         "{line}"
     );
+    // A name the XDMF sidecar cannot reference: refused before the run, not after it.
+    let line = one_line(&run(&scene, &dir.path().join("a:b.h5"), &[]));
+    assert!(line.contains("a:b.h5") && line.contains("':'"), "{line}");
+    assert!(!dir.path().join("a:b.h5").exists());
     // A Dirichlet region that holds no node: the scene file and the entry, counted from 1.
     let empty = write_scene(
         dir.path(),

@@ -85,6 +85,16 @@ pub(super) fn check_target(target: &Path, replace: bool) -> Result<(), OutputErr
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
+    if target
+        .file_name()
+        .is_some_and(|n| n.to_string_lossy().contains(':'))
+    {
+        // XDMF separates file and dataset with ':'; the sidecars could not name the file.
+        return Err(OutputError::InvalidInput {
+            path: target.to_path_buf(),
+            reason: "the file name contains ':', which the XDMF sidecar cannot reference".into(),
+        });
+    }
     if !dir.is_dir() {
         let missing = std::io::Error::new(
             std::io::ErrorKind::NotFound,
