@@ -88,8 +88,9 @@ fn frame_name(index: usize) -> String {
 
 /// Writes one run's frames and per-step statistics to an HDF5 file.
 ///
-/// Dropping a writer without [`finish`](Self::finish) still writes buffered
-/// stats rows (best effort) but produces no XDMF sidecar.
+/// Dropping a writer without [`finish`](Self::finish) still commits what was written and
+/// writes buffered stats rows (best effort); a new run's file that never took its target's
+/// place is removed, leaving the target as it was.
 pub struct OutputWriter {
     /// Where the file is now: `target`, or the hidden partial file of a new run not yet in its
     /// place (see `ownership`).
@@ -696,9 +697,9 @@ impl OutputWriter {
         Ok(())
     }
 
-    /// Flushes stats, closes the file and writes the XDMF sidecar
-    /// (`<file>.xdmf`). Returns nothing; the sidecar path is
-    /// `path.with_extension("xdmf")`.
+    /// Commits the frames written since the last commit, puts a new run's file in its target's
+    /// place, writes the sidecars (`<file>.xdmf`, and `<file>.cracks.xdmf` with fracture) and
+    /// the remaining `/stats` rows, and closes the file.
     pub fn finish(mut self) -> Result<(), OutputError> {
         if let Some(file) = self.file.clone() {
             self.commit(&file, true)?;
