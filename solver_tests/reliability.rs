@@ -523,6 +523,12 @@ fn ice_that_starts_inside_an_obstacle_or_another_body_is_refused() {
         );
         assert!(text.contains(deepest), "{text}");
     }
+    // A mesh a thousand times too large (millimetres read as metres): the hint says so.
+    let text = cube_in_container("2, 2, 2", 0.0, 0.0)
+        .replace("size = [0.1, 0.1, 0.1]", "size = [100.0, 100.0, 100.0]");
+    let scene = write_scene(dir.path(), "mm.toml", &text);
+    let text = stderr(&run(&scene, &out, &[]));
+    assert!(text.contains("scale = 0.001"), "{text}");
     // Resting exactly on the floor and against the walls is not inside.
     let scene = write_scene(
         dir.path(),

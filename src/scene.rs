@@ -888,10 +888,24 @@ impl Validator<'_> {
                 .filter(|(d, _)| *d > tolerance)
                 .collect();
             if let Some((deepest, at)) = inside.iter().copied().max_by(|a, b| a.0.total_cmp(&b.0)) {
+                // A mesh far larger than the container it is put in was most likely written
+                // in other units.
+                let units = match &o.shape {
+                    Shape::Container { inner }
+                        if (hi - lo).norm() > 10.0 * (inner.max - inner.min).norm() =>
+                    {
+                        format!(
+                            "; the mesh is {:.3e} m across and the container {:.3e} m — if the mesh file is in millimetres, set [mesh] scale = 0.001",
+                            (hi - lo).norm(),
+                            (inner.max - inner.min).norm()
+                        )
+                    }
+                    _ => String::new(),
+                };
                 return Err(self.invalid(
                     &format!("obstacle[{i}]"),
                     format!(
-                        "{} of the mesh's {} nodes start inside this obstacle, the deepest {deepest:.3e} m behind its surface at ({:.4}, {:.4}, {:.4}) m; the ice must start outside every obstacle (move the mesh or the obstacle)",
+                        "{} of the mesh's {} nodes start inside this obstacle, the deepest {deepest:.3e} m behind its surface at ({:.4}, {:.4}, {:.4}) m; the ice must start outside every obstacle (move the mesh or the obstacle){units}",
                         inside.len(),
                         mesh.rest.len(),
                         at.x,
