@@ -523,6 +523,29 @@ fn ice_that_starts_inside_an_obstacle_or_another_body_is_refused() {
         );
         assert!(text.contains(deepest), "{text}");
     }
+    // The ramp of scenes/slide_down_ramp.toml cutting through the ice's lower corner.
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/ramp.obj"),
+        dir.path().join("ramp.obj"),
+    )
+    .unwrap();
+    let ramp = |z: f64| {
+        format!(
+            "[mesh]\nbox = {{ origin = [0.01, 0.08, {z}], size = [0.04, 0.04, 0.04], cells = [3, 3, 3] }}\n\
+             [material]\ndensity = 916.0\nlambda = 8.64e10\nmu = 3.70e10\n\
+             [[obstacle]]\ntype = \"mesh\"\nfile = \"ramp.obj\"\n\
+             [time]\ndt = 0.01\nend_time = 0.02\n"
+        )
+    };
+    let scene = write_scene(dir.path(), "ramp.toml", &ramp(0.08));
+    let text = stderr(&run(&scene, &out, &[]));
+    assert!(
+        text.contains("obstacle[0]") && text.contains("start inside"),
+        "{text}"
+    );
+    let scene = write_scene(dir.path(), "above.toml", &ramp(0.1));
+    let o = run(&scene, &dir.path().join("above.h5"), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
     // A mesh a thousand times too large (millimetres read as metres): the hint says so.
     let text = cube_in_container("2, 2, 2", 0.0, 0.0)
         .replace("size = [0.1, 0.1, 0.1]", "size = [100.0, 100.0, 100.0]");

@@ -861,9 +861,11 @@ impl Validator<'_> {
         Ok(k)
     }
 
-    /// The ice must start outside every obstacle with planes (half-spaces, containers): a node
-    /// behind a plane by more than round-off (1e-6 of the mesh's size) would be thrown out by
-    /// the penalty force in the first step (a cube 0.5 m under a floor left it at 57 m/s).
+    /// The ice must start outside every obstacle: a node behind an obstacle's surface by more
+    /// than round-off (1e-6 of the mesh's size) would be thrown out by the penalty force in the
+    /// first step (a cube 0.5 m under a floor left it at 57 m/s). For a mesh obstacle, nodes
+    /// within two element sizes of its surface are checked (a surface that cuts the ice); ice
+    /// entirely inside a closed mesh obstacle is not found.
     fn check_outside_obstacles(
         &self,
         mesh: &TetMesh,
@@ -871,15 +873,22 @@ impl Validator<'_> {
     ) -> Result<(), SceneError> {
         let (lo, hi) = mesh.bounding_box();
         let tolerance = 1e-6 * (hi - lo).norm();
+        let extent = hi - lo;
+        let element = (extent.x * extent.y * extent.z / mesh.num_tets() as f64).cbrt();
         let mut planes = Vec::new();
         for (i, o) in obstacles.iter().enumerate() {
             planes.clear();
             o.planes_into(0.0, &mut planes);
             let depth = |x: &Vector3<f64>| {
-                planes
+                let behind_planes = planes
                     .iter()
                     .map(|p| (p.point - x).dot(&p.normal))
-                    .fold(f64::NEG_INFINITY, f64::max)
+                    .fold(f64::NEG_INFINITY, f64::max);
+                let behind_surface = o
+                    .surface()
+                    .and_then(|s| s.closest(*x, 2.0 * element))
+                    .map_or(f64::NEG_INFINITY, |c| -c.gap);
+                behind_planes.max(behind_surface)
             };
             let inside: Vec<(f64, &Vector3<f64>)> = mesh
                 .rest
