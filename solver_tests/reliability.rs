@@ -312,6 +312,16 @@ fn a_killed_run_leaves_a_sidecar_of_its_committed_frames() {
     child.wait().unwrap();
     assert!(frames(&out) >= 50);
     assert_sidecar_matches(&out);
+    // A run killed before it took its target's place leaves its hidden file; the next run on
+    // that target removes it.
+    let early = dir.path().join("early.h5");
+    let stale = dir.path().join(".early.h5.4000000.partial");
+    std::fs::copy(&out, &stale).unwrap();
+    assert!(run(&write_scene(dir.path(), "bar.toml", BAR), &early, &[])
+        .status
+        .success());
+    assert!(!stale.exists());
+    assert!(!listing(dir.path()).iter().any(|n| n.ends_with(".partial")));
 }
 
 #[test]

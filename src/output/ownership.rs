@@ -151,6 +151,35 @@ pub(super) fn partial_path(target: &Path) -> PathBuf {
     target.with_file_name(format!(".{name}.{}.partial", std::process::id()))
 }
 
+/// Removes the hidden files that runs killed before taking `target`'s place left beside it
+/// (`.NAME.PID.partial` that no run holds the lock of). Best effort.
+pub(super) fn remove_stale_partials(target: &Path) {
+    let (Some(dir), Some(name)) = (target.parent(), target.file_name()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = file
+            .strip_prefix(&prefix)
+            .and_then(|rest| rest.strip_suffix(".partial"))
+        else {
+            continue;
+        };
+        if pid.chars().all(|c| c.is_ascii_digit()) && !is_written(&entry.path()) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// Puts the finished-enough `partial` file in `target`'s place (atomically), unless a run has
 /// started writing `target` meanwhile.
 pub(super) fn take_place(partial: &Path, target: &Path) -> Result<(), OutputError> {

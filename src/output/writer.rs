@@ -9,7 +9,7 @@ use super::hdf5_io::{
     check_tets, close_on_exec, link_dataset, link_object, vlen_str, write_attr, write_indices,
     write_matrix, write_tets, write_vec3, Hdf5Context,
 };
-use super::ownership::{check_target, partial_path, take_place, RunLock};
+use super::ownership::{check_target, partial_path, remove_stale_partials, take_place, RunLock};
 use super::xdmf::{write_sidecars, FrameRecord};
 use super::{
     corrupt, invalid, Frame, OutputError, RunHeader, StepStats, FORMAT_VERSION,
@@ -268,6 +268,7 @@ impl OutputWriter {
 
     fn start(target: &Path, header: &RunHeader, replace: bool) -> Result<Self, OutputError> {
         check_target(target, replace)?;
+        remove_stale_partials(target);
         let path = &partial_path(target);
         match Self::write_header(path, header) {
             Ok((file, lock)) => Ok(Self {
