@@ -613,7 +613,8 @@ impl OutputWriter {
     /// [`CACHE_REOPEN_BYTES`] and no frame is uncommitted: with evictions off (see
     /// [`crash_safe_options`]) the cache keeps every object header the run wrote, which would
     /// otherwise grow the run's memory with every frame. Reopening between commits writes
-    /// nothing the last commit did not.
+    /// nothing the last commit did not (but `/stats` rows a long stretch without frames had
+    /// to write early).
     fn reopen_if_cache_is_large(&mut self) -> Result<(), OutputError> {
         let Some(file) = &self.file else {
             return Ok(());
@@ -621,7 +622,7 @@ impl OutputWriter {
         if !self.uncommitted.is_empty() || metadata_cache_bytes(file) < CACHE_REOPEN_BYTES {
             return Ok(());
         }
-        self.flush_stats()?;
+        // Pending `/stats` rows stay in memory until the next commit writes them.
         let path = self.location.clone();
         let file = self.file.take().expect("checked above");
         file.close()
