@@ -756,6 +756,8 @@ impl Validator<'_> {
                         source,
                     })?;
                 let nodes: Vec<[f64; 3]> = nodes.iter().map(|p| p.map(|c| c * scale)).collect();
+                // The file's arrays are small next to what a run builds on them.
+                self.check_memory("mesh.file", tets.len() as u128, "use a coarser mesh")?;
                 TetMesh::from_arrays(&nodes, tets).map_err(mesh_err)
             }
             _ => Err(self.invalid(
@@ -792,18 +794,7 @@ impl Validator<'_> {
             }
             tets += b.cells.iter().map(|&c| c as u128).product::<u128>() * tpc as u128;
         }
-        let needed = tets as f64 * BYTES_PER_TET;
-        if let Some(available) = available_memory() {
-            if needed > available as f64 {
-                return Err(self.invalid(
-                    &field(0).replace("[0]", ""),
-                    format!(
-                        "{tets} tets would need about {:.3e} bytes of memory ({BYTES_PER_TET} bytes a tet) and this machine has {:.3e} available; use fewer cells",
-                        needed, available as f64
-                    ),
-                ));
-            }
-        }
+        self.check_memory(&field(0).replace("[0]", ""), tets, "use fewer cells")?;
         for (j, b) in boxes.iter().enumerate() {
             for (i, a) in boxes[..j].iter().enumerate() {
                 let overlap: Vec<f64> = (0..3)
@@ -859,6 +850,22 @@ impl Validator<'_> {
             ));
         }
         Ok(k)
+    }
+
+    /// Refuses a mesh of `tets` tets whose run would need more memory than this machine has
+    /// available ([`BYTES_PER_TET`] a tet), naming `field` and what to do (`advice`).
+    fn check_memory(&self, field: &str, tets: u128, advice: &str) -> Result<(), SceneError> {
+        let needed = tets as f64 * BYTES_PER_TET;
+        match available_memory() {
+            Some(available) if needed > available as f64 => Err(self.invalid(
+                field,
+                format!(
+                    "{tets} tets would need about {needed:.3e} bytes of memory ({BYTES_PER_TET} bytes a tet) and this machine has {:.3e} available; {advice}",
+                    available as f64
+                ),
+            )),
+            _ => Ok(()),
+        }
     }
 
     /// The ice must start outside every obstacle: a node behind an obstacle's surface by more
