@@ -103,7 +103,6 @@ impl OutputWriter {
             location: path.to_path_buf(),
             target: path.to_path_buf(),
             _lock: lock,
-            committed: 0,
             uncommitted_bytes: 0,
             file: Some(file),
             next_frame: last_index + 1,

@@ -99,8 +99,6 @@ pub struct OutputWriter {
     pub(super) target: PathBuf,
     /// This run's write lock on its file.
     pub(super) _lock: RunLock,
-    /// Frames marked complete so far by this writer.
-    pub(super) committed: usize,
     /// Bytes of the frames written since the last commit (what the commit's flush may still
     /// have to put on disk).
     pub(super) uncommitted_bytes: u64,
@@ -275,7 +273,6 @@ impl OutputWriter {
                 location: path.clone(),
                 target: target.to_path_buf(),
                 _lock: lock,
-                committed: 0,
                 uncommitted_bytes: 0,
                 file: Some(file),
                 next_frame: 0,
@@ -357,8 +354,8 @@ impl OutputWriter {
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), OutputError> {
         self.validate_frame(frame)?;
         self.reopen_if_cache_is_large()?;
-        let size = frame_bytes(frame) + STATS_ROW_BYTES * self.pending_stats.len() as u64;
-        self.check_room(size)?;
+        let bytes = frame_bytes(frame);
+        self.check_room(bytes + STATS_ROW_BYTES * self.pending_stats.len() as u64)?;
         let name = frame_name(self.next_frame);
         let file = self.file()?.clone();
         let frames = file
@@ -386,7 +383,7 @@ impl OutputWriter {
             self.n_elems = frame.tets.len();
         }
         self.uncommitted.push((name, record, g));
-        self.uncommitted_bytes += frame_bytes(frame);
+        self.uncommitted_bytes += bytes;
         self.next_frame += 1;
         if self
             .last_commit
@@ -582,7 +579,6 @@ impl OutputWriter {
                 .ctx(&path, || "opening /frames".into())?;
             for (name, record, g) in std::mem::take(&mut self.uncommitted) {
                 link_object(&path, &g, &frames, &name)?;
-                self.committed += 1;
                 self.records.push(record);
             }
             self.unlinked_topology = None;
@@ -592,7 +588,8 @@ impl OutputWriter {
         } else if !finishing {
             return Ok(());
         }
-        if self.location != self.target && (self.committed >= 2 || finishing) {
+        // A new run's records are its own frames: it takes its place with two of them.
+        if self.location != self.target && (self.records.len() >= 2 || finishing) {
             take_place(&self.location, &self.target)?;
             self.location = self.target.clone();
         }

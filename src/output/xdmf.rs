@@ -84,11 +84,11 @@ impl FrameRecord {
     /// attribute list when the layout is the same.
     pub(super) fn of(index: usize, frame: &Frame, previous: Option<&FrameRecord>) -> Self {
         let (n, m) = (frame.positions.len(), frame.tets.len());
-        let mut attributes = vec![
-            builtin("velocity", "velocities", "Node", float(n, 3)),
-            builtin("rest_position", "rest_positions", "Node", float(n, 3)),
-            builtin("stress", "stress", "Cell", float(m, 6)),
-        ];
+        let mut attributes: Vec<AttributeRecord> = BUILTINS
+            .iter()
+            .zip([float(n, 3), float(n, 3), float(m, 6)])
+            .map(|(&(name, dataset, center), item)| builtin(name, dataset, center, item))
+            .collect();
         for (fields, center, rows) in [
             (frame.element_fields, "Cell", m),
             (frame.node_fields, "Node", n),
@@ -99,11 +99,8 @@ impl FrameRecord {
             }
         }
         // Fields in name order (as `read_record` lists them).
-        attributes[3..].sort_by(|a, b| a.dataset.cmp(&b.dataset));
-        let attributes = match previous {
-            Some(p) if *p.attributes == *attributes => p.attributes.clone(),
-            _ => attributes.into(),
-        };
+        attributes[BUILTINS.len()..].sort_by(|a, b| a.dataset.cmp(&b.dataset));
+        let attributes = shared(attributes, previous);
         let cracks = frame.cracks.filter(|c| !c.triangles.is_empty()).map(|c| {
             let t = c.triangles.len();
             [indices(t, 3), float(c.vertices.len(), 3), indices(t, 0)]
@@ -116,6 +113,24 @@ impl FrameRecord {
             attributes,
             cracks,
         }
+    }
+}
+
+/// The attributes every frame has, first in its grid: sidecar name, dataset, centering.
+const BUILTINS: [(&str, &str, &str); 3] = [
+    ("velocity", "velocities", "Node"),
+    ("rest_position", "rest_positions", "Node"),
+    ("stress", "stress", "Cell"),
+];
+
+/// `attributes`, sharing the previous record's list when they are the same.
+fn shared(
+    attributes: Vec<AttributeRecord>,
+    previous: Option<&FrameRecord>,
+) -> Rc<[AttributeRecord]> {
+    match previous {
+        Some(p) if *p.attributes == *attributes => p.attributes.clone(),
+        _ => attributes.into(),
     }
 }
 
@@ -289,14 +304,10 @@ fn read_record(
     let positions = item_of(&positions).ok_or_else(|| undescribable(&positions))?;
 
     // Built-ins first, then fields by name.
-    let mut found: Vec<(String, String, &'static str)> = [
-        ("velocity", "velocities", "Node"),
-        ("rest_position", "rest_positions", "Node"),
-        ("stress", "stress", "Cell"),
-    ]
-    .iter()
-    .map(|&(x, d, c)| (x.to_string(), d.to_string(), c))
-    .collect();
+    let mut found: Vec<(String, String, &'static str)> = BUILTINS
+        .iter()
+        .map(|&(x, d, c)| (x.to_string(), d.to_string(), c))
+        .collect();
     let names = g
         .member_names()
         .ctx(h5_path, || format!("listing {}", g.name()))?;
@@ -313,7 +324,7 @@ fn read_record(
         }
     }
     // Fields in name order, whatever order the group lists its links in.
-    found[3..].sort_by(|a, b| a.1.cmp(&b.1));
+    found[BUILTINS.len()..].sort_by(|a, b| a.1.cmp(&b.1));
     let mut attributes = Vec::new();
     for (name, dataset, center) in found {
         let Ok(ds) = g.dataset(&dataset) else {
@@ -333,10 +344,7 @@ fn read_record(
             item,
         });
     }
-    let attributes = match previous {
-        Some(p) if *p.attributes == *attributes => p.attributes.clone(),
-        _ => attributes.into(),
-    };
+    let attributes = shared(attributes, previous);
     let cracks = g.group("cracks").ok().and_then(|c| {
         let items = ["triangles", "vertices", "crack"]
             .map(|name| c.dataset(name).ok().as_ref().and_then(item_of));
