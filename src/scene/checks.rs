@@ -1,0 +1,201 @@
+//! The checks of a scene's input that look past single fields: what the whole mesh needs of
+//! the machine's memory, bodies that overlap, ice that starts inside an obstacle, and penalty
+//! stiffnesses far from the ice's own.
+
+use nalgebra::Vector3;
+
+use super::{BoxSection, SceneError, Validator};
+use crate::fem::Material;
+use crate::mesh::TetMesh;
+use crate::physics::contact::{default_stiffness, Shape};
+use crate::physics::Obstacle;
+
+/// Allowed penalty stiffnesses, as factors of the default 10 E / h (h: the ice's mean boundary
+/// edge): the penetration under a load stays between 1e-4 and 1e2 times what the default gives.
+const PENALTY_RANGE: (f64, f64) = (1e-2, 1e4);
+
+/// Memory a tet of a scene takes in a run, for refusing a mesh that cannot fit before it is
+/// built (bytes): the benchmarks measured 2.6 GB for 2e6 tets with the Cholesky solver.
+const BYTES_PER_TET: f64 = 1.3e3;
+
+/// Memory this machine has available (bytes, `MemAvailable` of /proc/meminfo), if it can tell.
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+impl Validator<'_> {
+    /// Checks the boxes of `[mesh]` before any is meshed: sizes, cells, tets per cell; that
+    /// the whole mesh fits in the memory this machine has (refused in microseconds, without
+    /// allocating); and that no two boxes overlap (bodies must start apart).
+    pub(super) fn check_boxes(
+        &self,
+        boxes: &[&BoxSection],
+        field: impl Fn(usize) -> String,
+    ) -> Result<(), SceneError> {
+        let mut tets = 0u128;
+        for (k, b) in boxes.iter().enumerate() {
+            let field = field(k);
+            for a in 0..3 {
+                self.positive(&format!("{field}.size[{a}]"), b.size[a])?;
+                self.finite(&format!("{field}.origin[{a}]"), b.origin[a])?;
+                if b.cells[a] == 0 {
+                    return Err(self.invalid(&format!("{field}.cells[{a}]"), "must be ≥ 1"));
+                }
+            }
+            let tpc = b.tets_per_cell.unwrap_or(6);
+            if tpc != 5 && tpc != 6 {
+                return Err(self.invalid(
+                    &format!("{field}.tets_per_cell"),
+                    format!("must be 5 or 6, got {tpc}"),
+                ));
+            }
+            tets += b.cells.iter().map(|&c| c as u128).product::<u128>() * tpc as u128;
+        }
+        self.check_memory(&field(0).replace("[0]", ""), tets, "use fewer cells")?;
+        for (j, b) in boxes.iter().enumerate() {
+            for (i, a) in boxes[..j].iter().enumerate() {
+                let overlap: Vec<f64> = (0..3)
+                    .map(|d| {
+                        (a.origin[d] + a.size[d]).min(b.origin[d] + b.size[d])
+                            - a.origin[d].max(b.origin[d])
+                    })
+                    .collect();
+                // Touching faces (overlap 0 in one direction) are fine; round-off is not an
+                // overlap.
+                let tolerance = 1e-9 * a.size.iter().chain(&b.size).fold(0.0f64, |m, &s| m.max(s));
+                if overlap.iter().all(|&o| o > tolerance) {
+                    return Err(self.invalid(
+                        &field(j),
+                        format!(
+                            "overlaps {} by {:.3e} × {:.3e} × {:.3e} m; bodies must start apart",
+                            field(i),
+                            overlap[0],
+                            overlap[1],
+                            overlap[2]
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// A penalty stiffness (N/m³): `given`, within [`PENALTY_RANGE`] times the default 10 E / h,
+    /// or that default. Far above it the contact force of a step's penetration dwarfs the ice's
+    /// own stiffness (1e25 N/m³ kicked a resting cube to 4 m/s); far below, the ice sinks into
+    /// the obstacle (1e3 N/m³: 0.7 m).
+    pub(super) fn penalty(
+        &self,
+        field: &str,
+        given: Option<f64>,
+        mesh: &TetMesh,
+        material: &Material,
+    ) -> Result<f64, SceneError> {
+        let default = default_stiffness(mesh, material.young());
+        let Some(k) = given else {
+            return Ok(default);
+        };
+        let k = self.positive(field, k)?;
+        let (low, high) = (PENALTY_RANGE.0 * default, PENALTY_RANGE.1 * default);
+        if !(low..=high).contains(&k) {
+            return Err(self.invalid(
+                field,
+                format!(
+                    "{k:e} N/m³ is outside {low:.3e} … {high:.3e} N/m³ ({:e} … {:e} × the default 10 E / h = {default:.3e} N/m³ for this ice and mesh); leave it out for the default",
+                    PENALTY_RANGE.0, PENALTY_RANGE.1
+                ),
+            ));
+        }
+        Ok(k)
+    }
+
+    /// Refuses a mesh of `tets` tets whose run would need more memory than this machine has
+    /// available ([`BYTES_PER_TET`] a tet), naming `field` and what to do (`advice`).
+    pub(super) fn check_memory(
+        &self,
+        field: &str,
+        tets: u128,
+        advice: &str,
+    ) -> Result<(), SceneError> {
+        let needed = tets as f64 * BYTES_PER_TET;
+        match available_memory() {
+            Some(available) if needed > available as f64 => Err(self.invalid(
+                field,
+                format!(
+                    "{tets} tets would need about {needed:.3e} bytes of memory ({BYTES_PER_TET} bytes a tet) and this machine has {:.3e} available; {advice}",
+                    available as f64
+                ),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// The ice must start outside every obstacle: a node behind an obstacle's surface by more
+    /// than round-off (1e-6 of the mesh's size) would be thrown out by the penalty force in the
+    /// first step (a cube 0.5 m under a floor left it at 57 m/s). For a mesh obstacle, nodes
+    /// within two element sizes of its surface are checked (a surface that cuts the ice); ice
+    /// entirely inside a closed mesh obstacle is not found.
+    pub(super) fn check_outside_obstacles(
+        &self,
+        mesh: &TetMesh,
+        obstacles: &[Obstacle],
+    ) -> Result<(), SceneError> {
+        let (lo, hi) = mesh.bounding_box();
+        let tolerance = 1e-6 * (hi - lo).norm();
+        let extent = hi - lo;
+        let element = (extent.x * extent.y * extent.z / mesh.num_tets() as f64).cbrt();
+        let mut planes = Vec::new();
+        for (i, o) in obstacles.iter().enumerate() {
+            planes.clear();
+            o.planes_into(0.0, &mut planes);
+            let depth = |x: &Vector3<f64>| {
+                let behind_planes = planes
+                    .iter()
+                    .map(|p| (p.point - x).dot(&p.normal))
+                    .fold(f64::NEG_INFINITY, f64::max);
+                let behind_surface = o
+                    .surface()
+                    .and_then(|s| s.closest(*x, 2.0 * element))
+                    .map_or(f64::NEG_INFINITY, |c| -c.gap);
+                behind_planes.max(behind_surface)
+            };
+            let inside: Vec<(f64, &Vector3<f64>)> = mesh
+                .rest
+                .iter()
+                .map(|x| (depth(x), x))
+                .filter(|(d, _)| *d > tolerance)
+                .collect();
+            if let Some((deepest, at)) = inside.iter().copied().max_by(|a, b| a.0.total_cmp(&b.0)) {
+                // A mesh far larger than the container it is put in was most likely written
+                // in other units.
+                let units = match &o.shape {
+                    Shape::Container { inner }
+                        if (hi - lo).norm() > 10.0 * (inner.max - inner.min).norm() =>
+                    {
+                        format!(
+                            "; the mesh is {:.3e} m across and the container {:.3e} m — if the mesh file is in millimetres, set [mesh] scale = 0.001",
+                            (hi - lo).norm(),
+                            (inner.max - inner.min).norm()
+                        )
+                    }
+                    _ => String::new(),
+                };
+                return Err(self.invalid(
+                    &format!("obstacle[{i}]"),
+                    format!(
+                        "{} of the mesh's {} nodes start inside this obstacle, the deepest {deepest:.3e} m behind its surface at ({:.4}, {:.4}, {:.4}) m; the ice must start outside every obstacle (move the mesh or the obstacle){units}",
+                        inside.len(),
+                        mesh.rest.len(),
+                        at.x,
+                        at.y,
+                        at.z
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
