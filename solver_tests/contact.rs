@@ -7,10 +7,10 @@ use common::*;
 use icefem::fem::ElasticModel;
 use icefem::mesh::box_mesh;
 use icefem::mesh::surface::TriSurface;
-use icefem::physics::contact::{default_stiffness, Shape};
+use icefem::physics::contact::{default_stiffness, ObstacleContact, Shape};
 use icefem::physics::obstacle_mesh::ObstacleSurface;
 use icefem::physics::{Contact, Elasticity, Model, Obstacle};
-use icefem::sim::{Analysis, Simulation};
+use icefem::sim::{Analysis, SimError, Simulation, SolveFailure};
 use nalgebra::Rotation3;
 use nalgebra::Vector3;
 use std::sync::Arc;
@@ -613,4 +613,61 @@ fn cube_slides_down_the_obj_ramp_scene_and_stops_on_the_floor() {
         "not resting on the floor: z_min = {z_min:e}"
     );
     assert!(vmax < 1e-4, "not at rest: {vmax:e} m/s");
+}
+
+#[test]
+fn a_penalty_far_stiffer_than_the_ice_is_stopped_by_the_energy_balance_not_launched() {
+    // The drop scene's 59 g cube with a wall stiffness of 1e25 N/m³ (1e11 × the default; the
+    // scene file refuses it, built here directly): Newton stops at its round-off floor far
+    // from the solution and, unchecked, the cube left a wall with 8.3 J. The balance of
+    // every solve turns that into an error naming the energy that appeared.
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/drop_into_container.toml");
+    let scene = icefem::scene::Scene::load(&path).unwrap();
+    let mut model = scene.model.clone();
+    let mut obstacles = model.obstacle_contact().unwrap().obstacles.clone();
+    obstacles[0].stiffness = 1e25;
+    model
+        .terms
+        .retain(|t| t.as_any().downcast_ref::<ObstacleContact>().is_none());
+    let contact = Contact::new(&model.mesh, obstacles, 1e-4);
+    model.add_obstacles(contact);
+    let mut sim = Simulation::new(model, scene.settings).unwrap();
+    let start = sim.energies().total();
+    let steps = icefem::run::step_count(scene.end_time, scene.settings.dt);
+    let mut failure = None;
+    for _ in 0..steps {
+        match sim.step() {
+            Ok(report) => {
+                // What the accepted steps may gain: 5 % of the energy that moves, here at
+                // most ~0.03 J (the cube's fall), so 2e-3 J.
+                let e = report.energies.total();
+                assert!(
+                    e <= start + 2e-3,
+                    "energy {e} J after starting at {start} J"
+                );
+            }
+            Err(e) => {
+                failure = Some(e);
+                break;
+            }
+        }
+    }
+    let failure = failure.expect("the run finished with a penalty of 1e25 N/m³");
+    eprintln!("{failure}");
+    assert!(
+        matches!(
+            failure,
+            SimError::Step {
+                cause: SolveFailure::EnergyRise(_),
+                ..
+            }
+        ),
+        "{failure}"
+    );
+    let message = failure.to_string();
+    assert!(message.contains("more than the work"), "{message}");
+    // The state is the last accepted step's, at rest-scale speeds (not metres per second).
+    let vmax = sim.state.v.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(vmax < 1.0, "max |v| = {vmax} m/s");
 }

@@ -556,6 +556,18 @@ fn ice_that_starts_inside_an_obstacle_or_another_body_is_refused() {
     let scene = write_scene(dir.path(), "above.toml", &ramp(0.1));
     let o = run(&scene, &dir.path().join("above.h5"), &[]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // A 1 cm cube wholly inside the (closed) ramp, 2 cm above its floor face: no node is
+    // near the surface, one node per body is tested however deep.
+    let buried = ramp(0.0).replace(
+        "origin = [0.01, 0.08, 0], size = [0.04, 0.04, 0.04], cells = [3, 3, 3]",
+        "origin = [0.05, 0.08, 0.02], size = [0.01, 0.01, 0.01], cells = [2, 2, 2]",
+    );
+    let scene = write_scene(dir.path(), "buried.toml", &buried);
+    let text = stderr(&run(&scene, &out, &[]));
+    assert!(
+        text.contains("obstacle[0]") && text.contains("start inside") && text.contains("2.000e-2"),
+        "{text}"
+    );
     // A mesh a thousand times too large (millimetres read as metres): the hint says so.
     let text = cube_in_container("2, 2, 2", 0.0, 0.0)
         .replace("size = [0.1, 0.1, 0.1]", "size = [100.0, 100.0, 100.0]");
@@ -580,6 +592,42 @@ fn ice_that_starts_inside_an_obstacle_or_another_body_is_refused() {
         text.contains("mesh.boxes[1]") && text.contains("overlaps mesh.boxes[0]"),
         "{text}"
     );
+    // Two bodies of one Gmsh file: 10 cm tets, the second moved by `shift` (m) on each axis.
+    let two_tets = |shift: f64| {
+        let corners = [
+            [0.0, 0.0, 0.0],
+            [0.1, 0.0, 0.0],
+            [0.0, 0.1, 0.0],
+            [0.0, 0.0, 0.1],
+        ];
+        let nodes: Vec<String> = (0..8)
+            .map(|i| {
+                let c = corners[i % 4].map(|x| x + if i < 4 { 0.0 } else { shift });
+                format!("{} {} {} {}", i + 1, c[0], c[1], c[2])
+            })
+            .collect();
+        format!(
+            "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n8\n{}\n$EndNodes\n\
+             $Elements\n2\n1 4 2 0 1 1 2 3 4\n2 4 2 0 2 5 6 7 8\n$EndElements\n",
+            nodes.join("\n")
+        )
+    };
+    let gmsh_scene = "[mesh]\nfile = \"two.msh\"\n[material]\ndensity = 916.0\nlambda = 8.64e10\n\
+                      mu = 3.70e10\n[time]\ndt = 0.01\nend_time = 0.02\n";
+    let scene = write_scene(dir.path(), "two.toml", gmsh_scene);
+    // 1 mm into each other: the second tet's corner is inside the first.
+    std::fs::write(dir.path().join("two.msh"), two_tets(0.001)).unwrap();
+    let text = stderr(&run(&scene, &dir.path().join("two.h5"), &[]));
+    assert!(
+        text.contains("mesh.file")
+            && text.contains("2 separate bodies")
+            && text.contains("bodies must start apart"),
+        "{text}"
+    );
+    // 20 cm apart they run.
+    std::fs::write(dir.path().join("two.msh"), two_tets(0.2)).unwrap();
+    let o = run(&scene, &dir.path().join("two.h5"), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
 }
 
 #[test]

@@ -361,10 +361,10 @@ fn check_elasticity_with(
     );
     elasticity.pattern_ready(&assembly);
     let mut element_energy = vec![0.0; mesh.num_tets()];
+    let offsets = history.offsets();
     let mut term = ElasticStep::new(
         &elasticity,
-        &mesh.tets,
-        &history,
+        (&mesh.tets, &history, &offsets),
         &assembly,
         &mut element_energy,
         project,
@@ -579,8 +579,7 @@ fn stiffness_damping() {
     let mut element_energy = vec![0.0; mesh.num_tets()];
     ElasticStep::new(
         &elasticity,
-        &mesh.tets,
-        &history,
+        (&mesh.tets, &history, &history.offsets()),
         &assembly,
         &mut element_energy,
         true,

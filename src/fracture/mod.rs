@@ -151,7 +151,10 @@ pub fn separation(
     let mut has_ice = vec![false; nodes];
     // With the nodal volumetric energy the elements' own laws are deviatoric: their pressure
     // p̄ₑ acts through their volume change θₑ.
-    let pressure = elasticity.nodal_pressures(tets, history, u).map(|(p, _)| p);
+    let offsets = history.offsets();
+    let pressure = elasticity
+        .nodal_pressures(tets, history, &offsets, u)
+        .map(|(p, _)| p);
     for (e, tet) in tets.iter().enumerate() {
         if !history.holds_ice(e) {
             for &i in tet {
@@ -161,14 +164,14 @@ pub fn separation(
         }
         let rest = &elasticity.rest[e];
         let local = Elasticity::local(u, tet);
-        let offset = history.offset_of(e);
-        let (strain, r) = elastic_strain(elasticity.model, rest, &local, &offset);
+        let offset = &offsets[e];
+        let (strain, r) = elastic_strain(elasticity.model, rest, &local, offset);
         // The simulation's nodal force of a stress σ (in the element's frame) is −V R σ G ∇Nᵢ,
         // with G = I (linear) or F*⁻ᵀ (the corotated model's multiplicative offset).
         let frame = match elasticity.model {
             ElasticModel::Linear => Matrix3::identity(),
             ElasticModel::Corotated => {
-                r * offset_elastic_gradient(&offset, &Matrix3::zeros())
+                r * offset_elastic_gradient(offset, &Matrix3::zeros())
                     .0
                     .transpose()
             }

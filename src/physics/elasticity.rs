@@ -211,10 +211,11 @@ impl Elasticity {
         &self,
         tets: &[[usize; 4]],
         history: &ElementHistory,
+        offsets: &[StrainOffset],
         u: &[f64],
     ) -> Option<(Vec<f64>, f64)> {
         let nodal = self.nodal.as_ref()?;
-        let (change, bulk) = self.volume_changes(tets, history, &history.offsets(), u, false);
+        let (change, bulk) = self.volume_changes(tets, history, offsets, u, false);
         let theta: Vec<f64> = change.iter().map(|c| c.theta).collect();
         Some(nodal.pressures(&theta, &bulk, &self.rest, tets))
     }
@@ -304,7 +305,10 @@ impl Elasticity {
         u: &[f64],
     ) -> Vec<[f64; 6]> {
         use rayon::prelude::*;
-        let pressure = self.nodal_pressures(tets, history, u).map(|(p, _)| p);
+        let offsets = history.offsets();
+        let pressure = self
+            .nodal_pressures(tets, history, &offsets, u)
+            .map(|(p, _)| p);
         (0..tets.len())
             .into_par_iter()
             .map(|e| {
@@ -312,7 +316,7 @@ impl Elasticity {
                     &self.law_of(history, e),
                     &self.rest[e],
                     &Self::local(u, &tets[e]),
-                    &history.offset_of(e),
+                    &offsets[e],
                 );
                 // The averaged pressure (the elements' own laws are deviatoric then).
                 if let Some(p) = &pressure {
@@ -325,21 +329,21 @@ impl Elasticity {
             .collect()
     }
 
-    /// Elastic energy Σ Wₑ (J) at `u`, with each element's energy written to `element_energy`.
+    /// Elastic energy Σ Wₑ (J) at `u`, with the elements' strain `offsets`
+    /// (`history.offsets()`) and each element's energy written to `element_energy`.
     pub fn energy(
         &self,
         assembly: &Assembly,
-        tets: &[[usize; 4]],
-        history: &ElementHistory,
+        (tets, history, offsets): (&[[usize; 4]], &ElementHistory, &[StrainOffset]),
         u: &[f64],
         element_energy: &mut [f64],
     ) -> f64 {
         assembly.energies(
-            |e, out| self.element(tets, history, u, e, false, out),
+            |e, out| self.element_with(tets, history, u, e, &offsets[e], false, false, out),
             element_energy,
         );
         let volumetric = self
-            .nodal_pressures(tets, history, u)
+            .nodal_pressures(tets, history, offsets, u)
             .map_or(0.0, |(_, energy)| energy);
         // Summed in order so the result does not depend on thread scheduling.
         element_energy.iter().sum::<f64>() + volumetric
@@ -361,15 +365,15 @@ pub struct ElasticStep<'a> {
     /// Whether element stiffnesses are projected to be positive semi-definite.
     pub project: bool,
     /// Each element's strain offset, fixed during the solve (`history.offsets()`).
-    pub offsets: Vec<StrainOffset>,
+    pub offsets: &'a [StrainOffset],
 }
 
 impl<'a> ElasticStep<'a> {
-    /// The elastic term of a solve, with the elements' strain offsets taken from `history`.
+    /// The elastic term of a solve on `tets` with the elements' `history` and its strain
+    /// `offsets` (`history.offsets()`, computed once for the solve).
     pub fn new(
         elasticity: &'a Elasticity,
-        tets: &'a [[usize; 4]],
-        history: &'a ElementHistory,
+        (tets, history, offsets): (&'a [[usize; 4]], &'a ElementHistory, &'a [StrainOffset]),
         assembly: &'a Assembly,
         element_energy: &'a mut [f64],
         project: bool,
@@ -381,7 +385,7 @@ impl<'a> ElasticStep<'a> {
             assembly,
             element_energy,
             project,
-            offsets: history.offsets(),
+            offsets,
         }
     }
 }
@@ -395,7 +399,7 @@ impl StepTerm for ElasticStep<'_> {
         hessian: Option<&mut [f64]>,
     ) {
         let (el, tets, history, offsets) =
-            (self.elasticity, self.tets, self.history, &self.offsets[..]);
+            (self.elasticity, self.tets, self.history, self.offsets);
         match gradient {
             Some(gradient) => {
                 let project = self.project;
@@ -435,7 +439,12 @@ impl StepTerm for ElasticStep<'_> {
                 *energy += self.element_energy.iter().sum::<f64>() + volumetric;
             }
             None => {
-                *energy += el.energy(self.assembly, tets, history, u, self.element_energy);
+                *energy += el.energy(
+                    self.assembly,
+                    (tets, history, offsets),
+                    u,
+                    self.element_energy,
+                );
             }
         }
     }

@@ -32,6 +32,10 @@ pub struct ObstacleSurface {
     edge_normals: HashMap<(usize, usize), Vector3<f64>>,
     /// Triangles by grid cell (cell size: the mean triangle edge).
     grid: BoxGrid,
+    /// Whether every edge is shared by exactly two triangles.
+    closed: bool,
+    /// Bounding box of the vertices (m).
+    bounds: (Vector3<f64>, Vector3<f64>),
 }
 
 impl PartialEq for ObstacleSurface {
@@ -103,6 +107,7 @@ impl ObstacleSurface {
         let mut face_normals = Vec::with_capacity(triangles.len());
         let mut vertex_normals = vec![Vector3::zeros(); vertices.len()];
         let mut edge_normals: HashMap<(usize, usize), Vector3<f64>> = HashMap::new();
+        let mut edge_uses: HashMap<(usize, usize), u32> = HashMap::new();
         let mut edge_sum = 0.0;
         for t in &triangles {
             let p = t.map(|i| vertices[i]);
@@ -114,6 +119,7 @@ impl ObstacleSurface {
                 vertex_normals[t[k]] += angle * n;
                 let (i, j) = (t[k], t[(k + 1) % 3]);
                 *edge_normals.entry((i.min(j), i.max(j))).or_default() += n;
+                *edge_uses.entry((i.min(j), i.max(j))).or_default() += 1;
                 edge_sum += e1.norm();
             }
         }
@@ -129,14 +135,38 @@ impl ObstacleSurface {
                 f as u32,
             );
         }
+        let bounds = vertices.iter().fold(
+            (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(f64::NEG_INFINITY),
+            ),
+            |(lo, hi), v| (lo.inf(v), hi.sup(v)),
+        );
         ObstacleSurface {
+            closed: !edge_uses.is_empty() && edge_uses.values().all(|&k| k == 2),
             vertices,
             triangles,
             face_normals,
             vertex_normals,
             edge_normals,
             grid,
+            bounds,
         }
+    }
+
+    /// Whether the surface is closed (every edge shared by exactly two triangles), so that
+    /// it has an inside.
+    pub fn is_closed(&self) -> bool {
+        self.closed
+    }
+
+    /// Signed distance from `x` (body frame, m) to the surface, however far: negative inside
+    /// (meaningful for a closed surface). Visits every triangle of a far point's reach.
+    pub fn signed_distance(&self, x: Vector3<f64>) -> f64 {
+        let (lo, hi) = self.bounds;
+        // The farthest corner of the bounding box bounds the distance to every vertex.
+        let reach = (x - lo).abs().sup(&(x - hi).abs()).norm() * (1.0 + 1e-12);
+        self.closest(x, reach).map_or(f64::INFINITY, |c| c.gap)
     }
 
     /// The plane of the surface point closest to `x` (body frame, m), if one lies within
@@ -225,6 +255,22 @@ mod tests {
         assert!((p.gap - 0.03f64.sqrt()).abs() < 1e-15);
         // Out of reach.
         assert!(c.closest(Vector3::new(3.0, 3.0, 3.0), 0.5).is_none());
+    }
+
+    #[test]
+    fn signed_distance_reaches_deep_inside_and_far_outside_a_closed_surface() {
+        let c = cube();
+        assert!(c.is_closed());
+        // The centre is 0.5 inside; a point 10 away from the face x = 1.
+        assert!((c.signed_distance(Vector3::new(0.5, 0.5, 0.5)) + 0.5).abs() < 1e-15);
+        assert!((c.signed_distance(Vector3::new(11.0, 0.5, 0.5)) - 10.0).abs() < 1e-12);
+        // One face of it alone is open.
+        let mut open = TriSurface {
+            vertices: c.vertices.clone(),
+            triangles: c.triangles.clone(),
+        };
+        open.triangles.truncate(2);
+        assert!(!ObstacleSurface::new(&open).is_closed());
     }
 
     #[test]

@@ -8,6 +8,8 @@ use super::{BoxSection, SceneError, Validator};
 use crate::fem::Material;
 use crate::mesh::TetMesh;
 use crate::physics::contact::{default_stiffness, Shape};
+use crate::physics::grid::BoxGrid;
+use crate::physics::ice_contact::parts;
 use crate::physics::Obstacle;
 
 /// Allowed penalty stiffnesses, as factors of the default 10 E / h (h: the ice's mean boundary
@@ -136,8 +138,9 @@ impl Validator<'_> {
     /// The ice must start outside every obstacle: a node behind an obstacle's surface by more
     /// than round-off (1e-6 of the mesh's size) would be thrown out by the penalty force in the
     /// first step (a cube 0.5 m under a floor left it at 57 m/s). For a mesh obstacle, nodes
-    /// within two element sizes of its surface are checked (a surface that cuts the ice); ice
-    /// entirely inside a closed mesh obstacle is not found.
+    /// within two element sizes of its surface are checked (a surface that cuts the ice), and
+    /// for a closed one also one node of each connected part of the mesh, however deep (a
+    /// body wholly inside).
     pub(super) fn check_outside_obstacles(
         &self,
         mesh: &TetMesh,
@@ -162,12 +165,25 @@ impl Validator<'_> {
                     .map_or(f64::NEG_INFINITY, |c| -c.gap);
                 behind_planes.max(behind_surface)
             };
-            let inside: Vec<(f64, &Vector3<f64>)> = mesh
+            let mut inside: Vec<(f64, &Vector3<f64>)> = mesh
                 .rest
                 .iter()
                 .map(|x| (depth(x), x))
                 .filter(|(d, _)| *d > tolerance)
                 .collect();
+            if let Some(surface) = o.surface().filter(|s| s.is_closed()) {
+                let (part, count) = parts(mesh);
+                let mut first = vec![usize::MAX; count];
+                for (node, &p) in part.iter().enumerate().rev() {
+                    first[p as usize] = node;
+                }
+                inside.extend(
+                    first
+                        .iter()
+                        .map(|&node| (-surface.signed_distance(mesh.rest[node]), &mesh.rest[node]))
+                        .filter(|(d, _)| *d > tolerance),
+                );
+            }
             if let Some((deepest, at)) = inside.iter().copied().max_by(|a, b| a.0.total_cmp(&b.0)) {
                 // A mesh far larger than the container it is put in was most likely written
                 // in other units.
@@ -186,7 +202,7 @@ impl Validator<'_> {
                 return Err(self.invalid(
                     &format!("obstacle[{i}]"),
                     format!(
-                        "{} of the mesh's {} nodes start inside this obstacle, the deepest {deepest:.3e} m behind its surface at ({:.4}, {:.4}, {:.4}) m; the ice must start outside every obstacle (move the mesh or the obstacle){units}",
+                        "{} of the mesh's {} nodes (at least) start inside this obstacle, the deepest {deepest:.3e} m behind its surface at ({:.4}, {:.4}, {:.4}) m; the ice must start outside every obstacle (move the mesh or the obstacle){units}",
                         inside.len(),
                         mesh.rest.len(),
                         at.x,
@@ -198,4 +214,68 @@ impl Validator<'_> {
         }
         Ok(())
     }
+
+    /// The connected parts of a mesh (bodies of a Gmsh file, or boxes) must start apart: a
+    /// node of one part inside a tet of another (by more than 1e-9 in barycentric
+    /// coordinates) is refused — overlapping bodies are pushed apart by contact in the first
+    /// step, or pass through each other.
+    pub(super) fn check_parts_apart(&self, field: &str, mesh: &TetMesh) -> Result<(), SceneError> {
+        let (part, count) = parts(mesh);
+        if count < 2 {
+            return Ok(());
+        }
+        let (lo, hi) = mesh.bounding_box();
+        let extent = hi - lo;
+        let cell = (extent.x * extent.y * extent.z / mesh.num_tets() as f64).cbrt();
+        let mut grid = BoxGrid::new(cell);
+        for (e, t) in mesh.tets.iter().enumerate() {
+            let p = t.map(|v| mesh.rest[v]);
+            grid.insert(
+                &p[0].inf(&p[1]).inf(&p[2]).inf(&p[3]),
+                &p[0].sup(&p[1]).sup(&p[2]).sup(&p[3]),
+                e as u32,
+            );
+        }
+        let mut first = None;
+        let mut nodes = 0;
+        for (node, x) in mesh.rest.iter().enumerate() {
+            let mut inside = false;
+            grid.overlapping(x, x, |e| {
+                let t = mesh.tets[e as usize];
+                inside = inside
+                    || (part[t[0]] != part[node] && strictly_inside(x, t.map(|v| mesh.rest[v])));
+            });
+            if inside {
+                nodes += 1;
+                first.get_or_insert(x);
+            }
+        }
+        let Some(x) = first else {
+            return Ok(());
+        };
+        Err(self.invalid(
+            field,
+            format!(
+                "the mesh has {count} separate bodies and {nodes} nodes of one lie inside another, the first at ({:.4}, {:.4}, {:.4}) m; bodies must start apart",
+                x.x, x.y, x.z
+            ),
+        ))
+    }
+}
+
+/// Whether `x` lies inside the tet `p` with every barycentric coordinate above 1e-9 (a node
+/// on a shared face or touching is not inside).
+fn strictly_inside(x: &Vector3<f64>, p: [Vector3<f64>; 4]) -> bool {
+    let volume = |a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, d: &Vector3<f64>| {
+        (b - a).cross(&(c - a)).dot(&(d - a))
+    };
+    let total = volume(&p[0], &p[1], &p[2], &p[3]);
+    if total == 0.0 {
+        return false;
+    }
+    (0..4).all(|k| {
+        let mut q = p;
+        q[k] = *x;
+        volume(&q[0], &q[1], &q[2], &q[3]) / total > 1e-9
+    })
 }

@@ -744,7 +744,9 @@ impl Validator<'_> {
                 let nodes: Vec<[f64; 3]> = nodes.iter().map(|p| p.map(|c| c * scale)).collect();
                 // The file's arrays are small next to what a run builds on them.
                 self.check_memory("mesh.file", tets.len() as u128, "use a coarser mesh")?;
-                TetMesh::from_arrays(&nodes, tets).map_err(mesh_err)
+                let mesh = TetMesh::from_arrays(&nodes, tets).map_err(mesh_err)?;
+                self.check_parts_apart("mesh.file", &mesh)?;
+                Ok(mesh)
             }
             _ => Err(self.invalid(
                 "mesh",

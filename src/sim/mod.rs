@@ -4,9 +4,11 @@
 //! the elastic energy, the dead loads, the terms the scene enables (obstacle contact, ice–ice
 //! contact) and, in a dynamic step, inertia and damping.
 
+pub mod balance;
 pub mod potential;
 
 use crate::assembly::{Assembly, DofMap};
+use crate::fem::StrainOffset;
 use crate::physics::contact::ContactForces;
 use crate::physics::elasticity::ElasticStep;
 use crate::physics::history::ElementHistory;
@@ -18,6 +20,7 @@ use crate::solver::{
     minimize, FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams,
     NewtonReport, NewtonWorkspace,
 };
+use balance::{Balance, EnergyRise};
 use potential::StepPotential;
 use std::time::Instant;
 
@@ -161,6 +164,17 @@ impl StepReport {
     }
 }
 
+/// Why a solve failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SolveFailure {
+    /// Newton found no solution.
+    #[error(transparent)]
+    Newton(#[from] NewtonError),
+    /// The solution holds energy no work accounts for.
+    #[error(transparent)]
+    EnergyRise(#[from] EnergyRise),
+}
+
 /// Errors while setting up or stepping.
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
@@ -181,7 +195,7 @@ pub enum SimError {
     Step {
         step: u64,
         time: f64,
-        cause: NewtonError,
+        cause: SolveFailure,
     },
     /// Building the problem failed.
     #[error("set-up failed: {0}")]
@@ -441,7 +455,7 @@ impl Simulation {
         h: f64,
         t_end: f64,
         depth: u32,
-    ) -> Result<StepReport, (NewtonError, f64)> {
+    ) -> Result<StepReport, (SolveFailure, f64)> {
         match self.try_step(h, t_end) {
             Ok(report) => Ok(report),
             Err(_) if depth < MAX_HALVINGS => {
@@ -454,10 +468,21 @@ impl Simulation {
     }
 
     /// One backward-Euler (or static) solve of length `h` ending at `t_new`.
-    fn try_step(&mut self, h: f64, t_new: f64) -> Result<StepReport, NewtonError> {
+    fn try_step(&mut self, h: f64, t_new: f64) -> Result<StepReport, SolveFailure> {
         let dynamic = self.settings.analysis == Analysis::Dynamic;
         self.model.apply_schedule(t_new, &mut self.state.history);
         self.previous.copy_from_slice(&self.state.u);
+        // Fixed for the solve: computed once for the elastic term and the energy balance.
+        let offsets = self.state.history.offsets();
+        // The start state measured with this solve's loads, freeze state and obstacles.
+        let before = energies_of(
+            &self.model,
+            &self.assembly,
+            (&self.state.history, &offsets),
+            &mut self.element_energy,
+            (&self.previous, &self.state.v),
+            t_new,
+        );
         let mut u = self.state.u.clone();
         if dynamic {
             for ((p, u0), v) in self
@@ -508,8 +533,7 @@ impl Simulation {
         let mut terms: Vec<Box<dyn StepTerm + '_>> = vec![
             Box::new(ElasticStep::new(
                 &model.elasticity,
-                &model.mesh.tets,
-                &self.state.history,
+                (&model.mesh.tets, &self.state.history, &offsets),
                 &self.assembly,
                 &mut self.element_energy,
                 false,
@@ -575,11 +599,17 @@ impl Simulation {
         let t_contact_narrow = potential.t_contact;
         let t_contact_broad = potential.broad_phase_time();
         drop(potential);
-        if dynamic {
-            for ((v, un), u0) in self.state.v.iter_mut().zip(&u).zip(&self.previous) {
-                *v = (un - u0) / h;
-            }
-        }
+        let velocity: Vec<f64> = if dynamic {
+            u.iter()
+                .zip(&self.previous)
+                .map(|(un, u0)| (un - u0) / h)
+                .collect()
+        } else {
+            self.state.v.clone()
+        };
+        let slack = self.settings.newton.tolerance * newton.force_scale;
+        self.check_balance(before, &offsets, (&u, &velocity), t_new, slack)?;
+        self.state.v = velocity;
         self.model
             .update_plastic_strain(&mut self.state.history, &u);
         self.state.u = u;
@@ -594,12 +624,65 @@ impl Simulation {
         })
     }
 
+    /// Checks that the solution `(u, v)` at `t_new` holds no more energy than `before` (the
+    /// solve's start, measured with its loads) and the work done on the ice during the solve
+    /// (see [`balance`]); `tolerance` is the residual force Newton accepts (N).
+    fn check_balance(
+        &mut self,
+        before: Energies,
+        offsets: &[StrainOffset],
+        (u, v): (&[f64], &[f64]),
+        t_new: f64,
+        tolerance: f64,
+    ) -> Result<(), EnergyRise> {
+        let after = energies_of(
+            &self.model,
+            &self.assembly,
+            (&self.state.history, offsets),
+            &mut self.element_energy,
+            (u, v),
+            t_new,
+        );
+        let dofs = self.assembly.dofs();
+        // The reactions are the gradient of the solve's potential on the constrained dofs.
+        let reaction = self.workspace.gradient();
+        let supports = (0..u.len())
+            .filter(|&d| dofs.free(d).is_none())
+            .map(|d| reaction[d] * (u[d] - self.previous[d]))
+            .sum();
+        let unresolved = tolerance
+            * dofs
+                .free_dofs()
+                .iter()
+                .map(|&d| (u[d] - self.previous[d]).abs())
+                .sum::<f64>();
+        let friction = self
+            .contact_forces
+            .friction
+            .iter()
+            .zip(u.iter().zip(&self.previous))
+            .map(|(f, (un, u0))| f * (un - u0))
+            .sum();
+        let balance = Balance {
+            before,
+            after,
+            supports,
+            friction,
+            unresolved,
+        };
+        if balance.holds() {
+            Ok(())
+        } else {
+            Err(EnergyRise(Box::new(balance)))
+        }
+    }
+
     /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.
     fn stiffness_at_previous(&mut self, beta: f64) {
+        let offsets = self.state.history.offsets();
         let mut elastic = ElasticStep::new(
             &self.model.elasticity,
-            &self.model.mesh.tets,
-            &self.state.history,
+            (&self.model.mesh.tets, &self.state.history, &offsets),
             &self.assembly,
             &mut self.element_energy,
             // β K must be positive semi-definite to damp.
@@ -640,41 +723,14 @@ impl Simulation {
 
     /// Energies of the current state.
     pub fn energies(&mut self) -> Energies {
-        let u = &self.state.u;
-        let elastic = self.model.elasticity.energy(
+        energies_of(
+            &self.model,
             &self.assembly,
-            &self.model.mesh.tets,
-            &self.state.history,
-            u,
+            (&self.state.history, &self.state.history.offsets()),
             &mut self.element_energy,
-        );
-        let kinetic = self
-            .state
-            .v
-            .iter()
-            .enumerate()
-            .map(|(d, v)| 0.5 * self.model.mass[d / 3] * v * v)
-            .sum();
-        let potential = -self
-            .model
-            .external_force
-            .iter()
-            .zip(u)
-            .map(|(f, u)| f * u)
-            .sum::<f64>();
-        let (rest, t) = (&self.model.mesh.rest, self.state.time);
-        let contact = self
-            .model
-            .terms
-            .iter()
-            .map(|term| term.stored_energy(rest, u, t))
-            .sum();
-        Energies {
-            kinetic,
-            elastic,
-            potential,
-            contact,
-        }
+            (&self.state.u, &self.state.v),
+            self.state.time,
+        )
     }
 
     /// Element stresses (Pa, Voigt xx yy zz yz xz xy) of the current state.
@@ -714,5 +770,46 @@ impl Simulation {
     /// Displacement of node `i` (m).
     pub fn displacement(&self, i: usize) -> [f64; 3] {
         std::array::from_fn(|a| self.state.u[3 * i + a])
+    }
+}
+
+/// Energies of `model` at displacement and velocity `(u, v)` (m, m/s; 3 per node) and time
+/// `t` (s), with the elements' `history` and its strain `offsets`; `element_energy` is
+/// scratch, one per element.
+fn energies_of(
+    model: &Model,
+    assembly: &Assembly,
+    (history, offsets): (&ElementHistory, &[StrainOffset]),
+    element_energy: &mut [f64],
+    (u, v): (&[f64], &[f64]),
+    t: f64,
+) -> Energies {
+    let elastic = model.elasticity.energy(
+        assembly,
+        (&model.mesh.tets, history, offsets),
+        u,
+        element_energy,
+    );
+    let kinetic = v
+        .iter()
+        .enumerate()
+        .map(|(d, v)| 0.5 * model.mass[d / 3] * v * v)
+        .sum();
+    let potential = -model
+        .external_force
+        .iter()
+        .zip(u)
+        .map(|(f, u)| f * u)
+        .sum::<f64>();
+    let contact = model
+        .terms
+        .iter()
+        .map(|term| term.stored_energy(&model.mesh.rest, u, t))
+        .sum();
+    Energies {
+        kinetic,
+        elastic,
+        potential,
+        contact,
     }
 }
