@@ -198,25 +198,46 @@ fn missing_and_bad_mesh_files_are_named() {
         err.contains("scene.toml") && err.contains("mesh.file") && err.contains("nowhere.msh"),
         "{err}"
     );
-    // An inverted tet in a Gmsh file: the error names the element.
-    let msh = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n$Elements\n1\n1 4 2 0 1 1 3 2 4\n$EndElements\n";
+    // A negatively oriented tet in a Gmsh file (element tag 7, nodes 11–14) is used with two
+    // vertices swapped, and the scene says so in one line.
+    let msh = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n11 0 0 0\n12 1 0 0\n13 0 1 0\n14 0 0 1\n$EndNodes\n$Elements\n1\n7 4 2 0 1 11 13 12 14\n$EndElements\n";
     std::fs::write(dir.path().join("inverted.msh"), msh).unwrap();
-    let text = text.replace("nowhere.msh", "inverted.msh");
-    let err = Scene::parse(&text, &scene_path).unwrap_err().to_string();
+    let text = text
+        .replace("nowhere.msh", "inverted.msh")
+        .replace("max = [1e-9, 1.0, 1.0]", "max = [1e-9, 1.0, 1e-9]");
+    let scene = Scene::parse(&text, &scene_path).unwrap();
+    assert_eq!(scene.model.mesh.num_tets(), 1);
+    assert!(scene.model.mesh.signed_volume(0) > 0.0);
+    assert_eq!(scene.notices.len(), 1, "{:?}", scene.notices);
     assert!(
-        err.contains("scene.toml") && err.contains("inverted") && err.contains("tetrahedron 0"),
-        "{err}"
+        scene.notices[0].contains("inverted.msh") && scene.notices[0].contains("1 of 1 tetrahedra"),
+        "{:?}",
+        scene.notices
     );
-    // The same tet correctly oriented loads.
-    std::fs::write(dir.path().join("ok.msh"), msh.replace("1 3 2 4", "1 2 3 4")).unwrap();
-    let scene = Scene::parse(
-        &text
-            .replace("inverted.msh", "ok.msh")
-            .replace("max = [1e-9, 1.0, 1.0]", "max = [1e-9, 1.0, 1e-9]"),
-        &scene_path,
+    // Correctly oriented: no notice.
+    std::fs::write(
+        dir.path().join("ok.msh"),
+        msh.replace("11 13 12 14", "11 12 13 14"),
     )
     .unwrap();
-    assert_eq!(scene.model.mesh.num_tets(), 1);
+    let scene = Scene::parse(&text.replace("inverted.msh", "ok.msh"), &scene_path).unwrap();
+    assert!(scene.notices.is_empty(), "{:?}", scene.notices);
+    // A flat tet stays an error, told by the file's element and node tags.
+    std::fs::write(
+        dir.path().join("flat.msh"),
+        msh.replace("14 0 0 1", "14 1 1 0"),
+    )
+    .unwrap();
+    let err = Scene::parse(&text.replace("inverted.msh", "flat.msh"), &scene_path)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("scene.toml")
+            && err.contains("flat.msh")
+            && err.contains("element 7 is degenerate")
+            && err.contains("[11, 13, 12, 14]"),
+        "{err}"
+    );
 }
 
 #[test]

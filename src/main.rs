@@ -429,6 +429,9 @@ fn run_command(scene_path: &Path, options: &RunOptions) -> Result<()> {
         m.elasticity.model,
         options.dt.unwrap_or(scene.settings.dt),
     );
+    for notice in &scene.notices {
+        eprintln!("note: {notice}");
+    }
     let terminal = std::io::stderr().is_terminal();
     let bar = ProgressBar::hidden();
     if terminal {

@@ -48,6 +48,65 @@ pub enum MeshError {
     /// Generator arguments out of range.
     #[error("invalid mesh generator input: {0}")]
     Generator(String),
+    /// An error in a mesh file, told by the file's own node and element tags.
+    #[error("{0}")]
+    InFile(String),
+}
+
+impl MeshError {
+    /// The error told by a file's tags: `nodes[i]` is node i's tag, `elements[t]` tet t's
+    /// (Gmsh numbers both from 1, and not necessarily contiguously).
+    pub fn in_file(self, nodes: &[u64], elements: &[u64]) -> MeshError {
+        let node = |i: usize| nodes.get(i).map_or(i as u64, |&t| t);
+        let element = |t: usize| elements.get(t).map_or(t as u64, |&t| t);
+        let message = match &self {
+            MeshError::Degenerate {
+                tet,
+                volume,
+                vertices,
+            } => format!(
+                "element {} is degenerate (volume {volume:e} m³, nodes {:?})",
+                element(*tet),
+                vertices.map(node)
+            ),
+            MeshError::Inverted {
+                tet,
+                volume,
+                vertices,
+            } => format!(
+                "element {} is inverted (signed volume {volume:e} m³, nodes {:?})",
+                element(*tet),
+                vertices.map(node)
+            ),
+            MeshError::NonFinite { node: i, position } => {
+                format!("node {} has a non-finite coordinate {position:?}", node(*i))
+            }
+            _ => return self,
+        };
+        MeshError::InFile(message)
+    }
+}
+
+/// Makes every tet of `tets` positively oriented over the positions `rest` (m) by swapping
+/// its vertices 1 and 2 where its signed volume is negative; returns how many were swapped.
+/// Tets of zero volume are left as they are (for [`TetMesh::new`] to refuse as degenerate).
+/// Generators differ in the orientation they write: half of scikit-fem's tets are negative.
+pub fn reorient(rest: &[[f64; 3]], tets: &mut [[usize; 4]]) -> usize {
+    let mut swapped = 0;
+    for tet in tets.iter_mut() {
+        let Some(p) = tet
+            .iter()
+            .map(|&v| rest.get(v).map(|x| Vector3::from(*x)))
+            .collect::<Option<Vec<_>>>()
+        else {
+            continue;
+        };
+        if (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&(p[3] - p[0])) < 0.0 {
+            tet.swap(1, 2);
+            swapped += 1;
+        }
+    }
+    swapped
 }
 
 /// A tetrahedral mesh in its rest configuration.

@@ -398,8 +398,7 @@ impl StepTerm for ElasticStep<'_> {
         gradient: Option<&mut [f64]>,
         hessian: Option<&mut [f64]>,
     ) {
-        let (el, tets, history, offsets) =
-            (self.elasticity, self.tets, self.history, self.offsets);
+        let (el, tets, history, offsets) = (self.elasticity, self.tets, self.history, self.offsets);
         match gradient {
             Some(gradient) => {
                 let project = self.project;

@@ -23,7 +23,7 @@
 use crate::fem::{ElasticModel, Material};
 use crate::fracture::FractureSettings;
 use crate::mesh::surface::TriSurface;
-use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
+use crate::mesh::{box_mesh, gmsh, reorient, MeshError, TetMesh};
 use crate::physics::contact::Shape;
 use crate::physics::elasticity::Volumetric;
 use crate::physics::freezing::{Freezing, Water};
@@ -403,6 +403,9 @@ pub struct Scene {
     pub output: PathBuf,
     /// Fracture, if on.
     pub fracture: Option<FractureSettings>,
+    /// What the user should know about the input that is not an error (one line each), such
+    /// as mesh elements that were reoriented.
+    pub notices: Vec<String>,
 }
 
 impl Scene {
@@ -421,12 +424,18 @@ impl Scene {
             path: path.into(),
             message: e.to_string(),
         })?;
-        Validator { path }.scene(raw, text)
+        Validator {
+            path,
+            notices: Default::default(),
+        }
+        .scene(raw, text)
     }
 }
 
 struct Validator<'a> {
     path: &'a Path,
+    /// What the user should know about the input that is not an error.
+    notices: std::cell::RefCell<Vec<String>>,
 }
 
 impl Validator<'_> {
@@ -662,6 +671,7 @@ impl Validator<'_> {
             output_every,
             output,
             fracture,
+            notices: self.notices.take(),
         })
     }
 
@@ -736,15 +746,35 @@ impl Validator<'_> {
             (true, Some(file)) => {
                 let scale = self.positive("mesh.scale", m.scale.unwrap_or(1.0))?;
                 let file = self.path.parent().unwrap_or(Path::new("")).join(file);
-                let (nodes, tets) =
-                    gmsh::read_msh(&file).map_err(|source| SceneError::MeshFile {
-                        path: self.path.into(),
-                        source,
-                    })?;
+                let gmsh::TetFile {
+                    nodes,
+                    mut tets,
+                    node_tags,
+                    element_tags,
+                } = gmsh::read_msh_tagged(&file).map_err(|source| SceneError::MeshFile {
+                    path: self.path.into(),
+                    source,
+                })?;
                 let nodes: Vec<[f64; 3]> = nodes.iter().map(|p| p.map(|c| c * scale)).collect();
                 // The file's arrays are small next to what a run builds on them.
                 self.check_memory("mesh.file", tets.len() as u128, "use a coarser mesh")?;
-                let mesh = TetMesh::from_arrays(&nodes, tets).map_err(mesh_err)?;
+                let swapped = reorient(&nodes, &mut tets);
+                if swapped > 0 {
+                    self.notices.borrow_mut().push(format!(
+                        "{}: {swapped} of {} tetrahedra were negatively oriented and are used with two vertices swapped",
+                        file.display(),
+                        tets.len()
+                    ));
+                }
+                let mesh =
+                    TetMesh::from_arrays(&nodes, tets).map_err(|source| SceneError::Mesh {
+                        path: self.path.into(),
+                        source: MeshError::InFile(format!(
+                            "mesh file {}: {}",
+                            file.display(),
+                            source.in_file(&node_tags, &element_tags)
+                        )),
+                    })?;
                 self.check_parts_apart("mesh.file", &mesh)?;
                 Ok(mesh)
             }

@@ -31,7 +31,32 @@ pub enum GmshError {
 /// (compacted, in order of first appearance by ascending original node tag). Other element types (points, lines, triangles, ...) are ignored.
 #[allow(clippy::type_complexity)] // the signature other modules were promised
 pub fn read_msh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[usize; 4]>), GmshError> {
-    read_elements(path, &TETRAHEDRA)
+    read_msh_tagged(path).map(|file| (file.nodes, file.tets))
+}
+
+/// The linear tetrahedra of a Gmsh file as [`read_msh`] returns them, with the file's own
+/// node and element tags (for messages that quote the file).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TetFile {
+    /// Node positions (m, as in the file).
+    pub nodes: Vec<[f64; 3]>,
+    /// Tets, 0-based into `nodes`, with their nodes in the file's order.
+    pub tets: Vec<[usize; 4]>,
+    /// The file's tag of each node.
+    pub node_tags: Vec<u64>,
+    /// The file's tag of each tet.
+    pub element_tags: Vec<u64>,
+}
+
+/// [`read_msh`] with the file's tags.
+pub fn read_msh_tagged(path: &Path) -> Result<TetFile, GmshError> {
+    let (nodes, tets, node_tags, element_tags) = read_elements(path, &TETRAHEDRA)?;
+    Ok(TetFile {
+        nodes,
+        tets,
+        node_tags,
+        element_tags,
+    })
 }
 
 /// Reads the linear triangles (Gmsh element type 2) of a Gmsh mesh file, formats 2.2 and 4.1,
@@ -43,7 +68,7 @@ pub fn read_msh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[usize; 4]>), GmshErr
 /// are an error: reading their corners only, or dropping them, would change the surface.
 #[allow(clippy::type_complexity)] // the same shape as read_msh
 pub fn read_msh_triangles(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[usize; 3]>), GmshError> {
-    read_elements(path, &TRIANGLES)
+    read_elements(path, &TRIANGLES).map(|(nodes, triangles, _, _)| (nodes, triangles))
 }
 
 /// Reads the elements of `kind` from the file at `path`; errors name the file.
@@ -74,8 +99,9 @@ fn parse<const N: usize>(bytes: &[u8], kind: &Kind<N>) -> Result<Mesh<N>, String
 }
 
 /// What a read returns: node positions and 0-based elements of `N` nodes (4: [`read_msh`]'s
-/// tets, 3: [`read_msh_triangles`]'s triangles).
-type Mesh<const N: usize = 4> = (Vec<[f64; 3]>, Vec<[usize; N]>);
+/// tets, 3: [`read_msh_triangles`]'s triangles), and the file's tags of the nodes and of the
+/// elements.
+type Mesh<const N: usize = 4> = (Vec<[f64; 3]>, Vec<[usize; N]>, Vec<u64>, Vec<u64>);
 
 /// Which elements a read collects: the linear elements of one Gmsh type, `N` nodes each.
 struct Kind<const N: usize> {
@@ -165,7 +191,8 @@ fn compact<const N: usize>(raw: RawMesh<N>, kind: &Kind<N>) -> Result<Mesh<N>, S
         .iter()
         .map(|(_, nodes)| nodes.map(|tag| index[&tag]))
         .collect();
-    Ok((positions, elements))
+    let element_tags = raw.elements.iter().map(|(tag, _)| *tag).collect();
+    Ok((positions, elements, used, element_tags))
 }
 
 // ---------------------------------------------------------------------------------------

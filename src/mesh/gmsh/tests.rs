@@ -135,11 +135,14 @@ const V41_ONE_TET: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n\
     $Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n";
 
 /// Writes `content` to a temp file and reads it back.
-fn read_text(content: &str) -> (tempfile::TempDir, Result<Mesh, GmshError>) {
+/// What `read_msh` returns.
+type Read = Result<(Vec<[f64; 3]>, Vec<[usize; 4]>), GmshError>;
+
+fn read_text(content: &str) -> (tempfile::TempDir, Read) {
     read_bytes(content.as_bytes())
 }
 
-fn read_bytes(content: &[u8]) -> (tempfile::TempDir, Result<Mesh, GmshError>) {
+fn read_bytes(content: &[u8]) -> (tempfile::TempDir, Read) {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("mesh.msh");
     std::fs::write(&path, content).unwrap();
