@@ -14,6 +14,7 @@ use nalgebra::Vector3;
 fn at_point(p: [f64; 3], axes: [bool; 3], displacement: [f64; 3]) -> Dirichlet {
     let p = Vector3::from(p);
     Dirichlet {
+        amplitude: Default::default(),
         region: Region {
             min: p.add_scalar(-1e-9),
             max: p.add_scalar(1e-9),
@@ -27,6 +28,7 @@ fn at_point(p: [f64; 3], axes: [bool; 3], displacement: [f64; 3]) -> Dirichlet {
 /// A Dirichlet condition on the nodes of a box region (rollers when one axis is given).
 fn on_box(min: [f64; 3], max: [f64; 3], axes: [bool; 3], displacement: [f64; 3]) -> Dirichlet {
     Dirichlet {
+        amplitude: Default::default(),
         region: Region {
             min: Vector3::from(min),
             max: Vector3::from(max),
@@ -297,4 +299,115 @@ fn mass_proportional_damping_decays_as_backward_euler_predicts() {
             );
         }
     }
+}
+
+/// A linear 10 cm block clamped at z = 0 (static), with `extra` TOML appended; the
+/// displacement field after each step of 0.25 s up to `end` s.
+fn static_block_history(extra: &str, end: f64) -> Vec<(f64, Vec<f64>)> {
+    let text = format!(
+        "[mesh]\nbox = {{ size = [0.1, 0.1, 0.1], cells = [3, 3, 3], tets_per_cell = 5 }}\n\
+         [material]\ndensity = 916.0\nyoungs_modulus = 9.99e10\npoisson_ratio = 0.35\nmodel = \"linear\"\n\
+         [[dirichlet]]\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1e-9]\n\
+         [time]\nanalysis = \"static\"\ndt = 0.25\nend_time = {end}\n{extra}"
+    );
+    let scene =
+        icefem::scene::Scene::parse(&text, std::path::Path::new("/tmp/block.toml")).unwrap();
+    let mut sim = icefem::sim::Simulation::new(scene.model, scene.settings).unwrap();
+    let steps = icefem::run::step_count(end, 0.25);
+    (0..steps)
+        .map(|_| {
+            sim.step().unwrap();
+            (sim.state.time, sim.state.u.clone())
+        })
+        .collect()
+}
+
+/// Largest |a − s b| over the entries, relative to the largest |b|.
+fn off_by(a: &[f64], s: f64, b: &[f64]) -> f64 {
+    let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - s * y).abs()))
+        / scale
+}
+
+#[test]
+fn loads_gravity_and_supports_follow_their_time_functions() {
+    // Linear statics: the solution at amplitude a is a times the one at amplitude 1, so each
+    // step's field must be a(t) × the constant-load field, to Newton's tolerance (1e-9 of the
+    // force scale; 1e-7 relative leaves room for the conditioning of the 135-dof block).
+    let top = "min = [-1.0, -1.0, 0.0999999]\nmax = [1.0, 1.0, 1.0]\n";
+    let cases = [
+        (
+            format!("[[traction]]\n{top}traction = [0.0, 0.0, -1.0e6]\n"),
+            "amplitude = [[0.0, 0.0], [1.0, 1.0], [1.5, 1.0], [1.5, 0.0]]",
+        ),
+        (
+            "[physics]\ngravity = [3.0, 0.0, -9.81]\n".into(),
+            "gravity_amplitude = [[0.0, 0.0], [1.0, 1.0], [1.5, 1.0], [1.5, 0.0]]",
+        ),
+        (
+            format!("[[dirichlet]]\n{top}axes = \"z\"\ndisplacement = [0.0, 0.0, -1e-5]\n"),
+            "amplitude = [[0.0, 0.0], [1.0, 1.0], [1.5, 1.0], [1.5, 0.0]]",
+        ),
+    ];
+    for (load, amplitude) in cases {
+        let constant = static_block_history(&load, 0.25);
+        let reference = &constant[0].1;
+        let varying = static_block_history(&format!("{load}{amplitude}\n"), 2.0);
+        for (t, u) in &varying {
+            // The ramp to 1 s, held, switched off at 1.5 s.
+            let a = if *t <= 1.0 + 1e-12 {
+                *t
+            } else if *t < 1.5 - 1e-12 {
+                1.0
+            } else {
+                0.0
+            };
+            let err = off_by(u, a, reference);
+            assert!(err < 1e-7, "{load}{amplitude}: t = {t}: off by {err:e}");
+        }
+    }
+}
+
+#[test]
+fn a_traction_switched_off_leaves_the_beam_vibrating_without_energy_gain() {
+    // The cantilever of scenes/cantilever.toml without gravity, pulled down at its tip by a
+    // traction that is switched off at 0.2 s: from then on no work is done, so backward
+    // Euler's energy may only fall (every solve's balance is checked too), and the beam swings.
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/cantilever.toml"
+    ))
+    .unwrap()
+    .replace("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, 0.0]")
+    .replace("end_time = 2.0", "end_time = 0.6")
+        + "\n[[traction]]\nmin = [0.3999999, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\n\
+           traction = [0.0, 0.0, -2.0e5]\namplitude = [[0.2, 1.0], [0.2, 0.0]]\n";
+    let scene =
+        icefem::scene::Scene::parse(&text, std::path::Path::new("/tmp/cantilever.toml")).unwrap();
+    let mut sim = icefem::sim::Simulation::new(scene.model, scene.settings).unwrap();
+    let steps = icefem::run::step_count(0.6, scene.settings.dt);
+    let mut after_switch: Vec<(f64, f64)> = Vec::new();
+    for _ in 0..steps {
+        let report = sim.step().unwrap();
+        if sim.state.time > 0.2 + 1e-9 {
+            after_switch.push((report.energies.total(), report.energies.kinetic));
+        }
+    }
+    for w in after_switch.windows(2) {
+        // Round-off of the sums: 1e-12 relative.
+        assert!(
+            w[1].0 <= w[0].0 * (1.0 + 1e-12),
+            "energy rose {} → {}",
+            w[0].0,
+            w[1].0
+        );
+    }
+    let kinetic = after_switch.iter().fold(0.0f64, |m, e| m.max(e.1));
+    let elastic_start = after_switch[0].0;
+    assert!(
+        kinetic > 0.1 * elastic_start,
+        "no swing: kinetic ≤ {kinetic:e} J of {elastic_start:e} J"
+    );
 }

@@ -161,6 +161,7 @@ fn pulled(length: f64, speed: f64) -> Vec<Dirichlet> {
         r
     };
     let bc = |region, axes, velocity: f64| Dirichlet {
+        amplitude: Default::default(),
         region,
         axes,
         displacement: Vector3::zeros(),

@@ -46,6 +46,7 @@ fn symmetry_rollers() -> Vec<Dirichlet> {
             let mut axes = [false; 3];
             axes[a] = true;
             Dirichlet {
+                amplitude: Default::default(),
                 region: Region {
                     min: Vector3::repeat(-1e9),
                     max,
@@ -241,6 +242,7 @@ fn strained_cube(law: ElasticModel, plasticity: Plasticity) -> Simulation {
         let mut axes = [false; 3];
         axes[a] = true;
         dirichlet.push(Dirichlet {
+            amplitude: Default::default(),
             region: Region {
                 min,
                 max: Vector3::repeat(1e9),

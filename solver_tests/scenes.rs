@@ -120,6 +120,28 @@ fn non_physical_values_name_field_and_range() {
     );
     assert!(err.contains("single") && err.contains("double"), "{err}");
     error_of(&(GOOD.to_string() + "[[traction]]\nmin = [5.0, 5.0, 5.0]\nmax = [6.0, 6.0, 6.0]\ntraction = [0.0, 0.0, 1.0]\n"), Some("traction[0]"));
+    // Time functions: points [time, factor] with non-decreasing times.
+    let err = error_of(
+        &(GOOD.to_string()
+            + "[[traction]]\nmin = [0.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\ntraction = [0.0, 0.0, 1.0]\namplitude = [[1.0, 0.0], [0.5, 1.0]]\n"),
+        Some("traction[0].amplitude"),
+    );
+    assert!(err.contains("must not decrease"), "{err}");
+    error_of(
+        &GOOD.replace(
+            "max = [1e-9, 1.0, 1.0]",
+            "max = [1e-9, 1.0, 1.0]\namplitude = []",
+        ),
+        Some("dirichlet[0].amplitude"),
+    );
+    let err = error_of(
+        &GOOD.replace(
+            "gravity = [0.0, 0.0, -9.81]",
+            "gravity = [0.0, 0.0, -9.81]\ngravity_amplitude = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [1.0, 2.0]]",
+        ),
+        Some("physics.gravity_amplitude"),
+    );
+    assert!(err.contains("three points"), "{err}");
     error_of(
         &(GOOD.to_string()
             + "[[eigenstrain]]\nmin = [5.0, 5.0, 5.0]\nmax = [6.0, 6.0, 6.0]\nvalue = 0.01\n"),

@@ -51,6 +51,7 @@ fn region(min: [f64; 3], max: [f64; 3]) -> Region {
 /// The nodes with rest x ≥ `x_min` follow u = displacement + velocity · t on all axes.
 fn driven_above_x(x_min: f64, displacement: [f64; 3], velocity: [f64; 3]) -> Dirichlet {
     Dirichlet {
+        amplitude: Default::default(),
         region: region([x_min, -1e30, -1e30], [1e30; 3]),
         axes: [true; 3],
         displacement: Vector3::from(displacement),
@@ -570,12 +571,14 @@ fn crushed_corner(model: ElasticModel, analysis: Analysis) -> Simulation {
     let mesh = box_mesh([0.0; 3], [size; 3], [2, 2, 2], 6).unwrap();
     let speed = -0.03 / FRAME;
     let corner = Dirichlet {
+        amplitude: Default::default(),
         region: region([size - 1e-9; 3], [size + 1e-9; 3]),
         axes: [true; 3],
         displacement: Vector3::zeros(),
         velocity: Vector3::repeat(speed),
     };
     let base = Dirichlet {
+        amplitude: Default::default(),
         region: region([-1e30; 3], [1e30, 1e30, 1e-9]),
         axes: [true; 3],
         displacement: Vector3::zeros(),
@@ -819,6 +822,7 @@ fn free_spinning_cube_at_frame_steps_reaches_the_step_minimiser() {
 fn free_floating_body_static_is_refused() {
     for model in MODELS {
         let tractions = [Traction {
+            amplitude: Default::default(),
             region: region([LEN - 1e-9, -1.0, -1.0], [1.0; 3]),
             traction: Vector3::new(0.0, 0.0, -1e6),
         }];
@@ -854,6 +858,7 @@ fn sudden_huge_end_traction() {
     for model in MODELS {
         for t in [1e9, 1e10] {
             let tractions = [Traction {
+                amplitude: Default::default(),
                 region: region([LEN - 1e-9, -1.0, -1.0], [1.0; 3]),
                 traction: Vector3::new(0.0, 0.0, -t),
             }];

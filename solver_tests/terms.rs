@@ -477,6 +477,7 @@ fn dead_loads_gravity_and_traction() {
     let mesh = irregular_box([2, 2, 2], [0.1, 0.08, 0.06], 0.2, 9);
     let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
     let traction = Traction {
+        amplitude: Default::default(),
         region: Region {
             min: Vector3::new(0.1 - 1e-9, -1.0, -1.0),
             max: Vector3::new(1.0, 1.0, 1.0),

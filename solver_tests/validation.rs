@@ -112,6 +112,7 @@ fn static_case(name: &str) -> f64 {
             "same traction faces"
         );
         tractions.push(Traction {
+            amplitude: Default::default(),
             region,
             traction: r.vector_attr("traction"),
         });
@@ -130,10 +131,8 @@ fn static_case(name: &str) -> f64 {
     if name.starts_with("eigenstrain") {
         let mut bc = clamp_below_x(1e30);
         bc.region.max = Vector3::new(1e30, 1e30, 1e-9);
-        let model = Model {
-            dirichlet: vec![bc],
-            ..sim.model.clone()
-        };
+        let mut model = sim.model.clone();
+        model.dirichlet = vec![bc];
         sim = Simulation::new(model, settings(Analysis::Static, 1.0)).unwrap();
     }
     sim.step().unwrap();
@@ -234,6 +233,7 @@ fn locking_beam(nu: &str) -> Vec<(f64, f64, f64)> {
             max: Vector3::repeat(1e30),
         };
         let tractions = [Traction {
+            amplitude: Default::default(),
             region,
             traction: Vector3::new(traction[0], traction[1], traction[2]),
         }];

@@ -38,6 +38,7 @@ pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
 /// Fixes every dof of the nodes with rest `x ≤ x_max`.
 pub fn clamp_below_x(x_max: f64) -> Dirichlet {
     Dirichlet {
+        amplitude: Default::default(),
         region: Region {
             min: Vector3::repeat(-1e30),
             max: Vector3::new(x_max, 1e30, 1e30),

@@ -78,6 +78,7 @@ pub fn clamped_ice_cube(cells: usize, g: Vector3<f64>) -> Result<Model, SimError
         box_mesh([0.0; 3], [0.1; 3], [c, c, c], 6).map_err(|e| SimError::Setup(e.to_string()))?;
     let elasticity = Elasticity::new(&mesh, ICE, ElasticModel::Corotated);
     let base = Dirichlet {
+        amplitude: Default::default(),
         region: Region {
             min: Vector3::repeat(-1.0),
             max: Vector3::new(1.0, 1.0, 1e-9),
@@ -346,6 +347,7 @@ pub fn fracture_cost(tets: usize) -> Result<FractureCost, SimError> {
     let c = cells_for(tets);
     let mesh = box_mesh([0.0; 3], [0.1; 3], [c, c, c], 6).map_err(setup)?;
     let face = |x: f64, velocity: f64, axes: [bool; 3]| Dirichlet {
+        amplitude: Default::default(),
         region: Region {
             min: Vector3::new(x - 1e-9, -1.0, -1.0),
             max: Vector3::new(x + 1e-9, 1.0, 1.0),

@@ -5,7 +5,7 @@ use crate::mesh::TetMesh;
 use nalgebra::Vector3;
 
 /// Nodes whose rest position lies in `region` have, on each axis in `axes`, the displacement
-/// `displacement + velocity · t` (m). A fixed support is the all-zero case.
+/// `amplitude(t) · displacement + velocity · t` (m). A fixed support is the all-zero case.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Dirichlet {
     /// Where the condition applies (rest coordinates).
@@ -16,6 +16,8 @@ pub struct Dirichlet {
     pub displacement: Vector3<f64>,
     /// Prescribed velocity (m/s).
     pub velocity: Vector3<f64>,
+    /// Amplitude of `displacement` in time (1 throughout by default).
+    pub amplitude: super::Amplitude,
 }
 
 impl Dirichlet {
@@ -39,9 +41,10 @@ impl Dirichlet {
 
     /// Writes the prescribed displacement at time `t` (s) into `u`.
     pub fn apply(&self, mesh: &TetMesh, t: f64, u: &mut [f64]) {
+        let amplitude = self.amplitude.at(t);
         for i in self.nodes(mesh) {
             for a in (0..3).filter(|&a| self.axes[a]) {
-                u[3 * i + a] = self.displacement[a] + self.velocity[a] * t;
+                u[3 * i + a] = amplitude * self.displacement[a] + self.velocity[a] * t;
             }
         }
     }

@@ -5,14 +5,16 @@ use crate::fem::ElementRest;
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
 
-/// A constant traction (Pa, force per rest area) on the boundary faces whose rest centroid lies
-/// in `region`.
+/// A traction (Pa, force per rest area) on the boundary faces whose rest centroid lies in
+/// `region`, `traction` × `amplitude`(t).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Traction {
     /// Faces selected by their centroid.
     pub region: Region,
-    /// Traction vector (Pa).
+    /// Traction vector at amplitude 1 (Pa).
     pub traction: Vector3<f64>,
+    /// Its amplitude in time (1 throughout by default).
+    pub amplitude: super::Amplitude,
 }
 
 /// Row-sum lumped mass of P1 tets: each vertex gets ρV/4 of each tet (kg per node).

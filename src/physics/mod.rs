@@ -3,6 +3,7 @@
 //! fixed between remeshes; what changes from step to step is in the simulation state
 //! ([`history`]).
 
+pub mod amplitude;
 pub mod contact;
 pub mod dirichlet;
 pub mod elasticity;
@@ -17,6 +18,7 @@ pub mod plasticity;
 pub mod term;
 pub mod volumetric;
 
+pub use amplitude::Amplitude;
 pub use contact::{Contact, Obstacle};
 pub use dirichlet::Dirichlet;
 pub use elasticity::Elasticity;
@@ -62,8 +64,13 @@ pub struct Model {
     pub elasticity: Elasticity,
     /// Lumped nodal mass (kg), one per node.
     pub mass: Vec<f64>,
-    /// Dead loads (gravity and surface tractions) on every dof (N), length 3 × nodes.
+    /// Dead loads (gravity and surface tractions) on every dof (N), length 3 × nodes, at the
+    /// time last given to [`Model::apply_schedule`].
     pub external_force: Vec<f64>,
+    /// The dead loads whose amplitude is 1 throughout (N, 3 per node).
+    constant_force: Vec<f64>,
+    /// The dead loads that vary in time: amplitude and nodal forces at amplitude 1 (N).
+    varying_forces: Vec<(Amplitude, Vec<f64>)>,
     /// Rayleigh damping, if any.
     pub damping: Option<Rayleigh>,
     /// Dirichlet conditions.
@@ -74,8 +81,10 @@ pub struct Model {
     pub terms: Vec<Box<dyn Term>>,
     /// Freezing schedule, if the scene freezes (none: every element is ice throughout).
     pub freezing: Option<freezing::Freezing>,
-    /// Gravity (m/s²), kept to rebuild the loads after a topology change.
+    /// Gravity (m/s²) at amplitude 1, kept to rebuild the loads after a topology change.
     pub gravity: Vector3<f64>,
+    /// Amplitude of gravity in time.
+    pub gravity_amplitude: Amplitude,
     /// Surface tractions, kept likewise.
     pub tractions: Vec<Traction>,
 }
@@ -93,25 +102,76 @@ impl Model {
         dirichlet: Vec<Dirichlet>,
     ) -> Result<Self, MeshError> {
         let mass = loads::lumped_mass(&mesh, &elasticity.rest, elasticity.material.density);
-        let mut external_force = vec![0.0; 3 * mesh.num_nodes()];
-        if gravity != Vector3::zeros() {
-            loads::add_gravity(&mass, &gravity, &mut external_force);
-        }
-        for t in tractions {
-            loads::add_traction(&mesh, t, &mut external_force);
-        }
-        Ok(Model {
+        let mut model = Model {
             mesh,
             elasticity,
+            external_force: Vec::new(),
+            constant_force: Vec::new(),
+            varying_forces: Vec::new(),
             mass,
-            external_force,
             damping,
             dirichlet,
             terms: vec![Box::new(IceContactTerm::inactive(0.0, 0.0, 1e-4))],
             freezing: None,
             gravity,
+            gravity_amplitude: Amplitude::default(),
             tractions: tractions.to_vec(),
-        })
+        };
+        model.build_loads();
+        Ok(model)
+    }
+
+    /// Sets gravity (m/s², at amplitude 1) and its amplitude in time; the dead loads are then
+    /// those at t = 0.
+    pub fn set_gravity(&mut self, gravity: Vector3<f64>, amplitude: Amplitude) {
+        self.gravity = gravity;
+        self.gravity_amplitude = amplitude;
+        self.build_loads();
+    }
+
+    /// Builds the nodal dead loads from gravity and the tractions: those of amplitude 1 summed
+    /// once (gravity first), the others kept apart; the current ones are those at t = 0.
+    fn build_loads(&mut self) {
+        let n = 3 * self.mesh.num_nodes();
+        let mut constant = vec![0.0; n];
+        let mut varying = Vec::new();
+        if self.gravity != Vector3::zeros() {
+            if self.gravity_amplitude.is_one() {
+                loads::add_gravity(&self.mass, &self.gravity, &mut constant);
+            } else {
+                let mut force = vec![0.0; n];
+                loads::add_gravity(&self.mass, &self.gravity, &mut force);
+                varying.push((self.gravity_amplitude.clone(), force));
+            }
+        }
+        for t in &self.tractions {
+            if t.amplitude.is_one() {
+                loads::add_traction(&self.mesh, t, &mut constant);
+            } else {
+                let mut force = vec![0.0; n];
+                loads::add_traction(&self.mesh, t, &mut force);
+                varying.push((t.amplitude.clone(), force));
+            }
+        }
+        self.constant_force = constant;
+        self.varying_forces = varying;
+        self.external_force.clear();
+        self.apply_loads(0.0);
+    }
+
+    /// Sets [`Model::external_force`] to the dead loads at time `t` (s).
+    fn apply_loads(&mut self, t: f64) {
+        if self.varying_forces.is_empty() && self.external_force.len() == self.constant_force.len()
+        {
+            return;
+        }
+        self.external_force.clone_from(&self.constant_force);
+        for (amplitude, force) in &self.varying_forces {
+            let a = amplitude.at(t);
+            for (f, g) in self.external_force.iter_mut().zip(force) {
+                *f += a * g;
+            }
+        }
     }
 
     /// The model on a new mesh made from this one by splitting elements (fracture): `parent[e]`
@@ -142,6 +202,9 @@ impl Model {
             self.damping,
             self.dirichlet.clone(),
         )?;
+        if !self.gravity_amplitude.is_one() {
+            model.set_gravity(self.gravity, self.gravity_amplitude.clone());
+        }
         let remesh = Remesh {
             mesh: &model.mesh,
             parent,
@@ -189,11 +252,14 @@ impl Model {
             .and_then(|t| t.active.as_ref())
     }
 
-    /// Sets the time-dependent element history (freeze states, expansion) for time `t` (s).
-    pub fn apply_schedule(&self, t: f64, history: &mut ElementHistory) {
+    /// Sets what depends on time to its value at `t` (s): the element history of the
+    /// freezing schedule (freeze states, expansion) and the dead loads of time-varying
+    /// amplitude.
+    pub fn apply_schedule(&mut self, t: f64, history: &mut ElementHistory) {
         if let Some(f) = &self.freezing {
             f.apply(t, history);
         }
+        self.apply_loads(t);
     }
 
     /// Return mapping of the plastic strains in `history` for converged displacements `u`

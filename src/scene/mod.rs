@@ -30,7 +30,9 @@ use crate::physics::freezing::{Freezing, Water};
 use crate::physics::ice_contact::IceContactTerm;
 use crate::physics::obstacle_mesh::ObstacleSurface;
 use crate::physics::plasticity::Plasticity;
-use crate::physics::{Contact, Dirichlet, Elasticity, Model, Obstacle, Rayleigh, Region, Traction};
+use crate::physics::{
+    Amplitude, Contact, Dirichlet, Elasticity, Model, Obstacle, Rayleigh, Region, Traction,
+};
 use crate::sim::{Analysis, StepSettings};
 use crate::solver::{FactorPrecision, FillOrdering, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
@@ -180,6 +182,8 @@ pub struct MaterialSection {
 pub struct PhysicsSection {
     /// Gravity (m/s²), default zero.
     pub gravity: Option<[f64; 3]>,
+    /// Amplitude of gravity in time: [time (s), factor] points. Default 1.
+    pub gravity_amplitude: Option<Vec<[f64; 2]>>,
     /// Rayleigh damping.
     pub damping: Option<DampingSection>,
     /// Friction smoothing velocity ε_v (m/s): slower relative sliding counts as sticking.
@@ -217,6 +221,8 @@ pub struct DirichletSection {
     pub displacement: Option<[f64; 3]>,
     /// Prescribed velocity (m/s). Default 0.
     pub velocity: Option<[f64; 3]>,
+    /// Amplitude of `displacement` in time: [time (s), factor] points. Default 1.
+    pub amplitude: Option<Vec<[f64; 2]>>,
 }
 
 /// `[[traction]]`: a constant traction on boundary faces whose centroid is in the box.
@@ -229,6 +235,8 @@ pub struct TractionSection {
     pub max: [f64; 3],
     /// Traction (Pa).
     pub traction: [f64; 3],
+    /// Amplitude of the traction in time: [time (s), factor] points. Default 1.
+    pub amplitude: Option<Vec<[f64; 2]>>,
 }
 
 /// `[[eigenstrain]]`: a fixed isotropic eigenstrain e (σ = C : (ε − e I)) in the elements
@@ -439,6 +447,19 @@ struct Validator<'a> {
 }
 
 impl Validator<'_> {
+    /// A time function from its `[time (s), factor]` points (1 throughout if absent).
+    fn amplitude(
+        &self,
+        field: &str,
+        points: &Option<Vec<[f64; 2]>>,
+    ) -> Result<Amplitude, SceneError> {
+        match points {
+            None => Ok(Amplitude::default()),
+            Some(points) => Amplitude::new(points.iter().map(|&[t, a]| (t, a)).collect())
+                .map_err(|message| self.invalid(field, message)),
+        }
+    }
+
     fn invalid(&self, field: &str, message: impl Into<String>) -> SceneError {
         SceneError::Invalid {
             path: self.path.into(),
@@ -516,6 +537,7 @@ impl Validator<'_> {
             let traction = Traction {
                 region,
                 traction: self.vector(&format!("{field}.traction"), t.traction)?,
+                amplitude: self.amplitude(&format!("{field}.amplitude"), &t.amplitude)?,
             };
             if crate::physics::loads::traction_faces(&mesh, &region).0 == 0 {
                 return Err(self.invalid(
@@ -619,6 +641,11 @@ impl Validator<'_> {
                 path: self.path.into(),
                 source,
             })?;
+        let gravity_amplitude =
+            self.amplitude("physics.gravity_amplitude", &raw.physics.gravity_amplitude)?;
+        if !gravity_amplitude.is_one() {
+            model.set_gravity(gravity, gravity_amplitude);
+        }
         if let Some(contact) = contact {
             model.add_obstacles(contact);
         }
@@ -1023,6 +1050,7 @@ impl Validator<'_> {
         Ok(Dirichlet {
             region,
             axes,
+            amplitude: self.amplitude(&format!("{field}.amplitude"), &d.amplitude)?,
             displacement: self.vector(
                 &format!("{field}.displacement"),
                 d.displacement.unwrap_or_default(),
