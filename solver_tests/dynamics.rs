@@ -106,3 +106,74 @@ fn ice_cantilever_at_frame_steps_is_stable_and_converges_fast() {
     // BE's numerical damping at ω·dt ≫ 1 kills the oscillation within a step or two.
     assert!(err < 1e-6, "dynamic end state differs from static by {err}");
 }
+
+/// Mass-weighted centroid of the nodes in `nodes` (m).
+fn centre_of_mass(sim: &icefem::sim::Simulation, nodes: std::ops::Range<usize>) -> Vector3<f64> {
+    let (mut sum, mut mass) = (Vector3::zeros(), 0.0);
+    for i in nodes {
+        let m = sim.model.mass[i];
+        sum += m
+            * (sim.model.mesh.rest[i] + Vector3::from_column_slice(&sim.state.u[3 * i..3 * i + 3]));
+        mass += m;
+    }
+    sum / mass
+}
+
+#[test]
+fn bodies_are_placed_and_thrown_as_the_scene_says() {
+    // A 10 cm cube centred at its origin, turned 30° about z, lifted to z = 1 m and thrown
+    // at 1 m/s along x spinning at 2 rad/s about z; a second cube at rest 0.5 m away.
+    let text = r#"
+[[body]]
+box = { origin = [-0.05, -0.05, -0.05], size = [0.1, 0.1, 0.1], cells = [3, 3, 3] }
+rotate = { axis = [0.0, 0.0, 2.0], degrees = 30.0 }
+translate = [0.0, 0.0, 1.0]
+velocity = [1.0, 0.0, 0.0]
+angular_velocity = [0.0, 0.0, 2.0]
+[[body]]
+box = { size = [0.1, 0.1, 0.1], cells = [2, 2, 2] }
+translate = [0.5, 0.0, 1.0]
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[time]
+dt = 0.01
+end_time = 0.2
+"#;
+    let scene =
+        icefem::scene::Scene::parse(text, std::path::Path::new("/tmp/thrown.toml")).unwrap();
+    let mut sim = icefem::sim::Simulation::new(scene.model, scene.settings).unwrap();
+    let first = 4 * 4 * 4; // nodes of the 3³-cell box
+    assert_eq!(sim.model.num_nodes(), first + 27);
+    // The first body's corner (−5, −5, −5) cm, turned 30° about z and lifted by 1 m.
+    let (s, c) = (30f64.to_radians().sin(), 30f64.to_radians().cos());
+    let corner = Vector3::new(-0.05 * c + 0.05 * s, -0.05 * s - 0.05 * c, 0.95);
+    assert!((sim.model.mesh.rest[0] - corner).norm() < 1e-15);
+    assert!((sim.model.mesh.rest[first] - Vector3::new(0.5, 0.0, 1.0)).norm() < 1e-15);
+    // v = v₀ + ω × (x − c) on the first body, zero on the second.
+    let v0 = Vector3::new(1.0, 0.0, 0.0);
+    let omega = Vector3::new(0.0, 0.0, 2.0);
+    let c0 = centre_of_mass(&sim, 0..first);
+    for i in 0..first {
+        let expected = v0 + omega.cross(&(sim.model.mesh.rest[i] - c0));
+        let v = Vector3::from_column_slice(&sim.state.v[3 * i..3 * i + 3]);
+        // The lumped-mass centroid is the volume centroid of the uniform box: round-off only.
+        assert!((v - expected).norm() < 1e-12, "node {i}: {v} vs {expected}");
+    }
+    assert!(sim.state.v[3 * first..].iter().all(|&v| v == 0.0));
+    let m = sim.model.mass[..first].iter().sum::<f64>();
+    for _ in 0..20 {
+        sim.step().unwrap();
+    }
+    // No forces: the centre of mass flies straight at v₀ and the momentum stays m v₀, to
+    // Newton's tolerance (1e-9 of the force scale).
+    let path = centre_of_mass(&sim, 0..first) - c0 - v0 * sim.state.time;
+    assert!(path.norm() < 1e-9, "centre of mass off its path by {path}");
+    let p: Vector3<f64> = (0..first)
+        .map(|i| sim.model.mass[i] * Vector3::from_column_slice(&sim.state.v[3 * i..3 * i + 3]))
+        .sum();
+    assert!((p - m * v0).norm() < 1e-9 * m, "momentum {p} vs {}", m * v0);
+    // The second body has not moved.
+    assert!(sim.state.u[3 * first..].iter().all(|&u| u.abs() < 1e-12));
+}

@@ -424,3 +424,51 @@ fn fracture_section_defaults_and_errors() {
         error_of(&with(body), Some(field));
     }
 }
+
+#[test]
+fn body_errors_name_their_field() {
+    let body = "[[body]]\nbox = { size = [0.1, 0.02, 0.02], cells = [5, 1, 1] }\n";
+    let bodies = |extra: &str| {
+        GOOD.replace(
+            "[mesh]\nbox = { size = [0.1, 0.02, 0.02], cells = [5, 1, 1] }\n",
+            &format!("{body}{extra}"),
+        )
+    };
+    // The plain body parses; with `[mesh]` as well, or with neither, it is an error.
+    assert_eq!(parse(&bodies("")).unwrap().model.mesh.num_tets(), 30);
+    error_of(&format!("{body}{GOOD}"), Some("body"));
+    error_of(&bodies("").replace(body, ""), Some("mesh"));
+    error_of(&bodies("file = \"a.msh\"\n"), Some("body[0]"));
+    error_of(&bodies("scale = 2.0\n"), Some("body[0].scale"));
+    let err = error_of(
+        &bodies("rotate = { axis = [0.0, 0.0, 0.0], degrees = 10.0 }\n"),
+        Some("body[0].rotate.axis"),
+    );
+    assert!(err.contains("zero"), "{err}");
+    error_of(
+        &bodies("velocity = [nan, 0.0, 0.0]\n"),
+        Some("body[0].velocity[0]"),
+    );
+    error_of(&bodies("spin = [0.0, 0.0, 1.0]\n"), Some("spin"));
+    // An initial velocity in a static analysis.
+    let err = error_of(
+        &bodies("velocity = [1.0, 0.0, 0.0]\n").replace("[time]", "[time]\nanalysis = \"static\""),
+        Some("body"),
+    );
+    assert!(err.contains("dynamic"), "{err}");
+    // A second body moved 1 cm into the first.
+    let err = error_of(
+        &bodies(&format!("{body}translate = [0.09, 0.0, 0.0]\n")),
+        Some("body"),
+    );
+    assert!(err.contains("bodies must start apart"), "{err}");
+    // Placed 1 m away it is fine.
+    assert_eq!(
+        parse(&bodies(&format!("{body}translate = [1.0, 0.0, 0.0]\n")))
+            .unwrap()
+            .model
+            .mesh
+            .num_tets(),
+        60
+    );
+}

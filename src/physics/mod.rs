@@ -85,6 +85,8 @@ pub struct Model {
     pub gravity: Vector3<f64>,
     /// Amplitude of gravity in time.
     pub gravity_amplitude: Amplitude,
+    /// Velocity of each node at t = 0 (m/s, 3 per node); empty: at rest.
+    pub initial_velocity: Vec<f64>,
     /// Surface tractions, kept likewise.
     pub tractions: Vec<Traction>,
 }
@@ -115,6 +117,7 @@ impl Model {
             freezing: None,
             gravity,
             gravity_amplitude: Amplitude::default(),
+            initial_velocity: Vec::new(),
             tractions: tractions.to_vec(),
         };
         model.build_loads();

@@ -217,7 +217,7 @@ impl Validator<'_> {
 
     /// The connected parts of a mesh (bodies of a Gmsh file, or boxes) must start apart: a
     /// node of one part inside a tet of another (by more than 1e-9 in barycentric
-    /// coordinates) is refused — overlapping bodies are pushed apart by contact in the first
+    /// coordinates), or an element centroid inside or on one, is refused — overlapping bodies are pushed apart by contact in the first
     /// step, or pass through each other.
     pub(super) fn check_parts_apart(&self, field: &str, mesh: &TetMesh) -> Result<(), SceneError> {
         let (part, count) = parts(mesh);
@@ -236,17 +236,26 @@ impl Validator<'_> {
                 e as u32,
             );
         }
+        // Nodes strictly inside another part's tet (a node on a face of it is touching), and
+        // element centroids inside or on one (a thin body's nodes may all lie on the other's
+        // faces; a centroid is inside its own part, so on another's face it is an overlap).
+        let nodes = mesh.rest.iter().zip(&part).map(|(x, &p)| (*x, p, 1e-9));
+        let centroids = mesh.tets.iter().map(|t| {
+            let x = t.iter().map(|&v| mesh.rest[v]).sum::<Vector3<f64>>() / 4.0;
+            (x, part[t[0]], -1e-12)
+        });
+        let points = nodes.chain(centroids);
         let mut first = None;
-        let mut nodes = 0;
-        for (node, x) in mesh.rest.iter().enumerate() {
+        let mut inside_count = 0;
+        for (x, own, margin) in points {
             let mut inside = false;
-            grid.overlapping(x, x, |e| {
+            grid.overlapping(&x, &x, |e| {
                 let t = mesh.tets[e as usize];
-                inside = inside
-                    || (part[t[0]] != part[node] && strictly_inside(x, t.map(|v| mesh.rest[v])));
+                inside =
+                    inside || (part[t[0]] != own && inside_by(&x, t.map(|v| mesh.rest[v]), margin));
             });
             if inside {
-                nodes += 1;
+                inside_count += 1;
                 first.get_or_insert(x);
             }
         }
@@ -256,16 +265,15 @@ impl Validator<'_> {
         Err(self.invalid(
             field,
             format!(
-                "the mesh has {count} separate bodies and {nodes} nodes of one lie inside another, the first at ({:.4}, {:.4}, {:.4}) m; bodies must start apart",
+                "the mesh has {count} separate bodies and {inside_count} of the nodes and element centres of one lie inside another, the first at ({:.4}, {:.4}, {:.4}) m; bodies must start apart",
                 x.x, x.y, x.z
             ),
         ))
     }
 }
 
-/// Whether `x` lies inside the tet `p` with every barycentric coordinate above 1e-9 (a node
-/// on a shared face or touching is not inside).
-fn strictly_inside(x: &Vector3<f64>, p: [Vector3<f64>; 4]) -> bool {
+/// Whether `x` lies inside the tet `p` with every barycentric coordinate above `margin`.
+fn inside_by(x: &Vector3<f64>, p: [Vector3<f64>; 4], margin: f64) -> bool {
     let volume = |a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, d: &Vector3<f64>| {
         (b - a).cross(&(c - a)).dot(&(d - a))
     };
@@ -276,6 +284,6 @@ fn strictly_inside(x: &Vector3<f64>, p: [Vector3<f64>; 4]) -> bool {
     (0..4).all(|k| {
         let mut q = p;
         q[k] = *x;
-        volume(&q[0], &q[1], &q[2], &q[3]) / total > 1e-9
+        volume(&q[0], &q[1], &q[2], &q[3]) / total > margin
     })
 }

@@ -23,7 +23,7 @@
 use crate::fem::{ElasticModel, Material};
 use crate::fracture::FractureSettings;
 use crate::mesh::surface::TriSurface;
-use crate::mesh::{box_mesh, gmsh, reorient, MeshError, TetMesh};
+use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
 use crate::physics::contact::Shape;
 use crate::physics::elasticity::Volumetric;
 use crate::physics::freezing::{Freezing, Water};
@@ -40,7 +40,10 @@ use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod bodies;
 mod checks;
+
+pub use bodies::{BodySection, RotateSection};
 
 /// A scene that could not be read or is not valid.
 #[derive(Debug, thiserror::Error)]
@@ -90,8 +93,11 @@ pub enum SceneError {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
-    /// Mesh source.
-    pub mesh: MeshSection,
+    /// Mesh source (or `body`).
+    pub mesh: Option<MeshSection>,
+    /// Bodies, each placed and set moving (or `mesh`).
+    #[serde(default)]
+    pub body: Vec<BodySection>,
     /// Material.
     pub material: MaterialSection,
     /// Physics terms.
@@ -514,7 +520,16 @@ impl Validator<'_> {
     }
 
     fn scene(&self, raw: SceneFile, text: &str) -> Result<Scene, SceneError> {
-        let mesh = self.mesh(&raw.mesh)?;
+        let (mesh, initial_velocity) = match (&raw.mesh, raw.body.is_empty()) {
+            (Some(m), true) => (self.mesh(m)?, Vec::new()),
+            (None, false) => self.bodies(&raw.body)?,
+            (Some(_), false) => {
+                return Err(self.invalid("body", "give `[mesh]` or `[[body]]` entries, not both"))
+            }
+            (None, true) => {
+                return Err(self.invalid("mesh", "missing: give `[mesh]` or `[[body]]` entries"))
+            }
+        };
         let (material, model) = self.material(&raw.material)?;
         let gravity = self.vector("physics.gravity", raw.physics.gravity.unwrap_or_default())?;
         let damping = match &raw.physics.damping {
@@ -641,6 +656,15 @@ impl Validator<'_> {
                 path: self.path.into(),
                 source,
             })?;
+        if !initial_velocity.is_empty() {
+            if settings.analysis == Analysis::Static {
+                return Err(self.invalid(
+                    "body",
+                    "an initial velocity or spin needs time.analysis = \"dynamic\"",
+                ));
+            }
+            model.initial_velocity = initial_velocity;
+        }
         let gravity_amplitude =
             self.amplitude("physics.gravity_amplitude", &raw.physics.gravity_amplitude)?;
         if !gravity_amplitude.is_one() {
@@ -772,36 +796,7 @@ impl Validator<'_> {
             }
             (true, Some(file)) => {
                 let scale = self.positive("mesh.scale", m.scale.unwrap_or(1.0))?;
-                let file = self.path.parent().unwrap_or(Path::new("")).join(file);
-                let gmsh::TetFile {
-                    nodes,
-                    mut tets,
-                    node_tags,
-                    element_tags,
-                } = gmsh::read_msh_tagged(&file).map_err(|source| SceneError::MeshFile {
-                    path: self.path.into(),
-                    source,
-                })?;
-                let nodes: Vec<[f64; 3]> = nodes.iter().map(|p| p.map(|c| c * scale)).collect();
-                // The file's arrays are small next to what a run builds on them.
-                self.check_memory("mesh.file", tets.len() as u128, "use a coarser mesh")?;
-                let swapped = reorient(&nodes, &mut tets);
-                if swapped > 0 {
-                    self.notices.borrow_mut().push(format!(
-                        "{}: {swapped} of {} tetrahedra were negatively oriented and are used with two vertices swapped",
-                        file.display(),
-                        tets.len()
-                    ));
-                }
-                let mesh =
-                    TetMesh::from_arrays(&nodes, tets).map_err(|source| SceneError::Mesh {
-                        path: self.path.into(),
-                        source: MeshError::InFile(format!(
-                            "mesh file {}: {}",
-                            file.display(),
-                            source.in_file(&node_tags, &element_tags)
-                        )),
-                    })?;
+                let mesh = self.gmsh_file("mesh.file", file, scale)?;
                 self.check_parts_apart("mesh.file", &mesh)?;
                 Ok(mesh)
             }

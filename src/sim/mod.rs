@@ -237,7 +237,7 @@ pub struct Simulation {
 
 impl Simulation {
     /// Builds the pattern, slot map, colouring and (for Cholesky) the symbolic factorisation,
-    /// starting from rest at t = 0.
+    /// starting at t = 0 from rest or from the model's initial velocity.
     pub fn new(model: Model, settings: StepSettings) -> Result<Self, SimError> {
         for (index, bc) in model.dirichlet.iter().enumerate() {
             if bc.nodes(&model.mesh).next().is_none() {
@@ -277,9 +277,14 @@ impl Simulation {
             term.pattern_ready(&assembly, true);
         }
         let n = 3 * model.num_nodes();
+        let v = if model.initial_velocity.len() == n {
+            model.initial_velocity.clone()
+        } else {
+            vec![0.0; n]
+        };
         let state = State {
             u: vec![0.0; n],
-            v: vec![0.0; n],
+            v,
             time: 0.0,
             step: 0,
             history,

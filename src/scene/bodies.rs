@@ -1,0 +1,187 @@
+//! `[[body]]`: several bodies, each a box or a Gmsh mesh placed by scale, rotation and
+//! translation, with an initial velocity and spin; and the reading of Gmsh meshes for them and
+//! for `[mesh] file`.
+
+use nalgebra::{Rotation3, Unit, Vector3};
+use serde::Deserialize;
+use std::path::Path;
+
+use super::{BoxSection, SceneError, Validator};
+use crate::mesh::{box_mesh, gmsh, reorient, MeshError, TetMesh};
+
+/// `[[body]]`: one body — a box or a Gmsh file — placed in the scene and set moving.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySection {
+    /// Built-in box generator (in the body's own coordinates).
+    #[serde(rename = "box")]
+    pub box_: Option<BoxSection>,
+    /// Gmsh `.msh` file, relative to the scene file.
+    pub file: Option<String>,
+    /// Factor applied to the file's coordinates to get metres (files only). Default 1.
+    pub scale: Option<f64>,
+    /// Rotation about the body's own origin, applied after `scale`.
+    pub rotate: Option<RotateSection>,
+    /// Translation (m), applied last. Default 0.
+    pub translate: Option<[f64; 3]>,
+    /// Initial velocity of the body's centroid (m/s). Default 0.
+    pub velocity: Option<[f64; 3]>,
+    /// Initial angular velocity about the body's centroid (rad/s). Default 0.
+    pub angular_velocity: Option<[f64; 3]>,
+}
+
+/// `rotate = { axis, degrees }`: a rotation by `degrees` about `axis` (right-hand rule).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RotateSection {
+    /// Axis (any non-zero length).
+    pub axis: [f64; 3],
+    /// Angle (degrees).
+    pub degrees: f64,
+}
+
+impl Validator<'_> {
+    /// The bodies as one mesh (each body its own nodes), and each node's initial velocity
+    /// (m/s, 3 per node; empty when every body starts at rest).
+    pub(super) fn bodies(&self, bodies: &[BodySection]) -> Result<(TetMesh, Vec<f64>), SceneError> {
+        if bodies.is_empty() {
+            return Err(self.invalid("body", "must list at least one body"));
+        }
+        let mut meshes = Vec::with_capacity(bodies.len());
+        let mut velocities = Vec::with_capacity(bodies.len());
+        for (k, body) in bodies.iter().enumerate() {
+            let field = format!("body[{k}]");
+            let mut mesh = match (&body.box_, &body.file) {
+                (Some(b), None) => {
+                    if body.scale.is_some() {
+                        return Err(
+                            self.invalid(&format!("{field}.scale"), "applies to mesh files only")
+                        );
+                    }
+                    let box_field = format!("{field}.box");
+                    self.check_boxes(&[b], |_| box_field.clone())?;
+                    box_mesh(b.origin, b.size, b.cells, b.tets_per_cell.unwrap_or(6))
+                        .map_err(|source| self.mesh_error(source))?
+                }
+                (None, Some(file)) => {
+                    let scale =
+                        self.positive(&format!("{field}.scale"), body.scale.unwrap_or(1.0))?;
+                    self.gmsh_file(&format!("{field}.file"), file, scale)?
+                }
+                _ => {
+                    return Err(self.invalid(
+                        &field,
+                        "give exactly one of `box` (built-in generator) or `file` (Gmsh .msh)",
+                    ))
+                }
+            };
+            let rotation = match &body.rotate {
+                None => Rotation3::identity(),
+                Some(r) => {
+                    let axis = self.vector(&format!("{field}.rotate.axis"), r.axis)?;
+                    let degrees = self.finite(&format!("{field}.rotate.degrees"), r.degrees)?;
+                    let axis = Unit::try_new(axis, 0.0).ok_or_else(|| {
+                        self.invalid(&format!("{field}.rotate.axis"), "must not be zero")
+                    })?;
+                    Rotation3::from_axis_angle(&axis, degrees.to_radians())
+                }
+            };
+            let translate = self.vector(
+                &format!("{field}.translate"),
+                body.translate.unwrap_or_default(),
+            )?;
+            for x in &mut mesh.rest {
+                *x = rotation * *x + translate;
+            }
+            let velocity = self.vector(
+                &format!("{field}.velocity"),
+                body.velocity.unwrap_or_default(),
+            )?;
+            let spin = self.vector(
+                &format!("{field}.angular_velocity"),
+                body.angular_velocity.unwrap_or_default(),
+            )?;
+            let centroid = centroid(&mesh);
+            velocities.push(
+                mesh.rest
+                    .iter()
+                    .flat_map(|x| {
+                        let v = velocity + spin.cross(&(x - centroid));
+                        [v.x, v.y, v.z]
+                    })
+                    .collect::<Vec<f64>>(),
+            );
+            meshes.push(mesh);
+        }
+        let mesh = TetMesh::concat(meshes).map_err(|source| self.mesh_error(source))?;
+        self.check_memory("body", mesh.num_tets() as u128, "use coarser bodies")?;
+        self.check_parts_apart("body", &mesh)?;
+        let moving = velocities.iter().flatten().any(|&v| v != 0.0);
+        let velocity = if moving {
+            velocities.concat()
+        } else {
+            Vec::new()
+        };
+        Ok((mesh, velocity))
+    }
+
+    /// The tets of the Gmsh file `file` (relative to the scene file), coordinates times
+    /// `scale`: negatively oriented tets are used reoriented (with a notice), and errors quote
+    /// the file's own node and element tags.
+    pub(super) fn gmsh_file(
+        &self,
+        field: &str,
+        file: &str,
+        scale: f64,
+    ) -> Result<TetMesh, SceneError> {
+        let file = self.path.parent().unwrap_or(Path::new("")).join(file);
+        let gmsh::TetFile {
+            nodes,
+            mut tets,
+            node_tags,
+            element_tags,
+        } = gmsh::read_msh_tagged(&file).map_err(|source| SceneError::MeshFile {
+            path: self.path.into(),
+            source,
+        })?;
+        let nodes: Vec<[f64; 3]> = nodes.iter().map(|p| p.map(|c| c * scale)).collect();
+        // The file's arrays are small next to what a run builds on them.
+        self.check_memory(field, tets.len() as u128, "use a coarser mesh")?;
+        let swapped = reorient(&nodes, &mut tets);
+        if swapped > 0 {
+            self.notices.borrow_mut().push(format!(
+                "{}: {swapped} of {} tetrahedra were negatively oriented and are used with two vertices swapped",
+                file.display(),
+                tets.len()
+            ));
+        }
+        TetMesh::from_arrays(&nodes, tets).map_err(|source| {
+            self.mesh_error(MeshError::InFile(format!(
+                "mesh file {}: {}",
+                file.display(),
+                source.in_file(&node_tags, &element_tags)
+            )))
+        })
+    }
+
+    /// A mesh error of this scene file.
+    pub(super) fn mesh_error(&self, source: MeshError) -> SceneError {
+        SceneError::Mesh {
+            path: self.path.into(),
+            source,
+        }
+    }
+}
+
+/// Volume-weighted centroid of a mesh's rest configuration (m): its centre of mass for a
+/// uniform density.
+fn centroid(mesh: &TetMesh) -> Vector3<f64> {
+    let (mut sum, mut volume) = (Vector3::zeros(), 0.0);
+    for (t, tet) in mesh.tets.iter().enumerate() {
+        let v = mesh.signed_volume(t);
+        let c = tet.iter().map(|&i| mesh.rest[i]).sum::<Vector3<f64>>() / 4.0;
+        sum += v * c;
+        volume += v;
+    }
+    sum / volume
+}
