@@ -560,3 +560,74 @@ fn a_reused_single_precision_factor_follows_the_direct_solver_while_freezing() {
         "{n_reused} vs {n_direct} Newton iterations"
     );
 }
+
+#[test]
+fn freezing_from_the_surface_or_the_obstacles_matches_the_box_faces_it_equals() {
+    // On a box the distance to its surface is the distance to the nearest of its six faces,
+    // and in the freezing container the faces touching the container are the walls and the
+    // floor: the schedules must agree sample for sample (distances are exact, so to 1e-12 s).
+    let scene = |cooling: &str| {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/scenes/freezing_container.toml"
+        ))
+        .unwrap();
+        let start = text.find("cooling = ").unwrap();
+        let end = start + text[start..].find('\n').unwrap();
+        let text = format!("{}cooling = {cooling}{}", &text[..start], &text[end..]);
+        icefem::scene::Scene::parse(&text, std::path::Path::new("/tmp/freezing.toml")).unwrap()
+    };
+    let arrival = |cooling: &str| scene(cooling).model.freezing.unwrap().arrival;
+    let same = |a: &[[f64; icefem::physics::freezing::SAMPLES]],
+                b: &[[f64; icefem::physics::freezing::SAMPLES]]| {
+        a.iter()
+            .flatten()
+            .zip(b.iter().flatten())
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0f64, f64::max)
+    };
+    let walls_and_floor = arrival(r#"["walls", "bottom"]"#);
+    let obstacles = arrival(r#"["obstacles"]"#);
+    let d = same(&walls_and_floor, &obstacles);
+    assert!(d < 1e-12, "obstacles vs walls + bottom: {d:e} s");
+    let six = arrival(r#"["walls", "bottom", "top"]"#);
+    let surface = arrival(r#"["surface"]"#);
+    let d = same(&six, &surface);
+    assert!(d < 1e-12, "surface vs all six faces: {d:e} s");
+}
+
+#[test]
+fn surface_cooling_errors_name_the_field() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/freezing_container.toml"
+    ))
+    .unwrap();
+    let with = |cooling: &str| text.replace(r#"cooling = ["walls", "bottom", "top"]"#, cooling);
+    let err = |t: &str| {
+        icefem::scene::Scene::parse(t, std::path::Path::new("/tmp/freezing.toml"))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = err(&with(r#"cooling = ["surface", "walls"]"#));
+    assert!(
+        e.contains("freezing.cooling") && e.contains("stand alone"),
+        "{e}"
+    );
+    let e = err(&with(
+        "cooling = [\"surface\"]\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]",
+    ));
+    assert!(e.contains("freezing.min"), "{e}");
+    // No obstacle at all: nothing touches one.
+    let start = text.find("[[obstacle]]").unwrap();
+    let end = start + text[start..].find("[freezing]").unwrap();
+    let bare = format!("{}{}", &text[..start], &text[end..]);
+    let e = err(&bare.replace(
+        r#"cooling = ["walls", "bottom", "top"]"#,
+        r#"cooling = ["obstacles"]"#,
+    ));
+    assert!(
+        e.contains("freezing.cooling") && e.contains("no boundary face"),
+        "{e}"
+    );
+}

@@ -28,10 +28,12 @@
 //! the ice's, far below anything that matters for the ice, and the mesh of the liquid keeps
 //! its shape.
 
+use super::distance::SurfaceDistance;
 use super::history::ElementHistory;
 use super::Region;
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 /// How unfrozen water behaves.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -117,16 +119,62 @@ impl Freezing {
                 .max(0.0);
             start + distance / speed
         };
+        Self::from_arrival(
+            mesh,
+            |_, points| points.iter().map(|&x| arrival_at(x)).collect(),
+            transition,
+            expansion_ratio,
+            water,
+        )
+    }
+
+    /// A front from the surface `triangles` (node triples of `mesh`, e.g. all its boundary
+    /// faces) at `speed` (m/s) from `start` (s), the distance measured through the mesh (see
+    /// [`SurfaceDistance`]): a sphere freezes from its surface inward.
+    pub fn from_surface(
+        mesh: &TetMesh,
+        triangles: &[[usize; 3]],
+        (speed, start, transition): (f64, f64, f64),
+        expansion_ratio: f64,
+        water: Water,
+    ) -> Self {
+        let distance = SurfaceDistance::new(mesh, triangles);
+        Self::from_arrival(
+            mesh,
+            |tet, points| {
+                distance
+                    .at_points(tet, points)
+                    .into_iter()
+                    .map(|d| start + d / speed)
+                    .collect()
+            },
+            transition,
+            expansion_ratio,
+            water,
+        )
+    }
+
+    /// The schedule with the front reaching the `points` of the element with nodes `tet` at
+    /// the times `arrival_at(tet, points)` (s).
+    fn from_arrival(
+        mesh: &TetMesh,
+        arrival_at: impl Fn(&[usize; 4], &[Vector3<f64>]) -> Vec<f64> + Sync,
+        transition: f64,
+        expansion_ratio: f64,
+        water: Water,
+    ) -> Self {
         let samples = sample_points();
         let arrival = mesh
             .tets
-            .iter()
+            .par_iter()
             .map(|tet| {
                 let x = tet.map(|v| mesh.rest[v]);
+                let points: Vec<Vector3<f64>> = samples
+                    .iter()
+                    .map(|b| x[0] * b[0] + x[1] * b[1] + x[2] * b[2] + x[3] * b[3])
+                    .collect();
                 let mut times = [0.0; SAMPLES];
-                for (t, b) in times.iter_mut().zip(&samples) {
-                    *t = arrival_at(x[0] * b[0] + x[1] * b[1] + x[2] * b[2] + x[3] * b[3]);
-                }
+                times.copy_from_slice(&arrival_at(tet, &points));
                 times
             })
             .collect();

@@ -6,6 +6,7 @@
 pub mod amplitude;
 pub mod contact;
 pub mod dirichlet;
+pub mod distance;
 pub mod elasticity;
 pub mod freezing;
 pub mod grid;

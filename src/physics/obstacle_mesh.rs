@@ -46,7 +46,7 @@ impl PartialEq for ObstacleSurface {
 
 /// The feature of a triangle that holds the closest point.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Feature {
+pub(crate) enum Feature {
     Face,
     Edge(usize, usize),
     Vertex(usize),
@@ -54,7 +54,10 @@ enum Feature {
 
 /// Closest point to `p` on triangle (a, b, c) and the feature it lies on (local indices 0–2),
 /// by Voronoi regions of the vertices, edges and face.
-fn closest_on_triangle(p: Vector3<f64>, [a, b, c]: [Vector3<f64>; 3]) -> (Vector3<f64>, Feature) {
+pub(crate) fn closest_on_triangle(
+    p: Vector3<f64>,
+    [a, b, c]: [Vector3<f64>; 3],
+) -> (Vector3<f64>, Feature) {
     let (ab, ac, ap) = (b - a, c - a, p - a);
     let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
     if d1 <= 0.0 && d2 <= 0.0 {

@@ -270,6 +270,56 @@ impl Validator<'_> {
             ),
         ))
     }
+
+    /// The boundary faces of `mesh` that touch an obstacle: their centroid within half the
+    /// mean boundary edge of an obstacle's surface (a container's floor and walls, a
+    /// half-space's plane, a mesh obstacle's triangles), and facing it (normals more than 120°
+    /// apart). None is an error for the cooling.
+    pub(super) fn faces_touching(
+        &self,
+        mesh: &TetMesh,
+        obstacles: &[Obstacle],
+    ) -> Result<Vec<[usize; 3]>, SceneError> {
+        let faces = mesh.boundary_faces();
+        let edges: f64 = faces
+            .iter()
+            .map(|f| {
+                let [a, b, c] = f.nodes.map(|v| mesh.rest[v]);
+                (b - a).norm() + (c - b).norm() + (a - c).norm()
+            })
+            .sum();
+        let reach = 0.5 * edges / (3.0 * faces.len().max(1) as f64);
+        let mut planes = Vec::new();
+        for o in obstacles {
+            o.planes_into(0.0, &mut planes);
+        }
+        let touching: Vec<[usize; 3]> = faces
+            .iter()
+            .map(|f| f.nodes)
+            .filter(|f| {
+                let [a, b, c] = f.map(|v| mesh.rest[v]);
+                let x = (a + b + c) / 3.0;
+                let outward = (b - a).cross(&(c - a)).normalize();
+                // Near the surface and facing it (a top face near a wall's edge is not).
+                let touches = |point: Vector3<f64>, normal: Vector3<f64>| {
+                    (x - point).dot(&normal).abs() <= reach && outward.dot(&normal) < -0.5
+                };
+                planes.iter().any(|p| touches(p.point, p.normal))
+                    || obstacles
+                        .iter()
+                        .filter_map(|o| o.surface())
+                        .filter_map(|s| s.closest(x, reach))
+                        .any(|q| touches(q.point, q.normal))
+            })
+            .collect();
+        if touching.is_empty() {
+            return Err(self.invalid(
+                "freezing.cooling",
+                format!("\"obstacles\": no boundary face of the mesh is within {reach:.3e} m (half its mean boundary edge) of an obstacle"),
+            ));
+        }
+        Ok(touching)
+    }
 }
 
 /// Whether `x` lies inside the tet `p` with every barycentric coordinate above `margin`.

@@ -674,8 +674,16 @@ impl Validator<'_> {
             model.add_obstacles(contact);
         }
         if let Some(f) = &raw.freezing {
-            model.freezing =
-                Some(self.freezing(f, &model.mesh, &model.elasticity.eigenstrain, &material)?);
+            let obstacles = model
+                .obstacle_contact()
+                .map_or(&[][..], |c| &c.obstacles[..]);
+            let freezing = self.freezing(
+                f,
+                &model.mesh,
+                &model.elasticity.eigenstrain,
+                (&material, obstacles),
+            )?;
+            model.freezing = Some(freezing);
         }
         if let Some(p) = &raw.plasticity {
             let elastic_limit = self.positive("plasticity.elastic_limit", p.elastic_limit)?;
@@ -943,10 +951,32 @@ impl Validator<'_> {
         f: &FreezingSection,
         mesh: &TetMesh,
         eigenstrain: &[f64],
-        ice: &crate::fem::Material,
+        (ice, obstacles): (&crate::fem::Material, &[Obstacle]),
     ) -> Result<Freezing, SceneError> {
+        let surface = match f.cooling.as_slice() {
+            [one] if one == "surface" => Some(
+                mesh.boundary_faces()
+                    .iter()
+                    .map(|f| f.nodes)
+                    .collect::<Vec<_>>(),
+            ),
+            [one] if one == "obstacles" => Some(self.faces_touching(mesh, obstacles)?),
+            list if list.iter().any(|n| n == "surface" || n == "obstacles") => {
+                return Err(self.invalid(
+                    "freezing.cooling",
+                    "\"surface\" and \"obstacles\" stand alone, without box faces or each other",
+                ))
+            }
+            _ => None,
+        };
+        if surface.is_some() && (f.min.is_some() || f.max.is_some()) {
+            return Err(self.invalid(
+                "freezing.min",
+                "`min`/`max` are the box whose faces cool; not with \"surface\" or \"obstacles\"",
+            ));
+        }
         let mut cooling = [false; 6];
-        for name in &f.cooling {
+        for name in f.cooling.iter().filter(|_| surface.is_none()) {
             let faces: &[usize] = match name.as_str() {
                 "walls" => &[0, 1, 2, 3],
                 "bottom" | "-z" => &[4],
@@ -958,7 +988,7 @@ impl Validator<'_> {
                 other => {
                     return Err(self.invalid(
                         "freezing.cooling",
-                        format!("unknown face {other:?}: use \"walls\", \"bottom\", \"top\" or one of \"-x\", \"+x\", \"-y\", \"+y\", \"-z\", \"+z\""),
+                        format!("unknown face {other:?}: use \"surface\", \"obstacles\", or box faces \"walls\", \"bottom\", \"top\", \"-x\", \"+x\", \"-y\", \"+y\", \"-z\", \"+z\""),
                     ))
                 }
             };
@@ -966,7 +996,7 @@ impl Validator<'_> {
                 cooling[k] = true;
             }
         }
-        if !cooling.contains(&true) {
+        if surface.is_none() && !cooling.contains(&true) {
             return Err(self.invalid("freezing.cooling", "name at least one cooling face"));
         }
         let region = match (f.min, f.max) {
@@ -1010,9 +1040,14 @@ impl Validator<'_> {
                 ))
             }
         };
-        let mut freezing = Freezing::from_front(
-            mesh, &region, cooling, speed, start, transition, ratio, water,
-        );
+        let mut freezing = match &surface {
+            Some(triangles) => {
+                Freezing::from_surface(mesh, triangles, (speed, start, transition), ratio, water)
+            }
+            None => Freezing::from_front(
+                mesh, &region, cooling, speed, start, transition, ratio, water,
+            ),
+        };
         freezing.base_eigenstrain = eigenstrain.to_vec();
         freezing.water_shear = self.non_negative(
             "freezing.water_shear_modulus",
