@@ -177,3 +177,69 @@ end_time = 0.2
     // The second body has not moved.
     assert!(sim.state.u[3 * first..].iter().all(|&u| u.abs() < 1e-12));
 }
+
+#[test]
+fn a_run_started_from_a_frame_continues_it_step_for_step() {
+    // The cantilever released under gravity, written every step; a second scene starts from
+    // its frame 10 (displacement and velocity) and must repeat frames 11–20 exactly: same
+    // mesh, same loads (constant in time), same direct solver.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/cantilever.toml"
+    ))
+    .unwrap()
+    .replace("cells = [40, 4, 4]", "cells = [10, 2, 2]")
+    .replace("end_time = 2.0", "end_time = 0.6666666666666666");
+    let first = dir.path().join("first.toml");
+    std::fs::write(&first, &text).unwrap();
+    let out = dir.path().join("first.h5");
+    let scene = icefem::scene::Scene::load(&first).unwrap();
+    let options = icefem::run::RunOptions {
+        output: Some(out.clone()),
+        ..Default::default()
+    };
+    icefem::run::run(
+        &scene,
+        &options,
+        &std::sync::atomic::AtomicBool::new(false),
+        |_| {},
+    )
+    .unwrap();
+    let second = text.replace(
+        "end_time = 0.6666666666666666",
+        "end_time = 0.3333333333333333",
+    ) + "\n[initial]\nfile = \"first.h5\"\nframe = 10\n";
+    let scene = icefem::scene::Scene::parse(&second, &dir.path().join("second.toml")).unwrap();
+    let mut sim = icefem::sim::Simulation::new(scene.model, scene.settings).unwrap();
+    let reader = icefem::output::FrameReader::open(&out).unwrap();
+    let at = |k: usize| reader.read(k).unwrap().state;
+    let start = at(10);
+    let flat = |p: &[[f64; 3]]| p.iter().flatten().copied().collect::<Vec<f64>>();
+    assert_eq!(sim.state.v, flat(&start.velocities));
+    for k in 11..=20 {
+        sim.step().unwrap();
+        let frame = at(k);
+        let positions: Vec<[f64; 3]> = sim.positions();
+        assert_eq!(flat(&positions), flat(&frame.positions), "frame {k}");
+        assert_eq!(sim.state.v, flat(&frame.velocities), "frame {k}");
+    }
+    // Errors name the field: a frame that is not there, another mesh, a missing file.
+    let err = |t: &str| {
+        icefem::scene::Scene::parse(t, &dir.path().join("second.toml"))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = err(&second.replace("frame = 10", "frame = 999"));
+    assert!(
+        e.contains("initial.frame") && e.contains("complete frames"),
+        "{e}"
+    );
+    let e = err(&second.replace("cells = [10, 2, 2]", "cells = [10, 2, 3]"));
+    assert!(e.contains("`initial`") && e.contains("another mesh"), "{e}");
+    let e = err(&second.replace("first.h5", "nowhere.h5"));
+    assert!(
+        e.contains("initial.file") && e.contains("nowhere.h5"),
+        "{e}"
+    );
+}

@@ -86,6 +86,8 @@ pub struct Model {
     pub gravity: Vector3<f64>,
     /// Amplitude of gravity in time.
     pub gravity_amplitude: Amplitude,
+    /// Displacement of each node at t = 0 (m, 3 per node); empty: none.
+    pub initial_displacement: Vec<f64>,
     /// Velocity of each node at t = 0 (m/s, 3 per node); empty: at rest.
     pub initial_velocity: Vec<f64>,
     /// Surface tractions, kept likewise.
@@ -118,6 +120,7 @@ impl Model {
             freezing: None,
             gravity,
             gravity_amplitude: Amplitude::default(),
+            initial_displacement: Vec::new(),
             initial_velocity: Vec::new(),
             tractions: tractions.to_vec(),
         };

@@ -1,6 +1,6 @@
 //! `[[body]]`: several bodies, each a box or a Gmsh mesh placed by scale, rotation and
-//! translation, with an initial velocity and spin; and the reading of Gmsh meshes for them and
-//! for `[mesh] file`.
+//! translation, with an initial velocity and spin; `[initial]`: a start from a frame of an
+//! earlier run; and the reading of Gmsh meshes for bodies and for `[mesh] file`.
 
 use nalgebra::{Rotation3, Unit, Vector3};
 use serde::Deserialize;
@@ -40,7 +40,74 @@ pub struct RotateSection {
     pub degrees: f64,
 }
 
+/// `[initial]`: start from the displacement and velocity of a frame of an earlier run on the
+/// same mesh (the element history — plastic strain, freeze state — starts afresh).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSection {
+    /// The earlier run's HDF5 file, relative to the scene file.
+    pub file: String,
+    /// Frame index. Default: the last complete frame.
+    pub frame: Option<usize>,
+}
+
 impl Validator<'_> {
+    /// The displacement and velocity (3 per node) of the frame `initial` names, checked to be
+    /// on `mesh` (same nodes at the same rest positions, same tets).
+    pub(super) fn initial_state(
+        &self,
+        initial: &InitialSection,
+        mesh: &TetMesh,
+    ) -> Result<(Vec<f64>, Vec<f64>), SceneError> {
+        let file = self
+            .path
+            .parent()
+            .unwrap_or(Path::new(""))
+            .join(&initial.file);
+        let read_error =
+            |e: crate::output::OutputError| self.invalid("initial.file", e.to_string());
+        let reader = crate::output::FrameReader::open(&file).map_err(read_error)?;
+        let index = match initial.frame {
+            Some(k) => k,
+            None => *reader.frame_indices().last().unwrap_or(&0),
+        };
+        let frame = reader
+            .read(index)
+            .map_err(|e| self.invalid("initial.frame", e.to_string()))?
+            .state;
+        let same_rest = frame.rest_positions.len() == mesh.num_nodes()
+            && frame
+                .rest_positions
+                .iter()
+                .zip(&mesh.rest)
+                .all(|(p, x)| (Vector3::from(*p) - x).norm() <= 1e-12 * (1.0 + x.norm()));
+        if !same_rest || frame.tets != mesh.tets {
+            return Err(self.invalid(
+                "initial",
+                format!(
+                    "frame {index} of {} is on another mesh ({} nodes, {} tets; this scene's: {} nodes, {} tets, or the same counts at other rest positions); a fractured frame cannot start a new run (use --resume)",
+                    file.display(),
+                    frame.rest_positions.len(),
+                    frame.tets.len(),
+                    mesh.num_nodes(),
+                    mesh.num_tets()
+                ),
+            ));
+        }
+        // The stored displacement as written (positions − rest would round it).
+        let displacement = match frame.node_fields.iter().find(|f| f.name == "displacement") {
+            Some(f) if f.columns == 3 && f.data.len() == 3 * mesh.num_nodes() => f.data.clone(),
+            _ => frame
+                .positions
+                .iter()
+                .zip(&frame.rest_positions)
+                .flat_map(|(x, p)| [x[0] - p[0], x[1] - p[1], x[2] - p[2]])
+                .collect(),
+        };
+        let velocity = frame.velocities.iter().flatten().copied().collect();
+        Ok((displacement, velocity))
+    }
+
     /// The bodies as one mesh (each body its own nodes), and each node's initial velocity
     /// (m/s, 3 per node; empty when every body starts at rest).
     pub(super) fn bodies(&self, bodies: &[BodySection]) -> Result<(TetMesh, Vec<f64>), SceneError> {

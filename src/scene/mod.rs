@@ -43,7 +43,7 @@ use std::sync::Arc;
 mod bodies;
 mod checks;
 
-pub use bodies::{BodySection, RotateSection};
+pub use bodies::{BodySection, InitialSection, RotateSection};
 
 /// A scene that could not be read or is not valid.
 #[derive(Debug, thiserror::Error)]
@@ -98,6 +98,8 @@ pub struct SceneFile {
     /// Bodies, each placed and set moving (or `mesh`).
     #[serde(default)]
     pub body: Vec<BodySection>,
+    /// Initial displacement and velocity from a frame of an earlier run on the same mesh.
+    pub initial: Option<InitialSection>,
     /// Material.
     pub material: MaterialSection,
     /// Physics terms.
@@ -656,11 +658,33 @@ impl Validator<'_> {
                 path: self.path.into(),
                 source,
             })?;
+        let (initial_displacement, initial_velocity) = match &raw.initial {
+            None => (Vec::new(), initial_velocity),
+            Some(_) if !initial_velocity.is_empty() => {
+                return Err(self.invalid(
+                    "initial",
+                    "give initial velocities by `[[body]]` entries or by `[initial]`, not both",
+                ))
+            }
+            Some(section) => {
+                let (u, v) = self.initial_state(section, &model.mesh)?;
+                // A frame at rest starts at rest (and may start a static analysis).
+                (
+                    u,
+                    if v.iter().all(|&x| x == 0.0) {
+                        Vec::new()
+                    } else {
+                        v
+                    },
+                )
+            }
+        };
+        model.initial_displacement = initial_displacement;
         if !initial_velocity.is_empty() {
             if settings.analysis == Analysis::Static {
                 return Err(self.invalid(
                     "body",
-                    "an initial velocity or spin needs time.analysis = \"dynamic\"",
+                    "an initial velocity (a body's `velocity` or `angular_velocity`, or `[initial]`) needs time.analysis = \"dynamic\"",
                 ));
             }
             model.initial_velocity = initial_velocity;

@@ -237,7 +237,7 @@ pub struct Simulation {
 
 impl Simulation {
     /// Builds the pattern, slot map, colouring and (for Cholesky) the symbolic factorisation,
-    /// starting at t = 0 from rest or from the model's initial velocity.
+    /// starting at t = 0 from rest or from the model's initial displacement and velocity.
     pub fn new(model: Model, settings: StepSettings) -> Result<Self, SimError> {
         for (index, bc) in model.dirichlet.iter().enumerate() {
             if bc.nodes(&model.mesh).next().is_none() {
@@ -282,8 +282,13 @@ impl Simulation {
         } else {
             vec![0.0; n]
         };
+        let u = if model.initial_displacement.len() == n {
+            model.initial_displacement.clone()
+        } else {
+            vec![0.0; n]
+        };
         let state = State {
-            u: vec![0.0; n],
+            u,
             v,
             time: 0.0,
             step: 0,
