@@ -605,6 +605,10 @@ impl Simulation {
                 term.add_contact_forces(&u, &mut forces);
             }
             self.contact_forces = forces;
+        } else {
+            // No contact term in this solve: no contact force (and no friction work).
+            self.contact_forces.normal.fill(0.0);
+            self.contact_forces.friction.fill(0.0);
         }
         let t_contact_narrow = potential.t_contact;
         let t_contact_broad = potential.broad_phase_time();
