@@ -1,5 +1,5 @@
 //! HDF5 helpers shared by the writer, resume, the XDMF sidecar, the frame reader and
-//! `describe`: error context, close-on-exec, attributes, matrices and index arrays (written
+//! `describe`: error context, opening for reading, close-on-exec, attributes, matrices and index arrays (written
 //! compressed when large), their shape-checked reading, the signature and layout checks, and
 //! the listing of `/frames`.
 
@@ -35,6 +35,20 @@ pub(super) fn close_on_exec(file: &File) {
             }
         }
     });
+}
+
+/// Opens `path` read-only to read icefem output, with HDF5's own file lock off and the
+/// descriptor close-on-exec. Who may write a file is settled by the run's lock
+/// (`ownership::RunLock`), and runs write with HDF5's lock off so that readers can follow them;
+/// a reader taking HDF5's lock would instead fail ("Resource temporarily unavailable") on a file
+/// another program holds, or one whose lock a child process inherited.
+pub(super) fn open_read(path: &Path, doing: &str) -> Result<File, OutputError> {
+    let file = File::with_options()
+        .with_fapl(|fapl| fapl.file_locking(false))
+        .open(path)
+        .ctx(path, || doing.into())?;
+    close_on_exec(&file);
+    Ok(file)
 }
 
 /// Target number of values per chunk of a frame dataset (64 Ki × 8 B = 512 KiB),

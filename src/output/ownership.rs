@@ -15,7 +15,7 @@
 use std::os::fd::AsRawFd as _;
 use std::path::{Path, PathBuf};
 
-use super::hdf5_io::{check_hdf5_signature, check_icefem_layout, close_on_exec, Hdf5Context};
+use super::hdf5_io::{check_hdf5_signature, check_icefem_layout, open_read};
 use super::OutputError;
 
 /// The write lock of a run on its file, held for as long as the value lives.
@@ -123,8 +123,7 @@ pub(super) fn check_target(target: &Path, replace: bool) -> Result<(), OutputErr
             path: target.to_path_buf(),
         });
     }
-    let file = hdf5::File::open(target).ctx(target, || "opening the existing output".into())?;
-    close_on_exec(&file);
+    let file = open_read(target, "opening the existing output")?;
     match check_icefem_layout(target, &file) {
         Err(OutputError::NotIcefem { reason, .. }) => {
             return Err(foreign(format!(

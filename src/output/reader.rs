@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use hdf5::{File, Group};
 
 use super::hdf5_io::{
-    check_hdf5_signature, check_icefem_layout, close_on_exec, list_frames, open_2d, read_attr,
+    check_hdf5_signature, check_icefem_layout, list_frames, open_2d, open_read, read_attr,
     read_string_attr, read_tets, read_vec3, FrameEntry, Hdf5Context,
 };
 use super::resume::{read_frame, ResumeFrame};
@@ -60,8 +60,7 @@ impl FrameReader {
     /// Opens `path`, checking that it is an icefem file with at least one complete frame.
     pub fn open(path: &Path) -> Result<Self, OutputError> {
         check_hdf5_signature(path)?;
-        let file = File::open(path).ctx(path, || "opening".into())?;
-        close_on_exec(&file);
+        let file = open_read(path, "opening")?;
         check_icefem_layout(path, &file)?;
         let scene_text = read_string_attr(path, &file, "scene")?;
         let scene_path = read_string_attr(path, &file, "scene_path").unwrap_or_default();

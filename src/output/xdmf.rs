@@ -15,7 +15,7 @@ use hdf5::types::{FloatSize, IntSize, TypeDescriptor};
 use hdf5::{Dataset, File, Group};
 
 use super::hdf5_io::{
-    check_hdf5_signature, check_icefem_layout, close_on_exec, list_frames, open_2d, read_attr,
+    check_hdf5_signature, check_icefem_layout, list_frames, open_2d, open_read, read_attr,
     read_string, Hdf5Context,
 };
 use super::{corrupt, invalid, Frame, OutputError, RESERVED_FRAME_NAMES};
@@ -257,8 +257,7 @@ const FOOTER: &str = "  </Domain>\n</Xdmf>\n";
 /// renamed, so a viewer never sees half of it.
 pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
     check_hdf5_signature(h5_path)?;
-    let file = File::open(h5_path).ctx(h5_path, || "opening to write the XDMF sidecar".into())?;
-    close_on_exec(&file);
+    let file = open_read(h5_path, "opening to write the XDMF sidecar")?;
     check_icefem_layout(h5_path, &file)?;
     let records = read_records(h5_path, &file)?;
     drop(file);
