@@ -1,29 +1,13 @@
 //! HDF5 output: layout, XDMF sidecar, and resume — a run cut off halfway and resumed ends
 //! bit-identical to an uninterrupted one.
 
+mod common;
 use icefem::run::{run, RunOptions};
 use icefem::scene::Scene;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-const SCENE: &str = r#"
-[mesh]
-box = { size = [0.2, 0.02, 0.02], cells = [10, 1, 1] }
-[material]
-density = 916.0
-lambda = 8.64e10
-mu = 3.70e10
-[physics]
-gravity = [0.0, -3.0, -9.81]
-damping = { mass = 0.5, stiffness = 1e-5 }
-[[dirichlet]]
-min = [-1.0, -1.0, -1.0]
-max = [1e-9, 1.0, 1.0]
-[time]
-dt = 0.002
-end_time = 0.02
-output_every = 2
-"#;
+use common::SAGGING_BAR as SCENE;
 
 /// Run options writing to `path`, optionally cut at `end` (s) or resuming it.
 fn options(path: &Path, end: Option<f64>, resume: bool) -> RunOptions {

@@ -3,31 +3,14 @@
 //! not an icefem file; a rerun that fails; a full disk; SIGTERM and SIGKILL; a reader of a live
 //! run.
 
+mod common;
 use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 
 use icefem::output::FrameReader;
 
-/// A clamped bar sagging under gravity: 60 tets, a frame every `output_every` steps.
-const BAR: &str = r#"
-[mesh]
-box = { size = [0.2, 0.02, 0.02], cells = [10, 1, 1] }
-[material]
-density = 916.0
-lambda = 8.64e10
-mu = 3.70e10
-[physics]
-gravity = [0.0, -3.0, -9.81]
-damping = { mass = 0.5, stiffness = 1e-5 }
-[[dirichlet]]
-min = [-1.0, -1.0, -1.0]
-max = [1e-9, 1.0, 1.0]
-[time]
-dt = 0.002
-end_time = 0.02
-output_every = 2
-"#;
+use common::SAGGING_BAR as BAR;
 
 /// The bar with a Newton limit it cannot meet: the run fails at step 1.
 fn failing_bar() -> String {

@@ -153,6 +153,25 @@ fn static_cases_match_scikit_fem() {
     }
 }
 
+/// Steps `sim` `steps` times; the largest difference of node `tip`'s displacement from
+/// `history[[n, axis]]` after step n, relative to the largest |history| entry.
+fn tip_history_error(
+    sim: &mut Simulation,
+    tip: usize,
+    history: &ndarray::Array2<f64>,
+    steps: usize,
+) -> f64 {
+    let scale = history.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut worst: f64 = 0.0;
+    for n in 1..=steps {
+        sim.step().unwrap();
+        for a in 0..3 {
+            worst = worst.max((sim.state.u[3 * tip + a] - history[[n, a]]).abs() / scale);
+        }
+    }
+    worst
+}
+
 #[test]
 fn backward_euler_matches_scikit_fem_step_for_step() {
     let r = open("dynamics_beam");
@@ -169,14 +188,7 @@ fn backward_euler_matches_scikit_fem_step_for_step() {
         let history = group.dataset("tip_u").unwrap().read_2d::<f64>().unwrap();
         let elasticity = Elasticity::new(&r.mesh, r.material, ElasticModel::Linear);
         let mut sim = r.simulation(elasticity, &[], Analysis::Dynamic, dt);
-        let scale = history.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let mut worst: f64 = 0.0;
-        for n in 1..=steps {
-            sim.step().unwrap();
-            for a in 0..3 {
-                worst = worst.max((sim.state.u[3 * tip + a] - history[[n, a]]).abs() / scale);
-            }
-        }
+        let worst = tip_history_error(&mut sim, tip, &history, steps);
         let u_ref: Vec<f64> = flat(&group.dataset("u").unwrap());
         let v_ref: Vec<f64> = flat(&group.dataset("v").unwrap());
         let eu = rel_l2(&sim.state.u, &u_ref);
@@ -349,14 +361,7 @@ fn the_dynamics_beam_as_a_plain_scene_matches_scikit_fem() {
         scene.notices
     );
     let mut sim = Simulation::new(scene.model, scene.settings).unwrap();
-    let scale = history.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let mut worst: f64 = 0.0;
-    for n in 1..=steps {
-        sim.step().unwrap();
-        for a in 0..3 {
-            worst = worst.max((sim.state.u[3 * tip + a] - history[[n, a]]).abs() / scale);
-        }
-    }
+    let worst = tip_history_error(&mut sim, tip, &history, steps);
     eprintln!("plain scene: tip history max rel. diff {worst:.2e}");
     // As for the built-in mesh: solver round-off amplified by the conditioning.
     assert!(worst <= 1e-8, "tip {worst:e}");

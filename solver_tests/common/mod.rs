@@ -8,6 +8,27 @@ use icefem::sim::{Analysis, Simulation, StepSettings};
 use icefem::solver::{FactorPrecision, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
 
+/// A clamped ice bar sagging under sideways and downward gravity, damped: 60 tets, 10 steps of
+/// 2 ms, a frame every 2 steps (the output and reliability tests' run).
+pub const SAGGING_BAR: &str = r#"
+[mesh]
+box = { size = [0.2, 0.02, 0.02], cells = [10, 1, 1] }
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[physics]
+gravity = [0.0, -3.0, -9.81]
+damping = { mass = 0.5, stiffness = 1e-5 }
+[[dirichlet]]
+min = [-1.0, -1.0, -1.0]
+max = [1e-9, 1.0, 1.0]
+[time]
+dt = 0.002
+end_time = 0.02
+output_every = 2
+"#;
+
 /// Ice, as in the paper: λ = 8.64e10 Pa, μ = 3.70e10 Pa, ρ = 916 kg/m³.
 pub const ICE: Material = Material {
     lambda: 8.64e10,

@@ -168,6 +168,20 @@ impl TetMesh {
         ])
     }
 
+    /// Mean edge length of the boundary triangles at rest (m): the size contact penalties
+    /// are scaled by.
+    pub fn mean_boundary_edge(&self) -> f64 {
+        let faces = self.boundary_faces();
+        let sum: f64 = faces
+            .iter()
+            .map(|f| {
+                let [a, b, c] = f.nodes.map(|i| self.rest[i]);
+                (b - a).norm() + (c - b).norm() + (a - c).norm()
+            })
+            .sum();
+        sum / (3.0 * faces.len().max(1) as f64)
+    }
+
     /// Signed rest volume of tet `t` (m³).
     pub fn signed_volume(&self, t: usize) -> f64 {
         Self::edge_matrix(&self.rest, &self.tets[t]).determinant() / 6.0

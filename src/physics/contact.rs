@@ -152,14 +152,7 @@ pub struct Contact {
 /// micrometre for ice under its own weight), while Newton still converges in a few iterations
 /// when contacts open and close.
 pub fn default_stiffness(mesh: &TetMesh, young: f64) -> f64 {
-    let faces = mesh.boundary_faces();
-    let mut sum = 0.0;
-    for f in &faces {
-        let [a, b, c] = f.nodes.map(|i| mesh.rest[i]);
-        sum += (b - a).norm() + (c - b).norm() + (a - c).norm();
-    }
-    let h = sum / (3.0 * faces.len().max(1) as f64);
-    10.0 * young / h
+    10.0 * young / mesh.mean_boundary_edge()
 }
 
 impl Contact {

@@ -148,8 +148,7 @@ impl Validator<'_> {
     ) -> Result<(), SceneError> {
         let (lo, hi) = mesh.bounding_box();
         let tolerance = 1e-6 * (hi - lo).norm();
-        let extent = hi - lo;
-        let element = (extent.x * extent.y * extent.z / mesh.num_tets() as f64).cbrt();
+        let element = element_size(mesh);
         let mut planes = Vec::new();
         for (i, o) in obstacles.iter().enumerate() {
             planes.clear();
@@ -224,10 +223,7 @@ impl Validator<'_> {
         if count < 2 {
             return Ok(());
         }
-        let (lo, hi) = mesh.bounding_box();
-        let extent = hi - lo;
-        let cell = (extent.x * extent.y * extent.z / mesh.num_tets() as f64).cbrt();
-        let mut grid = BoxGrid::new(cell);
+        let mut grid = BoxGrid::new(element_size(mesh));
         for (e, t) in mesh.tets.iter().enumerate() {
             let p = t.map(|v| mesh.rest[v]);
             grid.insert(
@@ -281,14 +277,7 @@ impl Validator<'_> {
         obstacles: &[Obstacle],
     ) -> Result<Vec<[usize; 3]>, SceneError> {
         let faces = mesh.boundary_faces();
-        let edges: f64 = faces
-            .iter()
-            .map(|f| {
-                let [a, b, c] = f.nodes.map(|v| mesh.rest[v]);
-                (b - a).norm() + (c - b).norm() + (a - c).norm()
-            })
-            .sum();
-        let reach = 0.5 * edges / (3.0 * faces.len().max(1) as f64);
+        let reach = 0.5 * mesh.mean_boundary_edge();
         let mut planes = Vec::new();
         for o in obstacles {
             o.planes_into(0.0, &mut planes);
@@ -320,6 +309,14 @@ impl Validator<'_> {
         }
         Ok(touching)
     }
+}
+
+/// A length of the mesh's elements (m): the edge of a cube holding the bounding box's volume
+/// over the tet count.
+fn element_size(mesh: &TetMesh) -> f64 {
+    let (lo, hi) = mesh.bounding_box();
+    let extent = hi - lo;
+    (extent.x * extent.y * extent.z / mesh.num_tets() as f64).cbrt()
 }
 
 /// Whether `x` lies inside the tet `p` with every barycentric coordinate above `margin`.

@@ -1,0 +1,149 @@
+//! `[freezing]`: where the front starts (faces of a box, the body's own surface, or the faces
+//! touching an obstacle), its speed and the water's model, checked into a [`Freezing`]
+//! schedule.
+
+use serde::Deserialize;
+
+use super::{SceneError, Validator};
+use crate::mesh::TetMesh;
+use crate::physics::freezing::{Freezing, Water};
+use crate::physics::{Obstacle, Region};
+
+/// `[freezing]`: a front from the cooling faces of a box (default: the mesh's bounding box).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FreezingSection {
+    /// Cooling faces: any of "walls" (±x, ±y), "bottom" (−z), "top" (+z), or single faces
+    /// "-x", "+x", "-y", "+y", "-z", "+z".
+    pub cooling: Vec<String>,
+    /// Front speed (m/s).
+    pub front_speed: f64,
+    /// Time an element takes to freeze once the front reaches it (s). Default 0.
+    pub transition_time: Option<f64>,
+    /// When the front leaves the cooling faces (s). Default 0.
+    pub start_time: Option<f64>,
+    /// Volume ratio ice / water. Default 1.09.
+    pub expansion_ratio: Option<f64>,
+    /// "bulk" (default: pressure only, bulk modulus `water_bulk_modulus`) or "inactive".
+    pub water: Option<String>,
+    /// Bulk modulus of water (Pa). Default 2.2e9.
+    pub water_bulk_modulus: Option<f64>,
+    /// Regularising shear modulus of unfrozen water (Pa). Default 1e-4 of the ice's μ.
+    pub water_shear_modulus: Option<f64>,
+    /// Box whose faces cool: lower corner (m). Default: the mesh's bounding box.
+    pub min: Option<[f64; 3]>,
+    /// Box whose faces cool: upper corner (m).
+    pub max: Option<[f64; 3]>,
+}
+
+impl Validator<'_> {
+    pub(super) fn freezing(
+        &self,
+        f: &FreezingSection,
+        mesh: &TetMesh,
+        eigenstrain: &[f64],
+        (ice, obstacles): (&crate::fem::Material, &[Obstacle]),
+    ) -> Result<Freezing, SceneError> {
+        let surface = match f.cooling.as_slice() {
+            [one] if one == "surface" => Some(
+                mesh.boundary_faces()
+                    .iter()
+                    .map(|f| f.nodes)
+                    .collect::<Vec<_>>(),
+            ),
+            [one] if one == "obstacles" => Some(self.faces_touching(mesh, obstacles)?),
+            list if list.iter().any(|n| n == "surface" || n == "obstacles") => {
+                return Err(self.invalid(
+                    "freezing.cooling",
+                    "\"surface\" and \"obstacles\" stand alone, without box faces or each other",
+                ))
+            }
+            _ => None,
+        };
+        if surface.is_some() && (f.min.is_some() || f.max.is_some()) {
+            return Err(self.invalid(
+                "freezing.min",
+                "`min`/`max` are the box whose faces cool; not with \"surface\" or \"obstacles\"",
+            ));
+        }
+        let mut cooling = [false; 6];
+        for name in f.cooling.iter().filter(|_| surface.is_none()) {
+            let faces: &[usize] = match name.as_str() {
+                "walls" => &[0, 1, 2, 3],
+                "bottom" | "-z" => &[4],
+                "top" | "+z" => &[5],
+                "-x" => &[0],
+                "+x" => &[1],
+                "-y" => &[2],
+                "+y" => &[3],
+                other => {
+                    return Err(self.invalid(
+                        "freezing.cooling",
+                        format!("unknown face {other:?}: use \"surface\", \"obstacles\", or box faces \"walls\", \"bottom\", \"top\", \"-x\", \"+x\", \"-y\", \"+y\", \"-z\", \"+z\""),
+                    ))
+                }
+            };
+            for &k in faces {
+                cooling[k] = true;
+            }
+        }
+        if surface.is_none() && !cooling.contains(&true) {
+            return Err(self.invalid("freezing.cooling", "name at least one cooling face"));
+        }
+        let region = match (f.min, f.max) {
+            (None, None) => {
+                let (min, max) = mesh.bounding_box();
+                Region { min, max }
+            }
+            (Some(min), Some(max)) => self.region("freezing", min, max)?,
+            _ => return Err(self.invalid("freezing.min", "give both `min` and `max`, or neither")),
+        };
+        let speed = self.positive("freezing.front_speed", f.front_speed)?;
+        let transition =
+            self.non_negative("freezing.transition_time", f.transition_time.unwrap_or(0.0))?;
+        let start = self.non_negative("freezing.start_time", f.start_time.unwrap_or(0.0))?;
+        let ratio = f.expansion_ratio.unwrap_or(1.09);
+        if !(ratio > 0.5 && ratio < 2.0) {
+            return Err(self.invalid(
+                "freezing.expansion_ratio",
+                format!("must be in (0.5, 2) (ice/water volume, 1.09 for water), got {ratio}"),
+            ));
+        }
+        let water = match f.water.as_deref().unwrap_or("bulk") {
+            "bulk" => Water::Bulk {
+                modulus: self.positive(
+                    "freezing.water_bulk_modulus",
+                    f.water_bulk_modulus.unwrap_or(2.2e9),
+                )?,
+            },
+            "inactive" => {
+                if f.water_bulk_modulus.is_some() {
+                    return Err(
+                        self.invalid("freezing.water_bulk_modulus", "only for water = \"bulk\"")
+                    );
+                }
+                Water::Inactive
+            }
+            other => {
+                return Err(self.invalid(
+                    "freezing.water",
+                    format!("must be \"bulk\" or \"inactive\", got {other:?}"),
+                ))
+            }
+        };
+        let mut freezing = match &surface {
+            Some(triangles) => {
+                Freezing::from_surface(mesh, triangles, (speed, start, transition), ratio, water)
+            }
+            None => Freezing::from_front(
+                mesh, &region, cooling, speed, start, transition, ratio, water,
+            ),
+        };
+        freezing.base_eigenstrain = eigenstrain.to_vec();
+        freezing.water_shear = self.non_negative(
+            "freezing.water_shear_modulus",
+            f.water_shear_modulus.unwrap_or(1e-4 * ice.mu),
+        )?;
+        Ok(freezing)
+    }
+}
