@@ -160,9 +160,9 @@ fn pulled(length: f64, speed: f64) -> Vec<Dirichlet> {
         r.max[axis] = 1e-9;
         r
     };
-    let bc = |region, axes, velocity: f64| Dirichlet {
+    let bc = |region: Region, axes, velocity: f64| Dirichlet {
         amplitude: Default::default(),
-        region,
+        region: region.into(),
         axes,
         displacement: Vector3::zeros(),
         velocity: Vector3::new(velocity, 0.0, 0.0),

@@ -50,7 +50,8 @@ fn symmetry_rollers() -> Vec<Dirichlet> {
                 region: Region {
                     min: Vector3::repeat(-1e9),
                     max,
-                },
+                }
+                .into(),
                 axes,
                 displacement: Vector3::zeros(),
                 velocity: Vector3::zeros(),
@@ -110,7 +111,7 @@ fn confined_cube(law: ElasticModel) -> (f64, f64, Simulation) {
                 max: Vector3::new(size, size, 2.0 * size),
             },
         },
-        velocity: Vector3::zeros(),
+        motion: Default::default(),
         stiffness: 1e18,
         friction: 0.0,
     };
@@ -246,7 +247,8 @@ fn strained_cube(law: ElasticModel, plasticity: Plasticity) -> Simulation {
             region: Region {
                 min,
                 max: Vector3::repeat(1e9),
-            },
+            }
+            .into(),
             axes,
             displacement: Vector3::zeros(),
             velocity: Vector3::zeros(),

@@ -472,3 +472,248 @@ fn body_errors_name_their_field() {
         60
     );
 }
+
+/// A scene on the fixture box split into named groups ("left", "right" volumes; "end",
+/// "floor" surfaces), read as if it were in the fixtures' folder.
+const GROUPS: &str = r#"
+[mesh]
+file = "groups_v41_ascii.msh"
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[[dirichlet]]
+region = "floor"
+[time]
+dt = 0.01
+end_time = 0.03
+"#;
+
+fn parse_with_groups(text: &str) -> Result<Scene, SceneError> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("solver_tests/data/msh");
+    Scene::parse(text, &dir.join("test_scene.toml"))
+}
+
+/// The error text for a scene on the groups fixture, checked to name the file and `field`.
+fn group_error(text: &str, field: &str) -> String {
+    let err = parse_with_groups(text)
+        .expect_err("should be rejected")
+        .to_string();
+    assert!(
+        err.contains("test_scene.toml") && err.contains(field),
+        "{field}: {err}"
+    );
+    err
+}
+
+#[test]
+fn named_regions_select_what_their_groups_hold() {
+    use icefem::physics::loads::traction_faces;
+    let scene = parse_with_groups(&format!(
+        "{GROUPS}[[traction]]\nregion = \"end\"\ntraction = [1e5, 0.0, 0.0]\n\
+         [[eigenstrain]]\nregion = \"right\"\nvalue = 0.01\n\
+         [materials.stiff]\ndensity = 2000.0\nyoungs_modulus = 2e11\npoisson_ratio = 0.3\nregion = \"left\"\n"
+    ))
+    .unwrap();
+    let m = &scene.model;
+    let rest = &m.mesh.rest;
+    // The floor support holds exactly the nodes at z = 0.
+    let held: Vec<usize> = m.dirichlet[0].nodes(&m.mesh).collect();
+    let floor: Vec<usize> = (0..m.num_nodes()).filter(|&i| rest[i].z == 0.0).collect();
+    assert_eq!(held, floor);
+    // The traction acts on the end face, 0.1 × 0.05 m² (round-off tolerance).
+    let (count, area) = traction_faces(&m.mesh, &m.tractions[0].region);
+    assert!(
+        count > 0 && (area - 0.005).abs() < 1e-15,
+        "{count} faces, {area} m²"
+    );
+    // Eigenstrain and material by volume: right half 0.01, left half the stiff material.
+    for (t, tet) in m.mesh.tets.iter().enumerate() {
+        let x = tet.iter().map(|&i| rest[i].x).sum::<f64>() / 4.0;
+        let expected = if x > 0.1 { 0.01 } else { 0.0 };
+        assert_eq!(m.elasticity.eigenstrain[t], expected);
+        let density = m.elasticity.base_material(t).density;
+        assert_eq!(density, if x < 0.1 { 2000.0 } else { 916.0 });
+    }
+    // Lumped mass from each element's own density: 2000 and 916 kg/m³ on 5e-4 m³ each.
+    assert!((m.total_mass() - (2000.0 + 916.0) * 5e-4).abs() < 1e-12);
+}
+
+#[test]
+fn named_region_errors_name_the_field_and_the_groups() {
+    let err = group_error(
+        &GROUPS.replace("\"floor\"", "\"flor\""),
+        "dirichlet[0].region",
+    );
+    assert!(
+        err.contains("\"floor\" (surface)") && err.contains("\"left\" (volume)"),
+        "{err}"
+    );
+    let err = group_error(
+        &format!("{GROUPS}[[traction]]\nregion = \"left\"\ntraction = [1.0, 0.0, 0.0]\n"),
+        "traction[0].region",
+    );
+    assert!(
+        err.contains("is a volume; this entry needs a surface"),
+        "{err}"
+    );
+    group_error(
+        &format!("{GROUPS}[[eigenstrain]]\nregion = \"end\"\nvalue = 0.01\n"),
+        "eigenstrain[0].region",
+    );
+    group_error(
+        &GROUPS.replace(
+            "region = \"floor\"",
+            "region = \"floor\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]",
+        ),
+        "dirichlet[0].region",
+    );
+    group_error(&GROUPS.replace("region = \"floor\"", ""), "dirichlet[0]");
+    // A box scene has no groups at all.
+    let err = error_of(
+        &GOOD
+            .replace("[[dirichlet]]\n", "[[dirichlet]]\nregion = \"floor\"\n")
+            .replace("min = [-1.0, -1.0, -1.0]\nmax = [1e-9, 1.0, 1.0]\n", ""),
+        Some("dirichlet[0].region"),
+    );
+    assert!(err.contains("no named physical groups"), "{err}");
+    // Cooling from a named surface; a volume or an unknown name is refused.
+    let freezing = "[freezing]\ncooling = [\"floor\"]\nfront_speed = 1e-3\n";
+    let scene = parse_with_groups(&format!("{GROUPS}{freezing}")).unwrap();
+    let f = scene.model.freezing.unwrap();
+    let (first, last) = f
+        .arrival
+        .iter()
+        .flatten()
+        .fold((f64::MAX, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
+    assert!(
+        first < 10.0 && last > 30.0,
+        "the front starts at the floor: {first} … {last} s"
+    );
+    group_error(
+        &format!("{GROUPS}{}", freezing.replace("floor", "left")),
+        "freezing.cooling",
+    );
+    let err = group_error(
+        &format!("{GROUPS}{}", freezing.replace("floor", "flor")),
+        "freezing.cooling",
+    );
+    assert!(err.contains("unknown face \"flor\""), "{err}");
+    group_error(
+        &format!(
+            "{GROUPS}{}",
+            freezing.replace("[\"floor\"]", "[\"floor\", \"walls\"]")
+        ),
+        "freezing.cooling",
+    );
+}
+
+#[test]
+fn material_errors_name_their_field() {
+    let stiff = "[materials.stiff]\ndensity = 2000.0\nyoungs_modulus = 2e11\npoisson_ratio = 0.3\n";
+    let body = "[[body]]\nbox = { size = [0.1, 0.02, 0.02], cells = [5, 1, 1] }\n";
+    let with_body = |extra: &str, materials: &str| {
+        GOOD.replace(
+            "[mesh]\nbox = { size = [0.1, 0.02, 0.02], cells = [5, 1, 1] }\n",
+            &format!("{body}{extra}"),
+        ) + materials
+    };
+    // A body of the named material: its density gives the mass.
+    let scene = parse(&with_body("material = \"stiff\"\n", stiff)).unwrap();
+    assert!((scene.model.total_mass() - 2000.0 * 0.1 * 0.02 * 0.02).abs() < 1e-12);
+    let err = error_of(
+        &with_body("material = \"steel\"\n", stiff),
+        Some("body[0].material"),
+    );
+    assert!(err.contains("\"stiff\""), "{err}");
+    let err = error_of(&with_body("", stiff), Some("materials.stiff"));
+    assert!(err.contains("used nowhere"), "{err}");
+    error_of(
+        &with_body("material = \"stiff\"\n", &stiff.replace("0.3", "0.7")),
+        Some("materials.stiff.poisson_ratio"),
+    );
+    error_of(
+        &with_body("material = \"stiff\"\n", &stiff.replace("2000.0", "-1.0")),
+        Some("materials.stiff.density"),
+    );
+    error_of(
+        &with_body("material = \"stiff\"\n", &format!("{stiff}lambda = 1e9\n")),
+        Some("materials.stiff"),
+    );
+    let err = error_of(
+        &(with_body("material = \"stiff\"\n", stiff)
+            + "[freezing]\ncooling = [\"walls\"]\nfront_speed = 1e-3\n"),
+        Some("freezing"),
+    );
+    assert!(err.contains("[materials.NAME]"), "{err}");
+}
+
+#[test]
+fn obstacle_motion_errors_name_their_field() {
+    let floor =
+        "[[obstacle]]\ntype = \"halfspace\"\npoint = [0.0, 0.0, -0.1]\nnormal = [0.0, 0.0, 1.0]\n";
+    let scene = parse(&format!(
+        "{GOOD}{floor}angular_velocity = [0.0, 0.0, 2.0]\ncentre = [0.1, 0.0, 0.0]\namplitude = [[0.0, 0.0], [1.0, 1.0]]\n"
+    ))
+    .unwrap();
+    let motion = &scene.model.obstacle_contact().unwrap().obstacles[0].motion;
+    assert_eq!(motion.angular_velocity.z, 2.0);
+    assert_eq!(motion.amplitude.at(0.5), 0.5);
+    error_of(
+        &format!("{GOOD}{floor}angular_velocity = [0.0, inf, 0.0]\n"),
+        Some("obstacle[0].angular_velocity[1]"),
+    );
+    let err = error_of(
+        &format!("{GOOD}{floor}centre = [0.0, 0.0, 0.0]\n"),
+        Some("obstacle[0].centre"),
+    );
+    assert!(err.contains("angular_velocity"), "{err}");
+    error_of(
+        &format!("{GOOD}{floor}velocity = [0.0, 0.0, 1.0]\namplitude = [[1.0, 0.0], [0.0, 1.0]]\n"),
+        Some("obstacle[0].amplitude"),
+    );
+    let err = error_of(
+        &format!("{GOOD}{floor}amplitude = [[0.0, 1.0]]\n"),
+        Some("obstacle[0].amplitude"),
+    );
+    assert!(err.contains("velocity"), "{err}");
+}
+
+#[test]
+fn every_gallery_scene_runs_a_few_steps() {
+    let gallery = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gallery");
+    // The scenes run where they are read; outputs go to a folder of their own, and the
+    // released beam starts from the bent one's output, as the gallery says to run them.
+    let dir = tempfile::tempdir().unwrap();
+    for entry in std::fs::read_dir(&gallery).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml" || e == "msh") {
+            std::fs::copy(&path, dir.path().join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    let mut names: Vec<String> = std::fs::read_dir(&gallery)
+        .unwrap()
+        .filter_map(|e| {
+            let p = e.unwrap().path();
+            (p.extension()? == "toml").then(|| p.file_stem().unwrap().to_string_lossy().into())
+        })
+        .collect();
+    // beam_bent before beam_released.
+    names.sort();
+    assert!(names.len() >= 5, "{names:?}");
+    for name in &names {
+        let path = dir.path().join(name).with_extension("toml");
+        let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let options = RunOptions {
+            output: Some(path.with_extension("h5")),
+            end_time: Some(3.0 * scene.settings.dt.min(scene.end_time)),
+            ..Default::default()
+        };
+        let summary = run(&scene, &options, &AtomicBool::new(false), |_| {})
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(
+            summary.steps >= 1 && summary.max_residual.is_finite(),
+            "{name}: {summary:?}"
+        );
+    }
+}

@@ -11,7 +11,7 @@ mod common;
 use common::*;
 use icefem::fem::{ElasticModel, Material};
 use icefem::mesh::{box_mesh, TetMesh};
-use icefem::physics::{Dirichlet, Elasticity, Model, Region, Traction};
+use icefem::physics::{Dirichlet, Elasticity, Model, Region, Selection, Traction};
 use icefem::sim::{Analysis, SimError, Simulation, StepSettings};
 use icefem::solver::LinearSolverKind;
 use nalgebra::Vector3;
@@ -41,11 +41,12 @@ fn beam(cells: [usize; 3]) -> TetMesh {
     box_mesh([0.0; 3], [LEN, SIDE, SIDE], cells, 6).unwrap()
 }
 
-fn region(min: [f64; 3], max: [f64; 3]) -> Region {
+fn region(min: [f64; 3], max: [f64; 3]) -> Selection {
     Region {
         min: Vector3::from(min),
         max: Vector3::from(max),
     }
+    .into()
 }
 
 /// The nodes with rest x ≥ `x_min` follow u = displacement + velocity · t on all axes.

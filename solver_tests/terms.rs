@@ -481,7 +481,8 @@ fn dead_loads_gravity_and_traction() {
         region: Region {
             min: Vector3::new(0.1 - 1e-9, -1.0, -1.0),
             max: Vector3::new(1.0, 1.0, 1.0),
-        },
+        }
+        .into(),
         traction: Vector3::new(2e5, -1e5, 3e5),
     };
     let model = Model::new(
@@ -546,7 +547,7 @@ fn inertia_with_mass_damping() {
     let mass = lumped_mass(
         &mesh,
         &Elasticity::new(&mesh, ICE, ElasticModel::Linear).rest,
-        ICE.density,
+        |_| ICE.density,
     );
     let assembly = Assembly::new(&mesh, DofMap::new(&clamped_at_x0(&mesh)));
     let n = 3 * mesh.num_nodes();
@@ -802,7 +803,7 @@ fn tilted_half_space(mesh: &TetMesh, friction: f64, velocity: Vector3<f64>) -> O
             point: Vector3::zeros(),
             normal,
         },
-        velocity,
+        motion: icefem::physics::Motion::translating(velocity),
         stiffness: default_stiffness(mesh, ICE.young()),
         friction,
     };
@@ -887,7 +888,7 @@ fn obstacle_container_corner_compression() {
                 max: Vector3::new(0.2, 0.2, 0.2),
             },
         },
-        velocity: Vector3::zeros(),
+        motion: Default::default(),
         stiffness: default_stiffness(&mesh, ICE.young()),
         friction: 0.0,
     };

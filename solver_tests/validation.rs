@@ -7,7 +7,7 @@ use common::*;
 use icefem::fem::{ElasticModel, Material};
 use icefem::mesh::TetMesh;
 use icefem::physics::elasticity::Volumetric;
-use icefem::physics::{loads, Elasticity, Model, Region, Traction};
+use icefem::physics::{loads, Elasticity, Model, Region, Selection, Traction};
 use icefem::sim::{Analysis, Simulation};
 use nalgebra::Vector3;
 
@@ -96,10 +96,11 @@ fn static_case(name: &str) -> f64 {
             .unwrap()
             .read_scalar::<f64>()
             .unwrap();
-        let region = Region {
+        let region: Selection = Region {
             min: Vector3::new(x_min, -1e30, -1e30),
             max: Vector3::repeat(1e30),
-        };
+        }
+        .into();
         let n = r
             .file
             .attr("n_traction_facets")
@@ -113,7 +114,7 @@ fn static_case(name: &str) -> f64 {
         );
         tractions.push(Traction {
             amplitude: Default::default(),
-            region,
+            region: region.clone(),
             traction: r.vector_attr("traction"),
         });
     }
@@ -130,7 +131,11 @@ fn static_case(name: &str) -> f64 {
     // The eigenstrain cube is clamped at z = 0, not x = 0.
     if name.starts_with("eigenstrain") {
         let mut bc = clamp_below_x(1e30);
-        bc.region.max = Vector3::new(1e30, 1e30, 1e-9);
+        bc.region = Region {
+            min: Vector3::repeat(-1e30),
+            max: Vector3::new(1e30, 1e30, 1e-9),
+        }
+        .into();
         let mut model = sim.model.clone();
         model.dirichlet = vec![bc];
         sim = Simulation::new(model, settings(Analysis::Static, 1.0)).unwrap();
@@ -246,7 +251,7 @@ fn locking_beam(nu: &str) -> Vec<(f64, f64, f64)> {
         };
         let tractions = [Traction {
             amplitude: Default::default(),
-            region,
+            region: region.into(),
             traction: Vector3::new(traction[0], traction[1], traction[2]),
         }];
         let end: Vec<usize> = (0..r.mesh.num_nodes())

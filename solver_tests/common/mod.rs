@@ -63,7 +63,8 @@ pub fn clamp_below_x(x_max: f64) -> Dirichlet {
         region: Region {
             min: Vector3::repeat(-1e30),
             max: Vector3::new(x_max, 1e30, 1e30),
-        },
+        }
+        .into(),
         axes: [true; 3],
         displacement: Vector3::zeros(),
         velocity: Vector3::zeros(),

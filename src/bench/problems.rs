@@ -82,7 +82,8 @@ pub fn clamped_ice_cube(cells: usize, g: Vector3<f64>) -> Result<Model, SimError
         region: Region {
             min: Vector3::repeat(-1.0),
             max: Vector3::new(1.0, 1.0, 1e-9),
-        },
+        }
+        .into(),
         axes: [true; 3],
         displacement: Vector3::zeros(),
         velocity: Vector3::zeros(),
@@ -274,7 +275,7 @@ pub fn contact_cost(
     };
     let container = Obstacle {
         shape,
-        velocity: Vector3::zeros(),
+        motion: Default::default(),
         stiffness,
         friction: 0.3,
     };
@@ -351,7 +352,8 @@ pub fn fracture_cost(tets: usize) -> Result<FractureCost, SimError> {
         region: Region {
             min: Vector3::new(x - 1e-9, -1.0, -1.0),
             max: Vector3::new(x + 1e-9, 1.0, 1.0),
-        },
+        }
+        .into(),
         axes,
         displacement: Vector3::zeros(),
         velocity: Vector3::new(velocity, 0.0, 0.0),

@@ -61,6 +61,44 @@ impl Amplitude {
             }
         }
     }
+
+    /// The largest |a(t)| over all times.
+    pub fn max_abs(&self) -> f64 {
+        if self.points.is_empty() {
+            return 1.0;
+        }
+        self.points.iter().fold(0.0, |m, &(_, a)| m.max(a.abs()))
+    }
+
+    /// ∫₀ᵗ a(s) ds (s): exact for the piecewise-linear a (t may be negative: −∫ₜ⁰).
+    pub fn integral(&self, t: f64) -> f64 {
+        if self.points.is_empty() {
+            return t;
+        }
+        self.antiderivative(t) - self.antiderivative(0.0)
+    }
+
+    /// An antiderivative of a: zero at the first point's time.
+    fn antiderivative(&self, t: f64) -> f64 {
+        let (t0, a0) = self.points[0];
+        if t <= t0 {
+            return a0 * (t - t0);
+        }
+        let mut sum = 0.0;
+        for w in self.points.windows(2) {
+            let ((ta, aa), (tb, ab)) = (w[0], w[1]);
+            if tb == ta {
+                continue;
+            }
+            if t <= tb {
+                let at = aa + (ab - aa) * (t - ta) / (tb - ta);
+                return sum + 0.5 * (aa + at) * (t - ta);
+            }
+            sum += 0.5 * (aa + ab) * (tb - ta);
+        }
+        let &(tn, an) = self.points.last().unwrap_or(&(t0, a0));
+        sum + an * (t - tn)
+    }
 }
 
 #[cfg(test)]
@@ -78,6 +116,21 @@ mod tests {
         assert_eq!(a.at(7.0), 0.0);
         assert_eq!(Amplitude::default().at(3.0), 1.0);
         assert_eq!(Amplitude::new(vec![(1.0, 0.3)]).unwrap().at(0.0), 0.3);
+    }
+
+    #[test]
+    fn integrals_are_exact_for_the_piecewise_linear_function() {
+        let a = Amplitude::new(vec![(1.0, 0.0), (2.0, 2.0), (3.0, 2.0), (3.0, -1.0)]).unwrap();
+        // 0 until 1 s (a = 0), a triangle of area 1 to 2 s, 2 from 2 s to 3 s, then −1.
+        assert_eq!(a.integral(1.0), 0.0);
+        assert_eq!(a.integral(1.5), 0.25);
+        assert_eq!(a.integral(2.0), 1.0);
+        assert_eq!(a.integral(3.0), 3.0);
+        assert_eq!(a.integral(5.0), 1.0);
+        assert_eq!(Amplitude::default().integral(2.5), 2.5);
+        let b = Amplitude::new(vec![(0.5, 3.0)]).unwrap();
+        assert_eq!(b.integral(2.0), 6.0);
+        assert_eq!(b.integral(-1.0), -3.0);
     }
 
     #[test]

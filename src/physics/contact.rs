@@ -3,12 +3,15 @@
 //! Against a plane with point p and unit normal n (pointing out of the obstacle), a boundary
 //! node i has the gap g = (xᵢ − p)·n and, when penetrating, stores the energy ½ k Aᵢ g²: a
 //! contact pressure k·depth (k in N/m³) on the node's area share Aᵢ — a third of each boundary
-//! triangle around it, projected on the plane and counted only where the triangle faces it, so
-//! that a flat face resting on a plane carries exactly its area and side faces carry nothing.
-//! The areas are those of the rest configuration (obstacles translate, so they are constants):
-//! the penalty is then a fixed conservative energy with exact gradient k Aᵢ g n and Hessian
-//! k Aᵢ n nᵀ, and a stiff penalty stays stable at large steps. (A fragment that tips over keeps
-//! its rest areas; fine for the small rotations of ice in a container.)
+//! triangle's rest area around it, projected on the plane and counted only where the triangle
+//! faces it, so that a flat face resting on a plane carries exactly its area and side faces
+//! carry nothing. Which way a triangle faces is taken at the start of each step (a tumbling
+//! body lands on the faces that are down, not on those that were down at rest), and the areas
+//! are then held through the step: each solve minimises a fixed conservative energy with exact
+//! gradient k Aᵢ g n and Hessian k Aᵢ n nᵀ, and a stiff penalty stays stable at large steps.
+//!
+//! Obstacles move rigidly ([`Motion`]): a plane keeps its point and normal on the obstacle and
+//! is carried to each time; a turning obstacle's planes turn with it.
 //!
 //! Friction (dynamic steps only) is the smoothed Coulomb potential of incremental potential
 //! contact (Li et al. 2020): with the tangential slip of the step y = (I − n nᵀ)(Δuᵢ − v_obs h),
@@ -19,6 +22,7 @@
 //! λ settles (a few rounds at most), so friction acts with the normal force of the end of the
 //! step while each solve stays a minimisation.
 
+use super::motion::Motion;
 use super::obstacle_mesh::ObstacleSurface;
 use super::term::{Remesh, Solve, StepTerm, Term};
 use super::Region;
@@ -33,7 +37,7 @@ use std::time::Instant;
 /// depths are 1e-7 m and more.
 const SAME_PLANE_OFFSET: f64 = 1e-12;
 
-/// Shape of a rigid obstacle at t = 0 (it moves rigidly with its velocity).
+/// Shape of a rigid obstacle at t = 0 (it moves rigidly, see [`Motion`]).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     /// The solid half-space behind the plane through `point` with outward unit `normal`.
@@ -55,8 +59,8 @@ pub enum Shape {
 pub struct Obstacle {
     /// Geometry at t = 0.
     pub shape: Shape,
-    /// Rigid velocity (m/s).
-    pub velocity: Vector3<f64>,
+    /// Its rigid motion.
+    pub motion: Motion,
     /// Penalty stiffness k (N/m³: contact pressure per metre of penetration).
     pub stiffness: f64,
     /// Coulomb friction coefficient α.
@@ -66,9 +70,10 @@ pub struct Obstacle {
 /// One contact plane of an obstacle at a given time.
 #[derive(Clone, Copy, Debug)]
 pub struct Plane {
-    /// A point on the plane at t = 0 (m).
+    /// A point on the plane (m): at t = 0 for an obstacle that only translates, at the
+    /// plane's time for one that turns.
     pub point: Vector3<f64>,
-    /// How far the plane has moved along its normal since t = 0 (m).
+    /// How far the plane has moved along its normal since `point` (m).
     pub offset: f64,
     /// Unit normal pointing out of the obstacle.
     pub normal: Vector3<f64>,
@@ -76,21 +81,61 @@ pub struct Plane {
     pub stiffness: f64,
     /// Friction coefficient.
     pub friction: f64,
-    /// Obstacle velocity (m/s).
+    /// Velocity of the obstacle's centre of rotation (m/s); of all its points if it does not
+    /// turn.
     pub velocity: Vector3<f64>,
+    /// Angular velocity of the obstacle (rad/s): its point at x moves at `velocity` + `spin`
+    /// × (x − `centre`).
+    pub spin: Vector3<f64>,
+    /// The obstacle's centre of rotation at the plane's time (m).
+    pub centre: Vector3<f64>,
+    /// The plane on the obstacle at t = 0: a point and the normal.
+    origin: (Vector3<f64>, Vector3<f64>),
+}
+
+impl Plane {
+    /// Velocity (m/s) of the obstacle's point at `x` (m).
+    pub fn velocity_at(&self, x: &Vector3<f64>) -> Vector3<f64> {
+        if self.spin == Vector3::zeros() {
+            self.velocity
+        } else {
+            self.velocity + self.spin.cross(&(x - self.centre))
+        }
+    }
 }
 
 impl Obstacle {
-    /// Appends the obstacle's contact planes at time `t` (s).
-    pub fn planes_into(&self, t: f64, out: &mut Vec<Plane>) {
-        let plane = |point: Vector3<f64>, normal: Vector3<f64>| Plane {
-            point,
-            offset: t * self.velocity.dot(&normal),
-            normal,
+    /// The plane through `point` with `normal` on this obstacle at t = 0, where the motion
+    /// has carried it at time `t` (s).
+    fn plane_at(&self, t: f64, point: Vector3<f64>, normal: Vector3<f64>) -> Plane {
+        let m = &self.motion;
+        let (rotation, centre) = m.placement(t);
+        let (point_t, offset, normal_t) = if m.rotates() {
+            (m.position(t, &point), 0.0, rotation * normal)
+        } else {
+            (
+                point,
+                m.amplitude.integral(t) * m.velocity.dot(&normal),
+                normal,
+            )
+        };
+        let a = m.amplitude.at(t);
+        Plane {
+            point: point_t,
+            offset,
+            normal: normal_t,
             stiffness: self.stiffness,
             friction: self.friction,
-            velocity: self.velocity,
-        };
+            velocity: a * m.velocity,
+            spin: a * m.angular_velocity,
+            centre,
+            origin: (point, normal),
+        }
+    }
+
+    /// Appends the obstacle's contact planes at time `t` (s).
+    pub fn planes_into(&self, t: f64, out: &mut Vec<Plane>) {
+        let plane = |point: Vector3<f64>, normal: Vector3<f64>| self.plane_at(t, point, normal);
         match &self.shape {
             Shape::HalfSpace { point, normal } => out.push(plane(*point, *normal)),
             Shape::Container { inner } => {
@@ -132,10 +177,10 @@ pub struct Contact {
     pub nodes: Vec<usize>,
     /// Rest area share of each boundary node (m²), all faces around it.
     pub area: Vec<f64>,
-    /// Area share per (boundary node, plane) (m²), see [`Contact::facing_area`].
-    pub areas: Vec<f64>,
-    /// Outward area vector of each boundary triangle at rest (m²).
-    face_areas: Vec<Vector3<f64>>,
+    /// The boundary triangles (outward node order).
+    faces: Vec<[usize; 3]>,
+    /// Rest area of each boundary triangle (m²).
+    face_areas: Vec<f64>,
     /// Boundary triangles around each boundary node (indices into `faces`).
     node_faces: Vec<Vec<u32>>,
     /// Mean boundary edge length (m): how far from a mesh obstacle a resting node is looked
@@ -143,6 +188,9 @@ pub struct Contact {
     pub edge: f64,
     /// Friction smoothing velocity ε_v (m/s): below it the friction force ramps up from zero.
     pub smoothing_velocity: f64,
+    /// The largest speed of a mesh obstacle's points near the ice (m/s), bounded over the
+    /// ice's rest bounding box: a step's reach includes how far the obstacle moves.
+    pub obstacle_speed: f64,
 }
 
 /// Default penalty stiffness (N/m³): 10 E / h, with h the mean edge length of the boundary
@@ -179,11 +227,11 @@ impl Contact {
         let mut edge = 0.0;
         for (f, face) in boundary.iter().enumerate() {
             let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
-            let area_vector = 0.5 * (b - a).cross(&(c - a)); // outward, |.| = area
-            face_areas.push(area_vector);
+            let face_area = 0.5 * (b - a).cross(&(c - a)).norm();
+            face_areas.push(face_area);
             edge += ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0;
             for &i in &face.nodes {
-                area[index[i]] += area_vector.norm() / 3.0;
+                area[index[i]] += face_area / 3.0;
                 node_faces[index[i]].push(f as u32);
             }
         }
@@ -191,18 +239,38 @@ impl Contact {
             obstacles,
             nodes,
             area,
-            areas: Vec::new(),
+            faces: boundary.iter().map(|f| f.nodes).collect(),
             face_areas,
             node_faces,
             edge: edge / boundary.len().max(1) as f64,
             smoothing_velocity,
+            obstacle_speed: 0.0,
         };
-        let planes = contact.planes(0.0);
-        contact.areas = (0..contact.nodes.len())
-            .flat_map(|k| planes.iter().map(move |p| (k, p.normal)))
-            .map(|(k, n)| contact.facing_area(k, &n))
-            .collect();
+        let (lo, hi) = mesh.bounding_box();
+        contact.obstacle_speed = contact
+            .obstacles
+            .iter()
+            .filter(|o| o.surface().is_some())
+            .map(|o| {
+                let c = o.motion.centre;
+                let radius = (c - lo).abs().sup(&(c - hi).abs()).norm();
+                o.motion.speed_bound(radius)
+            })
+            .fold(0.0, f64::max);
         contact
+    }
+
+    /// Each boundary triangle's rest area along its outward unit normal at displacement `u`
+    /// (m²): the area that faces a plane, see [`Contact::facing_area`].
+    fn face_vectors(&self, rest: &[Vector3<f64>], u: &[f64]) -> Vec<Vector3<f64>> {
+        self.faces
+            .iter()
+            .zip(&self.face_areas)
+            .map(|(face, &area)| {
+                let [a, b, c] = face.map(|i| rest[i] + displacement(u, i));
+                (b - a).cross(&(c - a)).normalize() * area
+            })
+            .collect()
     }
 
     /// All contact planes at time `t` (s).
@@ -215,13 +283,25 @@ impl Contact {
     }
 
     /// Rest area share (m²) of boundary node `k` facing a plane with normal `normal`: a third
-    /// of each adjacent boundary triangle's area, times the cosine between its inward normal
-    /// and the plane normal where positive (the triangle faces the plane), else nothing.
-    fn facing_area(&self, k: usize, normal: &Vector3<f64>) -> f64 {
+    /// of each adjacent boundary triangle's rest area, times the cosine between its inward
+    /// normal (of `faces`, from [`Contact::face_vectors`]) and the plane normal where positive
+    /// (the triangle faces the plane), else nothing.
+    fn facing_area(&self, k: usize, normal: &Vector3<f64>, faces: &[Vector3<f64>]) -> f64 {
         self.node_faces[k]
             .iter()
-            .map(|&f| (-self.face_areas[f as usize].dot(normal)).max(0.0) / 3.0)
+            .map(|&f| (-faces[f as usize].dot(normal)).max(0.0) / 3.0)
             .sum()
+    }
+
+    /// The facing area of every (boundary node, plane) pair, node by node.
+    fn facing_areas(&self, planes: &[Plane], faces: &[Vector3<f64>]) -> Vec<f64> {
+        (0..self.nodes.len())
+            .flat_map(|k| {
+                planes
+                    .iter()
+                    .map(move |p| self.facing_area(k, &p.normal, faces))
+            })
+            .collect()
     }
 
     /// Number of mesh obstacles.
@@ -301,6 +381,10 @@ pub struct ContactStep<'a> {
     /// Per (boundary node, mesh obstacle): the node's plane and its facing area share (m²),
     /// `None` when the obstacle is out of reach.
     pub node_planes: Vec<Option<(Plane, f64)>>,
+    /// The boundary triangles' rest areas along their normals at the start of the step (m²).
+    faces: Vec<Vector3<f64>>,
+    /// Facing area share per (boundary node, shared plane) (m²).
+    areas: Vec<f64>,
     /// Time at the end of the step (s).
     time: f64,
     /// How far from a mesh obstacle nodes are given a plane (m).
@@ -344,6 +428,8 @@ impl<'a> ContactStep<'a> {
             rest,
             planes: contact.planes(t_start),
             node_planes: Vec::new(),
+            faces: contact.face_vectors(rest, previous),
+            areas: Vec::new(),
             time: t_start,
             reach,
             dt,
@@ -351,18 +437,39 @@ impl<'a> ContactStep<'a> {
             lagged: Vec::new(),
             anticipated: Vec::new(),
         };
+        step.areas = contact.facing_areas(&step.planes, &step.faces);
         step.node_planes = step.select_node_planes(previous);
         step.lagged = step.normal_forces(previous);
         step.set_time(t_end);
         step
     }
 
-    /// Moves the obstacles' planes (shared and per node) to time `t` (s).
+    /// Moves the obstacles' planes (shared and per node) to time `t` (s); a turning
+    /// obstacle's planes turn, and their facing areas with them.
     fn set_time(&mut self, t: f64) {
-        self.planes = self.contact.planes(t);
+        let c = self.contact;
+        self.planes = c.planes(t);
         self.time = t;
-        for (plane, _) in self.node_planes.iter_mut().flatten() {
-            plane.offset = t * plane.velocity.dot(&plane.normal);
+        if c.obstacles
+            .iter()
+            .any(|o| o.num_planes() > 0 && o.motion.rotates())
+        {
+            self.areas = c.facing_areas(&self.planes, &self.faces);
+        }
+        let mesh_obstacles: Vec<&Obstacle> = c
+            .obstacles
+            .iter()
+            .filter(|o| o.surface().is_some())
+            .collect();
+        let nm = mesh_obstacles.len();
+        for (n, entry) in self.node_planes.iter_mut().enumerate() {
+            if let Some((plane, area)) = entry {
+                let o = mesh_obstacles[n % nm];
+                *plane = o.plane_at(t, plane.origin.0, plane.origin.1);
+                if o.motion.rotates() {
+                    *area = c.facing_area(n / nm, &plane.normal, &self.faces);
+                }
+            }
         }
     }
 
@@ -397,7 +504,7 @@ impl<'a> ContactStep<'a> {
     fn for_each_plane(&self, k: usize, mut f: impl FnMut(usize, &Plane, f64)) {
         let (np, stride) = (self.planes.len(), self.stride());
         for (j, p) in self.planes.iter().enumerate() {
-            f(k * stride + j, p, self.contact.areas[k * np + j]);
+            f(k * stride + j, p, self.areas[k * np + j]);
         }
         let nm = stride - np;
         for m in 0..nm {
@@ -416,18 +523,17 @@ impl<'a> ContactStep<'a> {
             let x = self.rest[i] + displacement(u, i);
             for o in &c.obstacles {
                 let Some(surface) = o.surface() else { continue };
-                // The surface moved by v t: query in its frame at t = 0.
-                let found = surface.closest(x - self.time * o.velocity, self.reach);
+                // Query in the surface's frame at t = 0.
+                let m = &o.motion;
+                let x0 = if m.rotates() {
+                    m.origin_of(self.time, &x)
+                } else {
+                    x - m.amplitude.integral(self.time) * m.velocity
+                };
+                let found = surface.closest(x0, self.reach);
                 out.push(found.map(|q| {
-                    let plane = Plane {
-                        point: q.point,
-                        offset: self.time * o.velocity.dot(&q.normal),
-                        normal: q.normal,
-                        stiffness: o.stiffness,
-                        friction: o.friction,
-                        velocity: o.velocity,
-                    };
-                    (plane, c.facing_area(k, &q.normal))
+                    let plane = o.plane_at(self.time, q.point, q.normal);
+                    (plane, c.facing_area(k, &plane.normal, &self.faces))
                 }));
             }
         }
@@ -487,7 +593,10 @@ impl<'a> ContactStep<'a> {
     fn slip(&self, p: &Plane, u: &[f64], i: usize, h: f64) -> (Vector3<f64>, Matrix3<f64>) {
         let tangent = Matrix3::identity() - p.normal * p.normal.transpose();
         let du = displacement(u, i) - displacement(self.previous, i);
-        (tangent * (du - p.velocity * h), tangent)
+        // The obstacle's velocity where the node starts the step: a constant of the solve, so
+        // the slip stays linear in u and the friction potential exact.
+        let v = p.velocity_at(&(self.rest[i] + displacement(self.previous, i)));
+        (tangent * (du - v * h), tangent)
     }
 
     /// Re-lags friction's normal forces to `u` (the solution of the last solve); returns how
@@ -686,7 +795,9 @@ impl Term for ObstacleContact {
         let h = solve.h;
         // Mesh obstacles look for nodes as far as the step can carry them, and an edge.
         let vmax = solve.velocity.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let reach = self.contact.edge + 2.0 * h * vmax * 3f64.sqrt();
+        let reach = self.contact.edge
+            + 2.0 * h * vmax * 3f64.sqrt()
+            + 2.0 * h * self.contact.obstacle_speed;
         let mut step = ContactStep::new(
             &self.contact,
             solve.rest,

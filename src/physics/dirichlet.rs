@@ -1,15 +1,16 @@
-//! Dirichlet conditions: nodes in a box region follow a prescribed displacement per axis.
+//! Dirichlet conditions: the nodes of a box or a named group follow a prescribed displacement
+//! per axis.
 
-use super::Region;
+use super::Selection;
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
 
-/// Nodes whose rest position lies in `region` have, on each axis in `axes`, the displacement
+/// Nodes `region` selects (by rest position) have, on each axis in `axes`, the displacement
 /// `amplitude(t) · displacement + velocity · t` (m). A fixed support is the all-zero case.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Dirichlet {
     /// Where the condition applies (rest coordinates).
-    pub region: Region,
+    pub region: Selection,
     /// Which axes (x, y, z) are prescribed.
     pub axes: [bool; 3],
     /// Displacement at t = 0 (m).
@@ -26,7 +27,7 @@ impl Dirichlet {
         mesh.rest
             .iter()
             .enumerate()
-            .filter(|(_, p)| self.region.contains(p))
+            .filter(|(_, p)| self.region.contains_node(p))
             .map(|(i, _)| i)
     }
 

@@ -32,12 +32,17 @@ pub enum Volumetric {
     Nodal,
 }
 
-/// The elastic term: one ice material and model for all elements, their rest data, and the
-/// scene's prescribed eigenstrain.
+/// The elastic term: the materials of the elements (the ice, and others where the scene
+/// says), one strain measure for all, their rest data, and the scene's prescribed eigenstrain.
 #[derive(Clone, Debug)]
 pub struct Elasticity {
-    /// Material constants of the ice (Pa, kg/m³).
+    /// Material constants of the ice (Pa, kg/m³): the scene's `[material]`, that of every
+    /// element `material_index` gives no other.
     pub material: Material,
+    /// Further materials (`[materials.NAME]`), numbered from 1 in `material_index`.
+    pub other_materials: Vec<Material>,
+    /// Per element: 0 for `material`, k for `other_materials[k − 1]`; empty: all `material`.
+    pub material_index: Vec<u16>,
     /// Strain measure.
     pub model: ElasticModel,
     /// Rest data per element.
@@ -63,6 +68,8 @@ impl Elasticity {
     pub fn new(mesh: &TetMesh, material: Material, model: ElasticModel) -> Self {
         Elasticity {
             material,
+            other_materials: Vec::new(),
+            material_index: Vec::new(),
             model,
             rest: ElementRest::of_mesh(mesh),
             eigenstrain: vec![0.0; mesh.num_tets()],
@@ -106,11 +113,22 @@ impl Elasticity {
     /// This elasticity on `mesh`, made from this one's mesh by splitting elements: new element
     /// `e` inherits the prescribed eigenstrain of element `parent[e]`.
     pub fn remeshed(&self, mesh: &TetMesh, parent: &[usize]) -> Self {
+        let inherit = |v: &[u16]| parent.iter().map(|&p| v[p]).collect();
         let mut el = Elasticity {
             rest: ElementRest::of_mesh(mesh),
             eigenstrain: parent.iter().map(|&p| self.eigenstrain[p]).collect(),
+            material_index: if self.material_index.is_empty() {
+                Vec::new()
+            } else {
+                inherit(&self.material_index)
+            },
+            other_materials: self.other_materials.clone(),
             nodal: None,
-            ..*self
+            material: self.material,
+            model: self.model,
+            water_bulk: self.water_bulk,
+            water_shear: self.water_shear,
+            plasticity: self.plasticity,
         };
         el.set_volumetric(mesh, self.volumetric());
         el
@@ -127,21 +145,30 @@ impl Elasticity {
         tet.map(|v| Vector3::new(u[3 * v], u[3 * v + 1], u[3 * v + 2]))
     }
 
-    /// Material of element `e` and the bulk modulus (Pa) of its water part: the ice and none,
-    /// or, while it freezes at state s, s × the ice's Lamé constants (plus (1 − s) × the
-    /// water's regularising shear modulus) and (1 − s) × the water's bulk modulus, so its
+    /// The material element `e` is made of (frozen, where it freezes).
+    pub fn base_material(&self, e: usize) -> Material {
+        match self.material_index.get(e) {
+            Some(&k) if k > 0 => self.other_materials[k as usize - 1],
+            _ => self.material,
+        }
+    }
+
+    /// Material of element `e` and the bulk modulus (Pa) of its water part: its material and
+    /// none, or, while it freezes at state s, s × the ice's Lamé constants (plus (1 − s) ×
+    /// the water's regularising shear modulus) and (1 − s) × the water's bulk modulus, so its
     /// stiffness changes continuously.
     pub fn material_of(&self, history: &ElementHistory, e: usize) -> (Material, f64) {
+        let base = self.base_material(e);
         match history.freeze_state.get(e) {
             Some(&s) if s < 1.0 => (
                 Material {
-                    lambda: s * self.material.lambda,
-                    mu: s * self.material.mu + (1.0 - s) * self.water_shear,
-                    density: self.material.density,
+                    lambda: s * base.lambda,
+                    mu: s * base.mu + (1.0 - s) * self.water_shear,
+                    density: base.density,
                 },
                 (1.0 - s) * self.water_bulk,
             ),
-            _ => (self.material, 0.0),
+            _ => (base, 0.0),
         }
     }
 

@@ -1,28 +1,34 @@
 //! Mass and dead loads: lumped mass, gravity, surface traction.
 
-use super::Region;
+use super::Selection;
 use crate::fem::ElementRest;
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
 
-/// A traction (Pa, force per rest area) on the boundary faces whose rest centroid lies in
-/// `region`, `traction` × `amplitude`(t).
+/// A traction (Pa, force per rest area) on the boundary faces `region` selects (centroid in a
+/// box, or on a named surface), `traction` × `amplitude`(t).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Traction {
-    /// Faces selected by their centroid.
-    pub region: Region,
+    /// The faces it acts on.
+    pub region: Selection,
     /// Traction vector at amplitude 1 (Pa).
     pub traction: Vector3<f64>,
     /// Its amplitude in time (1 throughout by default).
     pub amplitude: super::Amplitude,
 }
 
-/// Row-sum lumped mass of P1 tets: each vertex gets ρV/4 of each tet (kg per node).
-pub fn lumped_mass(mesh: &TetMesh, rest: &[ElementRest], density: f64) -> Vec<f64> {
+/// Row-sum lumped mass of P1 tets: each vertex gets ρV/4 of each tet (kg per node), with ρ
+/// = `density(e)` of element e (kg/m³).
+pub fn lumped_mass(
+    mesh: &TetMesh,
+    rest: &[ElementRest],
+    density: impl Fn(usize) -> f64,
+) -> Vec<f64> {
     let mut mass = vec![0.0; mesh.num_nodes()];
-    for (tet, r) in mesh.tets.iter().zip(rest) {
+    for (e, (tet, r)) in mesh.tets.iter().zip(rest).enumerate() {
+        let m = density(e) * r.volume;
         for &v in tet {
-            mass[v] += 0.25 * density * r.volume;
+            mass[v] += 0.25 * m;
         }
     }
     mass
@@ -42,7 +48,7 @@ pub fn add_gravity(mass: &[f64], gravity: &Vector3<f64>, force: &mut [f64]) {
 pub fn add_traction(mesh: &TetMesh, traction: &Traction, force: &mut [f64]) {
     for face in mesh.boundary_faces() {
         let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
-        if !traction.region.contains(&((a + b + c) / 3.0)) {
+        if !traction.region.contains_face(&[a, b, c]) {
             continue;
         }
         let area = 0.5 * (b - a).cross(&(c - a)).norm();
@@ -55,12 +61,12 @@ pub fn add_traction(mesh: &TetMesh, traction: &Traction, force: &mut [f64]) {
 }
 
 /// Number of boundary faces a traction acts on, and their total area (m²).
-pub fn traction_faces(mesh: &TetMesh, region: &Region) -> (usize, f64) {
+pub fn traction_faces(mesh: &TetMesh, region: &Selection) -> (usize, f64) {
     let mut count = 0;
     let mut area = 0.0;
     for face in mesh.boundary_faces() {
         let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
-        if region.contains(&((a + b + c) / 3.0)) {
+        if region.contains_face(&[a, b, c]) {
             count += 1;
             area += 0.5 * (b - a).cross(&(c - a)).norm();
         }

@@ -14,8 +14,10 @@ pub mod history;
 pub mod ice_contact;
 pub mod inertia;
 pub mod loads;
+pub mod motion;
 pub mod obstacle_mesh;
 pub mod plasticity;
+pub mod selection;
 pub mod term;
 pub mod volumetric;
 
@@ -24,6 +26,8 @@ pub use contact::{Contact, Obstacle};
 pub use dirichlet::Dirichlet;
 pub use elasticity::Elasticity;
 pub use loads::Traction;
+pub use motion::Motion;
+pub use selection::{Group, Selection};
 
 use crate::mesh::{MeshError, TetMesh};
 use history::ElementHistory;
@@ -106,7 +110,9 @@ impl Model {
         damping: Option<Rayleigh>,
         dirichlet: Vec<Dirichlet>,
     ) -> Result<Self, MeshError> {
-        let mass = loads::lumped_mass(&mesh, &elasticity.rest, elasticity.material.density);
+        let mass = loads::lumped_mass(&mesh, &elasticity.rest, |e| {
+            elasticity.base_material(e).density
+        });
         let mut model = Model {
             mesh,
             elasticity,

@@ -27,7 +27,7 @@ use crate::mesh::surface::TriSurface;
 use crate::mesh::TetMesh;
 use crate::output::{FrameReader, OutputError, StoredFrame};
 use crate::physics::contact::Shape;
-use crate::physics::Region;
+use crate::physics::{Amplitude, Motion, Region};
 use crate::scene::SceneFile;
 use embedded_graphics::mono_font::{ascii::FONT_7X13, MonoTextStyle};
 use embedded_graphics::pixelcolor::Rgb888;
@@ -283,10 +283,10 @@ const GLASS_ALPHA: f32 = 0.3;
 /// Surface edges sharper than this (degrees between face normals) are drawn as lines.
 const FEATURE_ANGLE_DEG: f64 = 30.0;
 
-/// Rigid-obstacle outline segments at t = 0 (m) and the obstacle's velocity (m/s).
+/// Rigid-obstacle outline segments at t = 0 (m) and the obstacle's motion.
 struct Outline {
     segments: Vec<[Vector3<f64>; 2]>,
-    velocity: Vector3<f64>,
+    motion: Motion,
 }
 
 /// Draws frames of one file with one camera.
@@ -523,11 +523,11 @@ impl Renderer {
             canvas.line(project(a), project(b), EDGE, line_width, true);
         }
         for outline in &self.outlines {
-            let shift = outline.velocity * state.time;
+            let place = |x: &Vector3<f64>| outline.motion.position(state.time, x);
             for [a, b] in &outline.segments {
                 canvas.line(
-                    project(a + shift),
-                    project(b + shift),
+                    project(place(a)),
+                    project(place(b)),
                     OBSTACLE,
                     1.5 * line_width,
                     true,
@@ -682,7 +682,16 @@ fn obstacle_outlines(
             };
             Some(Outline {
                 segments,
-                velocity: v3(o.velocity).unwrap_or_default(),
+                motion: Motion {
+                    velocity: v3(o.velocity).unwrap_or_default(),
+                    angular_velocity: v3(o.angular_velocity).unwrap_or_default(),
+                    centre: v3(o.centre).unwrap_or_default(),
+                    amplitude: o
+                        .amplitude
+                        .as_ref()
+                        .and_then(|p| Amplitude::new(p.iter().map(|&[t, a]| (t, a)).collect()).ok())
+                        .unwrap_or_default(),
+                },
             })
         })
         .collect()

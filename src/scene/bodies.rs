@@ -8,6 +8,9 @@ use std::path::Path;
 
 use super::{BoxSection, SceneError, Validator};
 use crate::mesh::{box_mesh, gmsh, reorient, MeshError, TetMesh};
+use crate::physics::Group;
+use std::ops::Range;
+use std::sync::Arc;
 
 /// `[[body]]`: one body — a box or a Gmsh file — placed in the scene and set moving.
 #[derive(Debug, Deserialize)]
@@ -28,6 +31,8 @@ pub struct BodySection {
     pub velocity: Option<[f64; 3]>,
     /// Initial angular velocity about the body's centroid (rad/s). Default 0.
     pub angular_velocity: Option<[f64; 3]>,
+    /// Name of a `[materials.NAME]` entry the body is made of. Default: `[material]`.
+    pub material: Option<String>,
 }
 
 /// `rotate = { axis, degrees }`: a rotation by `degrees` about `axis` (right-hand rule).
@@ -108,16 +113,21 @@ impl Validator<'_> {
         Ok((displacement, velocity))
     }
 
-    /// The bodies as one mesh (each body its own nodes), and each node's initial velocity
-    /// (m/s, 3 per node; empty when every body starts at rest).
-    pub(super) fn bodies(&self, bodies: &[BodySection]) -> Result<(TetMesh, Vec<f64>), SceneError> {
+    /// The bodies as one mesh (each body its own nodes, its files' named groups registered),
+    /// each node's initial velocity (m/s, 3 per node; empty when every body starts at rest),
+    /// and each body's range of elements.
+    pub(super) fn bodies(&self, bodies: &[BodySection]) -> Result<Bodies, SceneError> {
         if bodies.is_empty() {
             return Err(self.invalid("body", "must list at least one body"));
         }
         let mut meshes = Vec::with_capacity(bodies.len());
         let mut velocities = Vec::with_capacity(bodies.len());
+        let mut groups = Vec::new();
+        let mut elements = Vec::with_capacity(bodies.len());
+        let mut first = 0;
         for (k, body) in bodies.iter().enumerate() {
             let field = format!("body[{k}]");
+            let mut file_groups = Vec::new();
             let mut mesh = match (&body.box_, &body.file) {
                 (Some(b), None) => {
                     if body.scale.is_some() {
@@ -133,7 +143,9 @@ impl Validator<'_> {
                 (None, Some(file)) => {
                     let scale =
                         self.positive(&format!("{field}.scale"), body.scale.unwrap_or(1.0))?;
-                    self.gmsh_file(&format!("{field}.file"), file, scale)?
+                    let (mesh, named) = self.gmsh_file(&format!("{field}.file"), file, scale)?;
+                    file_groups = named;
+                    mesh
                 }
                 _ => {
                     return Err(self.invalid(
@@ -160,6 +172,9 @@ impl Validator<'_> {
             for x in &mut mesh.rest {
                 *x = rotation * *x + translate;
             }
+            groups.extend(geometric_groups(&mesh, &file_groups));
+            elements.push(first..first + mesh.num_tets());
+            first += mesh.num_tets();
             let velocity = self.vector(
                 &format!("{field}.velocity"),
                 body.velocity.unwrap_or_default(),
@@ -189,24 +204,50 @@ impl Validator<'_> {
         } else {
             Vec::new()
         };
-        Ok((mesh, velocity))
+        self.add_groups("body", groups)?;
+        Ok(Bodies {
+            mesh,
+            velocity,
+            elements,
+        })
+    }
+
+    /// Registers named groups for `region = "NAME"`: groups of one name from several files
+    /// are one group; a name may not be both a volume and a surface.
+    pub(super) fn add_groups(&self, field: &str, groups: Vec<Group>) -> Result<(), SceneError> {
+        let mut known = self.groups.borrow_mut();
+        for group in groups {
+            match known.iter_mut().find(|g| g.name == group.name) {
+                Some(g) if g.dim != group.dim => return Err(self.invalid(
+                    field,
+                    format!(
+                        "physical group {:?} is a volume in one mesh file and a surface in another",
+                        group.name
+                    ),
+                )),
+                Some(g) => *g = Arc::new(g.merged(&group)),
+                None => known.push(Arc::new(group)),
+            }
+        }
+        Ok(())
     }
 
     /// The tets of the Gmsh file `file` (relative to the scene file), coordinates times
-    /// `scale`: negatively oriented tets are used reoriented (with a notice), and errors quote
-    /// the file's own node and element tags.
+    /// `scale`, and its named physical groups: negatively oriented tets are used reoriented
+    /// (with a notice), and errors quote the file's own node and element tags.
     pub(super) fn gmsh_file(
         &self,
         field: &str,
         file: &str,
         scale: f64,
-    ) -> Result<TetMesh, SceneError> {
+    ) -> Result<(TetMesh, Vec<gmsh::PhysicalGroup>), SceneError> {
         let file = self.path.parent().unwrap_or(Path::new("")).join(file);
         let gmsh::TetFile {
             nodes,
             mut tets,
             node_tags,
             element_tags,
+            groups,
         } = gmsh::read_msh_tagged(&file).map_err(|source| SceneError::MeshFile {
             path: self.path.into(),
             source,
@@ -222,13 +263,14 @@ impl Validator<'_> {
                 tets.len()
             ));
         }
-        TetMesh::from_arrays(&nodes, tets).map_err(|source| {
+        let mesh = TetMesh::from_arrays(&nodes, tets).map_err(|source| {
             self.mesh_error(MeshError::InFile(format!(
                 "mesh file {}: {}",
                 file.display(),
                 source.in_file(&node_tags, &element_tags)
             )))
-        })
+        })?;
+        Ok((mesh, groups))
     }
 
     /// A mesh error of this scene file.
@@ -238,6 +280,33 @@ impl Validator<'_> {
             source,
         }
     }
+}
+
+/// The bodies of a scene as one mesh.
+pub(super) struct Bodies {
+    /// All bodies' elements, body by body.
+    pub mesh: TetMesh,
+    /// Initial velocity of each node (m/s, 3 per node); empty: all at rest.
+    pub velocity: Vec<f64>,
+    /// Each body's elements in `mesh`.
+    pub elements: Vec<Range<usize>>,
+}
+
+/// A file's named groups on `mesh` (its rest positions as placed in the scene).
+pub(super) fn geometric_groups(mesh: &TetMesh, groups: &[gmsh::PhysicalGroup]) -> Vec<Group> {
+    let x = |i: usize| mesh.rest[i];
+    groups
+        .iter()
+        .map(|g| {
+            if g.dim == 3 {
+                let tets: Vec<_> = g.tets.iter().map(|&t| mesh.tets[t].map(x)).collect();
+                Group::volume(&g.name, &tets)
+            } else {
+                let triangles: Vec<_> = g.triangles.iter().map(|t| t.map(x)).collect();
+                Group::surface(&g.name, &triangles)
+            }
+        })
+        .collect()
 }
 
 /// Volume-weighted centroid of a mesh's rest configuration (m): its centre of mass for a

@@ -36,7 +36,55 @@ pub struct FreezingSection {
     pub max: Option<[f64; 3]>,
 }
 
+/// The faces of the box `cooling` may name.
+const BOX_FACES: [&str; 9] = ["walls", "bottom", "top", "-x", "+x", "-y", "+y", "-z", "+z"];
+
 impl Validator<'_> {
+    /// The boundary faces on the named surfaces `names` (physical surfaces of the mesh file).
+    fn named_cooling_faces(
+        &self,
+        names: &[String],
+        mesh: &TetMesh,
+    ) -> Result<Vec<[usize; 3]>, SceneError> {
+        let mut selections = Vec::with_capacity(names.len());
+        for name in names {
+            if BOX_FACES.contains(&name.as_str()) {
+                return Err(self.invalid(
+                    "freezing.cooling",
+                    format!("box face {name:?} and named surfaces cannot be mixed"),
+                ));
+            }
+            let known = self.groups.borrow().iter().any(|g| &g.name == name);
+            if !known {
+                return Err(self.invalid(
+                    "freezing.cooling",
+                    format!("unknown face {name:?}: use \"surface\", \"obstacles\", box faces {}, or a physical surface of the mesh file", BOX_FACES.map(|f| format!("{f:?}")).join(", ")),
+                ));
+            }
+            selections.push(self.selection(
+                "freezing.cooling",
+                (None, None, Some(name)),
+                Some(2),
+            )?);
+        }
+        let faces: Vec<[usize; 3]> = mesh
+            .boundary_faces()
+            .iter()
+            .map(|f| f.nodes)
+            .filter(|f| {
+                let corners = f.map(|i| mesh.rest[i]);
+                selections.iter().any(|s| s.contains_face(&corners))
+            })
+            .collect();
+        if faces.is_empty() {
+            return Err(self.invalid(
+                "freezing.cooling",
+                "the named surfaces hold no boundary face of the mesh",
+            ));
+        }
+        Ok(faces)
+    }
+
     pub(super) fn freezing(
         &self,
         f: &FreezingSection,
@@ -58,6 +106,9 @@ impl Validator<'_> {
                     "\"surface\" and \"obstacles\" stand alone, without box faces or each other",
                 ))
             }
+            list if list.iter().any(|n| !BOX_FACES.contains(&n.as_str())) => {
+                Some(self.named_cooling_faces(list, mesh)?)
+            }
             _ => None,
         };
         if surface.is_some() && (f.min.is_some() || f.max.is_some()) {
@@ -76,12 +127,8 @@ impl Validator<'_> {
                 "+x" => &[1],
                 "-y" => &[2],
                 "+y" => &[3],
-                other => {
-                    return Err(self.invalid(
-                        "freezing.cooling",
-                        format!("unknown face {other:?}: use \"surface\", \"obstacles\", or box faces \"walls\", \"bottom\", \"top\", \"-x\", \"+x\", \"-y\", \"+y\", \"-z\", \"+z\""),
-                    ))
-                }
+                // Names other than box faces were taken as named surfaces above.
+                _ => unreachable!("box face names are listed in BOX_FACES"),
             };
             for &k in faces {
                 cooling[k] = true;

@@ -30,7 +30,8 @@ use crate::physics::ice_contact::IceContactTerm;
 use crate::physics::obstacle_mesh::ObstacleSurface;
 use crate::physics::plasticity::Plasticity;
 use crate::physics::{
-    Amplitude, Contact, Dirichlet, Elasticity, Model, Obstacle, Rayleigh, Region, Traction,
+    Amplitude, Contact, Dirichlet, Elasticity, Group, Model, Motion, Obstacle, Rayleigh, Region,
+    Selection, Traction,
 };
 use crate::sim::{Analysis, StepSettings};
 use crate::solver::{FactorPrecision, FillOrdering, LinearSolverKind, NewtonParams};
@@ -103,6 +104,9 @@ pub struct SceneFile {
     pub initial: Option<InitialSection>,
     /// Material.
     pub material: MaterialSection,
+    /// Further materials by name, for bodies and regions that name them.
+    #[serde(default)]
+    pub materials: std::collections::BTreeMap<String, NamedMaterialSection>,
     /// Physics terms.
     #[serde(default)]
     pub physics: PhysicsSection,
@@ -185,6 +189,30 @@ pub struct MaterialSection {
     pub volumetric: Option<Volumetric>,
 }
 
+/// `[materials.NAME]`: a material other than `[material]` (which sets the strain measure and
+/// volumetric discretisation for all), for the `[[body]]` entries that name it and for the
+/// elements of `region` or of the box `min`–`max` (these override bodies').
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NamedMaterialSection {
+    /// ρ (kg/m³).
+    pub density: f64,
+    /// λ (Pa); give with `mu`.
+    pub lambda: Option<f64>,
+    /// μ (Pa); give with `lambda`.
+    pub mu: Option<f64>,
+    /// E (Pa); give with `poisson_ratio`.
+    pub youngs_modulus: Option<f64>,
+    /// ν; give with `youngs_modulus`.
+    pub poisson_ratio: Option<f64>,
+    /// A named physical volume of the mesh file whose elements are of this material.
+    pub region: Option<String>,
+    /// Box lower corner (m): elements whose centroid is in the box are of this material.
+    pub min: Option<[f64; 3]>,
+    /// Box upper corner (m).
+    pub max: Option<[f64; 3]>,
+}
+
 /// `[physics]`.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -216,14 +244,17 @@ pub struct DampingSection {
     pub stiffness: f64,
 }
 
-/// `[[dirichlet]]`: nodes in the box `min`–`max` prescribed on `axes`.
+/// `[[dirichlet]]`: nodes in the box `min`–`max` (or of the named group `region`) prescribed
+/// on `axes`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DirichletSection {
-    /// Region lower corner (m).
-    pub min: [f64; 3],
-    /// Region upper corner (m).
-    pub max: [f64; 3],
+    /// Box lower corner (m).
+    pub min: Option<[f64; 3]>,
+    /// Box upper corner (m).
+    pub max: Option<[f64; 3]>,
+    /// A named physical group of the mesh file (volume or surface), instead of the box.
+    pub region: Option<String>,
     /// Constrained axes, a subset of "xyz". Default "xyz".
     pub axes: Option<String>,
     /// Displacement at t = 0 (m). Default 0.
@@ -234,14 +265,17 @@ pub struct DirichletSection {
     pub amplitude: Option<Vec<[f64; 2]>>,
 }
 
-/// `[[traction]]`: a constant traction on boundary faces whose centroid is in the box.
+/// `[[traction]]`: a traction on the boundary faces whose centroid is in the box (or on the
+/// named surface `region`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TractionSection {
-    /// Region lower corner (m).
-    pub min: [f64; 3],
-    /// Region upper corner (m).
-    pub max: [f64; 3],
+    /// Box lower corner (m).
+    pub min: Option<[f64; 3]>,
+    /// Box upper corner (m).
+    pub max: Option<[f64; 3]>,
+    /// A named physical surface of the mesh file, instead of the box.
+    pub region: Option<String>,
     /// Traction (Pa).
     pub traction: [f64; 3],
     /// Amplitude of the traction in time: [time (s), factor] points. Default 1.
@@ -249,14 +283,17 @@ pub struct TractionSection {
 }
 
 /// `[[eigenstrain]]`: a fixed isotropic eigenstrain e (σ = C : (ε − e I)) in the elements
-/// whose rest centroid lies in the box. Later entries override earlier ones.
+/// whose rest centroid lies in the box (or in the named volume `region`). Later entries
+/// override earlier ones.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EigenstrainSection {
-    /// Region lower corner (m).
-    pub min: [f64; 3],
-    /// Region upper corner (m).
-    pub max: [f64; 3],
+    /// Box lower corner (m).
+    pub min: Option<[f64; 3]>,
+    /// Box upper corner (m).
+    pub max: Option<[f64; 3]>,
+    /// A named physical volume of the mesh file, instead of the box.
+    pub region: Option<String>,
     /// e (dimensionless), in (−0.5, 0.5).
     pub value: f64,
 }
@@ -286,6 +323,13 @@ pub struct ObstacleSection {
     pub max: Option<[f64; 3]>,
     /// Rigid velocity (m/s). Default 0.
     pub velocity: Option<[f64; 3]>,
+    /// Angular velocity (rad/s) about `centre`. Default 0.
+    pub angular_velocity: Option<[f64; 3]>,
+    /// The point the obstacle turns about at t = 0 (m); it moves with `velocity`. Default 0.
+    pub centre: Option<[f64; 3]>,
+    /// Amplitude of `velocity` and `angular_velocity` in time: [time (s), factor] points.
+    /// Default 1.
+    pub amplitude: Option<Vec<[f64; 2]>>,
     /// Penalty stiffness (N/m³). Default 10 E / h (h: mean boundary edge length of the ice).
     pub stiffness: Option<f64>,
     /// Coulomb friction coefficient. Default 0.
@@ -417,6 +461,7 @@ impl Scene {
         Validator {
             path,
             notices: Default::default(),
+            groups: Default::default(),
         }
         .scene(raw, text)
     }
@@ -426,6 +471,8 @@ struct Validator<'a> {
     path: &'a Path,
     /// What the user should know about the input that is not an error.
     notices: std::cell::RefCell<Vec<String>>,
+    /// The mesh files' named physical groups, placed as the scene places the mesh.
+    groups: std::cell::RefCell<Vec<Arc<Group>>>,
 }
 
 impl Validator<'_> {
@@ -495,10 +542,65 @@ impl Validator<'_> {
         Ok(region)
     }
 
+    /// Where an entry applies: the box `min`–`max` or the named group `region` (of dimension
+    /// `dim`: 2 surfaces, 3 volumes; `None`: either).
+    fn selection(
+        &self,
+        field: &str,
+        (min, max, region): (Option<[f64; 3]>, Option<[f64; 3]>, Option<&String>),
+        dim: Option<u8>,
+    ) -> Result<Selection, SceneError> {
+        match (min, max, region) {
+            (Some(min), Some(max), None) => Ok(Selection::Box(self.region(field, min, max)?)),
+            (None, None, Some(name)) => {
+                let groups = self.groups.borrow();
+                let listing = || {
+                    let names: Vec<String> = groups
+                        .iter()
+                        .map(|g| format!("{:?} ({})", g.name, kind_name(g.dim)))
+                        .collect();
+                    if names.is_empty() {
+                        "the mesh has no named physical groups".to_string()
+                    } else {
+                        format!("the mesh's groups: {}", names.join(", "))
+                    }
+                };
+                let group = groups.iter().find(|g| &g.name == name).ok_or_else(|| {
+                    self.invalid(
+                        &format!("{field}.region"),
+                        format!("no physical group {name:?}; {}", listing()),
+                    )
+                })?;
+                match dim {
+                    Some(d) if d != group.dim => Err(self.invalid(
+                        &format!("{field}.region"),
+                        format!(
+                            "{name:?} is a {}; this entry needs a {}",
+                            kind_name(group.dim),
+                            kind_name(d)
+                        ),
+                    )),
+                    _ => Ok(Selection::Group(group.clone())),
+                }
+            }
+            (_, _, Some(_)) => Err(self.invalid(
+                &format!("{field}.region"),
+                "give a named `region` or a box `min`/`max`, not both",
+            )),
+            _ => Err(self.invalid(
+                field,
+                "give a box (`min` and `max`, m) or a named `region` (a physical group of the mesh file)",
+            )),
+        }
+    }
+
     fn scene(&self, raw: SceneFile, text: &str) -> Result<Scene, SceneError> {
-        let (mesh, initial_velocity) = match (&raw.mesh, raw.body.is_empty()) {
-            (Some(m), true) => (self.mesh(m)?, Vec::new()),
-            (None, false) => self.bodies(&raw.body)?,
+        let (mesh, initial_velocity, body_elements) = match (&raw.mesh, raw.body.is_empty()) {
+            (Some(m), true) => (self.mesh(m)?, Vec::new(), Vec::new()),
+            (None, false) => {
+                let b = self.bodies(&raw.body)?;
+                (b.mesh, b.velocity, b.elements)
+            }
             (Some(_), false) => {
                 return Err(self.invalid("body", "give `[mesh]` or `[[body]]` entries, not both"))
             }
@@ -524,16 +626,19 @@ impl Validator<'_> {
         let mut tractions = Vec::new();
         for (i, t) in raw.traction.iter().enumerate() {
             let field = format!("traction[{i}]");
-            let region = self.region(&field, t.min, t.max)?;
+            let region = self.selection(&field, (t.min, t.max, t.region.as_ref()), Some(2))?;
             let traction = Traction {
-                region,
+                region: region.clone(),
                 traction: self.vector(&format!("{field}.traction"), t.traction)?,
                 amplitude: self.amplitude(&format!("{field}.amplitude"), &t.amplitude)?,
             };
             if crate::physics::loads::traction_faces(&mesh, &region).0 == 0 {
                 return Err(self.invalid(
                     &field,
-                    "the region contains no boundary-face centroid of the mesh",
+                    format!(
+                        "the {} contains no boundary-face centroid of the mesh",
+                        region.describe()
+                    ),
                 ));
             }
             tractions.push(traction);
@@ -587,10 +692,15 @@ impl Validator<'_> {
             factor_precision: solver.factor_precision.unwrap_or(FactorPrecision::Single),
         };
         let mut elasticity = Elasticity::new(&mesh, material, model);
+        self.other_materials(&raw, &mesh, &body_elements, &mut elasticity)?;
         elasticity.set_volumetric(&mesh, raw.material.volumetric.unwrap_or_default());
         for (i, section) in raw.eigenstrain.iter().enumerate() {
             let field = format!("eigenstrain[{i}]");
-            let region = self.region(&field, section.min, section.max)?;
+            let region = self.selection(
+                &field,
+                (section.min, section.max, section.region.as_ref()),
+                Some(3),
+            )?;
             let e = section.value;
             // Physical eigenstrains are a few percent; beyond ±0.5 the small-strain reading of
             // σ = C:(ε − e I) and the multiplicative corotated form part ways.
@@ -600,19 +710,8 @@ impl Validator<'_> {
                     format!("must be in (−0.5, 0.5), got {e}"),
                 ));
             }
-            let mut count = 0;
-            for (t, tet) in mesh.tets.iter().enumerate() {
-                let centroid = tet.iter().map(|&v| mesh.rest[v]).sum::<Vector3<f64>>() / 4.0;
-                if region.contains(&centroid) {
-                    elasticity.eigenstrain[t] = e;
-                    count += 1;
-                }
-            }
-            if count == 0 {
-                return Err(self.invalid(
-                    &field,
-                    "the region contains no element centroid of the mesh",
-                ));
+            for t in self.selected_elements(&field, &mesh, &region)? {
+                elasticity.eigenstrain[t] = e;
             }
         }
         let obstacles = raw
@@ -672,6 +771,12 @@ impl Validator<'_> {
             model.add_obstacles(contact);
         }
         if let Some(f) = &raw.freezing {
+            if !raw.materials.is_empty() {
+                return Err(self.invalid(
+                    "freezing",
+                    "freezing turns the `[material]` water to ice; it is not defined for scenes with [materials.NAME] entries (remove one or the other)",
+                ));
+            }
             let obstacles = model
                 .obstacle_contact()
                 .map_or(&[][..], |c| &c.obstacles[..]);
@@ -730,6 +835,28 @@ impl Validator<'_> {
             fracture,
             notices: self.notices.take(),
         })
+    }
+
+    /// The elements `region` selects (at least one, else an error naming `field`).
+    fn selected_elements(
+        &self,
+        field: &str,
+        mesh: &TetMesh,
+        region: &Selection,
+    ) -> Result<Vec<usize>, SceneError> {
+        let selected: Vec<usize> = (0..mesh.num_tets())
+            .filter(|&t| region.contains_element(&mesh.tets[t].map(|v| mesh.rest[v])))
+            .collect();
+        if selected.is_empty() {
+            return Err(self.invalid(
+                field,
+                format!(
+                    "the {} contains no element centroid of the mesh",
+                    region.describe()
+                ),
+            ));
+        }
+        Ok(selected)
     }
 
     fn fracture(
@@ -802,8 +929,9 @@ impl Validator<'_> {
             }
             (true, Some(file)) => {
                 let scale = self.positive("mesh.scale", m.scale.unwrap_or(1.0))?;
-                let mesh = self.gmsh_file("mesh.file", file, scale)?;
+                let (mesh, groups) = self.gmsh_file("mesh.file", file, scale)?;
                 self.check_parts_apart("mesh.file", &mesh)?;
+                self.add_groups("mesh.file", bodies::geometric_groups(&mesh, &groups))?;
                 Ok(mesh)
             }
             _ => Err(self.invalid(
@@ -814,32 +942,113 @@ impl Validator<'_> {
     }
 
     fn material(&self, m: &MaterialSection) -> Result<(Material, ElasticModel), SceneError> {
-        let density = self.positive("material.density", m.density)?;
-        let material = match (m.lambda, m.mu, m.youngs_modulus, m.poisson_ratio) {
-            (Some(lambda), Some(mu), None, None) => {
-                let lambda = self.finite("material.lambda", lambda)?;
-                let mu = self.positive("material.mu", mu)?;
+        let material = self.constants(
+            "material",
+            m.density,
+            [m.lambda, m.mu, m.youngs_modulus, m.poisson_ratio],
+        )?;
+        Ok((material, m.model.unwrap_or(ElasticModel::Corotated)))
+    }
+
+    /// A material from its density and `[lambda, mu, youngs_modulus, poisson_ratio]` (one
+    /// pair given), the fields named under `field`.
+    fn constants(
+        &self,
+        field: &str,
+        density: f64,
+        pairs: [Option<f64>; 4],
+    ) -> Result<Material, SceneError> {
+        let f = |name: &str| format!("{field}.{name}");
+        let density = self.positive(&f("density"), density)?;
+        Ok(match pairs {
+            [Some(lambda), Some(mu), None, None] => {
+                let lambda = self.finite(&f("lambda"), lambda)?;
+                let mu = self.positive(&f("mu"), mu)?;
                 // Positive bulk modulus ⇔ ν in (−1, 0.5); ν < 0.5 strictly (no incompressibility).
                 if lambda + 2.0 * mu / 3.0 <= 0.0 {
-                    return Err(self.invalid("material.lambda", format!("must be > −2μ/3 = {:e} Pa (positive bulk modulus), got {lambda:e}", -2.0 * mu / 3.0)));
+                    return Err(self.invalid(&f("lambda"), format!("must be > −2μ/3 = {:e} Pa (positive bulk modulus), got {lambda:e}", -2.0 * mu / 3.0)));
                 }
                 Material { lambda, mu, density }
             }
-            (None, None, Some(e), Some(nu)) => {
-                let e = self.positive("material.youngs_modulus", e)?;
+            [None, None, Some(e), Some(nu)] => {
+                let e = self.positive(&f("youngs_modulus"), e)?;
                 if !(nu.is_finite() && nu > -1.0 && nu < 0.5) {
-                    return Err(self.invalid("material.poisson_ratio", format!("must be in (−1, 0.5), got {nu}")));
+                    return Err(self.invalid(&f("poisson_ratio"), format!("must be in (−1, 0.5), got {nu}")));
                 }
                 Material::from_young_poisson(e, nu, density)
             }
             _ => {
                 return Err(self.invalid(
-                    "material",
+                    field,
                     "give either `lambda` and `mu`, or `youngs_modulus` and `poisson_ratio` (exactly one pair)",
                 ))
             }
-        };
-        Ok((material, m.model.unwrap_or(ElasticModel::Corotated)))
+        })
+    }
+
+    /// The `[materials.NAME]` entries into `elasticity`: bodies that name one are made of
+    /// it, then the elements of each entry's region (overriding bodies').
+    fn other_materials(
+        &self,
+        raw: &SceneFile,
+        mesh: &TetMesh,
+        bodies: &[std::ops::Range<usize>],
+        elasticity: &mut Elasticity,
+    ) -> Result<(), SceneError> {
+        let names: Vec<&String> = raw.materials.keys().collect();
+        if names.len() >= u16::MAX as usize {
+            return Err(self.invalid("materials", format!("at most {} entries", u16::MAX - 1)));
+        }
+        let mut index = vec![0u16; mesh.num_tets()];
+        let mut used = vec![false; names.len()];
+        for (b, body) in raw.body.iter().enumerate() {
+            let Some(name) = &body.material else { continue };
+            let k = names.iter().position(|n| *n == name).ok_or_else(|| {
+                self.invalid(
+                    &format!("body[{b}].material"),
+                    format!(
+                        "no [materials.{name}] entry (the scene's materials: {})",
+                        if names.is_empty() {
+                            "none".to_string()
+                        } else {
+                            names
+                                .iter()
+                                .map(|n| format!("{n:?}"))
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        }
+                    ),
+                )
+            })?;
+            index[bodies[b].clone()].fill(k as u16 + 1);
+            used[k] = true;
+        }
+        for (k, (name, m)) in raw.materials.iter().enumerate() {
+            let field = format!("materials.{name}");
+            let material = self.constants(
+                &field,
+                m.density,
+                [m.lambda, m.mu, m.youngs_modulus, m.poisson_ratio],
+            )?;
+            elasticity.other_materials.push(material);
+            if m.min.is_none() && m.max.is_none() && m.region.is_none() {
+                if !used[k] {
+                    return Err(self.invalid(
+                        &field,
+                        "is used nowhere: give it a `region` (or `min`/`max`), or name it in a [[body]]'s `material`",
+                    ));
+                }
+                continue;
+            }
+            let region = self.selection(&field, (m.min, m.max, m.region.as_ref()), Some(3))?;
+            for t in self.selected_elements(&field, mesh, &region)? {
+                index[t] = k as u16 + 1;
+            }
+        }
+        if index.iter().any(|&k| k > 0) {
+            elasticity.material_index = index;
+        }
+        Ok(())
     }
 
     fn obstacle(
@@ -936,9 +1145,29 @@ impl Validator<'_> {
             }
         };
         let stiffness = self.penalty(&f("stiffness"), o.stiffness, mesh, material)?;
+        if o.centre.is_some() && o.angular_velocity.is_none() {
+            return Err(self.invalid(
+                &f("centre"),
+                "is the point the obstacle turns about: give `angular_velocity` with it",
+            ));
+        }
+        if o.amplitude.is_some() && o.velocity.is_none() && o.angular_velocity.is_none() {
+            return Err(self.invalid(
+                &f("amplitude"),
+                "scales the obstacle's `velocity` and `angular_velocity`: give one of them",
+            ));
+        }
         Ok(Obstacle {
             shape,
-            velocity: self.vector(&f("velocity"), o.velocity.unwrap_or_default())?,
+            motion: Motion {
+                velocity: self.vector(&f("velocity"), o.velocity.unwrap_or_default())?,
+                angular_velocity: self.vector(
+                    &f("angular_velocity"),
+                    o.angular_velocity.unwrap_or_default(),
+                )?,
+                centre: self.vector(&f("centre"), o.centre.unwrap_or_default())?,
+                amplitude: self.amplitude(&f("amplitude"), &o.amplitude)?,
+            },
             stiffness,
             friction: self.non_negative(&f("friction"), o.friction.unwrap_or(0.0))?,
         })
@@ -946,7 +1175,7 @@ impl Validator<'_> {
 
     fn dirichlet(&self, i: usize, d: &DirichletSection) -> Result<Dirichlet, SceneError> {
         let field = format!("dirichlet[{i}]");
-        let region = self.region(&field, d.min, d.max)?;
+        let region = self.selection(&field, (d.min, d.max, d.region.as_ref()), None)?;
         let axes_text = d.axes.as_deref().unwrap_or("xyz");
         let mut axes = [false; 3];
         for c in axes_text.chars() {
@@ -975,5 +1204,14 @@ impl Validator<'_> {
             )?,
             velocity: self.vector(&format!("{field}.velocity"), d.velocity.unwrap_or_default())?,
         })
+    }
+}
+
+/// "surface" or "volume" for a group of dimension 2 or 3.
+fn kind_name(dim: u8) -> &'static str {
+    if dim == 3 {
+        "volume"
+    } else {
+        "surface"
     }
 }

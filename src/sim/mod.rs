@@ -182,12 +182,8 @@ pub enum SimError {
     #[error("singular: no Dirichlet conditions, so a static solve has unconstrained rigid-body modes; add a [[dirichlet]] region or use analysis = \"dynamic\"")]
     NoDirichlet,
     /// A Dirichlet region matched no node.
-    #[error("[[dirichlet]] number {} (region {min:?} – {max:?} m) holds no node of the mesh", index + 1)]
-    EmptyDirichlet {
-        index: usize,
-        min: [f64; 3],
-        max: [f64; 3],
-    },
+    #[error("[[dirichlet]] number {} ({region}) holds no node of the mesh", index + 1)]
+    EmptyDirichlet { index: usize, region: String },
     /// Newton failed in a step.
     // The cause is part of the message (not a `#[source]`), so that `to_string()` tells the
     // whole story and error chains do not print it twice.
@@ -243,8 +239,7 @@ impl Simulation {
             if bc.nodes(&model.mesh).next().is_none() {
                 return Err(SimError::EmptyDirichlet {
                     index,
-                    min: bc.region.min.into(),
-                    max: bc.region.max.into(),
+                    region: bc.region.describe(),
                 });
             }
         }

@@ -15,6 +15,11 @@ Files written (next to this script):
   box_reversed_v41_ascii.msh
       node tags renumbered to N + 1 - tag: contiguous, but NOT ascending along the
       entity blocks (guards against a reader that assumes tag = position).
+  groups_v41_ascii.msh, groups_v41_binary.msh, groups_v22_ascii.msh,
+  groups_v22_binary.msh
+      the same box split at x = 0.1 into two volumes meshed conformally, with named
+      physical groups: volumes "left" and "right", surfaces "end" (x = 0.2) and "floor"
+      (z = 0, both halves). With physical groups Gmsh saves only their elements.
   box_meshio_v41_ascii.msh, box_meshio_v22_binary.msh
       the mesh round-tripped through meshio's writers (another writer's dialect).
       In general meshio's 4.1 writer may list contiguous tags out of block order,
@@ -50,6 +55,31 @@ def build_box():
     # Coarse on purpose: a few dozen tets keeps every file well under 50 KB.
     gmsh.option.setNumber("Mesh.MeshSizeMin", 0.1)
     gmsh.option.setNumber("Mesh.MeshSizeMax", 0.1)
+    gmsh.model.mesh.generate(3)
+
+
+def build_groups():
+    gmsh.model.add("groups")
+    left = gmsh.model.occ.addBox(0, 0, 0, BOX[0] / 2, BOX[1], BOX[2])
+    right = gmsh.model.occ.addBox(BOX[0] / 2, 0, 0, BOX[0] / 2, BOX[1], BOX[2])
+    gmsh.model.occ.fragment([(3, left)], [(3, right)])
+    gmsh.model.occ.synchronize()
+    gmsh.model.addPhysicalGroup(3, [left], name="left")
+    gmsh.model.addPhysicalGroup(3, [right], name="right")
+
+    def faces(test):
+        found = []
+        for dim, tag in gmsh.model.getEntities(2):
+            lo = gmsh.model.getBoundingBox(dim, tag)
+            if test(lo[:3], lo[3:]):
+                found.append(tag)
+        return found
+
+    eps = 1e-6  # Gmsh pads entity bounding boxes by 1e-7
+    gmsh.model.addPhysicalGroup(2, faces(lambda a, b: a[0] > BOX[0] - eps), name="end")
+    gmsh.model.addPhysicalGroup(2, faces(lambda a, b: b[2] < eps), name="floor")
+    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.05)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", 0.05)
     gmsh.model.mesh.generate(3)
 
 
@@ -98,6 +128,13 @@ def main():
     renumber(lambda t, n: (t - 7) // 10)  # back to 1..N
     renumber(lambda t, n: n + 1 - t)
     save("box_reversed_v41_ascii.msh", 4.1, False)
+    gmsh.clear()
+    gmsh.option.setNumber("Mesh.Renumber", 1)
+    build_groups()
+    save("groups_v41_ascii.msh", 4.1, False)
+    save("groups_v41_binary.msh", 4.1, True)
+    save("groups_v22_ascii.msh", 2.2, False)
+    save("groups_v22_binary.msh", 2.2, True)
     gmsh.finalize()
 
     # Gmsh's 2.2 writer always renumbers nodes 1..N, so sparsify that file by hand.

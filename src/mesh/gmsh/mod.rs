@@ -35,7 +35,7 @@ pub fn read_msh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[usize; 4]>), GmshErr
 }
 
 /// The linear tetrahedra of a Gmsh file as [`read_msh`] returns them, with the file's own
-/// node and element tags (for messages that quote the file).
+/// node and element tags (for messages that quote the file) and its named physical groups.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TetFile {
     /// Node positions (m, as in the file).
@@ -46,17 +46,129 @@ pub struct TetFile {
     pub node_tags: Vec<u64>,
     /// The file's tag of each tet.
     pub element_tags: Vec<u64>,
+    /// The named physical volumes and surfaces (`$PhysicalNames` of dimension 3 and 2), in
+    /// the file's order.
+    pub groups: Vec<PhysicalGroup>,
 }
 
-/// [`read_msh`] with the file's tags.
+/// A named physical group of a Gmsh file: a volume (a set of tets) or a surface (a set of
+/// triangles on the tets' nodes).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhysicalGroup {
+    /// Its name in `$PhysicalNames`.
+    pub name: String,
+    /// 3 for a volume, 2 for a surface.
+    pub dim: u8,
+    /// Volume: the tets (indices into [`TetFile::tets`]) of its elementary volumes.
+    pub tets: Vec<usize>,
+    /// Surface: its triangles, 0-based into [`TetFile::nodes`].
+    pub triangles: Vec<[usize; 3]>,
+}
+
+/// [`read_msh`] with the file's tags and its named physical volumes and surfaces. A named
+/// surface must be meshed with linear triangles on the tets' nodes.
 pub fn read_msh_tagged(path: &Path) -> Result<TetFile, GmshError> {
-    let (nodes, tets, node_tags, element_tags) = read_elements(path, &TETRAHEDRA)?;
+    let bytes = read_bytes(path)?;
+    let format = |message| GmshError::Format {
+        path: path.to_path_buf(),
+        message,
+    };
+    let tets = parse(&bytes, &TETRAHEDRA).map_err(format)?;
+    let names = physical_names(&bytes).map_err(format)?;
+    let groups = physical_groups(&bytes, &tets, names).map_err(format)?;
     Ok(TetFile {
-        nodes,
-        tets,
-        node_tags,
-        element_tags,
+        nodes: tets.nodes,
+        tets: tets.elements,
+        node_tags: tets.node_tags,
+        element_tags: tets.element_tags,
+        groups,
     })
+}
+
+/// The named volume and surface groups of a file whose tets are `tets`.
+fn physical_groups(
+    bytes: &[u8],
+    tets: &Mesh<4>,
+    names: Vec<(u8, i64, String)>,
+) -> Result<Vec<PhysicalGroup>, String> {
+    let named = |dim: u8| names.iter().any(|(d, _, _)| *d == dim);
+    // Surfaces are read only when named, so a volume mesh with quadrangle faces still reads.
+    let triangles = if named(2) {
+        match parse(bytes, &TRIANGLES) {
+            Ok(t) => Some(t),
+            Err(e) if e == NO_TRIANGLES => None,
+            Err(e) => return Err(e),
+        }
+    } else {
+        None
+    };
+    let index: HashMap<u64, usize> = tets
+        .node_tags
+        .iter()
+        .enumerate()
+        .map(|(i, &t)| (t, i))
+        .collect();
+    let mut groups = Vec::new();
+    for (dim, tag, name) in names.into_iter().filter(|(d, _, _)| *d >= 2) {
+        let mut group = PhysicalGroup {
+            name,
+            dim,
+            tets: Vec::new(),
+            triangles: Vec::new(),
+        };
+        if dim == 3 {
+            group.tets = tets.members(tag).collect();
+        } else if let Some(t) = &triangles {
+            for k in t.members(tag) {
+                let corners = t.elements[k].map(|i| index.get(&t.node_tags[i]).copied());
+                let [Some(a), Some(b), Some(c)] = corners else {
+                    return Err(format!(
+                        "triangle {} of physical surface \"{}\" has a node that is on no tetrahedron",
+                        t.element_tags[k], group.name
+                    ));
+                };
+                group.triangles.push([a, b, c]);
+            }
+        }
+        if group.tets.is_empty() && group.triangles.is_empty() {
+            let what = if dim == 3 { "tetrahedra" } else { "triangles" };
+            return Err(format!(
+                "physical {} \"{}\" (tag {tag}) has no {what}",
+                if dim == 3 { "volume" } else { "surface" },
+                group.name
+            ));
+        }
+        groups.push(group);
+    }
+    Ok(groups)
+}
+
+/// `$PhysicalNames`: (dimension, tag, name) of each named physical group (the section is
+/// text in every format version).
+fn physical_names(bytes: &[u8]) -> Result<Vec<(u8, i64, String)>, String> {
+    let Some(start) = section_start(bytes, b"$PhysicalNames") else {
+        return Ok(Vec::new());
+    };
+    let mut cursor = Cursor { bytes, pos: start };
+    let count = cursor.count_line()?;
+    let mut names = Vec::with_capacity(count);
+    for _ in 0..count {
+        let line = cursor.line().ok_or(TRUNCATED)?;
+        let bad = || format!("bad $PhysicalNames line '{}'", show(line));
+        let line_text = text(line)?;
+        let (numbers, name) = line_text.split_once('"').ok_or_else(bad)?;
+        let name = name.strip_suffix('"').ok_or_else(bad)?;
+        let [dim, tag] = numbers.split_ascii_whitespace().collect::<Vec<_>>()[..] else {
+            return Err(bad());
+        };
+        names.push((
+            dim.parse().map_err(|_| bad())?,
+            tag.parse().map_err(|_| bad())?,
+            name.to_string(),
+        ));
+    }
+    cursor.expect_line("$EndPhysicalNames")?;
+    Ok(names)
 }
 
 /// Reads the linear triangles (Gmsh element type 2) of a Gmsh mesh file, formats 2.2 and 4.1,
@@ -68,18 +180,22 @@ pub fn read_msh_tagged(path: &Path) -> Result<TetFile, GmshError> {
 /// are an error: reading their corners only, or dropping them, would change the surface.
 #[allow(clippy::type_complexity)] // the same shape as read_msh
 pub fn read_msh_triangles(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[usize; 3]>), GmshError> {
-    read_elements(path, &TRIANGLES).map(|(nodes, triangles, _, _)| (nodes, triangles))
+    read_elements(path, &TRIANGLES).map(|m| (m.nodes, m.elements))
 }
 
 /// Reads the elements of `kind` from the file at `path`; errors name the file.
 fn read_elements<const N: usize>(path: &Path, kind: &Kind<N>) -> Result<Mesh<N>, GmshError> {
-    let bytes = std::fs::read(path).map_err(|source| GmshError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse(&bytes, kind).map_err(|message| GmshError::Format {
+    parse(&read_bytes(path)?, kind).map_err(|message| GmshError::Format {
         path: path.to_path_buf(),
         message,
+    })
+}
+
+/// The bytes of the file at `path`; the error names the file.
+fn read_bytes(path: &Path) -> Result<Vec<u8>, GmshError> {
+    std::fs::read(path).map_err(|source| GmshError::Io {
+        path: path.to_path_buf(),
+        source,
     })
 }
 
@@ -99,9 +215,30 @@ fn parse<const N: usize>(bytes: &[u8], kind: &Kind<N>) -> Result<Mesh<N>, String
 }
 
 /// What a read returns: node positions and 0-based elements of `N` nodes (4: [`read_msh`]'s
-/// tets, 3: [`read_msh_triangles`]'s triangles), and the file's tags of the nodes and of the
-/// elements.
-type Mesh<const N: usize = 4> = (Vec<[f64; 3]>, Vec<[usize; N]>, Vec<u64>, Vec<u64>);
+/// tets, 3: [`read_msh_triangles`]'s triangles), the file's tags of the nodes and of the
+/// elements, and the physical tags of each element.
+struct Mesh<const N: usize> {
+    nodes: Vec<[f64; 3]>,
+    elements: Vec<[usize; N]>,
+    node_tags: Vec<u64>,
+    element_tags: Vec<u64>,
+    /// Per element, an index into `physical_sets`.
+    physical: Vec<u32>,
+    /// The distinct sets of physical tags the elements carry.
+    physical_sets: Vec<Vec<i64>>,
+}
+
+impl<const N: usize> Mesh<N> {
+    /// The elements in physical group `tag`.
+    fn members(&self, tag: i64) -> impl Iterator<Item = usize> + '_ {
+        let sets: Vec<bool> = self
+            .physical_sets
+            .iter()
+            .map(|s| s.contains(&tag))
+            .collect();
+        (0..self.elements.len()).filter(move |&k| sets[self.physical[k] as usize])
+    }
+}
 
 /// Which elements a read collects: the linear elements of one Gmsh type, `N` nodes each.
 struct Kind<const N: usize> {
@@ -131,8 +268,12 @@ const TRIANGLES: Kind<3> = Kind {
 /// Nodes and the wanted elements as the file gives them, by Gmsh tag.
 struct RawMesh<const N: usize> {
     nodes: HashMap<u64, [f64; 3]>,
-    /// (element tag, node tags) of each wanted element, in file order.
-    elements: Vec<(u64, [u64; N])>,
+    /// (element tag, node tags, index into `physical_sets`) of each wanted element, in file
+    /// order.
+    elements: Vec<(u64, [u64; N], u32)>,
+    /// The distinct sets of physical tags elements carry (2.2: one tag, 0 for none; 4.1: the
+    /// physical tags of the element's entity).
+    physical_sets: Vec<Vec<i64>>,
 }
 
 impl<const N: usize> Default for RawMesh<N> {
@@ -140,6 +281,7 @@ impl<const N: usize> Default for RawMesh<N> {
         RawMesh {
             nodes: HashMap::new(),
             elements: Vec::new(),
+            physical_sets: Vec::new(),
         }
     }
 }
@@ -149,6 +291,17 @@ impl<const N: usize> RawMesh<N> {
         match self.nodes.insert(tag, position) {
             Some(_) => Err(format!("node {tag} is defined twice")),
             None => Ok(()),
+        }
+    }
+
+    /// The index of `set` in `physical_sets`, added if new.
+    fn physical_set(&mut self, set: Vec<i64>) -> u32 {
+        match self.physical_sets.iter().position(|s| *s == set) {
+            Some(k) => k as u32,
+            None => {
+                self.physical_sets.push(set);
+                (self.physical_sets.len() - 1) as u32
+            }
         }
     }
 }
@@ -166,7 +319,11 @@ fn compact<const N: usize>(raw: RawMesh<N>, kind: &Kind<N>) -> Result<Mesh<N>, S
     if raw.elements.is_empty() {
         return Err(kind.none.to_string());
     }
-    let mut used: Vec<u64> = raw.elements.iter().flat_map(|(_, nodes)| *nodes).collect();
+    let mut used: Vec<u64> = raw
+        .elements
+        .iter()
+        .flat_map(|(_, nodes, _)| *nodes)
+        .collect();
     used.sort_unstable();
     used.dedup();
 
@@ -178,8 +335,8 @@ fn compact<const N: usize>(raw: RawMesh<N>, kind: &Kind<N>) -> Result<Mesh<N>, S
                 let element = raw
                     .elements
                     .iter()
-                    .find(|(_, nodes)| nodes.contains(tag))
-                    .map_or(0, |(element, _)| *element);
+                    .find(|(_, nodes, _)| nodes.contains(tag))
+                    .map_or(0, |(element, _, _)| *element);
                 return Err(format!("element {element} refers to undefined node {tag}"));
             }
         }
@@ -189,10 +346,16 @@ fn compact<const N: usize>(raw: RawMesh<N>, kind: &Kind<N>) -> Result<Mesh<N>, S
     let elements = raw
         .elements
         .iter()
-        .map(|(_, nodes)| nodes.map(|tag| index[&tag]))
+        .map(|(_, nodes, _)| nodes.map(|tag| index[&tag]))
         .collect();
-    let element_tags = raw.elements.iter().map(|(tag, _)| *tag).collect();
-    Ok((positions, elements, used, element_tags))
+    Ok(Mesh {
+        nodes: positions,
+        elements,
+        node_tags: used,
+        element_tags: raw.elements.iter().map(|(tag, _, _)| *tag).collect(),
+        physical: raw.elements.iter().map(|(_, _, p)| *p).collect(),
+        physical_sets: raw.physical_sets,
+    })
 }
 
 // ---------------------------------------------------------------------------------------
@@ -365,6 +528,17 @@ fn parse_v41<const N: usize>(
     .map_err(|_| "malformed 4.1 data (the mshio parser panicked on it)".to_string())??;
 
     let mut mesh = RawMesh::default();
+    // The physical tags of each elementary entity, by (dimension, tag).
+    let mut entity_physical: HashMap<(i32, i32), Vec<i64>> = HashMap::new();
+    if let Some(entities) = &parsed.data.entities {
+        let tags = |p: &[i32]| p.iter().map(|&t| i64::from(t)).collect::<Vec<i64>>();
+        for s in &entities.surfaces {
+            entity_physical.insert((2, s.tag), tags(&s.physical_tags));
+        }
+        for v in &entities.volumes {
+            entity_physical.insert((3, v.tag), tags(&v.physical_tags));
+        }
+    }
     for block in parsed.data.nodes.map(|n| n.node_blocks).unwrap_or_default() {
         let tags = block.node_tags.unwrap_or_default();
         // mshio maps tag -> position in a HashMap, which silently merges repeated tags.
@@ -389,6 +563,12 @@ fn parse_v41<const N: usize>(
         .unwrap_or_default()
     {
         let element_type = block.element_type as i64;
+        let physical = mesh.physical_set(
+            entity_physical
+                .get(&(block.entity_dim, block.entity_tag))
+                .cloned()
+                .unwrap_or_default(),
+        );
         for element in block.elements {
             if (kind.keep)(element_type, element.element_tag)? {
                 let nodes = <[u64; N]>::try_from(element.nodes.as_slice()).map_err(|_| {
@@ -397,7 +577,7 @@ fn parse_v41<const N: usize>(
                         kind.name, element.element_tag
                     )
                 })?;
-                mesh.elements.push((element.element_tag, nodes));
+                mesh.elements.push((element.element_tag, nodes, physical));
             }
         }
     }
@@ -583,12 +763,18 @@ fn read_elements_v22<const N: usize>(
                     .ok()
                     .and_then(|n| rest.get(n..))
                     .ok_or_else(bad)?;
+                // The first tag is the physical group (0: none).
+                let physical = match rest.first() {
+                    Some(&p) if ntags > 0 && p != 0 => vec![p],
+                    _ => Vec::new(),
+                };
+                let physical = mesh.physical_set(physical);
                 let nodes = <[i64; N]>::try_from(nodes).map_err(|_| bad())?;
                 let mut element = [0; N];
                 for (node, &number) in element.iter_mut().zip(&nodes) {
                     *node = node_tag(number)?;
                 }
-                mesh.elements.push((tag, element));
+                mesh.elements.push((tag, element, physical));
             }
         }
         return Ok(());
@@ -612,13 +798,19 @@ fn read_elements_v22<const N: usize>(
             .ok_or_else(|| format!("unknown element type {element_type}"))?;
         for _ in 0..count {
             let tag = u64::try_from(cursor.i32(order)?).map_err(|_| "negative element tag")?;
-            cursor.take(tag_bytes)?; // physical/elementary tags: not needed
+            // The first tag is the physical group (0: none); the others are not needed.
+            let mut tags = Cursor::new(cursor.take(tag_bytes)?);
+            let physical = match tags.i32(order) {
+                Ok(p) if p != 0 => vec![i64::from(p)],
+                _ => Vec::new(),
+            };
             if (kind.keep)(i64::from(element_type), tag)? {
+                let physical = mesh.physical_set(physical);
                 let mut element = [0; N];
                 for node in &mut element {
                     *node = node_tag(i64::from(cursor.i32(order)?))?;
                 }
-                mesh.elements.push((tag, element));
+                mesh.elements.push((tag, element, physical));
             } else {
                 cursor.take(4 * nodes)?;
             }

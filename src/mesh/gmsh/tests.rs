@@ -485,3 +485,77 @@ fn malformed_4_1_does_not_panic() {
     assert_format_error(&no_elements, "the file has no tetrahedra");
     assert_format_error(&V41_ONE_TET.replace("4.1 0 8", "4.1 1 3"), "data size 3");
 }
+
+/// The box split into two named volumes with two named surfaces, in the four encodings.
+const GROUP_FORMATS: [&str; 4] = [
+    "groups_v41_ascii.msh",
+    "groups_v41_binary.msh",
+    "groups_v22_ascii.msh",
+    "groups_v22_binary.msh",
+];
+
+#[test]
+fn named_volumes_and_surfaces_are_read_in_every_encoding() {
+    let area = |nodes: &[[f64; 3]], t: &[usize; 3]| {
+        let [a, b, c] = t.map(|i| nalgebra::Vector3::from(nodes[i]));
+        0.5 * (b - a).cross(&(c - a)).norm()
+    };
+    let mut counts = Vec::new();
+    for name in GROUP_FORMATS {
+        let file = read_msh_tagged(&fixture(name)).unwrap_or_else(|e| panic!("{e}"));
+        let group = |n: &str| {
+            file.groups
+                .iter()
+                .find(|g| g.name == n)
+                .unwrap_or_else(|| panic!("{name}: no group {n}"))
+        };
+        let (left, right) = (group("left"), group("right"));
+        assert_eq!((left.dim, right.dim), (3, 3));
+        assert_eq!(
+            left.tets.len() + right.tets.len(),
+            file.tets.len(),
+            "{name}"
+        );
+        // Each volume's tets lie in its half (centroids), and fill it: 0.1 × 0.1 × 0.05 m³
+        // each (sums of exact tet volumes; the tolerance is round-off).
+        for (g, inside) in [(left, 0.0..0.1), (right, 0.1..0.2)] {
+            let tets: Vec<[usize; 4]> = g.tets.iter().map(|&t| file.tets[t]).collect();
+            for t in &tets {
+                let x = t.iter().map(|&i| file.nodes[i][0]).sum::<f64>() / 4.0;
+                assert!(inside.contains(&x), "{name}: {} tet at x = {x}", g.name);
+            }
+            assert!((volume(&file.nodes, &tets) - 5e-4).abs() < 1e-15, "{name}");
+        }
+        let (end, floor) = (group("end"), group("floor"));
+        assert_eq!((end.dim, floor.dim), (2, 2));
+        for (g, axis, at, total) in [(end, 0, 0.2, 0.1 * 0.05), (floor, 2, 0.0, 0.2 * 0.1)] {
+            assert!(g.tets.is_empty());
+            for t in &g.triangles {
+                assert!(
+                    t.iter().all(|&i| file.nodes[i][axis] == at),
+                    "{name}: {}",
+                    g.name
+                );
+            }
+            let sum: f64 = g.triangles.iter().map(|t| area(&file.nodes, t)).sum();
+            assert!((sum - total).abs() < 1e-15, "{name}: {} area {sum}", g.name);
+        }
+        counts.push((
+            left.tets.len(),
+            right.tets.len(),
+            end.triangles.len(),
+            floor.triangles.len(),
+        ));
+    }
+    assert!(counts.windows(2).all(|w| w[0] == w[1]), "{counts:?}");
+}
+
+#[test]
+fn a_file_without_named_groups_has_none() {
+    for name in FOUR_FORMATS {
+        assert!(
+            read_msh_tagged(&fixture(name)).unwrap().groups.is_empty(),
+            "{name}"
+        );
+    }
+}
