@@ -301,6 +301,15 @@ fn mesh_obstacle_errors_name_field_and_file() {
         e.contains("obstacle[0].file") && e.contains("inward"),
         "{e}"
     );
+    // An open floor under the bar whose normal points down, away from the ice: the error
+    // says which side the ice must be on.
+    std::fs::write(
+        dir.path().join("floor_down.obj"),
+        "v -1 -1 -0.001\nv -1 2 -0.001\nv 2 -1 -0.001\nf 1 2 3\n",
+    )
+    .unwrap();
+    let e = err(&with("type = \"mesh\"\nfile = \"floor_down.obj\""));
+    assert!(e.contains("obstacle[0]") && e.contains("reverse the triangles"), "{e}");
     // The open triangle loads, moved by `translate`.
     let scene = Scene::parse(
         &with("type = \"mesh\"\nfile = \"tri.obj\"\ntranslate = [0.0, 0.0, -1.0]"),

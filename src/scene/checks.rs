@@ -196,6 +196,7 @@ impl Validator<'_> {
                             (inner.max - inner.min).norm()
                         )
                     }
+                    Shape::Mesh { surface } if !surface.is_closed() => "; an open surface keeps the ice on the side its triangles' normals point to (right-hand rule): if the ice is meant to be on the other side, reverse the triangles' node order".to_string(),
                     _ => String::new(),
                 };
                 return Err(self.invalid(
