@@ -309,7 +309,10 @@ fn mesh_obstacle_errors_name_field_and_file() {
     )
     .unwrap();
     let e = err(&with("type = \"mesh\"\nfile = \"floor_down.obj\""));
-    assert!(e.contains("obstacle[0]") && e.contains("reverse the triangles"), "{e}");
+    assert!(
+        e.contains("obstacle[0]") && e.contains("reverse the triangles"),
+        "{e}"
+    );
     // The open triangle loads, moved by `translate`.
     let scene = Scene::parse(
         &with("type = \"mesh\"\nfile = \"tri.obj\"\ntranslate = [0.0, 0.0, -1.0]"),
@@ -648,6 +651,17 @@ fn material_errors_name_their_field() {
     error_of(
         &with_body("material = \"stiff\"\n", &format!("{stiff}lambda = 1e9\n")),
         Some("materials.stiff"),
+    );
+    error_of(
+        &with_body(
+            "material = \"stiff\"\n",
+            &format!("{stiff}model = \"linear\"\n"),
+        ),
+        Some("materials.stiff.model"),
+    );
+    error_of(
+        &GOOD.replace("mu = 3.70e10\n", "mu = 3.70e10\nregion = \"base\"\n"),
+        Some("material.region"),
     );
     let err = error_of(
         &(with_body("material = \"stiff\"\n", stiff)

@@ -218,13 +218,15 @@ impl Validator<'_> {
         let mut known = self.groups.borrow_mut();
         for group in groups {
             match known.iter_mut().find(|g| g.name == group.name) {
-                Some(g) if g.dim != group.dim => return Err(self.invalid(
-                    field,
-                    format!(
+                Some(g) if g.dim != group.dim => {
+                    return Err(self.invalid(
+                        field,
+                        format!(
                         "physical group {:?} is a volume in one mesh file and a surface in another",
                         group.name
                     ),
-                )),
+                    ))
+                }
                 Some(g) => *g = Arc::new(g.merged(&group)),
                 None => known.push(Arc::new(group)),
             }

@@ -106,7 +106,7 @@ pub struct SceneFile {
     pub material: MaterialSection,
     /// Further materials by name, for bodies and regions that name them.
     #[serde(default)]
-    pub materials: std::collections::BTreeMap<String, NamedMaterialSection>,
+    pub materials: std::collections::BTreeMap<String, MaterialSection>,
     /// Physics terms.
     #[serde(default)]
     pub physics: PhysicsSection,
@@ -168,7 +168,9 @@ pub struct BoxSection {
     pub tets_per_cell: Option<usize>,
 }
 
-/// `[material]`.
+/// `[material]`, and `[materials.NAME]`: a material other than `[material]` (which sets the
+/// strain measure and volumetric discretisation for all), for the `[[body]]` entries that name
+/// it and for the elements of `region` or of the box `min`–`max` (these override bodies').
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSection {
@@ -187,29 +189,13 @@ pub struct MaterialSection {
     /// Volumetric discretisation, `"element"` (default) or `"nodal"` (average nodal
     /// pressure: no volumetric locking).
     pub volumetric: Option<Volumetric>,
-}
-
-/// `[materials.NAME]`: a material other than `[material]` (which sets the strain measure and
-/// volumetric discretisation for all), for the `[[body]]` entries that name it and for the
-/// elements of `region` or of the box `min`–`max` (these override bodies').
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NamedMaterialSection {
-    /// ρ (kg/m³).
-    pub density: f64,
-    /// λ (Pa); give with `mu`.
-    pub lambda: Option<f64>,
-    /// μ (Pa); give with `lambda`.
-    pub mu: Option<f64>,
-    /// E (Pa); give with `poisson_ratio`.
-    pub youngs_modulus: Option<f64>,
-    /// ν; give with `youngs_modulus`.
-    pub poisson_ratio: Option<f64>,
-    /// A named physical volume of the mesh file whose elements are of this material.
+    /// `[materials.NAME]` only: a named physical volume of the mesh file whose elements are of
+    /// this material.
     pub region: Option<String>,
-    /// Box lower corner (m): elements whose centroid is in the box are of this material.
+    /// `[materials.NAME]` only: box lower corner (m); elements whose centroid is in the box
+    /// are of this material.
     pub min: Option<[f64; 3]>,
-    /// Box upper corner (m).
+    /// `[materials.NAME]` only: box upper corner (m).
     pub max: Option<[f64; 3]>,
 }
 
@@ -942,6 +928,17 @@ impl Validator<'_> {
     }
 
     fn material(&self, m: &MaterialSection) -> Result<(Material, ElasticModel), SceneError> {
+        let only_named = [
+            ("region", m.region.is_some()),
+            ("min", m.min.is_some()),
+            ("max", m.max.is_some()),
+        ];
+        if let Some((key, _)) = only_named.iter().find(|(_, given)| *given) {
+            return Err(self.invalid(
+                &format!("material.{key}"),
+                "[material] holds every element no other claims; regions belong to [materials.NAME] entries",
+            ));
+        }
         let material = self.constants(
             "material",
             m.density,
@@ -1025,6 +1022,17 @@ impl Validator<'_> {
         }
         for (k, (name, m)) in raw.materials.iter().enumerate() {
             let field = format!("materials.{name}");
+            if m.model.is_some() || m.volumetric.is_some() {
+                let key = if m.model.is_some() {
+                    "model"
+                } else {
+                    "volumetric"
+                };
+                return Err(self.invalid(
+                    &format!("{field}.{key}"),
+                    "is set for all materials by [material]",
+                ));
+            }
             let material = self.constants(
                 &field,
                 m.density,
