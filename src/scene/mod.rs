@@ -20,18 +20,12 @@
 //! end_time = 1.0
 //! ```
 
-use crate::fem::{ElasticModel, Material};
 use crate::fracture::FractureSettings;
-use crate::mesh::surface::TriSurface;
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
-use crate::physics::contact::Shape;
-use crate::physics::elasticity::Volumetric;
 use crate::physics::ice_contact::IceContactTerm;
-use crate::physics::obstacle_mesh::ObstacleSurface;
 use crate::physics::plasticity::Plasticity;
 use crate::physics::{
-    Amplitude, Contact, Dirichlet, Elasticity, Group, Model, Motion, Obstacle, Rayleigh, Region,
-    Selection, Traction,
+    Amplitude, Contact, Dirichlet, Elasticity, Group, Model, Rayleigh, Region, Traction,
 };
 use crate::sim::{Analysis, StepSettings};
 use crate::solver::{FactorPrecision, FillOrdering, LinearSolverKind, NewtonParams};
@@ -43,9 +37,14 @@ use std::sync::Arc;
 mod bodies;
 mod checks;
 mod freezing;
+mod materials;
+mod obstacles;
+mod regions;
 
 pub use bodies::{BodySection, InitialSection, RotateSection};
 pub use freezing::FreezingSection;
+pub use materials::MaterialSection;
+pub use obstacles::ObstacleSection;
 
 /// A scene that could not be read or is not valid.
 #[derive(Debug, thiserror::Error)]
@@ -168,37 +167,6 @@ pub struct BoxSection {
     pub tets_per_cell: Option<usize>,
 }
 
-/// `[material]`, and `[materials.NAME]`: a material other than `[material]` (which sets the
-/// strain measure and volumetric discretisation for all), for the `[[body]]` entries that name
-/// it and for the elements of `region` or of the box `min`–`max` (these override bodies').
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MaterialSection {
-    /// ρ (kg/m³).
-    pub density: f64,
-    /// λ (Pa); give with `mu`.
-    pub lambda: Option<f64>,
-    /// μ (Pa); give with `lambda`.
-    pub mu: Option<f64>,
-    /// E (Pa); give with `poisson_ratio`.
-    pub youngs_modulus: Option<f64>,
-    /// ν; give with `youngs_modulus`.
-    pub poisson_ratio: Option<f64>,
-    /// Strain measure, default corotated.
-    pub model: Option<ElasticModel>,
-    /// Volumetric discretisation, `"element"` (default) or `"nodal"` (average nodal
-    /// pressure: no volumetric locking).
-    pub volumetric: Option<Volumetric>,
-    /// `[materials.NAME]` only: a named physical volume of the mesh file whose elements are of
-    /// this material.
-    pub region: Option<String>,
-    /// `[materials.NAME]` only: box lower corner (m); elements whose centroid is in the box
-    /// are of this material.
-    pub min: Option<[f64; 3]>,
-    /// `[materials.NAME]` only: box upper corner (m).
-    pub max: Option<[f64; 3]>,
-}
-
 /// `[physics]`.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -282,44 +250,6 @@ pub struct EigenstrainSection {
     pub region: Option<String>,
     /// e (dimensionless), in (−0.5, 0.5).
     pub value: f64,
-}
-
-/// `[[obstacle]]`: a rigid obstacle, `type = "halfspace"` (with `point`, `normal`),
-/// `type = "container"` (open-top box with inner corners `min`, `max`) or `type = "mesh"`
-/// (a triangle surface from `file`, OBJ or Gmsh, times `scale`, moved by `translate`).
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ObstacleSection {
-    /// "halfspace", "container" or "mesh".
-    #[serde(rename = "type")]
-    pub kind: String,
-    /// Mesh: surface file (.obj or .msh), relative to the scene file.
-    pub file: Option<PathBuf>,
-    /// Mesh: factor applied to the file's coordinates (to metres). Default 1.
-    pub scale: Option<f64>,
-    /// Mesh: translation applied after scaling (m). Default 0.
-    pub translate: Option<[f64; 3]>,
-    /// Half-space: a point on its surface (m).
-    pub point: Option<[f64; 3]>,
-    /// Half-space: normal pointing out of the obstacle (normalised here).
-    pub normal: Option<[f64; 3]>,
-    /// Container: inner lower corner (m).
-    pub min: Option<[f64; 3]>,
-    /// Container: inner upper corner (m); its z is the rim (the top is open).
-    pub max: Option<[f64; 3]>,
-    /// Rigid velocity (m/s). Default 0.
-    pub velocity: Option<[f64; 3]>,
-    /// Angular velocity (rad/s) about `centre`. Default 0.
-    pub angular_velocity: Option<[f64; 3]>,
-    /// The point the obstacle turns about at t = 0 (m); it moves with `velocity`. Default 0.
-    pub centre: Option<[f64; 3]>,
-    /// Amplitude of `velocity` and `angular_velocity` in time: [time (s), factor] points.
-    /// Default 1.
-    pub amplitude: Option<Vec<[f64; 2]>>,
-    /// Penalty stiffness (N/m³). Default 10 E / h (h: mean boundary edge length of the ice).
-    pub stiffness: Option<f64>,
-    /// Coulomb friction coefficient. Default 0.
-    pub friction: Option<f64>,
 }
 
 /// `[plasticity]`.
@@ -526,58 +456,6 @@ impl Validator<'_> {
             ));
         }
         Ok(region)
-    }
-
-    /// Where an entry applies: the box `min`–`max` or the named group `region` (of dimension
-    /// `dim`: 2 surfaces, 3 volumes; `None`: either).
-    fn selection(
-        &self,
-        field: &str,
-        (min, max, region): (Option<[f64; 3]>, Option<[f64; 3]>, Option<&String>),
-        dim: Option<u8>,
-    ) -> Result<Selection, SceneError> {
-        match (min, max, region) {
-            (Some(min), Some(max), None) => Ok(Selection::Box(self.region(field, min, max)?)),
-            (None, None, Some(name)) => {
-                let groups = self.groups.borrow();
-                let listing = || {
-                    let names: Vec<String> = groups
-                        .iter()
-                        .map(|g| format!("{:?} ({})", g.name, kind_name(g.dim)))
-                        .collect();
-                    if names.is_empty() {
-                        "the mesh has no named physical groups".to_string()
-                    } else {
-                        format!("the mesh's groups: {}", names.join(", "))
-                    }
-                };
-                let group = groups.iter().find(|g| &g.name == name).ok_or_else(|| {
-                    self.invalid(
-                        &format!("{field}.region"),
-                        format!("no physical group {name:?}; {}", listing()),
-                    )
-                })?;
-                match dim {
-                    Some(d) if d != group.dim => Err(self.invalid(
-                        &format!("{field}.region"),
-                        format!(
-                            "{name:?} is a {}; this entry needs a {}",
-                            kind_name(group.dim),
-                            kind_name(d)
-                        ),
-                    )),
-                    _ => Ok(Selection::Group(group.clone())),
-                }
-            }
-            (_, _, Some(_)) => Err(self.invalid(
-                &format!("{field}.region"),
-                "give a named `region` or a box `min`/`max`, not both",
-            )),
-            _ => Err(self.invalid(
-                field,
-                "give a box (`min` and `max`, m) or a named `region` (a physical group of the mesh file)",
-            )),
-        }
     }
 
     fn scene(&self, raw: SceneFile, text: &str) -> Result<Scene, SceneError> {
@@ -823,28 +701,6 @@ impl Validator<'_> {
         })
     }
 
-    /// The elements `region` selects (at least one, else an error naming `field`).
-    fn selected_elements(
-        &self,
-        field: &str,
-        mesh: &TetMesh,
-        region: &Selection,
-    ) -> Result<Vec<usize>, SceneError> {
-        let selected: Vec<usize> = (0..mesh.num_tets())
-            .filter(|&t| region.contains_element(&mesh.tets[t].map(|v| mesh.rest[v])))
-            .collect();
-        if selected.is_empty() {
-            return Err(self.invalid(
-                field,
-                format!(
-                    "the {} contains no element centroid of the mesh",
-                    region.describe()
-                ),
-            ));
-        }
-        Ok(selected)
-    }
-
     fn fracture(
         &self,
         f: &FractureSection,
@@ -927,260 +783,6 @@ impl Validator<'_> {
         }
     }
 
-    fn material(&self, m: &MaterialSection) -> Result<(Material, ElasticModel), SceneError> {
-        let only_named = [
-            ("region", m.region.is_some()),
-            ("min", m.min.is_some()),
-            ("max", m.max.is_some()),
-        ];
-        if let Some((key, _)) = only_named.iter().find(|(_, given)| *given) {
-            return Err(self.invalid(
-                &format!("material.{key}"),
-                "[material] holds every element no other claims; regions belong to [materials.NAME] entries",
-            ));
-        }
-        let material = self.constants(
-            "material",
-            m.density,
-            [m.lambda, m.mu, m.youngs_modulus, m.poisson_ratio],
-        )?;
-        Ok((material, m.model.unwrap_or(ElasticModel::Corotated)))
-    }
-
-    /// A material from its density and `[lambda, mu, youngs_modulus, poisson_ratio]` (one
-    /// pair given), the fields named under `field`.
-    fn constants(
-        &self,
-        field: &str,
-        density: f64,
-        pairs: [Option<f64>; 4],
-    ) -> Result<Material, SceneError> {
-        let f = |name: &str| format!("{field}.{name}");
-        let density = self.positive(&f("density"), density)?;
-        Ok(match pairs {
-            [Some(lambda), Some(mu), None, None] => {
-                let lambda = self.finite(&f("lambda"), lambda)?;
-                let mu = self.positive(&f("mu"), mu)?;
-                // Positive bulk modulus ⇔ ν in (−1, 0.5); ν < 0.5 strictly (no incompressibility).
-                if lambda + 2.0 * mu / 3.0 <= 0.0 {
-                    return Err(self.invalid(&f("lambda"), format!("must be > −2μ/3 = {:e} Pa (positive bulk modulus), got {lambda:e}", -2.0 * mu / 3.0)));
-                }
-                Material { lambda, mu, density }
-            }
-            [None, None, Some(e), Some(nu)] => {
-                let e = self.positive(&f("youngs_modulus"), e)?;
-                if !(nu.is_finite() && nu > -1.0 && nu < 0.5) {
-                    return Err(self.invalid(&f("poisson_ratio"), format!("must be in (−1, 0.5), got {nu}")));
-                }
-                Material::from_young_poisson(e, nu, density)
-            }
-            _ => {
-                return Err(self.invalid(
-                    field,
-                    "give either `lambda` and `mu`, or `youngs_modulus` and `poisson_ratio` (exactly one pair)",
-                ))
-            }
-        })
-    }
-
-    /// The `[materials.NAME]` entries into `elasticity`: bodies that name one are made of
-    /// it, then the elements of each entry's region (overriding bodies').
-    fn other_materials(
-        &self,
-        raw: &SceneFile,
-        mesh: &TetMesh,
-        bodies: &[std::ops::Range<usize>],
-        elasticity: &mut Elasticity,
-    ) -> Result<(), SceneError> {
-        let names: Vec<&String> = raw.materials.keys().collect();
-        if names.len() >= u16::MAX as usize {
-            return Err(self.invalid("materials", format!("at most {} entries", u16::MAX - 1)));
-        }
-        let mut index = vec![0u16; mesh.num_tets()];
-        let mut used = vec![false; names.len()];
-        for (b, body) in raw.body.iter().enumerate() {
-            let Some(name) = &body.material else { continue };
-            let k = names.iter().position(|n| *n == name).ok_or_else(|| {
-                self.invalid(
-                    &format!("body[{b}].material"),
-                    format!(
-                        "no [materials.{name}] entry (the scene's materials: {})",
-                        if names.is_empty() {
-                            "none".to_string()
-                        } else {
-                            names
-                                .iter()
-                                .map(|n| format!("{n:?}"))
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        }
-                    ),
-                )
-            })?;
-            index[bodies[b].clone()].fill(k as u16 + 1);
-            used[k] = true;
-        }
-        for (k, (name, m)) in raw.materials.iter().enumerate() {
-            let field = format!("materials.{name}");
-            if m.model.is_some() || m.volumetric.is_some() {
-                let key = if m.model.is_some() {
-                    "model"
-                } else {
-                    "volumetric"
-                };
-                return Err(self.invalid(
-                    &format!("{field}.{key}"),
-                    "is set for all materials by [material]",
-                ));
-            }
-            let material = self.constants(
-                &field,
-                m.density,
-                [m.lambda, m.mu, m.youngs_modulus, m.poisson_ratio],
-            )?;
-            elasticity.other_materials.push(material);
-            if m.min.is_none() && m.max.is_none() && m.region.is_none() {
-                if !used[k] {
-                    return Err(self.invalid(
-                        &field,
-                        "is used nowhere: give it a `region` (or `min`/`max`), or name it in a [[body]]'s `material`",
-                    ));
-                }
-                continue;
-            }
-            let region = self.selection(&field, (m.min, m.max, m.region.as_ref()), Some(3))?;
-            for t in self.selected_elements(&field, mesh, &region)? {
-                index[t] = k as u16 + 1;
-            }
-        }
-        if index.iter().any(|&k| k > 0) {
-            elasticity.material_index = index;
-        }
-        Ok(())
-    }
-
-    fn obstacle(
-        &self,
-        i: usize,
-        o: &ObstacleSection,
-        mesh: &TetMesh,
-        material: &Material,
-    ) -> Result<Obstacle, SceneError> {
-        let field = format!("obstacle[{i}]");
-        let f = |name: &str| format!("{field}.{name}");
-        let misplaced = [
-            ("point", o.point.is_some(), "halfspace"),
-            ("normal", o.normal.is_some(), "halfspace"),
-            ("min", o.min.is_some(), "container"),
-            ("max", o.max.is_some(), "container"),
-            ("file", o.file.is_some(), "mesh"),
-            ("scale", o.scale.is_some(), "mesh"),
-            ("translate", o.translate.is_some(), "mesh"),
-        ];
-        if let Some((name, _, owner)) = misplaced
-            .iter()
-            .find(|(_, given, owner)| *given && *owner != o.kind)
-        {
-            return Err(self.invalid(
-                &f(name),
-                format!(
-                    "belongs to type = \"{owner}\" obstacles, not \"{}\"",
-                    o.kind
-                ),
-            ));
-        }
-        let shape = match o.kind.as_str() {
-            "halfspace" => {
-                let point = o.point.ok_or_else(|| {
-                    self.invalid(&f("point"), "missing (a point on the surface, m)")
-                })?;
-                let normal = o
-                    .normal
-                    .ok_or_else(|| self.invalid(&f("normal"), "missing (outward normal)"))?;
-                let normal = self.vector(&f("normal"), normal)?;
-                if normal.norm() == 0.0 {
-                    return Err(self.invalid(&f("normal"), "must not be zero"));
-                }
-                Shape::HalfSpace {
-                    point: self.vector(&f("point"), point)?,
-                    normal: normal.normalize(),
-                }
-            }
-            "container" => {
-                let min = o
-                    .min
-                    .ok_or_else(|| self.invalid(&f("min"), "missing (inner lower corner, m)"))?;
-                let max = o
-                    .max
-                    .ok_or_else(|| self.invalid(&f("max"), "missing (inner upper corner, m)"))?;
-                let inner = self.region(&field, min, max)?;
-                if (0..3).any(|a| inner.max[a] <= inner.min[a]) {
-                    return Err(self.invalid(&f("max"), "must exceed `min` on every axis"));
-                }
-                Shape::Container { inner }
-            }
-            "mesh" => {
-                let file = o.file.as_ref().ok_or_else(|| {
-                    self.invalid(&f("file"), "missing (surface mesh, .obj or .msh)")
-                })?;
-                let scale = self.positive(&f("scale"), o.scale.unwrap_or(1.0))?;
-                let shift = self.vector(&f("translate"), o.translate.unwrap_or_default())?;
-                let file = self.path.parent().unwrap_or(Path::new("")).join(file);
-                let mut surface =
-                    TriSurface::read(&file, scale).map_err(|source| SceneError::SurfaceFile {
-                        path: self.path.into(),
-                        field: f("file"),
-                        source,
-                    })?;
-                for v in &mut surface.vertices {
-                    *v += shift;
-                }
-                if surface.is_closed() && surface.enclosed_volume() < 0.0 {
-                    return Err(self.invalid(
-                        &f("file"),
-                        format!("{}: the surface is closed but its triangles face inward (negative enclosed volume {:e} m³); reverse their order so normals point out of the obstacle", file.display(), surface.enclosed_volume()),
-                    ));
-                }
-                Shape::Mesh {
-                    surface: Arc::new(ObstacleSurface::new(&surface)),
-                }
-            }
-            other => {
-                return Err(self.invalid(
-                    &f("type"),
-                    format!("must be \"halfspace\", \"container\" or \"mesh\", got {other:?}"),
-                ))
-            }
-        };
-        let stiffness = self.penalty(&f("stiffness"), o.stiffness, mesh, material)?;
-        if o.centre.is_some() && o.angular_velocity.is_none() {
-            return Err(self.invalid(
-                &f("centre"),
-                "is the point the obstacle turns about: give `angular_velocity` with it",
-            ));
-        }
-        if o.amplitude.is_some() && o.velocity.is_none() && o.angular_velocity.is_none() {
-            return Err(self.invalid(
-                &f("amplitude"),
-                "scales the obstacle's `velocity` and `angular_velocity`: give one of them",
-            ));
-        }
-        Ok(Obstacle {
-            shape,
-            motion: Motion {
-                velocity: self.vector(&f("velocity"), o.velocity.unwrap_or_default())?,
-                angular_velocity: self.vector(
-                    &f("angular_velocity"),
-                    o.angular_velocity.unwrap_or_default(),
-                )?,
-                centre: self.vector(&f("centre"), o.centre.unwrap_or_default())?,
-                amplitude: self.amplitude(&f("amplitude"), &o.amplitude)?,
-            },
-            stiffness,
-            friction: self.non_negative(&f("friction"), o.friction.unwrap_or(0.0))?,
-        })
-    }
-
     fn dirichlet(&self, i: usize, d: &DirichletSection) -> Result<Dirichlet, SceneError> {
         let field = format!("dirichlet[{i}]");
         let region = self.selection(&field, (d.min, d.max, d.region.as_ref()), None)?;
@@ -1212,14 +814,5 @@ impl Validator<'_> {
             )?,
             velocity: self.vector(&format!("{field}.velocity"), d.velocity.unwrap_or_default())?,
         })
-    }
-}
-
-/// "surface" or "volume" for a group of dimension 2 or 3.
-fn kind_name(dim: u8) -> &'static str {
-    if dim == 3 {
-        "volume"
-    } else {
-        "surface"
     }
 }
