@@ -268,7 +268,11 @@ impl Contact {
             .zip(&self.face_areas)
             .map(|(face, &area)| {
                 let [a, b, c] = face.map(|i| rest[i] + displacement(u, i));
-                (b - a).cross(&(c - a)).normalize() * area
+                // A triangle crushed flat faces nothing.
+                (b - a)
+                    .cross(&(c - a))
+                    .try_normalize(0.0)
+                    .map_or(Vector3::zeros(), |n| n * area)
             })
             .collect()
     }
