@@ -268,7 +268,14 @@ fn sequences_gifs_and_figures_from_a_file() {
     let pngs = dir.path().join("seq.png");
     let summary = render::render_frames(&reader, &[1, 2, 3], options, &pngs, 30.0).unwrap();
     assert_eq!(summary.frames, 3);
-    for k in 1..=3 {
+    // Numbered 0, 1, 2 whatever the frames' indices (what ffmpeg's %06d expects).
+    assert_eq!(
+        summary.files,
+        (0..3)
+            .map(|k| render::numbered_path(&pngs, k))
+            .collect::<Vec<_>>()
+    );
+    for k in 0..3 {
         let file = render::numbered_path(&pngs, k);
         assert_eq!(
             file.file_name().unwrap().to_string_lossy(),
@@ -394,4 +401,94 @@ fn bad_files_and_frames_are_clear_errors() {
         stderr.contains("has no freeze_state (the scene has no [freezing])"),
         "{stderr}"
     );
+}
+
+#[test]
+fn outputs_are_png_gif_or_mp4_and_mp4_goes_through_ffmpeg() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("box.h5");
+    write_box_file(&run, 3);
+    let exe = env!("CARGO_BIN_EXE_icefem");
+    let icefem = |args: &[&str], path: &str| {
+        let out = std::process::Command::new(exe)
+            .args(args)
+            .env("PATH", path)
+            .output()
+            .unwrap();
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let run_arg = run.to_str().unwrap();
+    let out = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    // Other extensions are refused before anything is drawn.
+    let (ok, err) = icefem(&["render", run_arg, "-o", &out("x.jpg")], "");
+    assert!(!ok && err.contains("cannot write .jpg files"), "{err}");
+    assert!(!dir.path().join("x.jpg").exists());
+    let (ok, err) = icefem(&["figure", run_arg, "-o", &out("f.gif")], "");
+    assert!(!ok && err.contains("give a .png output"), "{err}");
+    // Without ffmpeg on the PATH: a clear error, nothing left behind.
+    let (ok, err) = icefem(
+        &["render", run_arg, "--frames", "0:2", "-o", &out("v.mp4")],
+        "",
+    );
+    assert!(!ok && err.contains("needs ffmpeg on the PATH"), "{err}");
+    assert!(!dir.path().join("v.frames").exists());
+    // A stand-in ffmpeg records how it is called and writes the output it is given.
+    let bin = dir.path().join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    let fake = bin.join("ffmpeg");
+    std::fs::write(
+        &fake,
+        "#!/bin/sh\necho \"$@\" >> \"$(dirname \"$0\")/calls\"\nfor last; do :; done\n\
+         [ \"$1\" = -version ] || ls \"$(dirname \"$last\")\"/v.frames > \"$last\"\n",
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let path = format!("{}:/usr/bin:/bin", bin.display());
+    let (ok, err) = icefem(
+        &[
+            "render",
+            run_arg,
+            "--frames",
+            "0:2",
+            "--fps",
+            "12",
+            "-o",
+            &out("v.mp4"),
+        ],
+        &path,
+    );
+    assert!(ok, "{err}");
+    let calls = std::fs::read_to_string(bin.join("calls")).unwrap();
+    assert!(
+        calls.contains("-framerate 12 -i") && calls.contains("frame_%06d.png"),
+        "{calls}"
+    );
+    // It was handed the three frames numbered from 0, and they are gone afterwards.
+    let listed = std::fs::read_to_string(dir.path().join("v.mp4")).unwrap();
+    assert_eq!(
+        listed.split_whitespace().collect::<Vec<_>>(),
+        ["frame_000000.png", "frame_000001.png", "frame_000002.png"]
+    );
+    assert!(!dir.path().join("v.frames").exists());
+    // The real encoder, where the machine has it: an MP4 container.
+    if std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_ok()
+    {
+        let system = std::env::var("PATH").unwrap_or_default();
+        let (ok, err) = icefem(
+            &["render", run_arg, "--frames", "0:2", "-o", &out("real.mp4")],
+            &system,
+        );
+        assert!(ok, "{err}");
+        let bytes = std::fs::read(dir.path().join("real.mp4")).unwrap();
+        assert_eq!(&bytes[4..8], b"ftyp", "not an MP4 file");
+    } else {
+        eprintln!("ffmpeg is not on this machine's PATH: the real-encoder check was skipped");
+    }
 }

@@ -740,3 +740,60 @@ fn every_gallery_scene_runs_a_few_steps() {
         );
     }
 }
+
+#[test]
+fn command_line_quiet_verbose_and_json() {
+    let exe = env!("CARGO_BIN_EXE_icefem");
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bar.toml");
+    std::fs::write(&scene, GOOD).unwrap();
+    let icefem = |args: &[&str]| {
+        let out = std::process::Command::new(exe).args(args).output().unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let h5 = dir.path().join("bar.h5");
+    let (h5_arg, scene_arg) = (h5.to_str().unwrap(), scene.to_str().unwrap());
+    // Quiet: nothing but the output file.
+    let (stdout, stderr) = icefem(&["-q", "run", scene_arg, "-o", h5_arg]);
+    assert!(stdout.is_empty() && stderr.is_empty(), "{stdout}{stderr}");
+    assert!(h5.exists());
+    // Verbose: a line for each of the 3 steps, with the time left.
+    let (_, stderr) = icefem(&["run", scene_arg, "-o", h5_arg, "--force", "-v"]);
+    let steps: Vec<&str> = stderr.lines().filter(|l| l.starts_with("step ")).collect();
+    assert_eq!(steps.len(), 3, "{stderr}");
+    assert!(steps.iter().all(|l| l.contains(" left")), "{stderr}");
+    // info --json: one object with the counts.
+    let (stdout, _) = icefem(&["info", "--json", h5_arg]);
+    let info: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(info["elements"], 30);
+    assert_eq!(info["complete_frames"], 4);
+    assert_eq!(info["last"]["step"], 3);
+    assert!(info["last_frame"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|d| d["name"] == "positions" && d["shape"][1] == 3));
+    // bench --json: the table as columns and rows.
+    let (stdout, _) = icefem(&[
+        "bench",
+        "--tets",
+        "300",
+        "--steps",
+        "1",
+        "--repeats",
+        "1",
+        "--json",
+    ]);
+    let bench: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let table = &bench["tables"][0];
+    assert_eq!(table["columns"][0], "tets");
+    assert!(table["rows"][0][0].as_f64().unwrap() > 0.0, "{bench}");
+}

@@ -5,6 +5,7 @@
 
 pub mod assembly;
 pub mod bench;
+pub mod eta;
 pub mod fem;
 pub mod fracture;
 pub mod mesh;

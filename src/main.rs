@@ -3,6 +3,7 @@
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use icefem::bench::{self, BenchCommand, SolverOptions};
+use icefem::eta::{format_duration, Eta};
 use icefem::output::FrameReader;
 use icefem::render::{self, ColorField, Cut, RenderOptions, Style, View};
 use icefem::run::{run, Progress, RunOptions};
@@ -24,6 +25,20 @@ use std::time::Instant;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Print only errors (no progress, no summaries).
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    /// Print a line for every step of a run (also on a terminal).
+    #[arg(short, long, global = true)]
+    verbose: bool,
+}
+
+/// How much the commands print besides their results and errors.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Verbosity {
+    Quiet,
+    Normal,
+    Verbose,
 }
 
 #[derive(Subcommand)]
@@ -80,6 +95,9 @@ enum Command {
         /// re-solve), on a pulled ice cube.
         #[arg(long)]
         fracture: bool,
+        /// Print the tables as one JSON object (`tables`: columns and rows; `notes`).
+        #[arg(long, conflicts_with = "single")]
+        json: bool,
     },
     /// Render frames of a run to PNG (one frame or a numbered sequence) or an animated GIF.
     Render {
@@ -119,11 +137,19 @@ enum Command {
     Info {
         /// HDF5 file written by `icefem run`.
         file: PathBuf,
+        /// Print it as one JSON object.
+        #[arg(long)]
+        json: bool,
     },
 }
 
 fn main() {
     let cli = Cli::parse();
+    let verbosity = match (cli.quiet, cli.verbose) {
+        (true, _) => Verbosity::Quiet,
+        (_, true) => Verbosity::Verbose,
+        _ => Verbosity::Normal,
+    };
     let result = match cli.command {
         Command::Run {
             scene,
@@ -140,7 +166,7 @@ fn main() {
                 resume: resume.is_some(),
                 force,
             };
-            run_command(&scene, &options)
+            run_command(&scene, &options, verbosity)
         }
         Command::Bench {
             tets,
@@ -152,6 +178,7 @@ fn main() {
             single,
             contact,
             fracture,
+            json,
         } => {
             let options = SolverOptions {
                 steps,
@@ -176,7 +203,14 @@ fn main() {
                     options,
                 }
             };
-            bench::run(&command, |line| println!("{line}")).map_err(Into::into)
+            if json {
+                let mut lines = Vec::new();
+                bench::run(&command, |line| lines.push(line.to_string()))
+                    .map(|()| println!("{}", bench::json::tables_to_json(&lines)))
+                    .map_err(Into::into)
+            } else {
+                bench::run(&command, |line| println!("{line}")).map_err(Into::into)
+            }
         }
         Command::Render {
             file,
@@ -185,16 +219,28 @@ fn main() {
             output,
             look,
             fps,
-        } => render_command(&file, frame, frames.as_deref(), output, &look, fps),
+        } => render_command(
+            &file,
+            frame,
+            frames.as_deref(),
+            output,
+            &look,
+            fps,
+            verbosity,
+        ),
         Command::Figure {
             file,
             frames,
             output,
             look,
-        } => figure_command(&file, frames, output, &look),
-        Command::Info { file } => icefem::output::describe(&file)
+        } => figure_command(&file, frames, output, &look, verbosity),
+        Command::Info { file, json: false } => icefem::output::describe(&file)
             .map(|text| print!("{text}"))
             .map_err(Into::into),
+        Command::Info { file, json: true } => icefem::output::summary(&file)
+            .map_err(anyhow::Error::from)
+            .and_then(|s| serde_json::to_string_pretty(&s).map_err(Into::into))
+            .map(|text| println!("{text}")),
     };
     if let Err(e) = result {
         eprintln!("error: {}", message(&e));
@@ -292,6 +338,7 @@ fn render_command(
     output: Option<PathBuf>,
     look: &LookArgs,
     fps: f64,
+    verbosity: Verbosity,
 ) -> Result<()> {
     if !(fps.is_finite() && fps > 0.0) {
         anyhow::bail!("--fps must be > 0, got {fps}");
@@ -300,6 +347,9 @@ fn render_command(
     let list = render::select_frames(file, &reader, frame, frames)?;
     let output = output.unwrap_or_else(|| render::default_output(file, &list));
     let summary = render::render_frames(&reader, &list, look.options(), &output, fps)?;
+    if verbosity == Verbosity::Quiet {
+        return Ok(());
+    }
     let n = summary.frames.max(1) as f64;
     match summary.files.as_slice() {
         [one] => println!("wrote {}", one.display()),
@@ -328,7 +378,15 @@ fn figure_command(
     frames: Vec<usize>,
     output: Option<PathBuf>,
     look: &LookArgs,
+    verbosity: Verbosity,
 ) -> Result<()> {
+    let output = output.unwrap_or_else(|| render::sibling(file, "_figure.png"));
+    if render::Target::of(&output)? != render::Target::Png {
+        anyhow::bail!(
+            "{}: a figure is one picture: give a .png output",
+            output.display()
+        );
+    }
     let reader = FrameReader::open(file)?;
     let start = Instant::now();
     let (picture, panels) = render::figure(
@@ -338,8 +396,10 @@ fn figure_command(
             panel: look.options(),
         },
     )?;
-    let output = output.unwrap_or_else(|| render::sibling(file, "_figure.png"));
     render::save_png(&picture, &output)?;
+    if verbosity == Verbosity::Quiet {
+        return Ok(());
+    }
     println!(
         "wrote {} ({}x{}, {:.2} s)",
         output.display(),
@@ -396,7 +456,7 @@ impl From<OrderingArg> for FillOrdering {
     }
 }
 
-fn run_command(scene_path: &Path, options: &RunOptions) -> Result<()> {
+fn run_command(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
     let scene = Scene::load(scene_path)?;
     let interrupt = Arc::new(AtomicBool::new(false));
     {
@@ -419,42 +479,55 @@ fn run_command(scene_path: &Path, options: &RunOptions) -> Result<()> {
         libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
     }
     let m = &scene.model;
-    eprintln!(
-        "icefem {}: {} — {} nodes, {} tets, {:?} {:?}, dt = {:e} s",
-        env!("CARGO_PKG_VERSION"),
-        scene_path.display(),
-        m.num_nodes(),
-        m.mesh.num_tets(),
-        scene.settings.analysis,
-        m.elasticity.model,
-        options.dt.unwrap_or(scene.settings.dt),
-    );
-    for notice in &scene.notices {
-        eprintln!("note: {notice}");
+    let talk = verbosity != Verbosity::Quiet;
+    if talk {
+        eprintln!(
+            "icefem {}: {} — {} nodes, {} tets, {:?} {:?}, dt = {:e} s",
+            env!("CARGO_PKG_VERSION"),
+            scene_path.display(),
+            m.num_nodes(),
+            m.mesh.num_tets(),
+            scene.settings.analysis,
+            m.elasticity.model,
+            options.dt.unwrap_or(scene.settings.dt),
+        );
+        for notice in &scene.notices {
+            eprintln!("note: {notice}");
+        }
     }
-    let terminal = std::io::stderr().is_terminal();
+    // A bar on a terminal; lines (every 2 s, or every step with -v) in a log.
+    let bar_shown = talk && verbosity != Verbosity::Verbose && std::io::stderr().is_terminal();
     let bar = ProgressBar::hidden();
-    if terminal {
+    if bar_shown {
         bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
         bar.set_style(
-            ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} steps  t = {msg}  [{elapsed_precise} < {eta}]",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            ProgressStyle::with_template("{bar:40} {pos}/{len} steps  {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
     }
     let start = Instant::now();
     let mut last_log = Instant::now();
+    let mut eta = Eta::new();
     let summary = run(&scene, options, &interrupt, |p: &Progress| {
-        if terminal {
+        let left = eta.update(start.elapsed().as_secs_f64(), p.time, p.end_time);
+        let left = left.map_or_else(|| "…".to_string(), format_duration);
+        if bar_shown {
             bar.set_length(p.total_steps);
             bar.set_position(p.step);
-            bar.set_message(format!("{:.4} s", p.time));
-        } else if p.step == p.total_steps || last_log.elapsed().as_secs_f64() >= 2.0 || p.step <= 1
+            bar.set_message(format!(
+                "t = {:.4} s  [{} elapsed, ~{left} left]",
+                p.time,
+                format_duration(start.elapsed().as_secs_f64())
+            ));
+        } else if talk
+            && (verbosity == Verbosity::Verbose
+                || p.step == p.total_steps
+                || last_log.elapsed().as_secs_f64() >= 2.0
+                || p.step <= 1)
         {
             last_log = Instant::now();
             eprintln!(
-                "step {}/{}  t = {:.4} s  newton {}  residual {:.2e} N  energy {:.4e} J  {:.3} s/step",
+                "step {}/{}  t = {:.4} s  newton {}  residual {:.2e} N  energy {:.4e} J  {:.3} s/step  ~{left} left",
                 p.step,
                 p.total_steps,
                 p.time,
@@ -466,6 +539,9 @@ fn run_command(scene_path: &Path, options: &RunOptions) -> Result<()> {
         }
     })?;
     bar.finish_and_clear();
+    if !talk && !summary.interrupted {
+        return Ok(());
+    }
     eprintln!(
         "{} {} steps in {:.2} s ({} Newton iterations, max residual {:.2e} N); t = {:.4} s; {} frames in {}",
         if summary.interrupted { "interrupted after" } else { "done:" },

@@ -78,6 +78,8 @@ pub struct Progress<'a> {
     pub total_steps: u64,
     /// Time reached (s).
     pub time: f64,
+    /// Time the run ends at (s).
+    pub end_time: f64,
     /// The step's report.
     pub report: &'a StepReport,
 }
@@ -189,6 +191,7 @@ pub fn run(
             step: sim.state.step,
             total_steps,
             time: sim.state.time,
+            end_time,
             report: &report,
         });
     }

@@ -10,6 +10,7 @@
 //! [`SINGLE_FIELDS`].
 
 pub mod driver;
+pub mod json;
 pub mod problems;
 
 pub use driver::{

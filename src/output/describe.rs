@@ -1,4 +1,4 @@
-//! [`describe`]: the text `icefem info` prints about a run's file.
+//! [`summary`] and [`describe`]: what `icefem info` prints about a run's file (JSON or text).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -11,114 +11,190 @@ use super::hdf5_io::{
 };
 use super::OutputError;
 
-/// Human-readable summary of an icefem output file, for `icefem info`:
-/// version, scene path, node / element counts, frames (complete /
-/// incomplete), time range, stats rows, and the datasets of the last
-/// complete frame with dtypes and shapes.
+/// What an icefem output file holds, for `icefem info` (text or `--json`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FileSummary {
+    /// The file.
+    pub path: String,
+    /// Version of the icefem that wrote it.
+    pub icefem_version: String,
+    /// The scene file's path as the run recorded it (`None`: not recorded).
+    pub scene_path: Option<String>,
+    /// Nodes of the scene's mesh (`None`: unreadable).
+    pub nodes: Option<usize>,
+    /// Elements of the scene's mesh.
+    pub elements: Option<usize>,
+    /// Complete frames.
+    pub complete_frames: usize,
+    /// Frames begun but not completed (a run cut off while writing).
+    pub incomplete_frames: usize,
+    /// Step and time (s) of the first and last complete frames.
+    pub first: Option<FrameTime>,
+    /// See `first`.
+    pub last: Option<FrameTime>,
+    /// Rows of `/stats` (one per step).
+    pub stats_rows: Option<usize>,
+    /// The last complete frame's datasets.
+    pub last_frame: Vec<DatasetSummary>,
+}
+
+/// A frame's step and time.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct FrameTime {
+    /// Frame index (`/frames/NNNNNN`).
+    pub frame: usize,
+    /// Step.
+    pub step: u64,
+    /// Time (s).
+    pub time: f64,
+}
+
+/// One dataset (or the crack group) of a frame.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct DatasetSummary {
+    /// Its name in the frame.
+    pub name: String,
+    /// Element type (`float64`, `int64`, …; `group` for the crack faces).
+    pub dtype: String,
+    /// Shape (the crack group: its triangles' count).
+    pub shape: Vec<usize>,
+    /// How many hard links share the data (more than one: unchanged since an earlier frame).
+    pub links: usize,
+}
+
+/// The summary of the icefem output file at `path`.
 ///
 /// Errors with `NotHdf5` on a non-HDF5 file and `NotIcefem` on an HDF5 file
 /// without `/mesh`, `/frames` or the `icefem_version` root attribute.
-pub fn describe(path: &Path) -> Result<String, OutputError> {
+pub fn summary(path: &Path) -> Result<FileSummary, OutputError> {
     check_hdf5_signature(path)?;
     let file = File::open(path).ctx(path, || "opening".into())?;
     close_on_exec(&file);
     check_icefem_layout(path, &file)?;
-    let version = read_string_attr(path, &file, "icefem_version")?;
-    let scene_path = read_string_attr(path, &file, "scene_path").unwrap_or_else(|_| "?".into());
+    let icefem_version = read_string_attr(path, &file, "icefem_version")?;
+    let scene_path = read_string_attr(path, &file, "scene_path").ok();
     let mesh = file.group("mesh").ctx(path, || "opening /mesh".into())?;
-    let count = |g: &Group, name: &str| -> String {
+    let rows = |g: &Group, name: &str| {
         g.dataset(name)
             .ok()
             .and_then(|d| d.shape().first().copied())
-            .map_or_else(|| "?".into(), |r| r.to_string())
     };
     let frames = file
         .group("frames")
         .ctx(path, || "opening /frames".into())?;
     let list = list_frames(path, &frames)?;
-    let n_complete = list.iter().filter(|f| f.complete).count();
-
-    let mut s = String::new();
-    let _ = writeln!(s, "icefem output {}", path.display());
-    let _ = writeln!(s, "  icefem version : {version}");
-    let _ = writeln!(s, "  scene path     : {scene_path}");
-    let _ = writeln!(
-        s,
-        "  initial mesh   : {} nodes, {} elements",
-        count(&mesh, "rest_positions"),
-        count(&mesh, "tets")
-    );
-    let _ = writeln!(
-        s,
-        "  frames         : {} complete, {} incomplete",
-        n_complete,
-        list.len() - n_complete
-    );
-    let step_time = |f: &FrameEntry| -> Option<(u64, f64)> {
-        let g = frames.group(&f.name).ok()?;
-        let step = g.attr("step").ok()?.read_scalar::<u64>().ok()?;
-        let time = g.attr("time").ok()?.read_scalar::<f64>().ok()?;
-        Some((step, time))
-    };
     let complete: Vec<&FrameEntry> = list.iter().filter(|f| f.complete).collect();
-    match (complete.first(), complete.last()) {
-        (Some(first), Some(last)) => match (step_time(first), step_time(last)) {
-            (Some((s0, t0)), Some((s1, t1))) => {
-                let _ = writeln!(
-                    s,
-                    "  time range     : {t0} s .. {t1} s (steps {s0} .. {s1})"
-                );
-            }
-            _ => {
-                let _ = writeln!(s, "  time range     : ? (unreadable step/time attributes)");
-            }
-        },
-        _ => {
-            let _ = writeln!(s, "  time range     : (no complete frame)");
-        }
-    }
-    let stats_rows = file
-        .group("stats")
-        .ok()
-        .and_then(|g| g.dataset("step").ok())
-        .and_then(|d| d.shape().first().copied());
-    let _ = writeln!(
-        s,
-        "  stats rows     : {}",
-        stats_rows.map_or_else(|| "? (no /stats/step)".into(), |r| r.to_string())
-    );
+    let frame_time = |f: &FrameEntry| -> Option<FrameTime> {
+        let g = frames.group(&f.name).ok()?;
+        Some(FrameTime {
+            frame: f.name.parse().ok()?,
+            step: g.attr("step").ok()?.read_scalar::<u64>().ok()?,
+            time: g.attr("time").ok()?.read_scalar::<f64>().ok()?,
+        })
+    };
+    let stats_rows = file.group("stats").ok().and_then(|g| rows(&g, "step"));
+    let mut last_frame = Vec::new();
     if let Some(last) = complete.last() {
         let g = frames
             .group(&last.name)
             .ctx(path, || format!("opening /frames/{}", last.name))?;
-        let _ = writeln!(s, "  last complete frame /frames/{}:", last.name);
         let names = g
             .member_names()
             .ctx(path, || format!("listing /frames/{}", last.name))?;
         for name in names {
             let Ok(ds) = g.dataset(&name) else {
-                let triangles = g
-                    .dataset(&format!("{name}/triangles"))
-                    .ok()
-                    .and_then(|t| t.shape().first().copied());
-                let _ = match triangles {
-                    Some(t) => writeln!(s, "    {name:<16} group: {t} crack triangles"),
-                    None => writeln!(s, "    {name:<16} (not a dataset)"),
-                };
+                let triangles = rows(&g, &format!("{name}/triangles"));
+                last_frame.push(DatasetSummary {
+                    name,
+                    dtype: "group".into(),
+                    shape: triangles.into_iter().collect(),
+                    links: 1,
+                });
                 continue;
             };
-            let dtype = ds
-                .dtype()
-                .and_then(|t| t.to_descriptor())
-                .map_or_else(|_| "?".into(), |d| d.to_string());
-            let links = ds.loc_info().map(|i| i.num_links).unwrap_or(1);
-            let shared = if links > 1 {
-                format!("  (shared by {links} hard links)")
+            last_frame.push(DatasetSummary {
+                name,
+                dtype: ds
+                    .dtype()
+                    .and_then(|t| t.to_descriptor())
+                    .map_or_else(|_| "?".into(), |d| d.to_string()),
+                shape: ds.shape(),
+                links: ds.loc_info().map(|i| i.num_links).unwrap_or(1),
+            });
+        }
+    }
+    Ok(FileSummary {
+        path: path.display().to_string(),
+        icefem_version,
+        scene_path,
+        nodes: rows(&mesh, "rest_positions"),
+        elements: rows(&mesh, "tets"),
+        complete_frames: complete.len(),
+        incomplete_frames: list.len() - complete.len(),
+        first: complete.first().and_then(|f| frame_time(f)),
+        last: complete.last().and_then(|f| frame_time(f)),
+        stats_rows,
+        last_frame,
+    })
+}
+
+/// Human-readable summary of an icefem output file, for `icefem info`: version, scene path,
+/// node / element counts, frames (complete / incomplete), time range, stats rows, and the
+/// datasets of the last complete frame with dtypes and shapes. Errors as [`summary`].
+pub fn describe(path: &Path) -> Result<String, OutputError> {
+    let f = summary(path)?;
+    let known = |v: Option<usize>| v.map_or_else(|| "?".into(), |r| r.to_string());
+    let mut s = String::new();
+    let _ = writeln!(s, "icefem output {}", f.path);
+    let _ = writeln!(s, "  icefem version : {}", f.icefem_version);
+    let _ = writeln!(
+        s,
+        "  scene path     : {}",
+        f.scene_path.as_deref().unwrap_or("?")
+    );
+    let _ = writeln!(
+        s,
+        "  initial mesh   : {} nodes, {} elements",
+        known(f.nodes),
+        known(f.elements)
+    );
+    let _ = writeln!(
+        s,
+        "  frames         : {} complete, {} incomplete",
+        f.complete_frames, f.incomplete_frames
+    );
+    let _ = match (f.complete_frames, f.first, f.last) {
+        (0, _, _) => writeln!(s, "  time range     : (no complete frame)"),
+        (_, Some(a), Some(b)) => writeln!(
+            s,
+            "  time range     : {} s .. {} s (steps {} .. {})",
+            a.time, b.time, a.step, b.step
+        ),
+        _ => writeln!(s, "  time range     : ? (unreadable step/time attributes)"),
+    };
+    let _ = writeln!(
+        s,
+        "  stats rows     : {}",
+        f.stats_rows
+            .map_or_else(|| "? (no /stats/step)".into(), |r| r.to_string())
+    );
+    if let Some(last) = f.last.filter(|_| f.complete_frames > 0) {
+        let _ = writeln!(s, "  last complete frame /frames/{:06}:", last.frame);
+    }
+    for d in &f.last_frame {
+        let _ = if d.dtype == "group" {
+            match d.shape.first() {
+                Some(t) => writeln!(s, "    {:<16} group: {t} crack triangles", d.name),
+                None => writeln!(s, "    {:<16} (not a dataset)", d.name),
+            }
+        } else {
+            let shared = if d.links > 1 {
+                format!("  (shared by {} hard links)", d.links)
             } else {
                 String::new()
             };
-            let _ = writeln!(s, "    {name:<16} {dtype:<8} {:?}{shared}", ds.shape());
-        }
+            writeln!(s, "    {:<16} {:<8} {:?}{shared}", d.name, d.dtype, d.shape)
+        };
     }
     Ok(s)
 }

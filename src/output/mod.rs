@@ -5,7 +5,7 @@
 //!   that frame back as a [`ResumeFrame`];
 //! - [`write_xdmf`] (`xdmf.rs`) writes the XDMF sidecars;
 //! - [`FrameReader`] (`reader.rs`) reads complete frames back for `render` and `figure`;
-//! - [`describe`] (`describe.rs`) is the text of `icefem info`;
+//! - [`summary`] and [`describe`] (`describe.rs`) are what `icefem info` prints (JSON, text);
 //! - `hdf5_io.rs` holds the HDF5 helpers these share (attributes, matrices, index arrays, the
 //!   signature and layout checks, the listing of `/frames`).
 //!
@@ -79,7 +79,7 @@ mod test_support;
 mod writer;
 mod xdmf;
 
-pub use describe::describe;
+pub use describe::{describe, summary, DatasetSummary, FileSummary, FrameTime};
 pub use reader::{CrackTriangle, FrameReader, StoredFrame, StoredMesh};
 pub use resume::{ResumeFrame, StoredField};
 pub use writer::{OutputWriter, COMMIT_INTERVAL};

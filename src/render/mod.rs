@@ -19,7 +19,7 @@ pub use encode::{save_png, GifWriter};
 pub use figure::{figure, FigureOptions};
 pub use raster::Picture;
 pub use sequence::{
-    default_output, numbered_path, render_frames, select_frames, sibling, RenderSummary,
+    default_output, numbered_path, render_frames, select_frames, sibling, RenderSummary, Target,
 };
 
 use crate::fracture::cracks::OriginalBoundary;

@@ -1,4 +1,5 @@
-//! Rendering a list of frames to files: one PNG, a numbered PNG sequence, or an animated GIF.
+//! Rendering a list of frames to files: one PNG, a numbered PNG sequence, an animated GIF, or
+//! an MP4 video (through `ffmpeg`).
 
 use super::{save_png, GifWriter, RenderError, RenderOptions, Renderer};
 use crate::output::FrameReader;
@@ -57,16 +58,107 @@ pub fn default_output(file: &Path, frames: &[usize]) -> PathBuf {
     }
 }
 
-/// The PNG file of frame `index` when a sequence is written to `path`: `stem_NNNNNN.png`.
-pub fn numbered_path(path: &Path, index: usize) -> PathBuf {
+/// The `k`-th PNG (0, 1, 2, … whatever the frames' indices, as video encoders expect) when a
+/// sequence is written to `path`: `stem_NNNNNN.png`.
+pub fn numbered_path(path: &Path, k: usize) -> PathBuf {
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-    path.with_file_name(format!("{stem}_{index:06}.png"))
+    path.with_file_name(format!("{stem}_{k:06}.png"))
 }
 
-/// Renders `frames` of `reader` to `path`: an animated GIF at `fps` frames per second if
-/// `path` ends in `.gif`, else PNG — `path` itself for one frame, [`numbered_path`] for
-/// several. The colour range (when colouring by a field) is fitted over all the frames, so a
-/// sequence keeps one scale.
+/// What kind of file `icefem render` writes, from the output's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Target {
+    /// `.png`: one picture, or a numbered sequence.
+    Png,
+    /// `.gif`: an animation.
+    Gif,
+    /// `.mp4`: an H.264 video, encoded by `ffmpeg` from a PNG sequence.
+    Mp4,
+}
+
+impl Target {
+    /// The target of `path`; an error names any other extension.
+    pub fn of(path: &Path) -> Result<Self, RenderError> {
+        let extension = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        match extension.as_deref() {
+            Some("png") => Ok(Target::Png),
+            Some("gif") => Ok(Target::Gif),
+            Some("mp4") => Ok(Target::Mp4),
+            other => Err(RenderError::Invalid {
+                path: path.to_path_buf(),
+                message: format!(
+                    "cannot write {}: the output must end in .png (one frame, or a sequence numbered _000000, _000001, …), .gif or .mp4",
+                    other.map_or_else(|| "a file without extension".to_string(), |e| format!(".{e} files"))
+                ),
+            }),
+        }
+    }
+}
+
+/// Checks that `ffmpeg` runs, for an `.mp4` output to `path`.
+fn check_ffmpeg(path: &Path) -> Result<(), RenderError> {
+    match std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+    {
+        Ok(status) if status.success() => Ok(()),
+        _ => Err(RenderError::Invalid {
+            path: path.to_path_buf(),
+            message: "writing .mp4 needs ffmpeg on the PATH, and it is not there: install it (Debian: apt-get install ffmpeg), or write a .gif or a .png sequence".into(),
+        }),
+    }
+}
+
+/// Encodes the PNG sequence `first` (numbered by [`numbered_path`]) at `fps` into the H.264
+/// video `path` with `ffmpeg` (even sizes padded, as the codec needs; yuv420p, which players
+/// expect).
+fn encode_mp4(first: &Path, fps: f64, path: &Path) -> Result<(), RenderError> {
+    let stem = first.file_stem().unwrap_or_default().to_string_lossy();
+    let pattern = first.with_file_name(format!("{stem}_%06d.png"));
+    let out = std::process::Command::new("ffmpeg")
+        .args([
+            "-y",
+            "-loglevel",
+            "error",
+            "-framerate",
+            &fps.to_string(),
+            "-i",
+        ])
+        .arg(&pattern)
+        .args([
+            "-vf",
+            "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+            "-c:v",
+            "libx264",
+            "-pix_fmt",
+            "yuv420p",
+        ])
+        .arg(path)
+        .output();
+    match out {
+        Ok(o) if o.status.success() => Ok(()),
+        Ok(o) => Err(RenderError::Invalid {
+            path: path.to_path_buf(),
+            message: format!(
+                "ffmpeg failed: {}",
+                String::from_utf8_lossy(&o.stderr).trim()
+            ),
+        }),
+        Err(e) => Err(RenderError::Invalid {
+            path: path.to_path_buf(),
+            message: format!("cannot run ffmpeg: {e}"),
+        }),
+    }
+}
+
+/// Renders `frames` of `reader` to `path` by its extension ([`Target`]): an animated GIF or
+/// an MP4 video at `fps` frames per second, or PNG — `path` itself for one frame, the
+/// [`numbered_path`]s for several. The colour range (when colouring by a field) is fitted over
+/// all the frames, so a sequence keeps one scale.
 pub fn render_frames(
     reader: &FrameReader,
     frames: &[usize],
@@ -74,6 +166,22 @@ pub fn render_frames(
     path: &Path,
     fps: f64,
 ) -> Result<RenderSummary, RenderError> {
+    let target = Target::of(path)?;
+    if target == Target::Mp4 {
+        check_ffmpeg(path)?;
+    }
+    // A video is encoded from a PNG sequence in a folder beside it, removed afterwards.
+    let frames_dir = sibling(path, ".frames");
+    let png_path = match target {
+        Target::Mp4 => {
+            std::fs::create_dir_all(&frames_dir).map_err(|source| RenderError::Io {
+                path: frames_dir.clone(),
+                source,
+            })?;
+            frames_dir.join("frame.png")
+        }
+        _ => path.to_path_buf(),
+    };
     let mut summary = RenderSummary::default();
     let mut renderer = Renderer::new(reader, options)?;
     if let (Some(field), None) = (options.color_by, options.range) {
@@ -91,16 +199,14 @@ pub fn render_frames(
         }
         renderer.fit_range(extremes.into_iter().filter(|v| v.abs() < f64::MAX));
     }
-    let is_gif = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gif"));
-    let mut gif = if is_gif {
+    let mut gif = if target == Target::Gif {
         summary.files.push(path.into());
         Some(GifWriter::create(path, options.width, options.height, fps)?)
     } else {
         None
     };
-    for &index in frames {
+    let mut pngs = Vec::new();
+    for (k, &index) in frames.iter().enumerate() {
         let start = Instant::now();
         let frame = reader.read(index)?;
         let drawn = Instant::now();
@@ -109,19 +215,30 @@ pub fn render_frames(
         match &mut gif {
             Some(gif) => gif.push(&picture)?,
             None => {
-                let file = if frames.len() == 1 {
-                    path.to_path_buf()
+                let file = if frames.len() == 1 && target == Target::Png {
+                    png_path.clone()
                 } else {
-                    numbered_path(path, index)
+                    numbered_path(&png_path, k)
                 };
                 save_png(&picture, &file)?;
-                summary.files.push(file);
+                pngs.push(file);
             }
         }
         summary.t_read += (drawn - start).as_secs_f64();
         summary.t_draw += (encoded - drawn).as_secs_f64();
         summary.t_encode += encoded.elapsed().as_secs_f64();
         summary.frames += 1;
+    }
+    if target == Target::Mp4 {
+        let start = Instant::now();
+        let encoded = encode_mp4(&png_path, fps, path);
+        // The PNGs were only the video's input.
+        let _ = std::fs::remove_dir_all(&frames_dir);
+        encoded?;
+        summary.t_encode += start.elapsed().as_secs_f64();
+        summary.files.push(path.to_path_buf());
+    } else {
+        summary.files.extend(pngs);
     }
     Ok(summary)
 }
