@@ -48,6 +48,20 @@ pub fn describe(path: &Path) -> Result<String, OutputError> {
         count(&mesh, "rest_positions"),
         count(&mesh, "tets")
     );
+    if let Ok(obstacles) = file.group("obstacles") {
+        let mut names = obstacles.member_names().unwrap_or_default();
+        names.sort_by_key(|n| n.parse::<usize>().unwrap_or(usize::MAX));
+        let list: Vec<String> = names
+            .iter()
+            .map(|n| {
+                let triangles = obstacles
+                    .group(n)
+                    .map_or_else(|_| "?".into(), |g| count(&g, "triangles"));
+                format!("[[obstacle]] {n} ({triangles} triangles)")
+            })
+            .collect();
+        let _ = writeln!(s, "  mesh obstacles : {}", list.join(", "));
+    }
     let _ = writeln!(
         s,
         "  frames         : {} complete, {} incomplete",
@@ -101,9 +115,22 @@ pub fn describe(path: &Path) -> Result<String, OutputError> {
                     .dataset(&format!("{name}/triangles"))
                     .ok()
                     .and_then(|t| t.shape().first().copied());
-                let _ = match triangles {
-                    Some(t) => writeln!(s, "    {name:<16} group: {t} crack triangles"),
-                    None => writeln!(s, "    {name:<16} (not a dataset)"),
+                let members = g.group(&name).and_then(|m| {
+                    m.member_names().map(|names| {
+                        names
+                            .iter()
+                            .map(|n| match m.dataset(n) {
+                                Ok(d) => format!("{n} {:?}", d.shape()),
+                                Err(_) => n.clone(),
+                            })
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    })
+                });
+                let _ = match (triangles, members) {
+                    (Some(t), _) => writeln!(s, "    {name:<16} group: {t} crack triangles"),
+                    (None, Ok(m)) => writeln!(s, "    {name:<16} group: {m}"),
+                    (None, Err(_)) => writeln!(s, "    {name:<16} (not a dataset)"),
                 };
                 continue;
             };
@@ -143,5 +170,9 @@ mod tests {
         assert!(d.contains("stats rows     : 21"), "{d}");
         assert!(d.contains("positions        float64  [9, 3]"), "{d}");
         assert!(d.contains("plastic_strain   float64  [5, 6]"), "{d}");
+        assert!(
+            d.contains("tensors          group: plastic_strain [5, 9], stress [5, 9]"),
+            "{d}"
+        );
     }
 }
