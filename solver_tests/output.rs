@@ -91,6 +91,40 @@ fn freezing_run_with_plasticity_resumes_bit_identically() {
         plastic(&half),
         "resumed plastic strain differs"
     );
+    // ‖ε_p‖ per element and ε_p as 3 × 3 matrices, in the file and in the sidecar.
+    let file = hdf5::File::open(&full).unwrap();
+    let mut names = file.group("frames").unwrap().member_names().unwrap();
+    names.sort();
+    let last = names.last().unwrap();
+    let g = file.group(&format!("frames/{last}")).unwrap();
+    let (norm, m) = read_rows(&g, "plastic_strain_norm");
+    let (matrices, _) = read_rows(&g, "tensors/plastic_strain");
+    let voigt = plastic(&full);
+    assert_eq!((norm.len(), matrices.len(), voigt.len()), (m, 9 * m, 6 * m));
+    for ((e, a), v) in norm.iter().zip(matrices.chunks(9)).zip(voigt.chunks(6)) {
+        let (xx, yy, zz, yz, xz, xy) = (v[0], v[1], v[2], v[3], v[4], v[5]);
+        assert_eq!(a, [xx, xy, xz, xy, yy, yz, xz, yz, zz]);
+        let frobenius = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+        assert!(
+            (e - frobenius).abs() <= 1e-15 * frobenius.max(1e-12),
+            "{e} vs {frobenius}"
+        );
+    }
+    assert!(norm.iter().any(|&e| e > 0.0));
+    let sidecar = grids(&std::fs::read_to_string(full.with_extension("xdmf")).unwrap());
+    let grid = &sidecar.last().unwrap().2;
+    let p = attribute(grid, "plastic_strain").unwrap();
+    assert!(
+        p.contains("AttributeType=\"Tensor\" Center=\"Cell\"")
+            && p.contains(&format!("Dimensions=\"{m} 9\""))
+            && p.contains(&format!("/frames/{last}/tensors/plastic_strain<")),
+        "{p}"
+    );
+    let n = attribute(grid, "plastic_strain_norm").unwrap();
+    assert!(
+        n.contains("AttributeType=\"Scalar\" Center=\"Cell\""),
+        "{n}"
+    );
 }
 
 fn last_frame(path: &Path) -> (f64, u64, Vec<Vec<f64>>) {
@@ -374,4 +408,157 @@ fn fractured_run_resumes_bit_identically_on_its_split_mesh() {
             "/stats/{column}"
         );
     }
+}
+
+/// The uniform grids of an XDMF sidecar: each one's time, its topology's number of elements,
+/// and its text.
+fn grids(xdmf: &str) -> Vec<(f64, usize, String)> {
+    let value = |text: &str, key: &str| -> String {
+        let start = text
+            .find(key)
+            .unwrap_or_else(|| panic!("no {key} in {text}"))
+            + key.len();
+        text[start..].split('"').next().unwrap().to_string()
+    };
+    xdmf.split("<Grid Name=")
+        .filter(|g| g.contains("GridType=\"Uniform\""))
+        .map(|g| {
+            let time = value(g, "<Time Value=\"").parse().unwrap();
+            let cells = value(g, "NumberOfElements=\"").parse().unwrap();
+            (time, cells, g.to_string())
+        })
+        .collect()
+}
+
+/// The `<Attribute>` named `name` in grid text `grid`, if it has one.
+fn attribute<'a>(grid: &'a str, name: &str) -> Option<&'a str> {
+    let start = grid.find(&format!("<Attribute Name=\"{name}\""))?;
+    let end = start + grid[start..].find("</Attribute>")?;
+    Some(&grid[start..end])
+}
+
+fn read_rows(group: &hdf5::Group, name: &str) -> (Vec<f64>, usize) {
+    let ds = group.dataset(name).unwrap();
+    (ds.read_raw::<f64>().unwrap(), ds.shape()[0])
+}
+
+#[test]
+fn sidecars_of_a_fractured_run_show_every_time_with_its_cracks_and_tensors() {
+    // scenes/pulled_bar.toml cut short (frames every 2 steps to step 12; the bar cracks in
+    // steps 6 to 8), run from a scene path relative to the working directory.
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/pulled_bar.toml"
+    ))
+    .unwrap()
+    .replace("end_time = 0.004           # 40 steps", "end_time = 0.0012");
+    let dir = tempfile::Builder::new()
+        .prefix(".scene_path_test")
+        .tempdir_in(".")
+        .unwrap();
+    std::fs::write(dir.path().join("bar.toml"), &text).unwrap();
+    let relative = Path::new(dir.path().file_name().unwrap()).join("bar.toml");
+    assert!(relative.is_relative() && relative.exists());
+    let scene = Scene::load(&relative).unwrap();
+    let out = dir.path().join("bar.h5");
+    run(
+        &scene,
+        &options(&out, None, false),
+        &AtomicBool::new(false),
+        |_| {},
+    )
+    .unwrap();
+
+    let file = hdf5::File::open(&out).unwrap();
+    let scene_path = file
+        .attr("scene_path")
+        .unwrap()
+        .read_scalar::<hdf5::types::VarLenUnicode>()
+        .unwrap();
+    assert_eq!(
+        Path::new(scene_path.as_str()),
+        std::fs::canonicalize(&relative).unwrap(),
+        "scene_path is the scene's absolute path"
+    );
+
+    let mut names = file.group("frames").unwrap().member_names().unwrap();
+    names.sort();
+    let main = grids(&std::fs::read_to_string(out.with_extension("xdmf")).unwrap());
+    let cracks = grids(&std::fs::read_to_string(out.with_extension("cracks.xdmf")).unwrap());
+    assert_eq!((names.len(), main.len(), cracks.len()), (7, 7, 7));
+    assert_eq!(
+        (cracks[0].0, cracks[0].1),
+        (0.0, 0),
+        "the crack series starts at t = 0 with no crack"
+    );
+    let mut cracked = 0;
+    for (k, name) in names.iter().enumerate() {
+        let g = file.group(&format!("frames/{name}")).unwrap();
+        let time = g.attr("time").unwrap().read_scalar::<f64>().unwrap();
+        let (stress, m) = read_rows(&g, "stress");
+        let n = g.dataset("positions").unwrap().shape()[0];
+        let t = g.dataset("cracks/triangles").unwrap().shape()[0];
+        cracked += usize::from(t > 0);
+        // Every time of the run: the tets and the crack triangles there were then.
+        assert_eq!((main[k].0, main[k].1), (time, m), "{name}");
+        assert_eq!((cracks[k].0, cracks[k].1), (time, t), "{name}");
+        if t == 0 {
+            assert!(!cracks[k].2.contains("cracks/triangles"), "{name}");
+        }
+        let grid = &main[k].2;
+        assert!(!grid.contains("Matrix"), "{name}: {grid}");
+        // The stress as 3 × 3 matrices, declared Tensor.
+        let s = attribute(grid, "stress").unwrap();
+        assert!(
+            s.contains("AttributeType=\"Tensor\" Center=\"Cell\""),
+            "{s}"
+        );
+        assert!(
+            s.contains(&format!(
+                "Dimensions=\"{m} 9\" DataType=\"Float\" Precision=\"8\" Format=\"HDF\">bar.h5:/frames/{name}/tensors/stress<"
+            )),
+            "{s}"
+        );
+        let (matrices, rows) = read_rows(&g, "tensors/stress");
+        assert_eq!(rows, m);
+        for (a, v) in matrices.chunks(9).zip(stress.chunks(6)) {
+            let (xx, yy, zz, yz, xz, xy) = (v[0], v[1], v[2], v[3], v[4], v[5]);
+            assert_eq!(a, [xx, xy, xz, xy, yy, yz, xz, yz, zz]);
+        }
+        // Von Mises and the largest principal stress per element, as scalars.
+        for scalar in ["von_mises", "max_principal_stress"] {
+            let a = attribute(grid, scalar).unwrap();
+            assert!(
+                a.contains("AttributeType=\"Scalar\" Center=\"Cell\""),
+                "{a}"
+            );
+            assert!(a.contains(&format!("Dimensions=\"{m}\" ")), "{scalar}: {a}");
+        }
+        let (von_mises, _) = read_rows(&g, "von_mises");
+        let (principal, _) = read_rows(&g, "max_principal_stress");
+        for ((v, vm), p) in stress.chunks(6).zip(&von_mises).zip(&principal) {
+            let s = nalgebra::Matrix3::new(v[0], v[5], v[4], v[5], v[1], v[3], v[4], v[3], v[2]);
+            let expect = (0.5
+                * ((v[0] - v[1]).powi(2) + (v[1] - v[2]).powi(2) + (v[2] - v[0]).powi(2))
+                + 3.0 * (v[3] * v[3] + v[4] * v[4] + v[5] * v[5]))
+                .sqrt();
+            let scale = s.norm().max(1.0);
+            assert!((vm - expect).abs() <= 1e-12 * scale, "{vm} vs {expect}");
+            let eig = s.symmetric_eigenvalues();
+            let largest = eig.iter().copied().fold(f64::MIN, f64::max);
+            assert!((p - largest).abs() <= 1e-9 * scale, "{p} vs {largest}");
+        }
+        // The 4-column refusal record, as 4 components.
+        let r = attribute(grid, "refused_split").unwrap();
+        assert!(
+            r.contains("AttributeType=\"Vector\" Center=\"Node\"")
+                && r.contains(&format!("Dimensions=\"{n} 4\"")),
+            "{r}"
+        );
+    }
+    assert!(
+        (1..names.len() - 1).contains(&cracked),
+        "frames with cracks and frames before: {cracked} of {} cracked",
+        names.len()
+    );
 }

@@ -24,6 +24,7 @@ fn write_box_file(path: &Path, frames: usize) -> (Vector3<f64>, Vector3<f64>) {
             version: "test",
             rest_positions: &rest,
             tets: &mesh.tets,
+            obstacles: &[],
         },
     )
     .unwrap();
@@ -329,6 +330,7 @@ fn bad_files_and_frames_are_clear_errors() {
         version: "test",
         rest_positions: &rest,
         tets: &mesh.tets,
+        obstacles: &[],
     };
     OutputWriter::create(&empty, &header)
         .unwrap()
@@ -491,4 +493,65 @@ fn outputs_are_png_gif_or_mp4_and_mp4_goes_through_ffmpeg() {
     } else {
         eprintln!("ffmpeg is not on this machine's PATH: the real-encoder check was skipped");
     }
+}
+
+#[test]
+fn mesh_obstacles_are_drawn_from_the_file_after_the_scene_folder_moved() {
+    // scenes/slide_down_ramp.toml cut to two steps: a ramp read from ramp.obj
+    // ([[obstacle]] 0) and a container ([[obstacle]] 1).
+    let dir = tempfile::tempdir().unwrap();
+    let scene_dir = dir.path().join("scene");
+    std::fs::create_dir(&scene_dir).unwrap();
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let text = std::fs::read_to_string(scenes.join("slide_down_ramp.toml"))
+        .unwrap()
+        .replace("end_time = 1.5", "end_time = 0.02");
+    std::fs::write(scene_dir.join("ramp.toml"), text).unwrap();
+    std::fs::copy(scenes.join("ramp.obj"), scene_dir.join("ramp.obj")).unwrap();
+    let scene = Scene::load(&scene_dir.join("ramp.toml")).unwrap();
+    let path = dir.path().join("ramp.h5");
+    let options = RunOptions {
+        output: Some(path.clone()),
+        ..Default::default()
+    };
+    run(&scene, &options, &AtomicBool::new(false), |_| {}).unwrap();
+
+    let picture = |path: &Path| {
+        let reader = FrameReader::open(path).unwrap();
+        let frame = reader.read(0).unwrap();
+        let options = RenderOptions {
+            width: 240,
+            height: 180,
+            ..Default::default()
+        };
+        let renderer = Renderer::new(&reader, options).unwrap();
+        renderer.draw_scene(&reader, &frame).unwrap().rgb
+    };
+    // The file holds the ramp's surface as the scene placed it.
+    let reader = FrameReader::open(&path).unwrap();
+    let stored = reader.obstacle_meshes().unwrap();
+    assert_eq!(stored.len(), 1, "only the mesh obstacle has a surface");
+    assert_eq!((stored[0].index, stored[0].vertices.len()), (0, 6));
+    assert!(stored[0].vertices.contains(&[0.0, 0.2, 0.1]));
+    drop(reader);
+    let before = picture(&path);
+    // A file without the stored surface (as written before surfaces were stored) reads the
+    // ramp from beside the scene: the same picture while the scene is where it was.
+    let bare = dir.path().join("bare.h5");
+    std::fs::copy(&path, &bare).unwrap();
+    hdf5::File::open_rw(&bare)
+        .unwrap()
+        .unlink("obstacles")
+        .unwrap();
+    assert_eq!(picture(&bare), before);
+
+    // The scene's folder moved away: the file still draws the ramp, as before; the file
+    // without it lost the ramp (and its camera, fitted to the ice and the obstacles).
+    std::fs::rename(&scene_dir, dir.path().join("moved")).unwrap();
+    assert_eq!(
+        picture(&path),
+        before,
+        "the picture changed with the scene folder"
+    );
+    assert_ne!(picture(&bare), before, "the ramp was not drawn at all");
 }

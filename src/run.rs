@@ -1,8 +1,10 @@
 //! A whole run: scene → simulation → HDF5 frames, with resume and clean interruption.
 
+use crate::fem;
 use crate::fracture::split::Fracturable;
 use crate::fracture::{Fracture, FractureReport};
-use crate::output::{Field, Frame, OutputError, OutputWriter, RunHeader, StepStats};
+use crate::output::{Field, Frame, ObstacleMesh, OutputError, OutputWriter, RunHeader, StepStats};
+use crate::physics::contact::Shape;
 use crate::scene::{Scene, SceneError};
 use crate::sim::{SimError, Simulation, StepReport};
 use std::path::{Path, PathBuf};
@@ -133,12 +135,15 @@ pub fn run(
         writer
     } else {
         let rest = rows(&sim.model.mesh.rest);
+        let obstacles = obstacle_meshes(&sim);
+        let scene_path = absolute(&scene.path);
         let header = RunHeader {
             scene_text: &scene.text,
-            scene_path: &scene.path.to_string_lossy(),
+            scene_path: &scene_path.to_string_lossy(),
             version: env!("CARGO_PKG_VERSION"),
             rest_positions: &rest,
             tets: &sim.model.mesh.tets,
+            obstacles: &obstacles,
         };
         let mut writer = if options.force {
             OutputWriter::replace(&output, &header)?
@@ -244,6 +249,35 @@ fn stats_row(
     }
 }
 
+/// `path` made absolute (symbolic links and `..` resolved where the file exists), so that the
+/// file's `scene_path` names the scene from any folder.
+fn absolute(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path)
+        .or_else(|_| std::path::absolute(path))
+        .unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// The triangle surfaces of the scene's mesh obstacles at t = 0 (`[[obstacle]]` index, surface),
+/// stored in the file so that pictures of it need not find the surface files.
+fn obstacle_meshes(sim: &Simulation) -> Vec<ObstacleMesh> {
+    let Some(contact) = sim.model.obstacle_contact() else {
+        return Vec::new();
+    };
+    contact
+        .obstacles
+        .iter()
+        .enumerate()
+        .filter_map(|(index, o)| match &o.shape {
+            Shape::Mesh { surface } => Some(ObstacleMesh {
+                index,
+                vertices: rows(&surface.vertices),
+                triangles: surface.triangles.clone(),
+            }),
+            _ => None,
+        })
+        .collect()
+}
+
 fn rows(v: &[nalgebra::Vector3<f64>]) -> Vec<[f64; 3]> {
     v.iter().map(|p| [p.x, p.y, p.z]).collect()
 }
@@ -315,16 +349,36 @@ fn write_frame(
             data: &history.freeze_state,
         });
     }
+    // What ParaView users would otherwise compute with a calculator, per element.
+    let tensors: Vec<_> = stress.iter().map(|s| fem::from_voigt(s)).collect();
+    let von_mises: Vec<f64> = tensors.iter().map(fem::von_mises).collect();
+    let principal: Vec<f64> = tensors.iter().map(fem::max_principal).collect();
+    element_fields.push(Field {
+        name: "von_mises",
+        cols: 1,
+        data: &von_mises,
+    });
+    element_fields.push(Field {
+        name: "max_principal_stress",
+        cols: 1,
+        data: &principal,
+    });
     let plastic: Vec<f64> = history
         .plastic_strain
         .iter()
-        .flat_map(crate::fem::to_voigt)
+        .flat_map(fem::to_voigt)
         .collect();
+    let plastic_norm: Vec<f64> = history.plastic_strain.iter().map(|e| e.norm()).collect();
     if !plastic.is_empty() {
         element_fields.push(Field {
             name: "plastic_strain",
             cols: 6,
             data: &plastic,
+        });
+        element_fields.push(Field {
+            name: "plastic_strain_norm",
+            cols: 1,
+            data: &plastic_norm,
         });
     }
     // Which scene element each element lies in: what a resumed fracture run rebuilds from.
@@ -362,11 +416,6 @@ fn write_frame(
         node_fields: &node_fields,
         cracks: cracks.as_ref(),
     })
-}
-
-/// Symmetric tensor from Voigt order xx yy zz yz xz xy (the inverse of `fem::to_voigt`).
-fn from_voigt(v: &[f64]) -> nalgebra::Matrix3<f64> {
-    nalgebra::Matrix3::new(v[0], v[5], v[4], v[5], v[1], v[3], v[4], v[3], v[2])
 }
 
 fn restore(
@@ -457,7 +506,7 @@ fn restore(
             .ok_or_else(|| {
                 bad("the last complete frame has no element field `plastic_strain`".into())
             })?;
-        sim.state.history.plastic_strain = p.data.chunks(6).map(from_voigt).collect();
+        sim.state.history.plastic_strain = p.data.chunks(6).map(fem::from_voigt).collect();
     }
     Ok(())
 }

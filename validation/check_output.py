@@ -5,13 +5,16 @@ What it checks
 --------------
 * h5py opens ``RUN.h5``; the root attributes, ``/mesh``, every frame's
   datasets (shapes, dtypes, tet indices in range) and the ``/stats`` columns
-  follow the layout documented in ``src/output.rs``; frames that did not
+  follow the layout documented in ``docs/output.md``; frames that did not
   change topology share ``tets`` / ``rest_positions`` with the previous frame
   through hard links (same HDF5 object).
+* every symmetric tensor (``stress``, 6-column fields) is in ``tensors/`` as
+  3 × 3 matrices equal to its Voigt rows.
 * meshio's XDMF ``TimeSeriesReader`` reads ``RUN.xdmf``: one step per complete
-  frame, with the frame's time, and point/cell data equal to the HDF5 data.
-  (meshio reads the mesh of the first frame only; after a topology change
-  its mesh no longer matches the data, which is a meshio limitation.)
+  frame, with the frame's time, and point/cell data equal to the HDF5 data
+  (tensors as their ``tensors/`` matrices). (meshio reads the mesh of the first
+  frame only; after a topology change its mesh no longer matches the data,
+  which is a meshio limitation.)
 * If ParaView's ``pvbatch`` is on PATH (Debian: ``apt-get install paraview``),
   ParaView's default XDMF reader (Xdmf3ReaderS) loads every time step with
   the right point / cell counts, tetrahedra and array component counts.
@@ -103,6 +106,8 @@ def check_hdf5(path):
                           f"{name}/cracks/triangles: index out of range")
                     check(crack.shape == (len(tri),), f"{name}/cracks/crack shape {crack.shape}")
                     continue
+                if k == "tensors":
+                    continue  # checked below, against the Voigt datasets
                 center = ds.attrs.get("center")
                 if isinstance(center, bytes):
                     center = center.decode()
@@ -110,10 +115,20 @@ def check_hdf5(path):
                 rows = m if center == "Cell" else n
                 check(ds.shape[0] == rows, f"{name}/{k}: {ds.shape[0]} rows, expected {rows}")
                 fields[k] = ds[()]
+            # Symmetric tensors again as 3 × 3 matrices (what the sidecar shows).
+            tensors = {}
+            voigt = {"stress": g["stress"][()], **{k: v for k, v in fields.items()
+                                                  if v.ndim == 2 and v.shape[1] == 6}}
+            for k, v in voigt.items():
+                if check(f"tensors/{k}" in g, f"{name}: no tensors/{k}"):
+                    t9 = g[f"tensors/{k}"][()]
+                    check(np.array_equal(t9, v[:, [0, 5, 4, 5, 1, 3, 4, 3, 2]]),
+                          f"{name}/tensors/{k} is not the Voigt {k} as 3 x 3 matrices")
+                    tensors[k] = t9
             frames.append({
                 "name": name, "time": float(g.attrs["time"]), "step": int(g.attrs["step"]),
                 "n": n, "m": m, "velocities": vel, "stress": g["stress"][()],
-                "shared_topology": bool(shared), "fields": fields,
+                "shared_topology": bool(shared), "fields": fields, "tensors": tensors,
             })
 
         cols = ["step", "time", "dt", "newton_iterations", "linear_iterations", "factorizations", "substeps", "residual",
@@ -148,9 +163,10 @@ def check_meshio(xdmf, frames):
             check(t == fr["time"], f"meshio step {k}: time {t} != {fr['time']}")
             check(np.array_equal(point_data.get("velocity"), fr["velocities"]),
                   f"meshio step {k}: velocity differs")
-            check(np.array_equal(cell_data.get("stress", [None])[0], fr["stress"]),
-                  f"meshio step {k}: stress differs")
+            check(np.array_equal(cell_data.get("stress", [None])[0], fr["tensors"].get("stress")),
+                  f"meshio step {k}: stress differs from tensors/stress")
             for name, data in fr["fields"].items():
+                data = fr["tensors"].get(name, data)
                 got = point_data.get(name)
                 if got is None:
                     got = cell_data.get(name, [None])[0]
@@ -216,8 +232,9 @@ def check_paraview(xdmf, frames):
               f"expected {fr['n']} / {fr['m']}")
         check(fr["m"] == 0 or st["cell_type"] == 10, f"ParaView t={t}: cell type is not VTK_TETRA")
         check(st["point_arrays"].get("velocity") == 3, f"ParaView t={t}: velocity {st['point_arrays']}")
-        check(st["cell_arrays"].get("stress") == 6, f"ParaView t={t}: stress {st['cell_arrays']}")
+        check(st["cell_arrays"].get("stress") == 9, f"ParaView t={t}: stress {st['cell_arrays']}")
         for name, data in fr["fields"].items():
+            data = fr["tensors"].get(name, data)
             ncomp = 1 if data.ndim == 1 else data.shape[1]
             got = st["point_arrays"].get(name, st["cell_arrays"].get(name))
             check(got == ncomp, f"ParaView t={t}: field {name} has {got} components, expected {ncomp}")

@@ -118,8 +118,19 @@ class Run:
 
     @property
     def scene_path(self):
-        """The scene file's path as given to ``icefem run``."""
+        """The scene file's absolute path (as given to ``icefem run`` in older files)."""
         return _text(self._file.attrs.get("scene_path", ""))
+
+    @cached_property
+    def obstacle_meshes(self):
+        """The triangle surfaces of the scene's mesh obstacles at t = 0, as the run placed them:
+        dict ``[[obstacle]]`` index → (vertices float [v, 3] m, triangles int [t, 3]); empty
+        without mesh obstacles (and in files written before they were stored)."""
+        group = self._file.get("obstacles", {})
+        return {
+            int(k): (g["vertices"][()], g["triangles"][()])
+            for k, g in sorted(group.items(), key=lambda item: int(item[0]))
+        }
 
     @property
     def icefem_version(self):

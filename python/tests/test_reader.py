@@ -196,6 +196,19 @@ def test_fracture_cracks_and_topology(bar):
         assert len(last.element_fields["origin"]) == len(last.tets)
 
 
+def test_stored_stress_measures_match_the_voigt_stress(bar):
+    with open_run(bar) as run:
+        assert os.path.isabs(run.scene_path)
+        assert run.obstacle_meshes == {}  # the bar has no mesh obstacle
+        for frame in (run[0], run.last()):
+            fields = frame.element_fields
+            scale = np.abs(frame.stress).max()
+            np.testing.assert_allclose(fields["von_mises"], frame.von_mises(), rtol=0, atol=1e-9 * scale)
+            np.testing.assert_allclose(
+                fields["max_principal_stress"], frame.principal_max(), rtol=0, atol=1e-9 * scale
+            )
+
+
 def test_surface_of_a_box(bar):
     with open_run(bar) as run:
         size = np.array(run.scene["mesh"]["box"]["size"])  # m, the box of pulled_bar.toml

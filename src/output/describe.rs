@@ -24,6 +24,8 @@ pub struct FileSummary {
     pub nodes: Option<usize>,
     /// Elements of the scene's mesh.
     pub elements: Option<usize>,
+    /// The mesh obstacles stored in the file (`/obstacles/<k>`): obstacle index and triangles.
+    pub mesh_obstacles: Vec<(usize, Option<usize>)>,
     /// Complete frames.
     pub complete_frames: usize,
     /// Frames begun but not completed (a run cut off while writing).
@@ -49,17 +51,50 @@ pub struct FrameTime {
     pub time: f64,
 }
 
-/// One dataset (or the crack group) of a frame.
+/// One dataset, or group of datasets (`cracks`, `tensors`), of a frame.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct DatasetSummary {
     /// Its name in the frame.
     pub name: String,
-    /// Element type (`float64`, `int64`, …; `group` for the crack faces).
+    /// Element type (`float64`, `int64`, …; `group` for a group).
     pub dtype: String,
-    /// Shape (the crack group: its triangles' count).
+    /// Shape (empty for a group).
     pub shape: Vec<usize>,
     /// How many hard links share the data (more than one: unchanged since an earlier frame).
     pub links: usize,
+    /// A group's datasets.
+    pub members: Vec<DatasetSummary>,
+}
+
+impl DatasetSummary {
+    /// The dataset or group `name` of `g` (`None`: neither).
+    fn of(g: &Group, name: &str) -> Option<Self> {
+        if let Ok(ds) = g.dataset(name) {
+            return Some(DatasetSummary {
+                name: name.into(),
+                dtype: ds
+                    .dtype()
+                    .and_then(|t| t.to_descriptor())
+                    .map_or_else(|_| "?".into(), |d| d.to_string()),
+                shape: ds.shape(),
+                links: ds.loc_info().map(|i| i.num_links).unwrap_or(1),
+                members: Vec::new(),
+            });
+        }
+        let group = g.group(name).ok()?;
+        Some(DatasetSummary {
+            name: name.into(),
+            dtype: "group".into(),
+            shape: Vec::new(),
+            links: 1,
+            members: group
+                .member_names()
+                .unwrap_or_default()
+                .iter()
+                .filter_map(|n| Self::of(&group, n))
+                .collect(),
+        })
+    }
 }
 
 /// The summary of the icefem output file at `path`.
@@ -83,6 +118,21 @@ pub fn summary(path: &Path) -> Result<FileSummary, OutputError> {
         .group("frames")
         .ctx(path, || "opening /frames".into())?;
     let list = list_frames(path, &frames)?;
+    let mut mesh_obstacles: Vec<(usize, Option<usize>)> = match file.group("obstacles") {
+        Ok(g) => g
+            .member_names()
+            .unwrap_or_default()
+            .iter()
+            .filter_map(|n| {
+                Some((
+                    n.parse().ok()?,
+                    g.group(n).ok().and_then(|o| rows(&o, "triangles")),
+                ))
+            })
+            .collect(),
+        Err(_) => Vec::new(),
+    };
+    mesh_obstacles.sort_unstable();
     let complete: Vec<&FrameEntry> = list.iter().filter(|f| f.complete).collect();
     let frame_time = |f: &FrameEntry| -> Option<FrameTime> {
         let g = frames.group(&f.name).ok()?;
@@ -101,27 +151,10 @@ pub fn summary(path: &Path) -> Result<FileSummary, OutputError> {
         let names = g
             .member_names()
             .ctx(path, || format!("listing /frames/{}", last.name))?;
-        for name in names {
-            let Ok(ds) = g.dataset(&name) else {
-                let triangles = rows(&g, &format!("{name}/triangles"));
-                last_frame.push(DatasetSummary {
-                    name,
-                    dtype: "group".into(),
-                    shape: triangles.into_iter().collect(),
-                    links: 1,
-                });
-                continue;
-            };
-            last_frame.push(DatasetSummary {
-                name,
-                dtype: ds
-                    .dtype()
-                    .and_then(|t| t.to_descriptor())
-                    .map_or_else(|_| "?".into(), |d| d.to_string()),
-                shape: ds.shape(),
-                links: ds.loc_info().map(|i| i.num_links).unwrap_or(1),
-            });
-        }
+        last_frame = names
+            .iter()
+            .filter_map(|n| DatasetSummary::of(&g, n))
+            .collect();
     }
     Ok(FileSummary {
         path: path.display().to_string(),
@@ -129,6 +162,7 @@ pub fn summary(path: &Path) -> Result<FileSummary, OutputError> {
         scene_path,
         nodes: rows(&mesh, "rest_positions"),
         elements: rows(&mesh, "tets"),
+        mesh_obstacles,
         complete_frames: complete.len(),
         incomplete_frames: list.len() - complete.len(),
         first: complete.first().and_then(|f| frame_time(f)),
@@ -158,6 +192,14 @@ pub fn describe(path: &Path) -> Result<String, OutputError> {
         known(f.nodes),
         known(f.elements)
     );
+    if !f.mesh_obstacles.is_empty() {
+        let list: Vec<String> = f
+            .mesh_obstacles
+            .iter()
+            .map(|(k, t)| format!("[[obstacle]] {k} ({} triangles)", known(*t)))
+            .collect();
+        let _ = writeln!(s, "  mesh obstacles : {}", list.join(", "));
+    }
     let _ = writeln!(
         s,
         "  frames         : {} complete, {} incomplete",
@@ -183,9 +225,21 @@ pub fn describe(path: &Path) -> Result<String, OutputError> {
     }
     for d in &f.last_frame {
         let _ = if d.dtype == "group" {
-            match d.shape.first() {
-                Some(t) => writeln!(s, "    {:<16} group: {t} crack triangles", d.name),
-                None => writeln!(s, "    {:<16} (not a dataset)", d.name),
+            match d.members.iter().find(|m| m.name == "triangles") {
+                Some(t) => writeln!(
+                    s,
+                    "    {:<16} group: {} crack triangles",
+                    d.name,
+                    t.shape.first().unwrap_or(&0)
+                ),
+                None => {
+                    let members: Vec<String> = d
+                        .members
+                        .iter()
+                        .map(|m| format!("{} {:?}", m.name, m.shape))
+                        .collect();
+                    writeln!(s, "    {:<16} group: {}", d.name, members.join(", "))
+                }
             }
         } else {
             let shared = if d.links > 1 {
@@ -219,5 +273,9 @@ mod tests {
         assert!(d.contains("stats rows     : 21"), "{d}");
         assert!(d.contains("positions        float64  [9, 3]"), "{d}");
         assert!(d.contains("plastic_strain   float64  [5, 6]"), "{d}");
+        assert!(
+            d.contains("tensors          group: plastic_strain [5, 9], stress [5, 9]"),
+            "{d}"
+        );
     }
 }

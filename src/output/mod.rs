@@ -15,6 +15,9 @@
 //! /                      attrs: scene (TOML text), scene_path, icefem_version, format_version (u32)
 //! /mesh/rest_positions   f64 [n, 3]  reference configuration (m)
 //! /mesh/tets             i64 [m, 4]  0-based node indices of each linear tetrahedron
+//! /obstacles/<k>         the scene's k-th [[obstacle]] when it is a triangle mesh, at t = 0:
+//!     vertices           f64 [v, 3] (m)
+//!     triangles          i64 [t, 3]  indices into vertices
 //! /frames/NNNNNN         one group per output frame, NNNNNN = 0-based frame index (6+ digits)
 //!     attrs: step (u64), time (f64, s), complete (u8, = 1, written last)
 //!     positions          f64 [n, 3]  (m)
@@ -23,6 +26,8 @@
 //!     tets               i64 [m, 4]        hard link to the previous frame's when topology is unchanged
 //!     stress             f64 [m, 6]  Cauchy stress, Voigt order xx yy zz yz xz xy (Pa)
 //!     <field>            f64 [rows] if cols == 1, else [rows, cols]; attr center = "Cell" | "Node"
+//!     tensors/           stress and every 6-column (Voigt) field again as 3 × 3 matrices:
+//!         <name>         f64 [rows, 9]  row-major xx xy xz yx yy yz zx zy zz; attr center
 //!     cracks/            fracture runs only: the crack faces as separate triangles
 //!         vertices       f64 [3t, 3] (m), drawn with the rendering gap where a crack is closed
 //!         triangles      i64 [t, 3]  indices into vertices
@@ -102,15 +107,31 @@ const RESERVED_FRAME_NAMES: [&str; 5] = [
     "stress",
 ];
 
+/// Groups inside a frame group: the crack surface and the symmetric tensors as 3 × 3 matrices.
+const FRAME_GROUPS: [&str; 2] = ["cracks", "tensors"];
+
+/// The group of a frame holding each symmetric tensor as 3 × 3 matrices.
+const TENSORS: &str = "tensors";
+
+/// A symmetric tensor in Voigt order xx yy zz yz xz xy as a 3 × 3 matrix, row-major:
+/// xx xy xz, yx yy yz, zx zy zz.
+fn voigt_to_matrix(v: &[f64]) -> [f64; 9] {
+    [v[0], v[5], v[4], v[5], v[1], v[3], v[4], v[3], v[2]]
+}
+
 /// One per-element or per-node field stored in a frame, row-major (rows × cols).
 ///
 /// `rows` is implied: the element count for element fields, the node count for
 /// node fields; `data.len()` must equal `rows * cols`. Units are the caller's
 /// (document them in the field name's meaning, e.g. strain is dimensionless).
+///
+/// A field of 6 columns is a symmetric tensor in Voigt order xx yy zz yz xz xy (off-diagonal
+/// entries are tensor components); the writer also stores it as 3 × 3 matrices in
+/// `tensors/<name>` [rows, 9], the layout the XDMF sidecar shows.
 pub struct Field<'a> {
     /// Dataset name inside the frame group; must not contain `/`, be `.`, or
-    /// collide with a built-in dataset (`positions`, `velocities`,
-    /// `rest_positions`, `tets`, `stress`).
+    /// collide with a built-in dataset or group (`positions`, `velocities`,
+    /// `rest_positions`, `tets`, `stress`, `cracks`, `tensors`).
     pub name: &'a str,
     /// Number of components per row (≥ 1). Fields with one column are stored
     /// as 1-D datasets.
@@ -131,6 +152,21 @@ pub struct RunHeader<'a> {
     pub rest_positions: &'a [[f64; 3]],
     /// Initial tetrahedra, 0-based node indices, `/mesh/tets` [m, 4] (i64).
     pub tets: &'a [[usize; 4]],
+    /// The triangle surfaces of the scene's mesh obstacles, `/obstacles/<index>`.
+    pub obstacles: &'a [ObstacleMesh],
+}
+
+/// A triangle-mesh obstacle's surface at t = 0, as the scene placed it (scaled and
+/// translated): group `/obstacles/<index>` with `vertices` f64 [v, 3] (m) and `triangles`
+/// i64 [t, 3] (0-based, outward by the right-hand rule).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObstacleMesh {
+    /// Which `[[obstacle]]` of the scene it is (0-based, in the scene's order).
+    pub index: usize,
+    /// Vertices at t = 0 (m).
+    pub vertices: Vec<[f64; 3]>,
+    /// Vertex indices of each triangle.
+    pub triangles: Vec<[usize; 3]>,
 }
 
 /// One output frame.
@@ -155,7 +191,7 @@ pub struct Frame<'a> {
     /// then be unchanged).
     pub topology_changed: bool,
     /// Per-element Cauchy stress (Pa), Voigt order xx yy zz yz xz xy, dataset
-    /// `stress` [m, 6].
+    /// `stress` [m, 6] (and as 3 × 3 matrices, `tensors/stress` [m, 9]).
     pub stress: &'a [[f64; 6]],
     /// Extra per-element state (e.g. `eigenstrain` m×1, `plastic_strain` m×6).
     pub element_fields: &'a [Field<'a>],

@@ -10,7 +10,7 @@ use super::hdf5_io::{
     read_string_attr, read_tets, read_vec3, FrameEntry, Hdf5Context,
 };
 use super::resume::{read_frame, ResumeFrame};
-use super::{corrupt, OutputError};
+use super::{corrupt, ObstacleMesh, OutputError};
 
 /// A crack triangle as drawn: its three vertices (m) and the crack it belongs to.
 pub type CrackTriangle = ([[f64; 3]; 3], usize);
@@ -130,6 +130,54 @@ impl FrameReader {
         let rest = read_vec3(&self.path, &g, "rest_positions")?;
         let tets = read_tets(&self.path, &g, "tets", rest.len())?;
         Ok((rest, tets))
+    }
+
+    /// The triangle surfaces of the scene's mesh obstacles stored in `/obstacles` (empty for a
+    /// file without them: no mesh obstacles, or written before they were stored).
+    pub fn obstacle_meshes(&self) -> Result<Vec<ObstacleMesh>, OutputError> {
+        let path = &self.path;
+        let Ok(group) = self.file.group("obstacles") else {
+            return Ok(Vec::new());
+        };
+        let names = group
+            .member_names()
+            .ctx(path, || "listing /obstacles".into())?;
+        let mut meshes = Vec::new();
+        for name in names {
+            let Ok(index) = name.parse::<usize>() else {
+                continue;
+            };
+            let g = group
+                .group(&name)
+                .ctx(path, || format!("opening /obstacles/{name}"))?;
+            let vertices = read_vec3(path, &g, "vertices")?;
+            let (ds, _) = open_2d(path, &g, "triangles", 3)?;
+            let flat = ds
+                .read_raw::<i64>()
+                .ctx(path, || format!("reading /obstacles/{name}/triangles"))?;
+            let vertex = |v: i64| {
+                usize::try_from(v)
+                    .ok()
+                    .filter(|&i| i < vertices.len())
+                    .ok_or_else(|| {
+                        corrupt(
+                            path,
+                            format!("/obstacles/{name}/triangles: vertex index {v} out of range"),
+                        )
+                    })
+            };
+            let triangles = flat
+                .chunks_exact(3)
+                .map(|t| Ok([vertex(t[0])?, vertex(t[1])?, vertex(t[2])?]))
+                .collect::<Result<Vec<_>, OutputError>>()?;
+            meshes.push(ObstacleMesh {
+                index,
+                vertices,
+                triangles,
+            });
+        }
+        meshes.sort_by_key(|o| o.index);
+        Ok(meshes)
     }
 
     /// Reads complete frame `index`; an index that is not a complete frame is an error that

@@ -52,6 +52,7 @@ pub(super) fn header<'a>(p: &'a [[f64; 3]], t: &'a [[usize; 4]]) -> RunHeader<'a
         version: "0.1.0-test",
         rest_positions: p,
         tets: t,
+        obstacles: &[],
     }
 }
 

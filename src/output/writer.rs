@@ -12,8 +12,8 @@ use super::hdf5_io::{
 use super::ownership::{check_target, partial_path, remove_stale_partials, take_place, RunLock};
 use super::xdmf::{write_sidecars, FrameRecord};
 use super::{
-    corrupt, invalid, Frame, OutputError, RunHeader, StepStats, FORMAT_VERSION,
-    RESERVED_FRAME_NAMES,
+    corrupt, invalid, voigt_to_matrix, Frame, OutputError, RunHeader, StepStats, FORMAT_VERSION,
+    FRAME_GROUPS, RESERVED_FRAME_NAMES, TENSORS,
 };
 
 /// Rows appended to `/stats` per chunk; 4096 rows × 8 B = 32 KiB chunks keep
@@ -194,12 +194,15 @@ const COMMIT_RESERVE: u64 = 1 << 20;
 /// plus its groups' and attributes' headers.
 fn frame_bytes(frame: &Frame) -> u64 {
     let rows3 = 24 * frame.positions.len() as u64;
-    let mut bytes = 16_384 + 2 * rows3 + 48 * frame.stress.len() as u64;
+    // Stress in Voigt order and as 3 × 3 matrices.
+    let mut bytes = 16_384 + 2 * rows3 + 120 * frame.stress.len() as u64;
     if frame.topology_changed {
         bytes += rows3 + 32 * frame.tets.len() as u64;
     }
     for f in frame.element_fields.iter().chain(frame.node_fields) {
-        bytes += 8 * f.data.len() as u64;
+        // A 6-column field is stored again as matrices: 8 + 8 × 9 / 6 bytes a value.
+        let per_value = if f.cols == 6 { 20 } else { 8 };
+        bytes += per_value * f.data.len() as u64;
     }
     if let Some(c) = frame.cracks {
         bytes += 24 * (c.vertices.len() + c.triangles.len()) as u64 + 8 * c.crack.len() as u64;
@@ -297,6 +300,15 @@ impl OutputWriter {
     /// Creates the file at `path`, locks it and writes the run header.
     fn write_header(path: &Path, header: &RunHeader) -> Result<(File, RunLock), OutputError> {
         check_tets(path, "mesh", header.tets, header.rest_positions.len())?;
+        for o in header.obstacles {
+            let v = o.vertices.len();
+            if o.triangles.as_flattened().iter().any(|&i| i >= v) {
+                return Err(invalid(
+                    path,
+                    format!("obstacle {}: a triangle index is not < {v}", o.index),
+                ));
+            }
+        }
         let scene = vlen_str(path, "scene", header.scene_text)?;
         let scene_path = vlen_str(path, "scene_path", header.scene_path)?;
         let version = vlen_str(path, "icefem_version", header.version)?;
@@ -317,6 +329,18 @@ impl OutputWriter {
             .ctx(path, || "creating /mesh".into())?;
         write_vec3(path, &mesh, "rest_positions", header.rest_positions)?;
         write_tets(path, &mesh, "tets", header.tets)?;
+        if !header.obstacles.is_empty() {
+            let obstacles = file
+                .create_group("obstacles")
+                .ctx(path, || "creating /obstacles".into())?;
+            for o in header.obstacles {
+                let g = obstacles
+                    .create_group(&o.index.to_string())
+                    .ctx(path, || format!("creating /obstacles/{}", o.index))?;
+                write_vec3(path, &g, "vertices", &o.vertices)?;
+                write_indices(path, &g, "triangles", &o.triangles)?;
+            }
+        }
         file.create_group("frames")
             .ctx(path, || "creating /frames".into())?;
         let stats = file
@@ -438,6 +462,26 @@ impl OutputWriter {
                 write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
             }
         }
+        // The symmetric tensors again as 3 × 3 matrices: the one layout VTK's XDMF readers
+        // both read as the tensor it is (see `xdmf.rs`).
+        let tensors = g
+            .create_group(TENSORS)
+            .ctx(&path, || format!("creating the tensors of frame {name}"))?;
+        let voigt = std::iter::once(("stress", "Cell", stress)).chain(
+            [(frame.element_fields, "Cell"), (frame.node_fields, "Node")]
+                .into_iter()
+                .flat_map(|(fields, center)| fields.iter().map(move |f| (f, center)))
+                .filter(|(f, _)| f.cols == 6)
+                .map(|(f, center)| (f.name, center, f.data)),
+        );
+        for (field, center, data) in voigt {
+            let matrices: Vec<f64> = data.chunks_exact(6).flat_map(voigt_to_matrix).collect();
+            write_matrix(&path, &tensors, field, data.len() / 6, 9, &matrices)?;
+            let ds = tensors
+                .dataset(field)
+                .ctx(&path, || format!("reopening {TENSORS}/{field}"))?;
+            write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
+        }
         if let Some(c) = frame.cracks {
             let cg = g
                 .create_group("cracks")
@@ -500,6 +544,7 @@ impl OutputWriter {
                     || f.name.contains('/')
                     || f.name.contains('\0')
                     || RESERVED_FRAME_NAMES.contains(&f.name)
+                    || FRAME_GROUPS.contains(&f.name)
                 {
                     return Err(invalid(
                         path,
@@ -523,12 +568,6 @@ impl OutputWriter {
                     ));
                 }
             }
-        }
-        if seen.contains(&"cracks") && frame.cracks.is_some() {
-            return Err(invalid(
-                path,
-                "a field is named \"cracks\", like the crack group",
-            ));
         }
         if let Some(c) = frame.cracks {
             let k = c.vertices.len();
@@ -806,6 +845,18 @@ mod tests {
                 vec![5, 6]
             );
             assert_eq!(read_f64(&f, &format!("{g}/plastic_strain")), d.plastic);
+            // The symmetric tensors again as 3 × 3 matrices, row-major.
+            for (name, voigt) in [
+                ("stress", d.stress.as_flattened()),
+                ("plastic_strain", &d.plastic[..]),
+            ] {
+                let matrices = read_f64(&f, &format!("{g}/tensors/{name}"));
+                assert_eq!(matrices.len(), 9 * voigt.len() / 6);
+                for (a, v) in matrices.chunks(9).zip(voigt.chunks(6)) {
+                    let [xx, yy, zz, yz, xz, xy] = [v[0], v[1], v[2], v[3], v[4], v[5]];
+                    assert_eq!(a, [xx, xy, xz, xy, yy, yz, xz, yz, zz]);
+                }
+            }
             assert_eq!(read_f64(&f, &format!("{g}/temperature")), d.temp);
             let tets = f
                 .dataset(&format!("{g}/tets"))
@@ -857,9 +908,50 @@ mod tests {
         assert_eq!(xdmf.matches("GridType=\"Uniform\"").count(), 3);
         assert!(xdmf.contains("run.h5:/frames/000002/tets"));
         assert!(!xdmf.contains(&dir.path().display().to_string()));
-        assert!(xdmf.contains("Name=\"plastic_strain\" AttributeType=\"Matrix\" Center=\"Cell\""));
+        assert!(xdmf.contains("Name=\"plastic_strain\" AttributeType=\"Tensor\" Center=\"Cell\""));
+        assert!(xdmf.contains("Name=\"stress\" AttributeType=\"Tensor\" Center=\"Cell\""));
+        assert!(xdmf.contains("Dimensions=\"5 9\" DataType=\"Float\" Precision=\"8\" Format=\"HDF\">run.h5:/frames/000002/tensors/stress<"));
+        assert!(xdmf.contains("run.h5:/frames/000002/tensors/plastic_strain<"));
+        // Not the Voigt datasets, which VTK's readers cannot read as tensors.
+        assert!(!xdmf.contains("Matrix"));
+        assert_eq!(
+            xdmf.matches("/stress<").count(),
+            xdmf.matches("/tensors/stress<").count()
+        );
         assert!(xdmf.contains("Name=\"eigenstrain\" AttributeType=\"Scalar\" Center=\"Cell\""));
         assert!(xdmf.contains("Name=\"temperature\" AttributeType=\"Scalar\" Center=\"Node\""));
+    }
+
+    #[test]
+    fn a_file_without_tensor_matrices_gets_a_sidecar_without_tensors() {
+        // As a file written before `tensors/` was stored: its Voigt datasets are not shown
+        // (VTK's readers would read them wrong), everything else is.
+        let _guard = hdf5_guard();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.h5");
+        write_run(&path);
+        let written = std::fs::read_to_string(path.with_extension("xdmf")).unwrap();
+        let f = File::open_rw(&path).unwrap();
+        for k in 0..3 {
+            f.unlink(&format!("frames/{k:06}/tensors")).unwrap();
+        }
+        drop(f);
+        super::super::write_xdmf(&path).unwrap();
+        let xdmf = std::fs::read_to_string(path.with_extension("xdmf")).unwrap();
+        assert_eq!(xdmf.matches("GridType=\"Uniform\"").count(), 3);
+        for name in ["stress", "plastic_strain"] {
+            let attribute = format!("<Attribute Name=\"{name}\"");
+            assert_eq!(written.matches(&attribute).count(), 3);
+            assert!(!xdmf.contains(&attribute), "{xdmf}");
+        }
+        assert!(!xdmf.contains("Matrix"));
+        for name in ["eigenstrain", "temperature", "velocity", "rest_position"] {
+            assert_eq!(
+                xdmf.matches(&format!("<Attribute Name=\"{name}\"")).count(),
+                3,
+                "{name}"
+            );
+        }
     }
 
     #[test]

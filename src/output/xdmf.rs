@@ -1,5 +1,6 @@
 //! The XDMF 3 sidecars of a run's file: `RUN.xdmf` (the tet mesh of every complete frame,
-//! for ParaView / meshio) and, with fracture, `RUN.cracks.xdmf` (the crack surfaces).
+//! for ParaView and VTK's XDMF readers) and, with fracture, `RUN.cracks.xdmf` (the crack
+//! surfaces of every complete frame).
 //!
 //! The sidecars are made from a [`FrameRecord`] per complete frame — the names, shapes and
 //! types of its datasets — which the writer keeps as it writes frames, so a running run rewrites
@@ -18,7 +19,7 @@ use super::hdf5_io::{
     check_hdf5_signature, check_icefem_layout, list_frames, open_2d, open_read, read_attr,
     read_string, Hdf5Context,
 };
-use super::{corrupt, invalid, Frame, OutputError, RESERVED_FRAME_NAMES};
+use super::{corrupt, invalid, Frame, OutputError, RESERVED_FRAME_NAMES, TENSORS};
 
 /// One dataset as a sidecar describes it: shape and number type.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,24 +85,32 @@ impl FrameRecord {
     /// attribute list when the layout is the same.
     pub(super) fn of(index: usize, frame: &Frame, previous: Option<&FrameRecord>) -> Self {
         let (n, m) = (frame.positions.len(), frame.tets.len());
-        let mut attributes: Vec<AttributeRecord> = BUILTINS
-            .iter()
-            .zip([float(n, 3), float(n, 3), float(m, 6)])
-            .map(|(&(name, dataset, center), item)| builtin(name, dataset, center, item))
-            .collect();
+        let mut attributes = vec![
+            builtin("velocity", "velocities", "Node", float(n, 3)),
+            builtin("rest_position", "rest_positions", "Node", float(n, 3)),
+            builtin("stress", &format!("{TENSORS}/stress"), "Cell", float(m, 9)),
+        ];
         for (fields, center, rows) in [
             (frame.element_fields, "Cell", m),
             (frame.node_fields, "Node", n),
         ] {
             for f in fields {
-                let cols = if f.cols == 1 { 0 } else { f.cols };
-                attributes.push(builtin(f.name, f.name, center, float(rows, cols)));
+                attributes.push(match f.cols {
+                    6 => builtin(
+                        f.name,
+                        &format!("{TENSORS}/{}", f.name),
+                        center,
+                        float(rows, 9),
+                    ),
+                    1 => builtin(f.name, f.name, center, float(rows, 0)),
+                    cols => builtin(f.name, f.name, center, float(rows, cols)),
+                });
             }
         }
         // Fields in name order (as `read_record` lists them).
-        attributes[BUILTINS.len()..].sort_by(|a, b| a.dataset.cmp(&b.dataset));
+        attributes[BUILTINS..].sort_by(|a, b| a.name.cmp(&b.name));
         let attributes = shared(attributes, previous);
-        let cracks = frame.cracks.filter(|c| !c.triangles.is_empty()).map(|c| {
+        let cracks = frame.cracks.map(|c| {
             let t = c.triangles.len();
             [indices(t, 3), float(c.vertices.len(), 3), indices(t, 0)]
         });
@@ -116,12 +125,9 @@ impl FrameRecord {
     }
 }
 
-/// The attributes every frame has, first in its grid: sidecar name, dataset, centering.
-const BUILTINS: [(&str, &str, &str); 3] = [
-    ("velocity", "velocities", "Node"),
-    ("rest_position", "rest_positions", "Node"),
-    ("stress", "stress", "Cell"),
-];
+/// How many attributes every frame has, first in its grid: `velocity`, `rest_position` and
+/// `stress`.
+const BUILTINS: usize = 3;
 
 /// `attributes`, sharing the previous record's list when they are the same.
 fn shared(
@@ -202,15 +208,19 @@ fn data_item(xml: &mut String, item: &Item, h5_name: &str, frame: &str, dataset:
 
 /// XDMF attribute type for a dataset of per-row values.
 ///
-/// 6-column data (stress, plastic strain) is declared `Matrix`, not
-/// `Tensor6`: XDMF's Tensor6 component order is xx xy xz yy yz zz, while
-/// icefem stores Voigt order xx yy zz yz xz xy, so `Tensor6` would make
-/// ParaView silently mislabel components.
+/// Symmetric tensors (6-column Voigt datasets) are never listed themselves: their attribute
+/// reads `tensors/<name>`, the same tensor as 9 components (a 3 × 3 matrix, row-major), declared
+/// `Tensor`. That is the one layout both of VTK's XDMF readers read as the tensor it is:
+/// `Tensor6` is read as 9 components in XDMF's order xx xy xz yy yz zz by `vtkXdmfReader`,
+/// but passed on as its 6 raw columns by `vtkXdmf3Reader` (ParaView's), which ParaView then
+/// labels in VTK's own symmetric order xx yy zz xy yz xz; `Matrix` is one tuple of all values
+/// in `vtkXdmfReader`. Other column counts (`refused_split`'s 4) are declared `Vector`, which
+/// both readers read as that many components (a `Matrix` again would be one tuple).
 fn attribute_type(item: &Item) -> &'static str {
     match item.cols {
         0 | 1 => "Scalar",
-        3 => "Vector",
-        _ => "Matrix",
+        9 => "Tensor",
+        _ => "Vector",
     }
 }
 
@@ -245,14 +255,15 @@ const HEADER: &str = "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<Xdmf xmlns:xi
 const FOOTER: &str = "  </Domain>\n</Xdmf>\n";
 
 /// Writes `<file>.xdmf` next to the HDF5 file: an XDMF 3 temporal collection
-/// with one uniform grid per complete frame (incomplete frames are skipped).
+/// with one uniform grid per complete frame (incomplete frames are skipped), and with fracture
+/// `<file>.cracks.xdmf` (see [`write_sidecars`]).
 ///
 /// Each grid has `Tetrahedron` topology from the frame's `tets`, `XYZ`
 /// geometry from `positions` (m), and attributes `velocity` (Node Vector,
 /// m/s), `rest_position` (Node Vector, m; displacement = coordinates −
-/// rest_position, e.g. with ParaView's Calculator), `stress` (Cell Matrix of
-/// 6 Voigt components xx yy zz yz xz xy, Pa) and every element / node field
-/// under its own name. HDF5 references use the file name only, i.e. a path
+/// rest_position, e.g. with ParaView's Calculator), `stress` (Cell Tensor, 3 × 3 per element
+/// from `tensors/stress`, Pa) and every element / node field under its own name (symmetric
+/// tensors from `tensors/<name>`). HDF5 references use the file name only, i.e. a path
 /// relative to the sidecar. The sidecar is written to a temporary file and
 /// renamed, so a viewer never sees half of it.
 pub fn write_xdmf(h5_path: &Path) -> Result<PathBuf, OutputError> {
@@ -302,11 +313,33 @@ fn read_record(
     let tets = item_of(&tets).ok_or_else(|| undescribable(&tets))?;
     let positions = item_of(&positions).ok_or_else(|| undescribable(&positions))?;
 
-    // Built-ins first, then fields by name.
-    let mut found: Vec<(String, String, &'static str)> = BUILTINS
-        .iter()
-        .map(|&(x, d, c)| (x.to_string(), d.to_string(), c))
-        .collect();
+    // The attribute `name` read from dataset `dataset` of `g`, placed by `center`, if its
+    // shape fits the grid (anything else is left out rather than emit a sidecar that crashes
+    // the reader).
+    let attribute = |name: &str, dataset: &str, center: &'static str| {
+        let item = g.dataset(dataset).ok().as_ref().and_then(item_of)?;
+        let rows = if center == "Node" { n } else { m };
+        (item.rows == rows && item.cols != 6).then(|| AttributeRecord {
+            name: name.into(),
+            dataset: dataset.into(),
+            center,
+            item,
+        })
+    };
+    let tensor = |name: &str, center| {
+        attribute(name, &format!("{TENSORS}/{name}"), center).filter(|a| a.item.cols == 9)
+    };
+    // Built-ins first (the stress only as matrices: a file written before they were stored
+    // shows none), then fields by name.
+    let mut attributes: Vec<AttributeRecord> = [
+        attribute("velocity", "velocities", "Node"),
+        attribute("rest_position", "rest_positions", "Node"),
+        tensor("stress", "Cell"),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    let builtins = attributes.len();
     let names = g
         .member_names()
         .ctx(h5_path, || format!("listing {}", g.name()))?;
@@ -315,40 +348,26 @@ fn read_record(
             continue;
         }
         let Ok(ds) = g.dataset(&name) else { continue };
-        let center = ds.attr("center").ok().and_then(|a| read_string(&a).ok());
-        match center.as_deref() {
-            Some("Cell") => found.push((name.clone(), name, "Cell")),
-            Some("Node") => found.push((name.clone(), name, "Node")),
-            _ => {} // unknown centering: cannot place it on the mesh
-        }
+        let center = match ds.attr("center").ok().and_then(|a| read_string(&a).ok()) {
+            Some(c) if c == "Cell" => "Cell",
+            Some(c) if c == "Node" => "Node",
+            _ => continue, // unknown centering: cannot place it on the mesh
+        };
+        // A symmetric tensor (Voigt, 6 columns) shows as its matrices.
+        let found = match ds.shape().as_slice() {
+            [_, 6] => tensor(&name, center),
+            _ => attribute(&name, &name, center),
+        };
+        attributes.extend(found);
     }
     // Fields in name order, whatever order the group lists its links in.
-    found[BUILTINS.len()..].sort_by(|a, b| a.1.cmp(&b.1));
-    let mut attributes = Vec::new();
-    for (name, dataset, center) in found {
-        let Ok(ds) = g.dataset(&dataset) else {
-            continue;
-        };
-        // Skip anything whose shape does not fit the grid rather than emit a sidecar that
-        // crashes the reader.
-        let Some(item) = item_of(&ds) else { continue };
-        let expected = if center == "Node" { n } else { m };
-        if item.rows != expected {
-            continue;
-        }
-        attributes.push(AttributeRecord {
-            name,
-            dataset,
-            center,
-            item,
-        });
-    }
+    attributes[builtins..].sort_by(|a, b| a.name.cmp(&b.name));
     let attributes = shared(attributes, previous);
     let cracks = g.group("cracks").ok().and_then(|c| {
         let items = ["triangles", "vertices", "crack"]
             .map(|name| c.dataset(name).ok().as_ref().and_then(item_of));
         match items {
-            [Some(t), Some(v), Some(k)] if t.rows > 0 => Some([t, v, k]),
+            [Some(t), Some(v), Some(k)] => Some([t, v, k]),
             _ => None,
         }
     });
@@ -363,8 +382,10 @@ fn read_record(
 }
 
 /// Writes the sidecars of the HDF5 file at `h5_path` from the records of its complete frames:
-/// `RUN.xdmf`, and `RUN.cracks.xdmf` when a frame has crack faces (removed otherwise, so one
-/// left by an earlier run of the same name does not stay).
+/// `RUN.xdmf`, and `RUN.cracks.xdmf` when the frames have a crack group (a run with fracture;
+/// removed otherwise, so one left by an earlier run of the same name does not stay). The crack
+/// series has a grid for every frame, with no cells before the first crack, so that every time
+/// of the run shows the cracks there were then.
 pub(super) fn write_sidecars(
     h5_path: &Path,
     records: &[FrameRecord],
@@ -433,29 +454,54 @@ pub(super) fn write_sidecars(
         out.write_all(b"    <Grid Name=\"icefem_cracks\" GridType=\"Collection\" CollectionType=\"Temporal\">\n")?;
         let mut xml = String::new();
         for r in records {
-            let Some([triangles, vertices, crack]) = &r.cracks else {
-                continue;
-            };
             xml.clear();
             let frame = group_name(r.index);
-            grid_start(
-                &mut xml,
-                (&format!("cracks_{frame}"), r.time),
-                ("Triangle", 3),
-                (triangles, vertices),
-                (&h5_name, &frame, "cracks/triangles", "cracks/vertices"),
-            );
-            xml.push_str(
-                "        <Attribute Name=\"crack\" AttributeType=\"Scalar\" Center=\"Cell\">\n",
-            );
-            data_item(&mut xml, crack, &h5_name, &frame, "cracks/crack");
-            xml.push_str("        </Attribute>\n      </Grid>\n");
+            let name = format!("cracks_{frame}");
+            match &r.cracks {
+                Some([triangles, vertices, crack]) if triangles.rows > 0 => {
+                    grid_start(
+                        &mut xml,
+                        (&name, r.time),
+                        ("Triangle", 3),
+                        (triangles, vertices),
+                        (&h5_name, &frame, "cracks/triangles", "cracks/vertices"),
+                    );
+                    xml.push_str(
+                        "        <Attribute Name=\"crack\" AttributeType=\"Scalar\" Center=\"Cell\">\n",
+                    );
+                    data_item(&mut xml, crack, &h5_name, &frame, "cracks/crack");
+                    xml.push_str("        </Attribute>\n");
+                }
+                _ => empty_grid(&mut xml, (&name, r.time), &r.positions, (&h5_name, &frame)),
+            }
+            xml.push_str("      </Grid>\n");
             out.write_all(xml.as_bytes())?;
         }
         out.write_all(b"    </Grid>\n")?;
         out.write_all(FOOTER.as_bytes())
     })?;
     Ok(xdmf_path)
+}
+
+/// A time step's grid without crack triangles, opened in `xml` (the caller closes it):
+/// `Triangle` topology with 0 elements and no data, over the frame's nodes (`positions`),
+/// which no cell uses. VTK's XDMF readers take no empty arrays (an inline empty `DataItem`
+/// crashes both, a 0-row HDF5 dataset is an error for `vtkXdmfReader`) and `vtkXdmfReader`
+/// needs a geometry it can read, so the grid has the nodes, not nothing.
+fn empty_grid(
+    xml: &mut String,
+    (name, time): (&str, f64),
+    positions: &Item,
+    (h5_name, frame): (&str, &str),
+) {
+    let _ = writeln!(xml, "      <Grid Name=\"{name}\" GridType=\"Uniform\">");
+    let _ = writeln!(xml, "        <Time Value=\"{time:e}\"/>");
+    xml.push_str(
+        "        <Topology TopologyType=\"Triangle\" NumberOfElements=\"0\" NodesPerElement=\"3\"/>\n",
+    );
+    xml.push_str("        <Geometry GeometryType=\"XYZ\">\n");
+    data_item(xml, positions, h5_name, frame, "positions");
+    xml.push_str("        </Geometry>\n");
 }
 
 /// Writes `path` through a temporary file renamed into place, so a reader sees the old file or

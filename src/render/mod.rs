@@ -25,17 +25,17 @@ pub use sequence::{
 use crate::fracture::cracks::OriginalBoundary;
 use crate::mesh::surface::TriSurface;
 use crate::mesh::TetMesh;
-use crate::output::{FrameReader, OutputError, StoredFrame};
+use crate::output::{FrameReader, ObstacleMesh, OutputError, StoredFrame};
 use crate::physics::contact::Shape;
 use crate::physics::{Amplitude, Motion, Region};
-use crate::scene::SceneFile;
+use crate::scene::{ObstacleSection, SceneFile};
 use embedded_graphics::mono_font::{ascii::FONT_7X13, MonoTextStyle};
 use embedded_graphics::pixelcolor::Rgb888;
 use embedded_graphics::prelude::{Point, Primitive};
 use embedded_graphics::primitives::{PrimitiveStyle, Rectangle};
 use embedded_graphics::text::{Alignment, Baseline, Text, TextStyleBuilder};
 use embedded_graphics::Drawable;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use raster::{Canvas, Rgb};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -123,7 +123,7 @@ impl ColorField {
             path: reader.path().into(),
             message: format!("frame {} has no {what} ({why})", frame.index),
         };
-        let voigt = |v: &[f64]| Matrix3::new(v[0], v[5], v[4], v[5], v[1], v[3], v[4], v[3], v[2]);
+        let voigt = crate::fem::from_voigt;
         Ok(match self {
             ColorField::Freeze => {
                 let (_, s) = frame
@@ -150,10 +150,9 @@ impl ColorField {
                     .map(|s| {
                         let s = voigt(s);
                         if self == ColorField::Principal {
-                            s.symmetric_eigenvalues().max()
+                            crate::fem::max_principal(&s)
                         } else {
-                            let d = s - Matrix3::identity() * (s.trace() / 3.0);
-                            (1.5 * d.norm_squared()).sqrt()
+                            crate::fem::von_mises(&s)
                         }
                     })
                     .collect()
@@ -322,8 +321,11 @@ impl Renderer {
             )
         };
         let (ice_lo, ice_hi) = bounds(&mut first.state.positions.iter().map(|p| Vector3::from(*p)));
-        let scene_path = Path::new(reader.scene_path());
-        let outlines = obstacle_outlines(reader.scene_text(), scene_path, ice_lo, ice_hi);
+        let surfaces = ObstacleSurfaces {
+            stored: reader.obstacle_meshes()?,
+            scene_dirs: scene_dirs(reader),
+        };
+        let outlines = obstacle_outlines(reader.scene_text(), &surfaces, ice_lo, ice_hi);
         let (lo, hi) = bounds(
             &mut [ice_lo, ice_hi].into_iter().chain(
                 outlines
@@ -629,13 +631,61 @@ fn feature_edges(
         .collect()
 }
 
+/// Where the triangle surfaces of a file's mesh obstacles come from.
+struct ObstacleSurfaces {
+    /// The surfaces stored in the file (`/obstacles`), as the run placed them.
+    stored: Vec<ObstacleMesh>,
+    /// Folders to look for a surface file in, for a file that stores none (written before
+    /// they were stored): the scene's folder, and for a scene path relative to where that run
+    /// was started, that folder from the HDF5 file's.
+    scene_dirs: Vec<PathBuf>,
+}
+
+impl ObstacleSurfaces {
+    /// The surface of obstacle `index` at t = 0 (m): the stored one, or the scene's `file`
+    /// (times `scale`, moved by `translate`) where it is found.
+    fn surface(&self, index: usize, o: &ObstacleSection) -> Option<TriSurface> {
+        if let Some(m) = self.stored.iter().find(|m| m.index == index) {
+            return Some(TriSurface {
+                vertices: m.vertices.iter().map(|&v| Vector3::from(v)).collect(),
+                triangles: m.triangles.clone(),
+            });
+        }
+        let file = o.file.as_ref()?;
+        let mut surface = self
+            .scene_dirs
+            .iter()
+            .find_map(|dir| TriSurface::read(&dir.join(file), o.scale.unwrap_or(1.0)).ok())?;
+        let shift = o.translate.map(Vector3::from).unwrap_or_default();
+        for v in &mut surface.vertices {
+            *v += shift;
+        }
+        Some(surface)
+    }
+}
+
+/// The folders a file's scene may be in (see [`ObstacleSurfaces::scene_dirs`]).
+fn scene_dirs(reader: &FrameReader) -> Vec<PathBuf> {
+    let scene = Path::new(reader.scene_path());
+    let Some(dir) = scene.parent() else {
+        return Vec::new();
+    };
+    let mut dirs = vec![dir.to_path_buf()];
+    if scene.is_relative() {
+        if let Some(h5_dir) = reader.path().parent() {
+            dirs.push(h5_dir.join(dir));
+        }
+    }
+    dirs
+}
+
 /// Outline segments of the scene's rigid obstacles: containers' floor, rim and wall edges;
 /// half-spaces as a square on the plane around the ice's box `[lo, hi]`; triangle meshes by
-/// their feature edges, when the surface file is still where the scene (read from
-/// `scene_path`) names it.
+/// their feature edges, from the surface the file stores (or, in a file that stores none, the
+/// surface file where the scene names it).
 fn obstacle_outlines(
     scene_text: &str,
-    scene_path: &Path,
+    surfaces: &ObstacleSurfaces,
     lo: Vector3<f64>,
     hi: Vector3<f64>,
 ) -> Vec<Outline> {
@@ -647,7 +697,8 @@ fn obstacle_outlines(
     scene
         .obstacle
         .iter()
-        .filter_map(|o| {
+        .enumerate()
+        .filter_map(|(index, o)| {
             let v3 = |v: Option<[f64; 3]>| v.map(Vector3::from);
             let segments = match o.kind.as_str() {
                 "container" => shape_outline(
@@ -669,14 +720,10 @@ fn obstacle_outlines(
                     hi,
                 ),
                 "mesh" => {
-                    let file = scene_path.parent()?.join(o.file.as_ref()?);
-                    let surface = TriSurface::read(&file, o.scale.unwrap_or(1.0)).ok()?;
-                    let shift = v3(o.translate).unwrap_or_default();
-                    let vertices: Vec<Vector3<f64>> =
-                        surface.vertices.iter().map(|v| v + shift).collect();
+                    let surface = surfaces.surface(index, o)?;
                     let triangles: Vec<([usize; 3], usize)> =
                         surface.triangles.iter().map(|&t| (t, 0)).collect();
-                    feature_edges(&triangles, &vertices)
+                    feature_edges(&triangles, &surface.vertices)
                 }
                 _ => return None,
             };
