@@ -4,7 +4,8 @@
 //! - [`OutputWriter::resume`] (`resume.rs`) reopens it after its last complete frame and reads
 //!   that frame back as a [`ResumeFrame`];
 //! - [`write_xdmf`] (`xdmf.rs`) writes the XDMF sidecars;
-//! - [`FrameReader`] (`reader.rs`) reads complete frames back for `render` and `figure`;
+//! - [`FrameReader`] (`reader.rs`) reads complete frames back for `render`, `figure` and
+//!   `export`; [`SurfaceExtractor`] (`surfaces.rs`) finds their outer and crack surfaces;
 //! - [`summary`] and [`describe`] (`describe.rs`) are what `icefem info` prints (JSON, text);
 //! - `hdf5_io.rs` holds the HDF5 helpers these share (attributes, matrices, index arrays, the
 //!   signature and layout checks, the listing of `/frames`).
@@ -79,14 +80,16 @@ mod hdf5_io;
 mod ownership;
 mod reader;
 mod resume;
+mod surfaces;
 #[cfg(test)]
 mod test_support;
 mod writer;
 mod xdmf;
 
 pub use describe::{describe, summary, DatasetSummary, FileSummary, FrameTime};
-pub use reader::{CrackTriangle, FrameReader, StoredFrame, StoredMesh};
+pub use reader::{parse_frame_range, CrackTriangle, FrameReader, StoredFrame, StoredMesh};
 pub use resume::{ResumeFrame, StoredField};
+pub use surfaces::{FrameMesh, SurfaceExtractor};
 pub use writer::{OutputWriter, COMMIT_INTERVAL};
 pub use xdmf::write_xdmf;
 

@@ -11,6 +11,7 @@ use super::hdf5_io::{
 };
 use super::resume::{read_frame, ResumeFrame};
 use super::{corrupt, ObstacleMesh, OutputError};
+use crate::fem::{from_voigt, von_mises};
 
 /// A crack triangle as drawn: its three vertices (m) and the crack it belongs to.
 pub type CrackTriangle = ([[f64; 3]; 3], usize);
@@ -40,6 +41,32 @@ impl StoredFrame {
             .iter()
             .find(|f| f.name == name)
             .map(|f| (f.columns, f.data.as_slice()))
+    }
+
+    /// Freeze state of each element, 0 (water) … 1 (ice); `None` when the run has no
+    /// freezing.
+    pub fn freeze_state(&self) -> Option<&[f64]> {
+        self.element_field("freeze_state")
+            .filter(|(cols, _)| *cols == 1)
+            .map(|(_, s)| s)
+    }
+
+    /// ‖ε_p‖ of each element: the Frobenius norm of the plastic strain tensor (the Voigt
+    /// shear entries are tensor components, so each counts twice); `None` when the run has no
+    /// plasticity.
+    pub fn plastic_strain_norm(&self) -> Option<Vec<f64>> {
+        let (cols, e) = self.element_field("plastic_strain")?;
+        (cols == 6).then(|| e.chunks_exact(6).map(|v| from_voigt(v).norm()).collect())
+    }
+
+    /// Von Mises stress of each element (Pa); `None` when the frame has no stress.
+    pub fn von_mises(&self) -> Option<Vec<f64>> {
+        (!self.stress.is_empty() && self.stress.len() == self.state.tets.len()).then(|| {
+            self.stress
+                .iter()
+                .map(|s| von_mises(&from_voigt(s)))
+                .collect()
+        })
     }
 }
 
@@ -277,4 +304,61 @@ fn read_crack_triangles(path: &Path, g: &Group) -> Result<Vec<CrackTriangle>, Ou
             Ok(([vertex(t[0])?, vertex(t[1])?, vertex(t[2])?], id))
         })
         .collect()
+}
+
+/// Parses `A:B:S` (first frame, last frame inclusive, stride; A, B and S may be empty for the
+/// first frame, the last frame and 1) against the complete frames `available` (ascending,
+/// not empty), as `--frames` of `render` and `export` take it.
+pub fn parse_frame_range(spec: &str, available: &[usize]) -> Result<Vec<usize>, String> {
+    let parts: Vec<&str> = spec.split(':').collect();
+    if parts.len() > 3 {
+        return Err(format!("--frames {spec:?}: expected FIRST:LAST[:STEP]"));
+    }
+    let (first_available, last_available) = (available[0], available[available.len() - 1]);
+    let number = |k: usize, default: usize| -> Result<usize, String> {
+        match parts.get(k).map(|s| s.trim()) {
+            None | Some("") => Ok(default),
+            Some(t) => t
+                .parse::<usize>()
+                .map_err(|_| format!("--frames {spec:?}: {t:?} is not a frame number ≥ 0")),
+        }
+    };
+    let first = number(0, first_available)?;
+    let last = number(1, last_available)?;
+    let step = number(2, 1)?;
+    if step == 0 || first > last {
+        return Err(format!("--frames {spec:?}: need FIRST ≤ LAST and STEP ≥ 1"));
+    }
+    let frames: Vec<usize> = (first..=last).step_by(step).collect();
+    if let Some(missing) = frames.iter().find(|f| available.binary_search(f).is_err()) {
+        return Err(format!(
+            "--frames {spec:?}: frame {missing} is not a complete frame (the file has {} complete frames, {first_available} … {last_available})",
+            available.len()
+        ));
+    }
+    Ok(frames)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_ranges() {
+        let available: Vec<usize> = (0..=100).collect();
+        assert_eq!(
+            parse_frame_range("10:30:10", &available),
+            Ok(vec![10, 20, 30])
+        );
+        assert_eq!(parse_frame_range("98:", &available), Ok(vec![98, 99, 100]));
+        assert_eq!(parse_frame_range("::50", &available), Ok(vec![0, 50, 100]));
+        assert!(parse_frame_range("90:120", &available)
+            .unwrap_err()
+            .contains("frame 101"));
+        assert!(parse_frame_range("5:1", &available).is_err());
+        assert!(parse_frame_range("1:5:0", &available).is_err());
+        assert!(parse_frame_range("a:5", &available)
+            .unwrap_err()
+            .contains("\"a\""));
+    }
 }

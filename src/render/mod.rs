@@ -22,10 +22,11 @@ pub use sequence::{
     default_output, numbered_path, render_frames, select_frames, sibling, RenderSummary, Target,
 };
 
-use crate::fracture::cracks::OriginalBoundary;
+use crate::fem::{from_voigt, max_principal};
 use crate::mesh::surface::TriSurface;
-use crate::mesh::TetMesh;
-use crate::output::{FrameReader, ObstacleMesh, OutputError, StoredFrame};
+use crate::output::{
+    FrameMesh, FrameReader, ObstacleMesh, OutputError, StoredFrame, SurfaceExtractor,
+};
 use crate::physics::contact::Shape;
 use crate::physics::{Amplitude, Motion, Region};
 use crate::scene::{ObstacleSection, SceneFile};
@@ -123,38 +124,25 @@ impl ColorField {
             path: reader.path().into(),
             message: format!("frame {} has no {what} ({why})", frame.index),
         };
-        let voigt = crate::fem::from_voigt;
         Ok(match self {
-            ColorField::Freeze => {
-                let (_, s) = frame
-                    .element_field("freeze_state")
-                    .ok_or_else(|| missing("freeze_state", "the scene has no [freezing]"))?;
-                s.to_vec()
-            }
-            ColorField::Plastic => {
-                let (cols, e) = frame
-                    .element_field("plastic_strain")
-                    .ok_or_else(|| missing("plastic_strain", "the scene has no [plasticity]"))?;
-                if cols != 6 {
-                    return Err(missing("plastic_strain with 6 columns", "malformed file"));
-                }
-                e.chunks_exact(6).map(|v| voigt(v).norm()).collect()
-            }
-            ColorField::VonMises | ColorField::Principal => {
+            ColorField::Freeze => frame
+                .freeze_state()
+                .ok_or_else(|| missing("freeze_state", "the scene has no [freezing]"))?
+                .to_vec(),
+            ColorField::Plastic => frame
+                .plastic_strain_norm()
+                .ok_or_else(|| missing("plastic_strain", "the scene has no [plasticity]"))?,
+            ColorField::VonMises => frame
+                .von_mises()
+                .ok_or_else(|| missing("stress", "malformed file"))?,
+            ColorField::Principal => {
                 if frame.stress.len() != frame.state.tets.len() {
                     return Err(missing("stress", "malformed file"));
                 }
                 frame
                     .stress
                     .iter()
-                    .map(|s| {
-                        let s = voigt(s);
-                        if self == ColorField::Principal {
-                            crate::fem::max_principal(&s)
-                        } else {
-                            crate::fem::von_mises(&s)
-                        }
-                    })
+                    .map(|s| max_principal(&from_voigt(s)))
                     .collect()
             }
         })
@@ -292,8 +280,8 @@ struct Outline {
 pub struct Renderer {
     options: RenderOptions,
     camera: Camera,
-    /// The scene mesh's boundary, to tell crack faces from outer faces (fracture runs).
-    original: Option<OriginalBoundary>,
+    /// Tells crack faces from outer faces (fracture runs).
+    surfaces: SurfaceExtractor,
     outlines: Vec<Outline>,
     range: (f64, f64),
 }
@@ -341,19 +329,11 @@ impl Renderer {
             scene_width as u32,
             options.height as u32,
         );
-        let original = match first.element_field("origin") {
-            Some(_) => {
-                let (rest, tets) = reader.initial_mesh()?;
-                let mesh = TetMesh::from_arrays(&rest, tets)
-                    .map_err(|e| invalid(format!("/mesh: {e}")))?;
-                Some(OriginalBoundary::new(&mesh))
-            }
-            None => None,
-        };
+        let surfaces = SurfaceExtractor::new(reader, &first)?;
         Ok(Renderer {
             options,
             camera,
-            original,
+            surfaces,
             outlines,
             range: options.range.unwrap_or((0.0, 1.0)),
         })
@@ -427,28 +407,8 @@ impl Renderer {
         reader: &FrameReader,
         frame: &StoredFrame,
     ) -> Result<Picture, RenderError> {
-        let invalid = |message: String| RenderError::Invalid {
-            path: reader.path().into(),
-            message,
-        };
         let state = &frame.state;
-        let rest = TetMesh::from_arrays(&state.rest_positions, state.tets.clone())
-            .map_err(|e| invalid(format!("frame {}: {e}", frame.index)))?;
-        // Each element's scene element (fracture runs): whole numbers below the scene's count.
-        let origin = match (&self.original, frame.element_field("origin")) {
-            (Some(original), Some((1, o))) => {
-                let valid =
-                    |v: f64| v >= 0.0 && v.fract() == 0.0 && v < original.num_elements() as f64;
-                if o.len() != state.tets.len() || !o.iter().all(|&v| valid(v)) {
-                    return Err(invalid(format!(
-                        "frame {}: origin does not match the tets and the initial mesh",
-                        frame.index
-                    )));
-                }
-                Some(o.iter().map(|&v| v as usize).collect::<Vec<usize>>())
-            }
-            _ => None,
-        };
+        let mesh = self.surfaces.mesh(reader.path(), frame)?;
         let values = match self.options.color_by {
             Some(field) => Some(field.values(frame, reader)?),
             None => None,
@@ -457,7 +417,7 @@ impl Renderer {
         let positions: Vec<Vector3<f64>> =
             state.positions.iter().map(|p| Vector3::from(*p)).collect();
 
-        let surface = self.surface(&rest, origin.as_deref());
+        let surface = self.surface(&mesh);
         let crack_triangles: Vec<[Vector3<f64>; 3]> = frame
             .crack_triangles
             .iter()
@@ -541,38 +501,21 @@ impl Renderer {
 }
 
 impl Renderer {
-    /// The ice surface to draw: the boundary faces of the (cut) mesh that are not crack
-    /// faces, each with its element. Crack faces are the boundary faces off the scene mesh's
-    /// boundary (fracture runs, with `origin`); the faces along a cut are drawn.
-    fn surface(&self, rest: &TetMesh, origin: Option<&[usize]>) -> Vec<([usize; 3], usize)> {
-        let keep: Vec<bool> = rest
-            .tets
-            .iter()
-            .map(|t| {
-                !self.is_cut_away(&(t.iter().map(|&i| rest.rest[i]).sum::<Vector3<f64>>() / 4.0))
-            })
-            .collect();
-        // Faces of the uncut mesh's boundary; the other faces of the cut part lie on the cut.
-        let mesh_boundary: Option<std::collections::HashSet<[usize; 3]>> =
-            self.options.cut.map(|_| {
-                rest.boundary_faces()
-                    .iter()
-                    .map(|f| sorted(f.nodes))
-                    .collect()
-            });
-        rest.boundary_faces_of(&keep)
+    /// The ice surface to draw: the outer faces of the (cut) mesh, each with its element; the
+    /// faces along a cut are drawn.
+    fn surface(&self, mesh: &FrameMesh) -> Vec<([usize; 3], usize)> {
+        let rest = &mesh.rest;
+        let keep: Option<Vec<bool>> = self.options.cut.map(|_| {
+            rest.tets
+                .iter()
+                .map(|t| {
+                    let centroid = t.iter().map(|&i| rest.rest[i]).sum::<Vector3<f64>>() / 4.0;
+                    !self.is_cut_away(&centroid)
+                })
+                .collect()
+        });
+        mesh.outer_faces(keep.as_deref())
             .into_iter()
-            .filter(|f| {
-                let on_cut = mesh_boundary
-                    .as_ref()
-                    .is_some_and(|b| !b.contains(&sorted(f.nodes)));
-                match (&self.original, origin) {
-                    (Some(original), Some(origin)) if !on_cut => {
-                        original.on_boundary(origin[f.tet], &f.nodes.map(|i| rest.rest[i]))
-                    }
-                    _ => true,
-                }
-            })
             .map(|f| (f.nodes, f.tet))
             .collect()
     }
@@ -584,11 +527,6 @@ impl Renderer {
             (x[cut.axis] - cut.value) * towards_eye > 0.0
         })
     }
-}
-
-fn sorted(mut face: [usize; 3]) -> [usize; 3] {
-    face.sort_unstable();
-    face
 }
 
 /// The backdrop of the scene area, at `SUPERSAMPLE` × the size.
@@ -856,60 +794,9 @@ fn color_bar(
     );
 }
 
-/// Parses `A:B:S` (first frame, last frame inclusive, stride; A, B and S may be empty for the
-/// first frame, the last frame and 1) against the complete frames `available`.
-pub fn parse_frame_range(spec: &str, available: &[usize]) -> Result<Vec<usize>, String> {
-    let parts: Vec<&str> = spec.split(':').collect();
-    if parts.len() > 3 {
-        return Err(format!("frames {spec:?}: expected FIRST:LAST[:STEP]"));
-    }
-    let (first_available, last_available) = (available[0], available[available.len() - 1]);
-    let number = |k: usize, default: usize| -> Result<usize, String> {
-        match parts.get(k).map(|s| s.trim()) {
-            None | Some("") => Ok(default),
-            Some(t) => t
-                .parse::<usize>()
-                .map_err(|_| format!("frames {spec:?}: {t:?} is not a frame number ≥ 0")),
-        }
-    };
-    let first = number(0, first_available)?;
-    let last = number(1, last_available)?;
-    let step = number(2, 1)?;
-    if step == 0 || first > last {
-        return Err(format!("frames {spec:?}: need FIRST ≤ LAST and STEP ≥ 1"));
-    }
-    let frames: Vec<usize> = (first..=last).step_by(step).collect();
-    if let Some(missing) = frames.iter().find(|f| available.binary_search(f).is_err()) {
-        return Err(format!(
-            "frames {spec:?}: frame {missing} is not a complete frame (the file has {} complete frames, {first_available} … {last_available})",
-            available.len()
-        ));
-    }
-    Ok(frames)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn frame_ranges() {
-        let available: Vec<usize> = (0..=100).collect();
-        assert_eq!(
-            parse_frame_range("10:30:10", &available),
-            Ok(vec![10, 20, 30])
-        );
-        assert_eq!(parse_frame_range("98:", &available), Ok(vec![98, 99, 100]));
-        assert_eq!(parse_frame_range("::50", &available), Ok(vec![0, 50, 100]));
-        assert!(parse_frame_range("90:120", &available)
-            .unwrap_err()
-            .contains("frame 101"));
-        assert!(parse_frame_range("5:1", &available).is_err());
-        assert!(parse_frame_range("1:5:0", &available).is_err());
-        assert!(parse_frame_range("a:5", &available)
-            .unwrap_err()
-            .contains("\"a\""));
-    }
 
     #[test]
     fn container_outline_has_floor_rim_and_wall_edges() {

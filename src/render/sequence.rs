@@ -2,7 +2,7 @@
 //! an MP4 video (through `ffmpeg`).
 
 use super::{save_png, GifWriter, RenderError, RenderOptions, Renderer};
-use crate::output::FrameReader;
+use crate::output::{parse_frame_range, FrameReader};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -28,7 +28,7 @@ pub fn sibling(file: &Path, suffix: &str) -> PathBuf {
 }
 
 /// The frames `icefem render` draws from `reader` (whose file is `file`): frame `frame` if
-/// given, else the range `frames` (`A:B:S`, see [`super::parse_frame_range`]), else the last
+/// given, else the range `frames` (`A:B:S`, see [`parse_frame_range`]), else the last
 /// complete frame.
 pub fn select_frames(
     file: &Path,
@@ -40,7 +40,7 @@ pub fn select_frames(
     Ok(match (frame, frames) {
         (Some(f), _) => vec![f],
         (None, Some(spec)) => {
-            super::parse_frame_range(spec, &available).map_err(|message| RenderError::Invalid {
+            parse_frame_range(spec, &available).map_err(|message| RenderError::Invalid {
                 path: file.to_path_buf(),
                 message,
             })?
