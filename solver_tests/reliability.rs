@@ -10,7 +10,7 @@ use std::process::{Child, Command, Output, Stdio};
 
 use icefem::output::FrameReader;
 
-use common::SAGGING_BAR as BAR;
+use common::{listing, SAGGING_BAR as BAR};
 
 /// The bar with a Newton limit it cannot meet: the run fails at step 1.
 fn failing_bar() -> String {
@@ -81,16 +81,6 @@ fn start(mut command: Command, scene: &Path, out: &Path, frames: usize) -> Child
 
 fn frames(path: &Path) -> usize {
     FrameReader::open(path).unwrap().frame_indices().len()
-}
-
-/// The files in `dir` (names), sorted: what a run leaves behind.
-fn listing(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 /// Every frame group the XDMF sidecar of `h5` names is a complete frame of the file (what

@@ -6,6 +6,7 @@
 pub mod assembly;
 pub mod bench;
 pub mod eta;
+pub mod export;
 pub mod fem;
 pub mod fracture;
 pub mod mesh;

@@ -4,6 +4,7 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use icefem::bench::{self, BenchCommand, SolverOptions};
 use icefem::eta::{format_duration, Eta};
+use icefem::export::{ExportFormat, ExportOptions};
 use icefem::output::FrameReader;
 use icefem::render::{self, ColorField, Cut, RenderOptions, Style, View};
 use icefem::run::{run, Progress, RunOptions};
@@ -133,6 +134,28 @@ enum Command {
         #[command(flatten)]
         look: LookArgs,
     },
+    /// Export frames as surfaces with point attributes: a USD stage, or OBJ, PLY or VTU files.
+    Export {
+        /// HDF5 file written by `icefem run` (also one that was cut off).
+        file: PathBuf,
+        /// usd: one RUN.usda stage; obj: RUN_NNNNNN.obj per frame (geometry only); ply:
+        /// RUN_ice_NNNNNN.ply and RUN_cracks_NNNNNN.ply per frame; vtu: the same as .vtu plus
+        /// RUN.pvd for ParaView.
+        #[arg(long, value_enum)]
+        format: FormatArg,
+        /// Frames FIRST:LAST[:STEP] (LAST inclusive; empty parts mean first, last, 1); default:
+        /// every complete frame. Exported frames are numbered 0, 1, 2, ….
+        #[arg(long)]
+        frames: Option<String>,
+        /// The .usda file (usd) or the folder (obj, ply, vtu). Default: RUN.usda, or the folder
+        /// RUN_export/, beside FILE.
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+        /// Replace an earlier export's files (and remove its numbered files this one does not
+        /// write); other files are never touched.
+        #[arg(long)]
+        force: bool,
+    },
     /// Print what an icefem HDF5 file holds.
     Info {
         /// HDF5 file written by `icefem run`.
@@ -234,6 +257,22 @@ fn main() {
             output,
             look,
         } => figure_command(&file, frames, output, &look, verbosity),
+        Command::Export {
+            file,
+            format,
+            frames,
+            output,
+            force,
+        } => export_command(
+            &file,
+            &ExportOptions {
+                format: format.into(),
+                frames,
+                output,
+                force,
+            },
+            verbosity,
+        ),
         Command::Info { file, json: false } => icefem::output::describe(&file)
             .map(|text| print!("{text}"))
             .map_err(Into::into),
@@ -418,6 +457,46 @@ fn figure_command(
         );
     }
     Ok(())
+}
+
+/// `icefem export`.
+fn export_command(file: &Path, options: &ExportOptions, verbosity: Verbosity) -> Result<()> {
+    let start = Instant::now();
+    let reader = FrameReader::open(file)?;
+    let summary = icefem::export::export(&reader, options)?;
+    if verbosity == Verbosity::Quiet {
+        return Ok(());
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    println!(
+        "exported {} frames to {}: {} file{}, {:.2} s ({:.1} ms per frame)",
+        summary.frames,
+        summary.output.display(),
+        summary.files.len(),
+        if summary.files.len() == 1 { "" } else { "s" },
+        seconds,
+        1e3 * seconds / summary.frames.max(1) as f64
+    );
+    Ok(())
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum FormatArg {
+    Usd,
+    Obj,
+    Ply,
+    Vtu,
+}
+
+impl From<FormatArg> for ExportFormat {
+    fn from(f: FormatArg) -> Self {
+        match f {
+            FormatArg::Usd => ExportFormat::Usd,
+            FormatArg::Obj => ExportFormat::Obj,
+            FormatArg::Ply => ExportFormat::Ply,
+            FormatArg::Vtu => ExportFormat::Vtu,
+        }
+    }
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]

@@ -7,6 +7,7 @@ use icefem::physics::{Dirichlet, Elasticity, Model, Region};
 use icefem::sim::{Analysis, Simulation, StepSettings};
 use icefem::solver::{FactorPrecision, LinearSolverKind, NewtonParams};
 use nalgebra::Vector3;
+use std::path::Path;
 
 /// A clamped ice bar sagging under sideways and downward gravity, damped: 60 tets, 10 steps of
 /// 2 ms, a frame every 2 steps (the output and reliability tests' run).
@@ -138,4 +139,14 @@ pub fn ice_cantilever(mesh: TetMesh) -> Simulation {
         vec![clamp_below_x(1e-9)],
         settings(Analysis::Dynamic, 1.0 / 30.0),
     )
+}
+
+/// The files in `dir` (names), sorted: what a run or an export leaves behind.
+pub fn listing(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
 }

@@ -1,0 +1,276 @@
+//! USD: one text stage, `RUN.usda`, for Blender, Houdini and usdview.
+//!
+//! The stage: `upAxis = "Z"`, `metersPerUnit = 1`, time codes 0 … N−1 (the exported frames'
+//! numbers), `timeCodesPerSecond` (and `framesPerSecond`) the exported frames per simulated
+//! second, (N − 1) / (t_last − t_first) — the run's output rate divided by the stride; 24, USD's
+//! default, for a single frame. Two `Mesh` prims, `/World/Ice` and `/World/Cracks`, whose
+//! `points` (`point3f[]`, m), `faceVertexCounts`, `faceVertexIndices` and `extent` are
+//! time-sampled at every frame, since fracture changes the topology; `velocities`
+//! (`vector3f[]`, m/s) and the primvars `freeze_state`, `plastic_strain` and `von_mises` (Pa)
+//! (`float[]`, `interpolation = "vertex"`, where the run has them) likewise. The layer's
+//! `customLayerData` keeps the run's file name, frame indices and frame times (s).
+//!
+//! Floats are f32 written in the shortest form that reads back to the same f32. An attribute's
+//! samples must sit together in the text, so the stage is kept in memory as text and written
+//! at the end (to a hidden file renamed into place).
+//!
+//! Written by hand: the `openusd` crate needs rustc 1.96 (we build with 1.95), and USDA is a
+//! text format whose few statements here need no library.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::target::Target;
+use super::{objects, run_name, write_file, ExportError, ExportFrame, Sink, SurfaceMesh};
+
+/// The prims' names, in the order of the export's objects (ice, cracks), and their display
+/// colours (linear RGB).
+const PRIMS: [(&str, [f32; 3]); 2] = [("Ice", [0.84, 0.92, 1.0]), ("Cracks", [0.86, 0.12, 0.1])];
+
+/// Collects the frames' samples and writes the stage at the end.
+pub(super) struct UsdSink {
+    file: PathBuf,
+    run: String,
+    /// (run frame index, time in s) of each exported frame.
+    frames: Vec<(usize, f64)>,
+    prims: [PrimSamples; 2],
+}
+
+/// The time samples of one `Mesh` prim's attributes, as USDA text: one line per frame each.
+#[derive(Default)]
+struct PrimSamples {
+    extent: String,
+    counts: String,
+    indices: String,
+    points: String,
+    velocities: String,
+    /// (name, samples) of each primvar, in the order first seen.
+    primvars: Vec<(&'static str, String)>,
+}
+
+impl UsdSink {
+    /// The stage of the run `run` at `target`'s USD file.
+    pub fn new(target: &Target, run: &Path) -> Self {
+        UsdSink {
+            file: target.usd_file(),
+            run: run_name(run),
+            frames: Vec::new(),
+            prims: Default::default(),
+        }
+    }
+}
+
+impl Sink for UsdSink {
+    fn frame(&mut self, frame: &ExportFrame) -> Result<(), ExportError> {
+        self.frames.push((frame.index, frame.time));
+        for (prim, (_, mesh)) in self.prims.iter_mut().zip(objects(frame)) {
+            prim.push(frame.number, mesh);
+        }
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>) -> Result<Vec<PathBuf>, ExportError> {
+        let text = self.stage();
+        let name = self.file.file_name().unwrap_or_default().to_string_lossy();
+        let partial = self
+            .file
+            .with_file_name(format!(".{name}.{}.partial", std::process::id()));
+        write_file(&partial, text.as_bytes())?;
+        std::fs::rename(&partial, &self.file).map_err(|source| {
+            let _ = std::fs::remove_file(&partial);
+            ExportError::Io {
+                path: self.file.clone(),
+                context: "moving the finished stage into place".into(),
+                source,
+            }
+        })?;
+        Ok(vec![self.file])
+    }
+}
+
+impl UsdSink {
+    /// The whole stage.
+    fn stage(&self) -> String {
+        let n = self.frames.len();
+        let fps = match (self.frames.first(), self.frames.last()) {
+            (Some((_, t0)), Some((_, t1))) if n > 1 && t1 > t0 => {
+                // Round off the last bits of the times' sums (30.000000000000004).
+                let fps = (n - 1) as f64 / (t1 - t0);
+                (fps * 1e6).round() / 1e6
+            }
+            _ => 24.0,
+        };
+        let list = |values: Vec<String>| values.join(", ");
+        let indices = list(self.frames.iter().map(|(i, _)| i.to_string()).collect());
+        let times = list(self.frames.iter().map(|(_, t)| t.to_string()).collect());
+        let mut text = format!(
+            "#usda 1.0\n(\n    customLayerData = {{\n        string icefem_run = \"{run}\"\n        \
+             int[] icefem_frames = [{indices}]\n        double[] icefem_times = [{times}]\n    }}\n    \
+             defaultPrim = \"World\"\n    \
+             doc = \"icefem export of {run}: the ice's outer surface and its cracks; metres, z up\"\n    \
+             endTimeCode = {end}\n    framesPerSecond = {fps}\n    metersPerUnit = 1\n    \
+             startTimeCode = 0\n    timeCodesPerSecond = {fps}\n    upAxis = \"Z\"\n)\n\n\
+             def Xform \"World\"\n{{\n",
+            run = escape(&self.run),
+            end = n.saturating_sub(1),
+        );
+        for ((name, color), prim) in PRIMS.iter().zip(&self.prims) {
+            let [r, g, b] = color;
+            let _ = write!(
+                text,
+                "    def Mesh \"{name}\"\n    {{\n        uniform bool doubleSided = {}\n        \
+                 uniform token subdivisionScheme = \"none\"\n        \
+                 color3f[] primvars:displayColor = [({r}, {g}, {b})] (\n            \
+                 interpolation = \"constant\"\n        )\n",
+                (*name == "Cracks") as u8
+            );
+            prim.write(&mut text);
+            text += "    }\n";
+        }
+        text += "}\n";
+        text
+    }
+}
+
+impl PrimSamples {
+    /// Adds `mesh` as the samples at time code `k`.
+    fn push(&mut self, k: usize, mesh: &SurfaceMesh) {
+        let (lo, hi) = extent(&mesh.points);
+        sample(&mut self.extent, k, [lo, hi].iter(), push_vec3);
+        sample(&mut self.counts, k, mesh.triangles.iter(), |s, _| {
+            s.push('3')
+        });
+        let indices = mesh.triangles.iter().flatten();
+        sample(&mut self.indices, k, indices, |s, i| {
+            let _ = write!(s, "{i}");
+        });
+        sample(&mut self.points, k, mesh.points.iter(), push_vec3);
+        sample(&mut self.velocities, k, mesh.velocity.iter(), push_vec3);
+        for scalar in &mesh.scalars {
+            let at = match self.primvars.iter().position(|(n, _)| *n == scalar.name) {
+                Some(at) => at,
+                None => {
+                    self.primvars.push((scalar.name, String::new()));
+                    self.primvars.len() - 1
+                }
+            };
+            sample(&mut self.primvars[at].1, k, scalar.values.iter(), |s, v| {
+                push_f32(s, *v)
+            });
+        }
+    }
+
+    /// Appends the attributes' declarations with their samples.
+    fn write(&self, text: &mut String) {
+        let attributes = [
+            ("float3[] extent", &self.extent),
+            ("int[] faceVertexCounts", &self.counts),
+            ("int[] faceVertexIndices", &self.indices),
+            ("point3f[] points", &self.points),
+            ("vector3f[] velocities", &self.velocities),
+        ];
+        for (declaration, samples) in attributes {
+            time_samples(text, declaration, samples);
+        }
+        for (name, samples) in &self.primvars {
+            let declaration = format!("float[] primvars:{name}");
+            let _ = write!(
+                text,
+                "        {declaration} (\n            interpolation = \"vertex\"\n        )\n"
+            );
+            time_samples(text, &declaration, samples);
+        }
+    }
+}
+
+/// Appends `declaration.timeSamples = { samples }`.
+fn time_samples(text: &mut String, declaration: &str, samples: &str) {
+    let _ = write!(
+        text,
+        "        {declaration}.timeSamples = {{\n{samples}        }}\n"
+    );
+}
+
+/// Appends the sample line `k: [item, item, …],` to `samples`.
+fn sample<T>(
+    samples: &mut String,
+    k: usize,
+    items: impl Iterator<Item = T>,
+    mut item: impl FnMut(&mut String, T),
+) {
+    let _ = write!(samples, "            {k}: [");
+    for (j, x) in items.enumerate() {
+        if j > 0 {
+            samples.push_str(", ");
+        }
+        item(samples, x);
+    }
+    samples.push_str("],\n");
+}
+
+/// The box around `points` (m); zero for none.
+fn extent(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    if points.is_empty() {
+        return ([0.0; 3], [0.0; 3]);
+    }
+    points
+        .iter()
+        .fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), x| {
+            (
+                std::array::from_fn(|k| lo[k].min(x[k])),
+                std::array::from_fn(|k| hi[k].max(x[k])),
+            )
+        })
+}
+
+/// Appends `(x, y, z)` as f32.
+fn push_vec3(s: &mut String, v: &[f64; 3]) {
+    s.push('(');
+    push_f32(s, v[0]);
+    s.push_str(", ");
+    push_f32(s, v[1]);
+    s.push_str(", ");
+    push_f32(s, v[2]);
+    s.push(')');
+}
+
+/// Appends `v` as an f32 in the shortest form that reads back to it (with an exponent outside
+/// 1e-4 … 1e7, where the plain form is long).
+fn push_f32(s: &mut String, v: f64) {
+    let v = v as f32;
+    let _ = if v == 0.0 || (1e-4..1e7).contains(&v.abs()) || !v.is_finite() {
+        write!(s, "{v}")
+    } else {
+        write!(s, "{v:e}")
+    };
+}
+
+/// `s` with the characters a USDA string cannot hold as they are escaped.
+fn escape(s: &str) -> String {
+    s.replace('\\', "\\\\").replace('"', "\\\"")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn floats_read_back_to_the_same_f32() {
+        for v in [0.0, 0.1, -2.5e-7, 3.3e9, 1.0 / 3.0, 1e-4, 9.99e6] {
+            let mut s = String::new();
+            push_f32(&mut s, v);
+            assert_eq!(s.parse::<f32>().unwrap(), v as f32, "{s}");
+        }
+        let mut s = String::new();
+        push_f32(&mut s, 2.5e-7);
+        assert_eq!(s, "2.5e-7");
+    }
+
+    #[test]
+    fn samples_are_one_line_per_frame() {
+        let mut samples = String::new();
+        sample(&mut samples, 0, [[0.0, 1.0, 2.0]].iter(), push_vec3);
+        sample(&mut samples, 1, std::iter::empty::<&[f64; 3]>(), push_vec3);
+        assert_eq!(samples, "            0: [(0, 1, 2)],\n            1: [],\n");
+    }
+}
