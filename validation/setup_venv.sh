@@ -14,7 +14,7 @@ fi
 
 want="$(sha256sum "$REQ" | cut -d' ' -f1)"
 have="$(cat "$STAMP" 2>/dev/null || true)"
-if [ "$want" = "$have" ] && "$VENV/bin/python" -c "import skfem, numpy, scipy, h5py, meshio, matplotlib, sksparse.cholmod, pyamg, vtkmodules.vtkIOXdmf2" 2>/dev/null; then
+if [ "$want" = "$have" ] && "$VENV/bin/python" -c "import skfem, numpy, scipy, h5py, meshio, matplotlib, sksparse.cholmod, pyamg, vtkmodules.vtkIOXdmf2, pxr.Usd" 2>/dev/null; then
     echo "validation venv up to date ($VENV)"
     exit 0
 fi
