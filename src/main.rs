@@ -468,14 +468,17 @@ fn export_command(file: &Path, options: &ExportOptions, verbosity: Verbosity) ->
         return Ok(());
     }
     let seconds = start.elapsed().as_secs_f64();
+    let per_frame = |t: f64| 1e3 * t / summary.frames.max(1) as f64;
     println!(
-        "exported {} frames to {}: {} file{}, {:.2} s ({:.1} ms per frame)",
+        "exported {} frames to {}: {} file{} in {:.2} s; per frame {:.1} ms reading, {:.1} ms surfaces, {:.1} ms writing",
         summary.frames,
         summary.output.display(),
         summary.files.len(),
         if summary.files.len() == 1 { "" } else { "s" },
         seconds,
-        1e3 * seconds / summary.frames.max(1) as f64
+        per_frame(summary.t_read),
+        per_frame(summary.t_build),
+        per_frame(summary.t_write),
     );
     Ok(())
 }
