@@ -491,3 +491,58 @@ fn an_earlier_export_is_replaced_only_when_forced_and_bad_options_name_file_and_
     assert!(refused.contains("not a USDA file"), "{refused}");
     assert_eq!(std::fs::read_to_string(&foreign).unwrap(), "mine");
 }
+
+#[test]
+fn the_command_prints_one_line_and_its_errors_name_the_file_and_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = run_scene(dir.path(), "pulled_bar", Some(0.0006));
+    let icefem = |args: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_icefem"))
+            .args(args)
+            .output()
+            .unwrap();
+        let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+        (out.status.code(), text(&out.stdout), text(&out.stderr))
+    };
+    let file = run.to_str().unwrap();
+    let (code, stdout, _) = icefem(&["export", file, "--format", "vtu"]);
+    assert_eq!(code, Some(0));
+    assert_eq!(stdout.lines().count(), 1);
+    assert!(
+        stdout.starts_with("exported 4 frames to ") && stdout.contains("9 files"),
+        "{stdout}"
+    );
+    assert!(dir.path().join("run_export/run.pvd").exists());
+    let (code, stdout, _) = icefem(&["export", file, "--format", "usd", "--frames", "1:3"]);
+    assert_eq!(code, Some(0), "{stdout}");
+    assert!(
+        dir.path().join("run.usda").exists(),
+        "the stage beside the run"
+    );
+
+    let failures = [
+        (vec!["--format", "vtu"], "exists: pass --force"),
+        (
+            vec!["--format", "ply", "--frames", "2:9"],
+            "--frames \"2:9\"",
+        ),
+        (vec!["--format", "usd", "-o", "x.obj"], "--output x.obj"),
+        (vec!["--format", "stl"], "--format"),
+    ];
+    for (args, message) in failures {
+        let args = [&["export", file][..], &args].concat();
+        let (code, _, stderr) = icefem(&args);
+        assert_ne!(code, Some(0), "{args:?}");
+        assert!(
+            stderr.contains(message) && !stderr.contains("panicked"),
+            "{args:?}: {stderr}"
+        );
+    }
+    let missing = dir.path().join("missing.h5");
+    let (code, _, stderr) = icefem(&["export", missing.to_str().unwrap(), "--format", "obj"]);
+    assert_eq!(code, Some(1));
+    assert!(stderr.contains("missing.h5"), "{stderr}");
+    let (code, stdout, stderr) = icefem(&["-q", "export", file, "--format", "vtu", "--force"]);
+    assert_eq!(code, Some(0));
+    assert!(stdout.is_empty() && stderr.is_empty(), "{stdout}{stderr}");
+}
