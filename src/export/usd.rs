@@ -104,25 +104,41 @@ impl UsdSink {
         let indices = list(self.frames.iter().map(|(i, _)| i.to_string()).collect());
         let times = list(self.frames.iter().map(|(_, t)| t.to_string()).collect());
         let mut text = format!(
-            "#usda 1.0\n(\n    customLayerData = {{\n        string icefem_run = \"{run}\"\n        \
-             int[] icefem_frames = [{indices}]\n        double[] icefem_times = [{times}]\n    }}\n    \
-             defaultPrim = \"World\"\n    \
-             doc = \"icefem export of {run}: the ice's outer surface and its cracks; metres, z up\"\n    \
-             endTimeCode = {end}\n    framesPerSecond = {fps}\n    metersPerUnit = 1\n    \
-             startTimeCode = 0\n    timeCodesPerSecond = {fps}\n    upAxis = \"Z\"\n)\n\n\
-             def Xform \"World\"\n{{\n",
+            r#"#usda 1.0
+(
+    customLayerData = {{
+        string icefem_run = "{run}"
+        int[] icefem_frames = [{indices}]
+        double[] icefem_times = [{times}]
+    }}
+    defaultPrim = "World"
+    doc = "icefem export of {run}: the ice's outer surface and its cracks; metres, z up"
+    endTimeCode = {end}
+    framesPerSecond = {fps}
+    metersPerUnit = 1
+    startTimeCode = 0
+    timeCodesPerSecond = {fps}
+    upAxis = "Z"
+)
+
+def Xform "World"
+{{
+"#,
             run = escape(&self.run),
             end = n.saturating_sub(1),
         );
-        for ((name, color), prim) in PRIMS.iter().zip(&self.prims) {
-            let [r, g, b] = color;
+        for ((name, [r, g, b]), prim) in PRIMS.iter().zip(&self.prims) {
+            let double_sided = (*name == "Cracks") as u8;
             let _ = write!(
                 text,
-                "    def Mesh \"{name}\"\n    {{\n        uniform bool doubleSided = {}\n        \
-                 uniform token subdivisionScheme = \"none\"\n        \
-                 color3f[] primvars:displayColor = [({r}, {g}, {b})] (\n            \
-                 interpolation = \"constant\"\n        )\n",
-                (*name == "Cracks") as u8
+                r#"    def Mesh "{name}"
+    {{
+        uniform bool doubleSided = {double_sided}
+        uniform token subdivisionScheme = "none"
+        color3f[] primvars:displayColor = [({r}, {g}, {b})] (
+            interpolation = "constant"
+        )
+"#
             );
             prim.write(&mut text);
             text += "    }\n";
