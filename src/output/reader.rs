@@ -46,27 +46,40 @@ impl StoredFrame {
     /// Freeze state of each element, 0 (water) … 1 (ice); `None` when the run has no
     /// freezing.
     pub fn freeze_state(&self) -> Option<&[f64]> {
-        self.element_field("freeze_state")
-            .filter(|(cols, _)| *cols == 1)
-            .map(|(_, s)| s)
+        self.scalar_field("freeze_state")
     }
 
     /// ‖ε_p‖ of each element: the Frobenius norm of the plastic strain tensor (the Voigt
-    /// shear entries are tensor components, so each counts twice); `None` when the run has no
+    /// shear entries are tensor components, so each counts twice), as stored, or from
+    /// `plastic_strain` in a file that does not store it; `None` when the run has no
     /// plasticity.
     pub fn plastic_strain_norm(&self) -> Option<Vec<f64>> {
+        if let Some(norm) = self.scalar_field("plastic_strain_norm") {
+            return Some(norm.to_vec());
+        }
         let (cols, e) = self.element_field("plastic_strain")?;
         (cols == 6).then(|| e.chunks_exact(6).map(|v| from_voigt(v).norm()).collect())
     }
 
-    /// Von Mises stress of each element (Pa); `None` when the frame has no stress.
+    /// Von Mises stress of each element (Pa), as stored, or from `stress` in a file that does
+    /// not store it; `None` when the frame has neither.
     pub fn von_mises(&self) -> Option<Vec<f64>> {
+        if let Some(v) = self.scalar_field("von_mises") {
+            return Some(v.to_vec());
+        }
         (!self.stress.is_empty() && self.stress.len() == self.state.tets.len()).then(|| {
             self.stress
                 .iter()
                 .map(|s| von_mises(&from_voigt(s)))
                 .collect()
         })
+    }
+
+    /// The one-column element field `name`, if the frame has it with a value per element.
+    fn scalar_field(&self, name: &str) -> Option<&[f64]> {
+        self.element_field(name)
+            .filter(|(cols, v)| *cols == 1 && v.len() == self.state.tets.len())
+            .map(|(_, v)| v)
     }
 }
 
