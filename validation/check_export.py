@@ -17,7 +17,9 @@ the Frobenius norm of ``plastic_strain``, ``freeze_state``; weights the tets' re
   the ``.pvd`` (xml.etree) lists both objects of every frame at the frame's time. Ice
   points sit exactly on nodes, and each point's attributes equal that node's averages and
   velocity (1e-12 relative). meshio 5.3.5 cannot read a grid with no cells (an IndexError in
-  ``vtk_cells_from_data``), so empty crack files are checked with xml.etree instead.
+  ``vtk_cells_from_data``), so empty crack files are checked with xml.etree instead. VTK's
+  own ``vtkXMLUnstructuredGridReader`` (ParaView's; the ``vtk`` wheel of requirements.txt)
+  reads every file too, the empty ones included: point and cell counts, triangles, arrays.
 * PLY (``RUN_{ice,cracks}_NNNNNN.ply``): meshio reads each; counts as above; vertex
   properties equal the VTU's (f32).
 * OBJ (``RUN_NNNNNN.obj``): meshio reads each (it merges the file's objects): its triangles
@@ -135,10 +137,12 @@ def check_vtu(folder, stem, expected):
             path = os.path.join(folder, name)
             faces = e["outer"] if obj == "ice" else e["cracks"]
             if faces == 0:
+                check_with_vtk(path, 0, 0, set(e["nodal"]))
                 piece = ET.parse(path).getroot().find("UnstructuredGrid/Piece")
                 check(piece.get("NumberOfCells") == "0" and piece.get("NumberOfPoints") == "0", f"{name}: not empty")
                 out[(k, obj)] = None
                 continue
+            check_with_vtk(path, faces, 3 * faces if obj == "cracks" else None, set(e["nodal"]))
             m = meshio.read(path)
             check(triangles_of(m) == faces, f"{name}: {triangles_of(m)} triangles, expected {faces}")
             if obj == "cracks":
@@ -149,6 +153,24 @@ def check_vtu(folder, stem, expected):
                 check_ice_values(name, m.points, data, e)
             out[(k, obj)] = (m.points, data)
     return out
+
+
+def check_with_vtk(path, cells, points, fields):
+    """VTK's XML reader: ``cells`` triangles, ``points`` points (unless None), the arrays."""
+    try:
+        from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+    except ImportError:
+        return
+    reader = vtkXMLUnstructuredGridReader()
+    reader.SetFileName(path)
+    reader.Update()
+    grid = reader.GetOutput()
+    check(grid.GetNumberOfCells() == cells, f"VTK {path}: {grid.GetNumberOfCells()} cells, expected {cells}")
+    check(points is None or grid.GetNumberOfPoints() == points, f"VTK {path}: {grid.GetNumberOfPoints()} points")
+    check(all(grid.GetCellType(c) == 5 for c in range(grid.GetNumberOfCells())), f"VTK {path}: not triangles")
+    data = grid.GetPointData()
+    names = {data.GetArrayName(k) for k in range(data.GetNumberOfArrays())}
+    check(names == {"velocity"} | fields, f"VTK {path}: arrays {sorted(names)}")
 
 
 def check_ice_values(name, points, data, e):
