@@ -3,8 +3,11 @@
 #                 scenes/freezing_container_fracture.toml, to freezing_container_fracture.h5
 #                 (+ .xdmf, .cracks.xdmf), then draws the paper's figure from it
 #                 (freezing_container_fracture_figure.png)
-#   make test   — runs the whole test suite (cargo test --release)
-# The only system library needed is HDF5 (libhdf5-dev), installed with apt-get when missing.
+#   make test   — runs the whole test suite (cargo test --release), then reads icefem's files
+#                 with readers that are not icefem's (validation/check_readers.sh: the Python
+#                 reader's tests, the XDMF through VTK, the exports through pxr.Usd, meshio, VTK)
+# The only system library needed is HDF5 (libhdf5-dev), installed with apt-get when missing;
+# the readers' Python venv (wheels only) is created in target/readers-venv.
 
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
@@ -32,3 +35,4 @@ figures: deps
 
 test: deps
 	cargo test --release
+	validation/check_readers.sh
