@@ -11,7 +11,8 @@ use super::hdf5_io::{
 };
 use super::resume::{read_frame, ResumeFrame};
 use super::{corrupt, ObstacleMesh, OutputError};
-use crate::fem::{from_voigt, von_mises};
+use crate::fem::{from_voigt, max_principal, von_mises};
+use nalgebra::Matrix3;
 
 /// A crack triangle as drawn: its three vertices (m) and the crack it belongs to.
 pub type CrackTriangle = ([[f64; 3]; 3], usize);
@@ -64,15 +65,22 @@ impl StoredFrame {
     /// Von Mises stress of each element (Pa), as stored, or from `stress` in a file that does
     /// not store it; `None` when the frame has neither.
     pub fn von_mises(&self) -> Option<Vec<f64>> {
-        if let Some(v) = self.scalar_field("von_mises") {
+        self.stress_scalar("von_mises", von_mises)
+    }
+
+    /// Largest principal stress of each element (Pa, positive in tension), as stored, or from
+    /// `stress` in a file that does not store it; `None` when the frame has neither.
+    pub fn max_principal_stress(&self) -> Option<Vec<f64>> {
+        self.stress_scalar("max_principal_stress", max_principal)
+    }
+
+    /// The stored per-element scalar `name`, or `of` each element's stress tensor.
+    fn stress_scalar(&self, name: &str, of: fn(&Matrix3<f64>) -> f64) -> Option<Vec<f64>> {
+        if let Some(v) = self.scalar_field(name) {
             return Some(v.to_vec());
         }
-        (!self.stress.is_empty() && self.stress.len() == self.state.tets.len()).then(|| {
-            self.stress
-                .iter()
-                .map(|s| von_mises(&from_voigt(s)))
-                .collect()
-        })
+        (!self.stress.is_empty() && self.stress.len() == self.state.tets.len())
+            .then(|| self.stress.iter().map(|s| of(&from_voigt(s))).collect())
     }
 
     /// The one-column element field `name`, if the frame has it with a value per element.

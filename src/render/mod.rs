@@ -22,7 +22,6 @@ pub use sequence::{
     default_output, numbered_path, render_frames, select_frames, sibling, RenderSummary, Target,
 };
 
-use crate::fem::{from_voigt, max_principal};
 use crate::mesh::surface::TriSurface;
 use crate::output::{
     FrameMesh, FrameReader, ObstacleMesh, OutputError, StoredFrame, SurfaceExtractor,
@@ -135,16 +134,9 @@ impl ColorField {
             ColorField::VonMises => frame
                 .von_mises()
                 .ok_or_else(|| missing("stress", "malformed file"))?,
-            ColorField::Principal => {
-                if frame.stress.len() != frame.state.tets.len() {
-                    return Err(missing("stress", "malformed file"));
-                }
-                frame
-                    .stress
-                    .iter()
-                    .map(|s| max_principal(&from_voigt(s)))
-                    .collect()
-            }
+            ColorField::Principal => frame
+                .max_principal_stress()
+                .ok_or_else(|| missing("stress", "malformed file"))?,
         })
     }
 }
