@@ -3,7 +3,9 @@
 
 use icefem::mesh::box_mesh;
 use icefem::output::{FrameReader, OutputError, OutputWriter, RunHeader};
-use icefem::render::{self, FigureOptions, RenderOptions, Renderer, Style};
+use icefem::render::{
+    self, Background, ColorField, FigureOptions, Picture, RenderOptions, Renderer, Style,
+};
 use icefem::run::{run, RunOptions};
 use icefem::scene::Scene;
 use nalgebra::Vector3;
@@ -13,13 +15,22 @@ use std::sync::atomic::AtomicBool;
 /// Writes an icefem file of `frames` frames of a box mesh at rest (positions = rest, scene
 /// text empty: no obstacles); returns the box's corners.
 fn write_box_file(path: &Path, frames: usize) -> (Vector3<f64>, Vector3<f64>) {
+    write_box_file_with_scene(path, frames, "")
+}
+
+/// [`write_box_file`] with `scene_text` stored as the run's scene (its obstacles are drawn).
+fn write_box_file_with_scene(
+    path: &Path,
+    frames: usize,
+    scene_text: &str,
+) -> (Vector3<f64>, Vector3<f64>) {
     let (lo, size) = ([0.01, -0.02, 0.0], [0.1, 0.2, 0.05]);
     let mesh = box_mesh(lo, size, [2, 3, 1], 6).unwrap();
     let rest: Vec<[f64; 3]> = mesh.rest.iter().map(|x| [x.x, x.y, x.z]).collect();
     let mut writer = OutputWriter::create(
         path,
         &RunHeader {
-            scene_text: "",
+            scene_text,
             scene_path: "box.toml",
             version: "test",
             rest_positions: &rest,
@@ -223,8 +234,8 @@ fn cracks_are_drawn_in_crack_colour_where_the_fracture_put_them() {
 
     let before = renderer.draw_scene(&reader, &first).unwrap();
     let red_before = before
-        .rgb
-        .chunks_exact(3)
+        .rgba
+        .chunks_exact(4)
         .filter(|c| reddish([c[0], c[1], c[2]]))
         .count();
     assert_eq!(red_before, 0, "no crack, no red");
@@ -245,8 +256,8 @@ fn cracks_are_drawn_in_crack_colour_where_the_fracture_put_them() {
         "{hits} of {total} crack centroids drawn in crack colour"
     );
     let red_after = after
-        .rgb
-        .chunks_exact(3)
+        .rgba
+        .chunks_exact(4)
         .filter(|c| reddish([c[0], c[1], c[2]]))
         .count();
     assert!(
@@ -525,7 +536,7 @@ fn mesh_obstacles_are_drawn_from_the_file_after_the_scene_folder_moved() {
             ..Default::default()
         };
         let renderer = Renderer::new(&reader, options).unwrap();
-        renderer.draw_scene(&reader, &frame).unwrap().rgb
+        renderer.draw_scene(&reader, &frame).unwrap().rgba
     };
     // The file holds the ramp's surface as the scene placed it.
     let reader = FrameReader::open(&path).unwrap();
@@ -554,4 +565,161 @@ fn mesh_obstacles_are_drawn_from_the_file_after_the_scene_folder_moved() {
         "the picture changed with the scene folder"
     );
     assert_ne!(picture(&bare), before, "the ramp was not drawn at all");
+}
+
+/// A box inside a container obstacle, coloured by von Mises stress, on a white background.
+fn boxed_options(width: usize, height: usize) -> RenderOptions {
+    RenderOptions {
+        width,
+        height,
+        style: Style::Solid,
+        color_by: Some(ColorField::VonMises),
+        range: Some((0.0, 2.0e6)),
+        background: Background::Color([1.0; 3]),
+        ..Default::default()
+    }
+}
+
+const CONTAINER_SCENE: &str = r#"
+[material]
+density = 916.0
+[time]
+dt = 0.1
+end_time = 0.1
+[[obstacle]]
+type = "container"
+min = [-0.02, -0.05, -0.01]
+max = [0.14, 0.21, 0.08]
+"#;
+
+#[test]
+fn text_lines_and_colour_bar_scale_with_the_picture() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("box.h5");
+    write_box_file_with_scene(&path, 1, CONTAINER_SCENE);
+    let reader = FrameReader::open(&path).unwrap();
+    let frame = reader.read(0).unwrap();
+    let luminance = |c: [u8; 3]| 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64;
+    // What the picture's label, colour bar and obstacle lines measure (pixels).
+    let measure = |picture: &Picture, strip: usize| {
+        let (w, h) = (picture.width, picture.height);
+        // The label's ink: its height, top left.
+        let rows: Vec<usize> = (0..h / 10)
+            .filter(|&y| (0..w / 3).any(|x| picture.pixel(x, y).iter().all(|&c| c < 100)))
+            .collect();
+        let label = (rows.last().unwrap() - rows[0] + 1) as f64;
+        // The bar's width: the first run of non-white pixels in the strip, median over rows
+        // (rows with a tick mark run longer).
+        let mut runs: Vec<usize> = (h / 3..2 * h / 3)
+            .map(|y| {
+                let start = (w - strip..w)
+                    .find(|&x| picture.pixel(x, y) != [255; 3])
+                    .unwrap();
+                (start..w)
+                    .take_while(|&x| picture.pixel(x, y) != [255; 3])
+                    .count()
+            })
+            .collect();
+        runs.sort_unstable();
+        let bar = runs[runs.len() / 2] as f64;
+        // The obstacle's outline: grey ink over the white background, as a darkness
+        // integral (anti-aliased pixels count by their coverage); the ice is viridis purple
+        // and its edges blue, neither grey.
+        let obstacle = luminance([64, 64, 71]);
+        let mut ink = 0.0;
+        for y in h / 10..h {
+            for x in 0..w - strip {
+                let c = picture.pixel(x, y);
+                let grey = (c[0] as i32 - c[2] as i32).abs() < 24
+                    && (c[0] as i32 - c[1] as i32).abs() < 24;
+                if grey {
+                    ink += ((255.0 - luminance(c)) / (255.0 - obstacle)).clamp(0.0, 1.0);
+                }
+            }
+        }
+        (label, bar, ink)
+    };
+    let small = boxed_options(960, 540);
+    let large = boxed_options(3840, 2160);
+    let draw = |o: RenderOptions| {
+        let picture = Renderer::new(&reader, o)
+            .unwrap()
+            .render(&reader, &frame, true)
+            .unwrap();
+        measure(&picture, o.bar_strip())
+    };
+    let (label_s, bar_s, ink_s) = draw(small);
+    let (label_l, bar_l, ink_l) = draw(large);
+    // Sizes go as the picture's height over 600 px, never below 1: 1 at 540 px, 3.6 at
+    // 2160. Text and bar: 3.6 times, to the rounding of a few pixels at the small size.
+    // Outline ink: 4 times the length (the scene is 4 times larger) × 3.6 times the width.
+    assert_eq!(small.overlay().scale, 1.0);
+    assert!((large.overlay().scale - 3.6).abs() < 1e-12);
+    assert!(
+        (label_l / label_s - 3.6).abs() < 0.4,
+        "label {label_s} → {label_l} px"
+    );
+    assert!(
+        (bar_l / bar_s - 3.6).abs() < 0.3,
+        "bar {bar_s} → {bar_l} px"
+    );
+    assert!(
+        (ink_l / ink_s / 14.4 - 1.0).abs() < 0.12,
+        "outline ink {ink_s:.0} → {ink_l:.0} px²"
+    );
+    assert!(
+        label_s >= 9.0 && bar_s >= 15.0,
+        "legible at scale 1: {label_s}, {bar_s}"
+    );
+}
+
+#[test]
+fn a_transparent_background_leaves_only_the_scene_opaque() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("box.h5");
+    let (lo, hi) = write_box_file(&path, 2);
+    let reader = FrameReader::open(&path).unwrap();
+    let frame = reader.read(0).unwrap();
+    for (style, centre_alpha) in [(Style::Solid, 255..=255), (Style::Glass, 60..=254)] {
+        let options = RenderOptions {
+            width: 200,
+            height: 150,
+            style,
+            background: Background::Transparent,
+            ..Default::default()
+        };
+        let renderer = Renderer::new(&reader, options).unwrap();
+        let picture = renderer.render(&reader, &frame, false).unwrap();
+        let [x, y, _] = renderer.camera().project((lo + hi) / 2.0);
+        assert_eq!(
+            picture.alpha(0, 149),
+            0,
+            "{style:?}: a corner away from the box"
+        );
+        let a = picture.alpha(x as usize, y as usize);
+        assert!(
+            centre_alpha.contains(&a),
+            "{style:?}: the box's centre has alpha {a}"
+        );
+        // Written as an RGBA PNG that keeps the alpha.
+        let png_path = dir.path().join("t.png");
+        render::save_png(&picture, &png_path).unwrap();
+        let decoder = png::Decoder::new(std::io::BufReader::new(
+            std::fs::File::open(&png_path).unwrap(),
+        ));
+        let mut png_reader = decoder.read_info().unwrap();
+        let mut buffer = vec![0; png_reader.output_buffer_size().unwrap()];
+        let info = png_reader.next_frame(&mut buffer).unwrap();
+        assert_eq!(info.color_type, png::ColorType::Rgba);
+        assert_eq!(&buffer[..info.buffer_size()], &picture.rgba[..]);
+    }
+    // GIF and MP4 frames are opaque: refused with the reason.
+    let options = RenderOptions {
+        background: Background::Transparent,
+        ..Default::default()
+    };
+    let err = render::render_frames(&reader, &[0, 1], options, &dir.path().join("a.gif"), 10.0)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("transparent background needs PNG"), "{err}");
 }

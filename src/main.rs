@@ -6,7 +6,9 @@ use icefem::bench::{self, BenchCommand, SolverOptions};
 use icefem::eta::{format_duration, Eta};
 use icefem::export::{ExportFormat, ExportOptions};
 use icefem::output::FrameReader;
-use icefem::render::{self, ColorField, Cut, RenderOptions, Style, View};
+use icefem::render::{
+    self, Background, ColorField, Cut, Lens, RenderOptions, Shading, Style, View,
+};
 use icefem::run::{run, Progress, RunOptions};
 use icefem::scene::Scene;
 use icefem::solver::{FillOrdering, LinearSolverKind};
@@ -312,9 +314,26 @@ struct LookArgs {
     /// Camera: iso, front, side, top, or AZIMUTH,ELEVATION in degrees (z up).
     #[arg(long, default_value = "iso")]
     view: View,
+    /// Point the camera looks at, X,Y,Z in m (default: the centre of the ice and obstacles).
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    target: Option<[f64; 3]>,
+    /// Distance from the camera to the target in m (default: the ice and obstacles fill 90 %
+    /// of the picture).
+    #[arg(long, value_parser = parse_distance)]
+    distance: Option<f64>,
+    /// Vertical field of view in degrees, in (0, 170).
+    #[arg(long, default_value_t = render::camera::FIELD_OF_VIEW_DEG, value_parser = parse_fov)]
+    fov: f64,
     /// Ice surface: glass (translucent, cracks inside show) or solid.
     #[arg(long, default_value = "glass")]
     style: Style,
+    /// smooth (normals and fields interpolated from the vertices) or flat (one colour per
+    /// element face: the elements show).
+    #[arg(long, default_value = "smooth")]
+    shading: Shading,
+    /// Background: sky, white, black, #RRGGBB, or transparent (PNG only).
+    #[arg(long, default_value = "sky")]
+    background: Background,
     /// Colour the surface by freeze, plastic, stress (von Mises) or principal (largest
     /// principal stress), with a colour bar.
     #[arg(long)]
@@ -334,7 +353,14 @@ impl LookArgs {
             width: self.size.0,
             height: self.size.1,
             view: self.view,
+            lens: Lens {
+                target: self.target.map(Into::into),
+                distance: self.distance,
+                fov: self.fov,
+            },
             style: self.style,
+            shading: self.shading,
+            background: self.background,
             color_by: self.color_by,
             range: self.range,
             cut: self.cut,
@@ -358,6 +384,36 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
             .filter(|v| (render::MIN_SIZE..=render::MAX_SIZE).contains(v))
     };
     Ok((side(w).ok_or_else(bad)?, side(h).ok_or_else(bad)?))
+}
+
+fn parse_point(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("point {s:?}: expected X,Y,Z in m"))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([*x, *y, *z]),
+        _ => Err(format!(
+            "point {s:?}: expected three finite numbers X,Y,Z in m"
+        )),
+    }
+}
+
+fn parse_distance(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .ok_or_else(|| format!("distance {s:?}: expected a number of m > 0"))
+}
+
+fn parse_fov(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|f| *f > 0.0 && *f < 170.0)
+        .ok_or_else(|| format!("field of view {s:?}: expected degrees in (0, 170)"))
 }
 
 fn parse_range(s: &str) -> Result<(f64, f64), String> {

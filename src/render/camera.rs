@@ -1,4 +1,5 @@
-//! The camera: a view direction, fitted to a box so that the box fills the picture.
+//! The camera: a view direction, a target and a distance (fitted to a box unless given), and a
+//! field of view.
 
 use nalgebra::Vector3;
 use std::str::FromStr;
@@ -50,6 +51,28 @@ impl FromStr for View {
     }
 }
 
+/// Where the camera stands besides its direction: what it looks at, from how far, and how wide.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lens {
+    /// The point looked at, at the picture's centre (m); default: the centre of the fitted box.
+    pub target: Option<Vector3<f64>>,
+    /// Distance from the eye to the target (m); default: the distance at which the fitted box
+    /// fills [`FILL`] of the picture along its tighter axis.
+    pub distance: Option<f64>,
+    /// Vertical field of view (degrees, in (0, 170)).
+    pub fov: f64,
+}
+
+impl Default for Lens {
+    fn default() -> Self {
+        Lens {
+            target: None,
+            distance: None,
+            fov: FIELD_OF_VIEW_DEG,
+        }
+    }
+}
+
 /// A perspective camera for a picture of `width × height` pixels.
 #[derive(Clone, Copy, Debug)]
 pub struct Camera {
@@ -63,15 +86,25 @@ pub struct Camera {
     centre: [f64; 2],
 }
 
-/// Vertical field of view: narrow enough that boxes keep their shape, wide enough for depth.
-const FIELD_OF_VIEW_DEG: f64 = 30.0;
+/// Default vertical field of view (degrees): narrow enough that boxes keep their shape, wide
+/// enough for depth.
+pub const FIELD_OF_VIEW_DEG: f64 = 30.0;
 /// Fraction of the picture the fitted box may fill along its tighter axis.
-const FILL: f64 = 0.9;
+pub const FILL: f64 = 0.9;
 
 impl Camera {
-    /// A camera looking from `view` at the axis-aligned box `[lo, hi]` (m), placed so that the
-    /// box's projection fills [`FILL`] of the picture along its tighter axis, centred.
-    pub fn fit(view: View, lo: Vector3<f64>, hi: Vector3<f64>, width: u32, height: u32) -> Self {
+    /// A camera looking from `view` at the axis-aligned box `[lo, hi]` (m) through `lens`:
+    /// at the lens's target (default: the box's centre) from its distance (default: the
+    /// distance at which the box's projection reaches [`FILL`] of the picture's half-width or
+    /// half-height around the target, whichever is tighter).
+    pub fn fit(
+        view: View,
+        lens: Lens,
+        lo: Vector3<f64>,
+        hi: Vector3<f64>,
+        width: u32,
+        height: u32,
+    ) -> Self {
         let (az, el) = (view.azimuth.to_radians(), view.elevation.to_radians());
         let towards_eye = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
         let forward = -towards_eye;
@@ -84,40 +117,59 @@ impl Camera {
         };
         let right = forward.cross(&up_hint).normalize();
         let up = right.cross(&forward);
-        let centre_box = (lo + hi) / 2.0;
-        let radius = ((hi - lo).norm() / 2.0).max(1e-12);
-        let half_fov = (FIELD_OF_VIEW_DEG.to_radians()) / 2.0;
-        let eye = centre_box + towards_eye * (radius / half_fov.sin());
-        let mut camera = Camera {
-            eye,
+        let target = lens.target.unwrap_or((lo + hi) / 2.0);
+        let half_fov = lens.fov.to_radians() / 2.0;
+        let at = |distance: f64| Camera {
+            eye: target + towards_eye * distance,
             right,
             up,
             forward,
-            focal: 1.0,
-            centre: [0.0, 0.0],
+            focal: height as f64 / 2.0 / half_fov.tan(),
+            centre: [width as f64 / 2.0, height as f64 / 2.0],
         };
-        // Fit: the corners' projections at unit focal length give the extent to scale up.
-        let corners = (0..8).map(|k| {
-            Vector3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            )
-        });
-        let (mut min, mut max) = ([f64::MAX; 2], [f64::MIN; 2]);
-        for c in corners {
-            let [x, y, _] = camera.project(c);
-            min = [min[0].min(x), min[1].min(y)];
-            max = [max[0].max(x), max[1].max(y)];
-        }
-        let extent = [(max[0] - min[0]).max(1e-12), (max[1] - min[1]).max(1e-12)];
-        camera.focal = FILL * (width as f64 / extent[0]).min(height as f64 / extent[1]);
-        let mid = [(min[0] + max[0]) / 2.0, (min[1] + max[1]) / 2.0];
-        camera.centre = [
-            width as f64 / 2.0 - camera.focal * mid[0],
-            height as f64 / 2.0 - camera.focal * mid[1],
-        ];
-        camera
+        let distance = match lens.distance {
+            Some(d) => d,
+            None => {
+                // How far past FILL the farthest corner projects from the centre (< 1: inside);
+                // infinite when a corner is not in front of the eye. It falls as the eye
+                // backs away, so bisect on it.
+                let corners: Vec<Vector3<f64>> = (0..8)
+                    .map(|k| {
+                        Vector3::new(
+                            if k & 1 == 0 { lo.x } else { hi.x },
+                            if k & 2 == 0 { lo.y } else { hi.y },
+                            if k & 4 == 0 { lo.z } else { hi.z },
+                        )
+                    })
+                    .collect();
+                let reach = |distance: f64| {
+                    let camera = at(distance);
+                    corners.iter().fold(0.0f64, |r, &c| {
+                        let [x, y, depth] = camera.project(c);
+                        if depth <= 0.0 {
+                            return f64::INFINITY;
+                        }
+                        r.max((x - camera.centre[0]).abs() / (FILL * width as f64 / 2.0))
+                            .max((y - camera.centre[1]).abs() / (FILL * height as f64 / 2.0))
+                    })
+                };
+                let size = (hi - lo).norm().max(1e-12) + (target - (lo + hi) / 2.0).norm();
+                let (mut near, mut far) = (0.0, size);
+                while reach(far) > 1.0 && far < 1e12 * size {
+                    (near, far) = (far, 2.0 * far);
+                }
+                for _ in 0..100 {
+                    let mid = 0.5 * (near + far);
+                    if reach(mid) > 1.0 {
+                        near = mid;
+                    } else {
+                        far = mid;
+                    }
+                }
+                far
+            }
+        };
+        at(distance)
     }
 
     /// The picture position (pixels, x right, y down; continuous, pixel centres at k + ½) and
@@ -172,34 +224,81 @@ mod tests {
     }
 
     #[test]
-    fn fitted_box_fills_the_picture_centred() {
+    fn fitted_box_fills_the_picture_around_its_centre() {
         let (lo, hi) = (Vector3::zeros(), Vector3::new(0.1, 0.2, 0.05));
         for view in ["iso", "front", "side", "top", "120,-40"] {
-            let camera = Camera::fit(view.parse().unwrap(), lo, hi, 300, 200);
-            let (mut min, mut max) = ([f64::MAX; 2], [f64::MIN; 2]);
-            for k in 0..8 {
-                let c = Vector3::new(
-                    [lo.x, hi.x][k & 1],
-                    [lo.y, hi.y][(k >> 1) & 1],
-                    [lo.z, hi.z][(k >> 2) & 1],
+            for fov in [10.0, 30.0, 60.0] {
+                let lens = Lens {
+                    fov,
+                    ..Lens::default()
+                };
+                let camera = Camera::fit(view.parse().unwrap(), lens, lo, hi, 300, 200);
+                let mut reach = 0.0f64;
+                for k in 0..8 {
+                    let c = Vector3::new(
+                        [lo.x, hi.x][k & 1],
+                        [lo.y, hi.y][(k >> 1) & 1],
+                        [lo.z, hi.z][(k >> 2) & 1],
+                    );
+                    let [x, y, depth] = camera.project(c);
+                    assert!(depth > 0.0, "{view}: corner behind the camera");
+                    reach = reach
+                        .max((x - 150.0).abs() / 150.0)
+                        .max((y - 100.0).abs() / 100.0);
+                }
+                // The box's centre at the picture's centre; its farthest corner at 90 % of
+                // the half-width or half-height (bisection to round-off).
+                let [x, y, _] = camera.project((lo + hi) / 2.0);
+                assert!(
+                    (x - 150.0).abs() < 1e-9 && (y - 100.0).abs() < 1e-9,
+                    "{view}"
                 );
-                let [x, y, depth] = camera.project(c);
-                assert!(depth > 0.0, "{view}: corner behind the camera");
-                min = [min[0].min(x), min[1].min(y)];
-                max = [max[0].max(x), max[1].max(y)];
+                assert!(
+                    (reach - FILL).abs() < 1e-9,
+                    "{view} fov {fov}: reach {reach}"
+                );
+                // The field of view is the one asked for.
+                let top = camera.project(
+                    camera.eye + camera.forward + camera.up * (fov.to_radians() / 2.0).tan(),
+                );
+                assert!(
+                    top[1].abs() < 1e-9,
+                    "{view} fov {fov}: top edge at {}",
+                    top[1]
+                );
             }
-            // Centred to round-off, and exactly 90 % along the tighter axis.
-            assert!(((min[0] + max[0]) / 2.0 - 150.0).abs() < 1e-9, "{view}");
-            assert!(((min[1] + max[1]) / 2.0 - 100.0).abs() < 1e-9, "{view}");
-            let fill = ((max[0] - min[0]) / 300.0).max((max[1] - min[1]) / 200.0);
-            assert!((fill - FILL).abs() < 1e-9, "{view}: fill {fill}");
         }
+    }
+
+    #[test]
+    fn a_given_target_and_distance_place_the_eye() {
+        let lens = Lens {
+            target: Some(Vector3::new(1.0, 2.0, 3.0)),
+            distance: Some(5.0),
+            fov: 40.0,
+        };
+        let camera = Camera::fit(
+            View::ISO,
+            lens,
+            Vector3::zeros(),
+            Vector3::repeat(1.0),
+            400,
+            300,
+        );
+        assert!(((camera.eye - lens.target.unwrap()).norm() - 5.0).abs() < 1e-12);
+        let [x, y, depth] = camera.project(lens.target.unwrap());
+        assert!(
+            (x - 200.0).abs() < 1e-9 && (y - 150.0).abs() < 1e-9,
+            "({x}, {y})"
+        );
+        assert!((depth - 5.0).abs() < 1e-12);
     }
 
     #[test]
     fn top_view_keeps_y_up_in_the_picture() {
         let camera = Camera::fit(
             "top".parse().unwrap(),
+            Lens::default(),
             Vector3::zeros(),
             Vector3::repeat(1.0),
             100,

@@ -22,14 +22,24 @@ fn encoding(path: &Path, message: impl ToString) -> RenderError {
     }
 }
 
-/// Writes `picture` as an 8-bit RGB PNG.
+/// Writes `picture` as an 8-bit PNG: RGB when it is opaque, RGBA otherwise.
 pub fn save_png(picture: &Picture, path: &Path) -> Result<(), RenderError> {
     let mut encoder = png::Encoder::new(create(path)?, picture.width as u32, picture.height as u32);
-    encoder.set_color(png::ColorType::Rgb);
+    let opaque = picture.is_opaque();
+    encoder.set_color(if opaque {
+        png::ColorType::Rgb
+    } else {
+        png::ColorType::Rgba
+    });
     encoder.set_depth(png::BitDepth::Eight);
     let mut writer = encoder.write_header().map_err(|e| encoding(path, e))?;
+    let data = if opaque {
+        picture.rgb()
+    } else {
+        picture.rgba.clone()
+    };
     writer
-        .write_image_data(&picture.rgb)
+        .write_image_data(&data)
         .map_err(|e| encoding(path, e))?;
     writer.finish().map_err(|e| encoding(path, e))
 }
@@ -77,7 +87,7 @@ impl GifWriter {
             ));
         }
         // Speed 10 of 30: NeuQuant's default quality, ~10 ms for a 640 × 480 frame.
-        let mut frame = gif::Frame::from_rgb_speed(self.size.0, self.size.1, &picture.rgb, 10);
+        let mut frame = gif::Frame::from_rgb_speed(self.size.0, self.size.1, &picture.rgb(), 10);
         frame.delay = self.delay;
         self.encoder
             .write_frame(&frame)

@@ -1,13 +1,11 @@
 //! The paper's figure: four frames side by side with captions (frame, time, element and
 //! crack-polygon counts) and, when colouring by a field, one shared colour bar.
 
-use super::{
-    color_bar, draw_text, to_u8, Picture, RenderError, RenderOptions, Renderer, BAR_STRIP, SKY_TOP,
-};
+use super::text::Align;
+use super::{Picture, RenderError, RenderOptions, Renderer};
 use crate::fracture::cracks::{count_polygons, OriginalBoundary};
 use crate::mesh::TetMesh;
 use crate::output::{FrameReader, StoredFrame};
-use embedded_graphics::text::Alignment;
 use std::collections::HashSet;
 use std::path::Path;
 
@@ -78,10 +76,6 @@ impl Panel {
     }
 }
 
-const MARGIN: usize = 10;
-const TITLE: usize = 26;
-const CAPTION: usize = 40;
-
 /// The frames a figure shows by default (see [`FigureOptions::frames`]), from the complete
 /// frames' indices and the steps they were written at.
 pub fn default_frames(indices: &[usize], steps: &[u64]) -> Vec<usize> {
@@ -117,11 +111,11 @@ pub fn figure(
     let panel = options.panel;
     // The renderer leaves a colour-bar strip beside its scene; widen it by the strip so each
     // panel's scene is `panel.width` wide, and draw one shared bar instead.
-    let strip = if panel.color_by.is_some() {
-        BAR_STRIP
-    } else {
-        0
-    };
+    let strip = panel.bar_strip();
+    let overlay = panel.overlay();
+    // Margins, title and caption rows at 10, 26 and 40 pixels for scale 1.
+    let scaled = |v: f64| (v * overlay.scale).round() as usize;
+    let (margin, title_row, caption_row) = (scaled(10.0), scaled(26.0), scaled(40.0));
     let mut renderer = Renderer::new(
         reader,
         RenderOptions {
@@ -138,9 +132,9 @@ pub fn figure(
     }
 
     let n = frames.len();
-    let width = MARGIN + n * (panel.width + MARGIN) + strip;
-    let height = TITLE + panel.height + CAPTION + MARGIN;
-    let mut picture = Picture::filled(width, height, to_u8(SKY_TOP));
+    let width = margin + n * (panel.width + margin) + strip;
+    let height = title_row + panel.height + caption_row + margin;
+    let mut picture = panel.background.picture(width, height);
     let file = reader
         .path()
         .file_name()
@@ -151,49 +145,49 @@ pub fn figure(
         .unwrap_or_default()
         .to_string_lossy();
     let title = format!("icefem: {scene} ({file})");
-    draw_text(&mut picture, &title, MARGIN, 6, Alignment::Left);
+    overlay.text(
+        &mut picture,
+        &title,
+        margin as f64,
+        0.2 * title_row as f64,
+        Align::Left,
+    );
     let (rest, tets) = reader.initial_mesh()?;
     let original = TetMesh::from_arrays(&rest, tets)
         .ok()
         .map(|mesh| OriginalBoundary::new(&mesh));
     let mut panels = Vec::with_capacity(n);
     for (k, frame) in frames.iter().enumerate() {
-        let x = MARGIN + k * (panel.width + MARGIN);
-        picture.blit(&renderer.draw_scene(reader, frame)?, x, TITLE);
+        let x = margin + k * (panel.width + margin);
+        picture.blit(&renderer.draw_scene(reader, frame)?, x, title_row);
         let p = Panel::of(frame, original.as_ref());
-        let centre = x + panel.width / 2;
+        let centre = (x + panel.width / 2) as f64;
+        let below = (title_row + panel.height) as f64;
         let letter = (b'a' + (k % 26) as u8) as char;
         let line1 = format!("({letter}) step {}, t = {:.1} s", p.step, p.time);
         let line2 = format!(
             "{} elements, {} crack polygons",
             p.elements, p.crack_polygons
         );
-        draw_text(
+        let row = caption_row as f64 / 2.0;
+        overlay.text(
             &mut picture,
             &line1,
             centre,
-            TITLE + panel.height + 4,
-            Alignment::Center,
+            below + 0.1 * row,
+            Align::Centre,
         );
-        draw_text(
+        overlay.text(
             &mut picture,
             &line2,
             centre,
-            TITLE + panel.height + 20,
-            Alignment::Center,
+            below + 0.9 * row,
+            Align::Centre,
         );
         panels.push(p);
     }
     if let Some(field) = panel.color_by {
-        let (x, top) = (width - strip + 12, TITLE + panel.height / 6);
-        color_bar(
-            &mut picture,
-            field,
-            renderer.range(),
-            x,
-            top,
-            panel.height * 2 / 3,
-        );
+        renderer.color_bar(&mut picture, field, width - strip, title_row, panel.height);
     }
     Ok((picture, panels))
 }

@@ -1,20 +1,26 @@
 //! Pictures of a run, from its HDF5 file alone: `icefem render` (one frame, a PNG sequence or
 //! an animated GIF) and `icefem figure` (the paper's four panels with captions).
 //!
-//! The ice's outer surface is drawn shaded, by default as translucent "glass" so that crack
-//! surfaces inside it show (crack faces opaque, red); `solid` draws it opaque. Surface
-//! triangles take the colour of their element: ice white-blue, water darker blue, or a field
-//! (stress, plastic strain, freeze state) through a colour map with a colour bar. Rigid
-//! obstacles from the stored scene are drawn as outlines. Everything runs on the CPU: a
-//! z-buffered rasteriser with 2 × 2 supersampling ([`raster`]), PNG and GIF encoders.
+//! The ice's outer surface is drawn lit, by default as translucent "glass" so that crack
+//! surfaces inside it show (crack faces opaque, red); `solid` draws it opaque. Smooth shading
+//! (the default) interpolates normals and colours from the vertices: element fields (stress,
+//! plastic strain, freeze state) are averaged to the nodes and coloured through a colour map
+//! with a colour bar; flat shading colours each face by its element and lights it by its own
+//! normal. Rigid obstacles from the stored scene are drawn as outlines. Text, lines and the
+//! colour bar scale with the picture ([`overlay`]). Everything runs on the CPU: a z-buffered
+//! rasteriser with 2 × 2 supersampling ([`raster`]), PNG (RGBA when the background is
+//! transparent) and GIF encoders.
 
 pub mod camera;
 mod encode;
 mod figure;
+pub mod overlay;
 pub mod raster;
 mod sequence;
+mod shading;
+pub mod text;
 
-pub use camera::{Camera, View};
+pub use camera::{Camera, Lens, View};
 pub use encode::{save_png, GifWriter};
 pub use figure::{figure, FigureOptions};
 pub use raster::Picture;
@@ -29,17 +35,14 @@ use crate::output::{
 use crate::physics::contact::Shape;
 use crate::physics::{Amplitude, Motion, Region};
 use crate::scene::{ObstacleSection, SceneFile};
-use embedded_graphics::mono_font::{ascii::FONT_7X13, MonoTextStyle};
-use embedded_graphics::pixelcolor::Rgb888;
-use embedded_graphics::prelude::{Point, Primitive};
-use embedded_graphics::primitives::{PrimitiveStyle, Rectangle};
-use embedded_graphics::text::{Alignment, Baseline, Text, TextStyleBuilder};
-use embedded_graphics::Drawable;
 use nalgebra::Vector3;
+use overlay::Overlay;
 use raster::{Canvas, Rgb};
+use shading::Light;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use text::Align;
 
 /// Failures of rendering. Each names the file concerned.
 #[derive(Debug, thiserror::Error)]
@@ -103,13 +106,13 @@ impl FromStr for ColorField {
 }
 
 impl ColorField {
-    /// Label of the colour bar (ASCII: the bitmap font has no other glyphs).
-    pub fn label(self) -> &'static str {
+    /// The field's name on its colour bar (the unit goes on a line of its own).
+    pub fn title(self) -> &'static str {
         match self {
             ColorField::Freeze => "freeze state",
-            ColorField::Plastic => "plastic strain",
-            ColorField::VonMises => "von Mises (Pa)",
-            ColorField::Principal => "max principal (Pa)",
+            ColorField::Plastic => "plastic strain ‖εp‖",
+            ColorField::VonMises => "von Mises stress",
+            ColorField::Principal => "largest principal stress",
         }
     }
 
@@ -161,6 +164,79 @@ impl FromStr for Style {
     }
 }
 
+/// How surfaces are shaded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shading {
+    /// Normals and colours interpolated from the vertices (fields averaged to the nodes):
+    /// the default, for presentation.
+    Smooth,
+    /// One normal and one colour (its element's) per face: the elements show.
+    Flat,
+}
+
+impl FromStr for Shading {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "smooth" => Ok(Shading::Smooth),
+            "flat" => Ok(Shading::Flat),
+            _ => Err(format!("unknown shading {s:?}: expected smooth or flat")),
+        }
+    }
+}
+
+/// What lies behind the scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Background {
+    /// A pale grey-blue gradient (the default).
+    Sky,
+    /// One colour (display RGB in [0, 1]).
+    Color(Rgb),
+    /// Nothing: a PNG with an alpha channel, the scene's translucent ice partly transparent.
+    Transparent,
+}
+
+impl FromStr for Background {
+    type Err = String;
+    /// `sky`, `white`, `black`, `transparent` or `#RRGGBB`.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let hex = |t: &str| {
+            let v = u32::from_str_radix(t, 16).ok()?;
+            Some([16, 8, 0].map(|shift| ((v >> shift) & 0xff) as f32 / 255.0))
+        };
+        match s.trim() {
+            "sky" => Ok(Background::Sky),
+            "white" => Ok(Background::Color([1.0; 3])),
+            "black" => Ok(Background::Color([0.0; 3])),
+            "transparent" => Ok(Background::Transparent),
+            t => t
+                .strip_prefix('#')
+                .filter(|h| h.len() == 6)
+                .and_then(hex)
+                .map(Background::Color)
+                .ok_or_else(|| {
+                    format!("background {t:?}: expected sky, white, black, transparent or #RRGGBB")
+                }),
+        }
+    }
+}
+
+impl Background {
+    /// The gradient (top, bottom) behind the scene, or `None` for transparent.
+    fn gradient(self) -> Option<(Rgb, Rgb)> {
+        match self {
+            Background::Sky => Some((SKY_TOP, SKY_BOTTOM)),
+            Background::Color(c) => Some((c, c)),
+            Background::Transparent => None,
+        }
+    }
+
+    /// An empty picture of this background.
+    fn picture(self, width: usize, height: usize) -> Picture {
+        Canvas::new(width, height, self.gradient()).downsample(1)
+    }
+}
+
 /// A cut through the ice to show its inside: the elements whose rest centroid lies on the
 /// camera's side of the plane `x[axis] = value` are left out (and crack triangles on that
 /// side), so the faces along the cut show the interior's colours.
@@ -202,8 +278,14 @@ pub struct RenderOptions {
     /// Camera direction (the camera is fitted to the initial mesh and the obstacles, and kept
     /// for every frame so that a sequence does not jump).
     pub view: View,
+    /// Camera target, distance and field of view.
+    pub lens: Lens,
     /// Surface style.
     pub style: Style,
+    /// Smooth or flat shading.
+    pub shading: Shading,
+    /// What lies behind the scene.
+    pub background: Background,
     /// Colour the surface by a field, with a colour bar.
     pub color_by: Option<ColorField>,
     /// Colour-bar range (min, max); default: the range over the frames drawn.
@@ -213,14 +295,23 @@ pub struct RenderOptions {
 }
 
 impl RenderOptions {
+    /// Sizes of text and marks for the picture.
+    pub fn overlay(&self) -> Overlay {
+        Overlay::new(self.height, self.background.gradient().map(|g| g.0))
+    }
+
+    /// Width of the colour-bar strip: none unless colouring by a field (pixels).
+    pub fn bar_strip(&self) -> usize {
+        if self.color_by.is_some() {
+            self.overlay().strip()
+        } else {
+            0
+        }
+    }
+
     /// Width of the scene area: the picture less the colour-bar strip, if any (pixels).
     fn scene_width(&self) -> usize {
-        self.width
-            - if self.color_by.is_some() {
-                BAR_STRIP
-            } else {
-                0
-            }
+        self.width.saturating_sub(self.bar_strip()).max(1)
     }
 }
 
@@ -230,7 +321,10 @@ impl Default for RenderOptions {
             width: 800,
             height: 600,
             view: View::ISO,
+            lens: Lens::default(),
             style: Style::Glass,
+            shading: Shading::Smooth,
+            background: Background::Sky,
             color_by: None,
             range: None,
             cut: None,
@@ -245,8 +339,6 @@ pub const MIN_SIZE: usize = 64;
 pub const MAX_SIZE: usize = 4096;
 /// Supersampling factor per direction (anti-aliasing).
 const SUPERSAMPLE: usize = 2;
-/// Width of the colour-bar strip at the picture's right (pixels).
-const BAR_STRIP: usize = 140;
 
 /// Ice, water, cracks and outlines (display RGB).
 const ICE: Rgb = [0.84, 0.92, 1.0];
@@ -259,6 +351,9 @@ const SKY_TOP: Rgb = [1.0, 1.0, 1.0];
 const SKY_BOTTOM: Rgb = [0.86, 0.88, 0.91];
 /// Opacity of glass-style surfaces.
 const GLASS_ALPHA: f32 = 0.3;
+/// Strength of the white highlight of smooth-shaded ice (flat shading has none: a highlight
+/// per face would flicker from face to face).
+const SPECULAR: f32 = 0.25;
 /// Surface edges sharper than this (degrees between face normals) are drawn as lines.
 const FEATURE_ANGLE_DEG: f64 = 30.0;
 
@@ -314,8 +409,16 @@ impl Renderer {
             ),
         );
         let scene_width = options.scene_width();
+        if options.bar_strip() > 0 && scene_width < MIN_SIZE {
+            return Err(invalid(format!(
+                "a picture {} pixels wide leaves {scene_width} beside the colour bar's {} (at least {MIN_SIZE} are needed): widen it",
+                options.width,
+                options.bar_strip()
+            )));
+        }
         let camera = Camera::fit(
             options.view,
+            options.lens,
             lo,
             hi,
             scene_width as u32,
@@ -372,24 +475,38 @@ impl Renderer {
     ) -> Result<Picture, RenderError> {
         let RenderOptions { width, height, .. } = self.options;
         let scene = self.draw_scene(reader, frame)?;
-        let mut picture = Picture::filled(width, height, to_u8(SKY_TOP));
+        let mut picture = self.options.background.picture(width, height);
         picture.blit(&scene, 0, 0);
+        let overlay = self.options.overlay();
         if let Some(field) = self.options.color_by {
-            let x = scene.width + 12;
-            color_bar(
-                &mut picture,
-                field,
-                self.range,
-                x,
-                height / 6,
-                height * 2 / 3,
-            );
+            self.color_bar(&mut picture, field, scene.width, 0, height);
         }
         if label {
             let text = format!("frame {}   t = {:.3} s", frame.index, frame.state.time);
-            draw_text(&mut picture, &text, 8, 6, Alignment::Left);
+            let m = overlay.margin();
+            overlay.text(&mut picture, &text, m, 0.75 * m, Align::Left);
         }
         Ok(picture)
+    }
+
+    /// The colour bar of `field` in the strip right of `x`, for a scene area from `top`,
+    /// `height` pixels high (its middle two thirds).
+    fn color_bar(
+        &self,
+        picture: &mut Picture,
+        field: ColorField,
+        x: usize,
+        top: usize,
+        height: usize,
+    ) {
+        let range = self.range;
+        self.options.overlay().color_bar(
+            picture,
+            field,
+            range,
+            [x as f64, (top + height / 6) as f64, (height * 2 / 3) as f64],
+            |v| colormap(v, range),
+        );
     }
 
     /// Only the 3-D scene of `frame`, in the scene area of the picture (the full width when
@@ -420,38 +537,84 @@ impl Renderer {
         let camera = self.camera.scaled(SUPERSAMPLE as f64);
         let scene_width = self.options.scene_width();
         let (w, h) = (scene_width * SUPERSAMPLE, self.options.height * SUPERSAMPLE);
-        let mut canvas = sky(w, h);
+        let mut canvas = Canvas::new(w, h, self.options.background.gradient());
         let (right, up) = camera.right_up();
-        let light = (-camera.forward() + 0.5 * up - 0.3 * right).normalize();
-        let shade = |x: [Vector3<f64>; 3], color: Rgb| -> Rgb {
+        let to_light = -camera.forward() + 0.5 * up - 0.3 * right;
+        let smooth = self.options.shading == Shading::Smooth;
+        let light = Light::new(
+            to_light,
+            -camera.forward(),
+            if smooth { SPECULAR } else { 0.0 },
+        );
+        let face_normal = |x: [Vector3<f64>; 3]| -> Vector3<f32> {
             let n = (x[1] - x[0]).cross(&(x[2] - x[0]));
-            let lambert = if n.norm() > 0.0 {
-                n.normalize().dot(&light).abs()
-            } else {
-                0.0
-            };
-            color.map(|c| c * (0.45 + 0.55 * lambert as f32))
+            n.try_normalize(0.0).unwrap_or_default().cast()
         };
         let project = |x: Vector3<f64>| camera.project(x);
 
-        // Cracks: opaque, first, so that glass blends over them.
+        // Cracks: opaque, flat (each is a plane within its element), first, so that glass
+        // blends over them.
+        let crack_light = Light::new(to_light, -camera.forward(), 0.0);
         for &x in &crack_triangles {
-            canvas.fill(x.map(project), shade(x, CRACK));
+            canvas.fill(x.map(project), crack_light.shade(CRACK, face_normal(x)));
         }
-        let color_of = |element: usize| -> Rgb {
-            match &values {
-                Some(v) => colormap(v[element], self.range),
-                None => {
-                    let s = freeze.map_or(1.0, |s| s[element].clamp(0.0, 1.0)) as f32;
+
+        // The colour of the ice: a field through the colour map, else water → ice by the
+        // freeze state; per element (flat) or averaged to the nodes (smooth).
+        let element_values: Option<Vec<f64>> = match (&values, freeze) {
+            (Some(v), _) => Some(v.clone()),
+            (None, Some(s)) => Some(s.to_vec()),
+            (None, None) => None,
+        };
+        let paint = |v: Option<f64>| -> Rgb {
+            match (&values, v) {
+                (Some(_), Some(v)) => colormap(v, self.range),
+                (_, v) => {
+                    let s = v.map_or(1.0, |s| s.clamp(0.0, 1.0)) as f32;
                     std::array::from_fn(|k| WATER[k] + (ICE[k] - WATER[k]) * s)
                 }
             }
         };
+        let tets: Vec<[usize; 4]> = state.tets.clone();
+        let nodal = element_values
+            .as_ref()
+            .filter(|_| smooth)
+            .map(|v| shading::nodal_values(v, &tets, &positions));
+        let normals = if smooth {
+            shading::corner_normals(&surface, &positions, FEATURE_ANGLE_DEG)
+        } else {
+            surface
+                .iter()
+                .map(|(n, _)| [face_normal(n.map(|i| positions[i])).cast(); 3])
+                .collect()
+        };
+        // Per triangle: its corners' colours and normals.
+        let corners: Vec<[(Rgb, Vector3<f32>); 3]> = surface
+            .iter()
+            .zip(&normals)
+            .map(|((nodes, element), n)| {
+                std::array::from_fn(|k| {
+                    let v = match &nodal {
+                        Some(nodal) => Some(nodal[nodes[k]]),
+                        None => element_values.as_ref().map(|v| v[*element]),
+                    };
+                    (paint(v), n[k].cast::<f32>())
+                })
+            })
+            .collect();
+        let shade_at = |c: [(Rgb, Vector3<f32>); 3]| {
+            move |w: [f32; 3]| -> Rgb {
+                let color =
+                    std::array::from_fn(|k| w[0] * c[0].0[k] + w[1] * c[1].0[k] + w[2] * c[2].0[k]);
+                let n = c[0].1 * w[0] + c[1].1 * w[1] + c[2].1 * w[2];
+                light.shade(color, n.try_normalize(0.0).unwrap_or(c[0].1))
+            }
+        };
         match self.options.style {
             Style::Solid => {
-                for (nodes, element) in &surface {
-                    let x = nodes.map(|i| positions[i]);
-                    canvas.fill(x.map(project), shade(x, color_of(*element)));
+                for ((nodes, _), c) in surface.iter().zip(&corners) {
+                    let x = nodes.map(|i| project(positions[i]));
+                    canvas.fill_with(x, shade_at(*c));
                 }
             }
             Style::Glass => {
@@ -466,13 +629,12 @@ impl Renderer {
                     .collect();
                 order.sort_by(|a, b| b.0.total_cmp(&a.0));
                 for (_, k) in order {
-                    let (nodes, element) = surface[k];
-                    let x = nodes.map(|i| positions[i]);
-                    canvas.blend(x.map(project), shade(x, color_of(element)), GLASS_ALPHA);
+                    let x = surface[k].0.map(|i| project(positions[i]));
+                    canvas.blend_with(x, GLASS_ALPHA, shade_at(corners[k]));
                 }
             }
         }
-        let line_width = 1.2 * SUPERSAMPLE as f64;
+        let line_width = self.options.overlay().line_width() * SUPERSAMPLE as f64;
         for [a, b] in feature_edges(&surface, &positions) {
             canvas.line(project(a), project(b), EDGE, line_width, true);
         }
@@ -521,15 +683,15 @@ impl Renderer {
     }
 }
 
-/// The backdrop of the scene area, at `SUPERSAMPLE` × the size.
-fn sky(width: usize, height: usize) -> Canvas {
-    Canvas::new(width, height, SKY_TOP, SKY_BOTTOM)
-}
-
-/// The scene area of a picture with nothing in it: what [`Renderer::draw_scene`] draws where
-/// the scene does not cover a pixel.
+/// The scene area of a picture with nothing in it, with the default background: what
+/// [`Renderer::draw_scene`] draws where the scene does not cover a pixel.
 pub fn background(width: usize, height: usize) -> Picture {
-    sky(width * SUPERSAMPLE, height * SUPERSAMPLE).downsample(SUPERSAMPLE)
+    Canvas::new(
+        width * SUPERSAMPLE,
+        height * SUPERSAMPLE,
+        Background::Sky.gradient(),
+    )
+    .downsample(SUPERSAMPLE)
 }
 
 /// Edges of a triangle surface where it bends by more than [`FEATURE_ANGLE_DEG`], or that
@@ -720,70 +882,6 @@ fn colormap(v: f64, (min, max): (f64, f64)) -> Rgb {
     };
     let c = colorous::VIRIDIS.eval_continuous(t);
     [c.r, c.g, c.b].map(|k| k as f32 / 255.0)
-}
-
-fn to_u8(c: Rgb) -> [u8; 3] {
-    c.map(|k| (k * 255.0).round().clamp(0.0, 255.0) as u8)
-}
-
-/// Draws one line of black text with its top at `y`, aligned at `x`.
-fn draw_text(picture: &mut Picture, text: &str, x: usize, y: usize, alignment: Alignment) {
-    let style = MonoTextStyle::new(&FONT_7X13, Rgb888::new(20, 20, 24));
-    let layout = TextStyleBuilder::new()
-        .alignment(alignment)
-        .baseline(Baseline::Top)
-        .build();
-    // Drawing on a `Picture` cannot fail (its error type is `Infallible`).
-    let _ =
-        Text::with_text_style(text, Point::new(x as i32, y as i32), style, layout).draw(picture);
-}
-
-/// A vertical colour bar at (x, top) of `height` pixels, labelled with the field and range.
-fn color_bar(
-    picture: &mut Picture,
-    field: ColorField,
-    (min, max): (f64, f64),
-    x: usize,
-    top: usize,
-    height: usize,
-) {
-    const BAR_WIDTH: usize = 16;
-    let height = height.max(2);
-    for row in 0..height {
-        let t = 1.0 - row as f64 / (height - 1) as f64;
-        let c = to_u8(colormap(min + t * (max - min), (min, max)));
-        for col in 0..BAR_WIDTH {
-            picture.set((x + col) as i64, (top + row) as i64, c);
-        }
-    }
-    let frame = Rectangle::new(
-        Point::new(x as i32, top as i32),
-        embedded_graphics::prelude::Size::new(BAR_WIDTH as u32, height as u32),
-    );
-    let _ = frame
-        .into_styled(PrimitiveStyle::with_stroke(Rgb888::new(60, 60, 60), 1))
-        .draw(picture);
-    draw_text(
-        picture,
-        &format!("{max:.2e}"),
-        x + BAR_WIDTH + 4,
-        top,
-        Alignment::Left,
-    );
-    draw_text(
-        picture,
-        &format!("{min:.2e}"),
-        x + BAR_WIDTH + 4,
-        top + height - 13,
-        Alignment::Left,
-    );
-    draw_text(
-        picture,
-        field.label(),
-        x,
-        top.saturating_sub(20),
-        Alignment::Left,
-    );
 }
 
 #[cfg(test)]

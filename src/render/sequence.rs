@@ -1,7 +1,7 @@
 //! Rendering a list of frames to files: one PNG, a numbered PNG sequence, an animated GIF, or
 //! an MP4 video (through `ffmpeg`).
 
-use super::{save_png, GifWriter, RenderError, RenderOptions, Renderer};
+use super::{save_png, Background, GifWriter, RenderError, RenderOptions, Renderer};
 use crate::output::{parse_frame_range, FrameReader};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -167,6 +167,12 @@ pub fn render_frames(
     fps: f64,
 ) -> Result<RenderSummary, RenderError> {
     let target = Target::of(path)?;
+    if target != Target::Png && options.background == Background::Transparent {
+        return Err(RenderError::Invalid {
+            path: path.into(),
+            message: "a transparent background needs PNG output: GIF and MP4 frames are opaque (write a .png sequence, or choose another --background)".into(),
+        });
+    }
     if target == Target::Mp4 {
         check_ffmpeg(path)?;
     }
