@@ -198,7 +198,8 @@ impl Canvas {
         let (w, h) = (self.width / factor, self.height / factor);
         let mut rgba = Vec::with_capacity(4 * w * h);
         let norm = 1.0 / (factor * factor) as f32;
-        let byte = |v: f32| (v * 255.0).round().clamp(0.0, 255.0) as u8;
+        // Rounded to nearest; `as` saturates (and maps NaN to 0), so no clamp is needed.
+        let byte = |v: f32| (v * 255.0 + 0.5) as u8;
         for y in 0..h {
             for x in 0..w {
                 let mut sum = [0.0f32; 4];
