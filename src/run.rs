@@ -130,8 +130,9 @@ pub fn run(
         })?;
     let mut fracture = scene.fracture.map(|f| Fracture::new(f, &sim.model.mesh));
     let mut writer = if options.resume {
-        let (writer, frame) = OutputWriter::resume(&output)?;
+        let (mut writer, frame) = OutputWriter::resume(&output)?;
         restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?;
+        writer.store_tensor_matrices(scene.tensor_matrices);
         writer
     } else {
         let rest = rows(&sim.model.mesh.rest);
@@ -150,6 +151,7 @@ pub fn run(
         } else {
             OutputWriter::create(&output, &header)?
         };
+        writer.store_tensor_matrices(scene.tensor_matrices);
         write_frame(&mut writer, &sim, fracture.as_ref(), true)?;
         writer
     };

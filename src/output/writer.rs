@@ -111,6 +111,9 @@ pub struct OutputWriter {
     /// group itself while that frame is not committed yet.
     pub(super) topology: String,
     pub(super) unlinked_topology: Option<Group>,
+    /// Whether frames store their symmetric tensors a second time as 3 × 3 matrices
+    /// (`tensors/<name>`, for VTK's XDMF readers).
+    pub(super) tensor_matrices: bool,
     /// Node / element counts of the current topology, to reject a frame that
     /// claims unchanged topology but has different sizes.
     pub(super) n_nodes: usize,
@@ -281,6 +284,7 @@ impl OutputWriter {
                 next_frame: 0,
                 topology: "/mesh".into(),
                 unlinked_topology: None,
+                tensor_matrices: true,
                 n_nodes: header.rest_positions.len(),
                 n_elems: header.tets.len(),
                 stats_rows: 0,
@@ -399,7 +403,7 @@ impl OutputWriter {
             .last()
             .map(|(_, r, _)| r)
             .or(self.records.last());
-        let record = FrameRecord::of(self.next_frame, frame, previous);
+        let record = FrameRecord::of(self.next_frame, frame, self.tensor_matrices, previous);
         if frame.topology_changed {
             self.topology = format!("/frames/{name}");
             self.unlinked_topology = Some(g.clone());
@@ -462,25 +466,8 @@ impl OutputWriter {
                 write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
             }
         }
-        // The symmetric tensors again as 3 × 3 matrices: the one layout VTK's XDMF readers
-        // both read as the tensor it is (see `xdmf.rs`).
-        let tensors = g
-            .create_group(TENSORS)
-            .ctx(&path, || format!("creating the tensors of frame {name}"))?;
-        let voigt = std::iter::once(("stress", "Cell", stress)).chain(
-            [(frame.element_fields, "Cell"), (frame.node_fields, "Node")]
-                .into_iter()
-                .flat_map(|(fields, center)| fields.iter().map(move |f| (f, center)))
-                .filter(|(f, _)| f.cols == 6)
-                .map(|(f, center)| (f.name, center, f.data)),
-        );
-        for (field, center, data) in voigt {
-            let matrices: Vec<f64> = data.chunks_exact(6).flat_map(voigt_to_matrix).collect();
-            write_matrix(&path, &tensors, field, data.len() / 6, 9, &matrices)?;
-            let ds = tensors
-                .dataset(field)
-                .ctx(&path, || format!("reopening {TENSORS}/{field}"))?;
-            write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
+        if self.tensor_matrices {
+            write_tensor_matrices(&path, &g, name, frame)?;
         }
         if let Some(c) = frame.cracks {
             let cg = g
@@ -493,6 +480,13 @@ impl OutputWriter {
         }
         write_attr(&path, &g, "complete", &1u8)?;
         Ok(g)
+    }
+
+    /// Whether frames written from now on store their symmetric tensors a second time as
+    /// 3 × 3 matrices (`tensors/<name>`; on by default). Without them the XDMF sidecar has
+    /// no tensor attributes, only the scalars derived from them.
+    pub fn store_tensor_matrices(&mut self, on: bool) {
+        self.tensor_matrices = on;
     }
 
     fn validate_frame(&self, frame: &Frame) -> Result<(), OutputError> {
@@ -785,6 +779,37 @@ pub(super) fn create_stats_column(
         .chunk(STATS_CHUNK_ROWS)
         .create(name)
         .ctx(path, || format!("creating /stats/{name}"))
+}
+
+/// Writes the symmetric tensors of `frame` (the stress and every 6-column field) again as
+/// 3 × 3 matrices into group `tensors` of frame group `g`: the one layout VTK's XDMF readers
+/// both read as the tensor it is (see `xdmf.rs`).
+fn write_tensor_matrices(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    frame: &Frame,
+) -> Result<(), OutputError> {
+    let stress = frame.stress.as_flattened();
+    let tensors = g
+        .create_group(TENSORS)
+        .ctx(path, || format!("creating the tensors of frame {name}"))?;
+    let voigt = std::iter::once(("stress", "Cell", stress)).chain(
+        [(frame.element_fields, "Cell"), (frame.node_fields, "Node")]
+            .into_iter()
+            .flat_map(|(fields, center)| fields.iter().map(move |f| (f, center)))
+            .filter(|(f, _)| f.cols == 6)
+            .map(|(f, center)| (f.name, center, f.data)),
+    );
+    for (field, center, data) in voigt {
+        let matrices: Vec<f64> = data.chunks_exact(6).flat_map(voigt_to_matrix).collect();
+        write_matrix(path, &tensors, field, data.len() / 6, 9, &matrices)?;
+        let ds = tensors
+            .dataset(field)
+            .ctx(path, || format!("reopening {TENSORS}/{field}"))?;
+        write_attr(path, &ds, "center", &vlen_str(path, "center", center)?)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

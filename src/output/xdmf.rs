@@ -81,20 +81,34 @@ pub(super) struct FrameRecord {
 }
 
 impl FrameRecord {
-    /// The record of `frame`, written as group `index`; `previous` (the last record) lends its
-    /// attribute list when the layout is the same.
-    pub(super) fn of(index: usize, frame: &Frame, previous: Option<&FrameRecord>) -> Self {
+    /// The record of `frame`, written as group `index` with its tensors' matrices when
+    /// `tensor_matrices` (without them, no tensor is listed); `previous` (the last record)
+    /// lends its attribute list when the layout is the same.
+    pub(super) fn of(
+        index: usize,
+        frame: &Frame,
+        tensor_matrices: bool,
+        previous: Option<&FrameRecord>,
+    ) -> Self {
         let (n, m) = (frame.positions.len(), frame.tets.len());
         let mut attributes = vec![
             builtin("velocity", "velocities", "Node", float(n, 3)),
             builtin("rest_position", "rest_positions", "Node", float(n, 3)),
-            builtin("stress", &format!("{TENSORS}/stress"), "Cell", float(m, 9)),
         ];
+        if tensor_matrices {
+            attributes.push(builtin(
+                "stress",
+                &format!("{TENSORS}/stress"),
+                "Cell",
+                float(m, 9),
+            ));
+        }
+        let builtins = attributes.len();
         for (fields, center, rows) in [
             (frame.element_fields, "Cell", m),
             (frame.node_fields, "Node", n),
         ] {
-            for f in fields {
+            for f in fields.iter().filter(|f| tensor_matrices || f.cols != 6) {
                 attributes.push(match f.cols {
                     6 => builtin(
                         f.name,
@@ -108,7 +122,7 @@ impl FrameRecord {
             }
         }
         // Fields in name order (as `read_record` lists them).
-        attributes[BUILTINS..].sort_by(|a, b| a.name.cmp(&b.name));
+        attributes[builtins..].sort_by(|a, b| a.name.cmp(&b.name));
         let attributes = shared(attributes, previous);
         let cracks = frame.cracks.map(|c| {
             let t = c.triangles.len();
@@ -124,10 +138,6 @@ impl FrameRecord {
         }
     }
 }
-
-/// How many attributes every frame has, first in its grid: `velocity`, `rest_position` and
-/// `stress`.
-const BUILTINS: usize = 3;
 
 /// `attributes`, sharing the previous record's list when they are the same.
 fn shared(

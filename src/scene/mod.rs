@@ -332,6 +332,11 @@ pub struct SolverSection {
 pub struct OutputSection {
     /// HDF5 file, relative to the working directory. Default: the scene's name with `.h5`.
     pub file: Option<String>,
+    /// Store every symmetric tensor (stress, plastic strain) a second time as 3 × 3 matrices,
+    /// the layout VTK's XDMF readers (ParaView) read as tensors. Default true; false makes
+    /// files about a third smaller, and their XDMF then shows the scalars derived from the
+    /// tensors (von Mises, largest principal stress, ‖ε_p‖) but not the tensors.
+    pub tensor_matrices: Option<bool>,
 }
 
 /// A validated scene.
@@ -351,6 +356,9 @@ pub struct Scene {
     pub output_every: u64,
     /// Default output file.
     pub output: PathBuf,
+    /// Whether frames store their symmetric tensors also as 3 × 3 matrices (`[output]
+    /// tensor_matrices`).
+    pub tensor_matrices: bool,
     /// Fracture, if on.
     pub fracture: Option<FractureSettings>,
     /// What the user should know about the input that is not an error (one line each), such
@@ -696,6 +704,7 @@ impl Validator<'_> {
             end_time,
             output_every,
             output,
+            tensor_matrices: raw.output.tensor_matrices.unwrap_or(true),
             fracture,
             notices: self.notices.take(),
         })
