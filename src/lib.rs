@@ -17,3 +17,4 @@ pub mod run;
 pub mod scene;
 pub mod sim;
 pub mod solver;
+pub mod thermal;

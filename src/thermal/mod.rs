@@ -1,0 +1,395 @@
+//! Heat conduction with freezing on a tet mesh: ρ c ∂T/∂t = ∇·(k ∇T) with the latent heat of
+//! water ↔ ice through an enthalpy formulation ([`Phases`]).
+//!
+//! Discretisation: P1 temperatures at the nodes, lumped capacity (each node carries the mass
+//! m_i = Σ ρ V_e / 4 of its elements and the specific enthalpy h(T_i)), backward Euler in
+//! time. Per step, for every free node i,
+//!
+//! r_i = m_i (h(T_i) − h(T_iⁿ)) / Δt + (K T)_i + H_i (T_i − T_air,i) = 0,
+//!
+//! K the P1 conductivity matrix with each element's conductivity from its ice fraction at the
+//! step's start (lagged: the step's only explicit part), H_i the lumped convection
+//! coefficient Σ h A / 3 of the node's convecting boundary triangles. Fixed-temperature nodes
+//! are eliminated; insulated boundaries need nothing. r is the gradient of the convex
+//! potential Σ m_i/Δt (Ĥ(T_i) − h(T_iⁿ) T_i) + ½ Tᵀ K T + Σ H_i (½ T_i² − T_air,i T_i)
+//! (Ĥ' = h, h increasing), so Newton with a backtracking line search on it converges from any
+//! start, whatever the mushy range; the Jacobian diag(m_i h'(T_i)/Δt + H_i) + K is symmetric
+//! positive definite, factorised by sparse Cholesky on a pattern analysed once
+//! ([`system::ScalarSystem`]).
+//!
+//! Energy: K's columns sum to zero, so at the solution the change of the nodes' enthalpy
+//! Σ m_i (h(T_i) − h(T_iⁿ)) equals the heat that came in over the step, Δt (Σ H_i (T_air,i −
+//! T_i) + Σ_fixed (K T)_d), up to Δt Σ r_i: every step reports both ([`HeatStep`]).
+
+pub mod enthalpy;
+pub mod neumann;
+pub mod system;
+
+pub use enthalpy::{Phase, Phases};
+
+use crate::mesh::TetMesh;
+use nalgebra::Matrix3;
+use system::{ScalarSystem, PAIRS};
+
+/// Failures of the heat model.
+#[derive(Debug, thiserror::Error)]
+pub enum ThermalError {
+    /// Inputs that do not define a heat problem.
+    #[error("heat model: {0}")]
+    Setup(String),
+    /// A step whose Newton iteration did not converge.
+    #[error("heat step to t = {time} s: {reason}")]
+    Step {
+        /// Time the step was to reach (s).
+        time: f64,
+        /// What went wrong.
+        reason: String,
+    },
+}
+
+/// The boundary conditions of the heat model (nodes and triangles of the mesh).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct HeatBoundary {
+    /// Nodes held at a temperature (°C).
+    pub fixed: Vec<(usize, f64)>,
+    /// Boundary triangles exchanging heat with a fluid: nodes, heat transfer coefficient h
+    /// (W/(m² K)) and the fluid's temperature (°C).
+    pub convection: Vec<([usize; 3], f64, f64)>,
+}
+
+/// What a heat step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HeatStep {
+    /// Newton iterations (each a factorisation and a solve).
+    pub newton_iterations: usize,
+    /// Heat that came in through the boundary over the step (J): convection and the
+    /// fixed-temperature nodes.
+    pub heat_in: f64,
+    /// Change of the nodes' enthalpy over the step (J): sensible and latent.
+    pub enthalpy_change: f64,
+    /// Latent part of the change (J): L × the change of the frozen mass, released heat
+    /// negative.
+    pub latent_change: f64,
+    /// Wall time of the step (s).
+    pub t_step: f64,
+}
+
+impl HeatStep {
+    /// |enthalpy change − heat in| (J): zero at the exact solution of the step.
+    pub fn imbalance(&self) -> f64 {
+        (self.enthalpy_change - self.heat_in).abs()
+    }
+}
+
+/// The heat model of a mesh and its nodal temperatures.
+pub struct Heat {
+    phases: Phases,
+    /// Nodal mass m_i (kg).
+    mass: Vec<f64>,
+    tets: Vec<[usize; 4]>,
+    /// V ∇λ_a · ∇λ_b per element for the [`PAIRS`] (m).
+    geometry: Vec<[f64; 10]>,
+    /// Free number of each node (`None`: fixed temperature).
+    free: Vec<Option<usize>>,
+    /// Lumped convection coefficient H_i (W/K) and H_i T_air,i (W) per node.
+    convection: Vec<(f64, f64)>,
+    /// Nodal temperature (°C).
+    temperature: Vec<f64>,
+    system: ScalarSystem,
+}
+
+/// Newton stops when the largest residual is this fraction of the largest diagonal of the
+/// Jacobian times 1 K (the heat flow a 1 K change of the stiffest node would cause): far below
+/// what the front's position resolves, and above round-off for any mesh.
+const RELATIVE_TOLERANCE: f64 = 1e-10;
+/// Newton iterations before a step is declared failed.
+const MAX_ITERATIONS: usize = 50;
+
+impl Heat {
+    /// The heat model of `mesh` with nodal masses `mass` (kg), the `phases`, `boundary` and the
+    /// `initial` nodal temperatures (°C; fixed nodes take their fixed value).
+    pub fn new(
+        mesh: &TetMesh,
+        mass: Vec<f64>,
+        phases: Phases,
+        boundary: &HeatBoundary,
+        initial: Vec<f64>,
+    ) -> Result<Self, ThermalError> {
+        let setup = |m: String| ThermalError::Setup(m);
+        phases.check().map_err(setup)?;
+        let n = mesh.num_nodes();
+        if mass.len() != n || initial.len() != n {
+            return Err(setup(format!(
+                "{} masses and {} initial temperatures for {n} nodes",
+                mass.len(),
+                initial.len()
+            )));
+        }
+        if let Some(t) = initial.iter().find(|t| !t.is_finite()) {
+            return Err(setup(format!("initial temperature {t} is not finite")));
+        }
+        let mut temperature = initial;
+        let mut fixed = vec![false; n];
+        for &(i, t) in &boundary.fixed {
+            if i >= n || !t.is_finite() {
+                return Err(setup(format!("fixed temperature {t} at node {i} of {n}")));
+            }
+            fixed[i] = true;
+            temperature[i] = t;
+        }
+        let mut count = 0;
+        let free = fixed
+            .iter()
+            .map(|&f| {
+                (!f).then(|| {
+                    count += 1;
+                    count - 1
+                })
+            })
+            .collect::<Vec<_>>();
+        let mut convection = vec![(0.0, 0.0); n];
+        for &(tri, h, t_air) in &boundary.convection {
+            if !(h.is_finite() && h >= 0.0 && t_air.is_finite()) || tri.iter().any(|&i| i >= n) {
+                return Err(setup(format!(
+                    "convection h = {h} W/(m² K) to {t_air} °C on triangle {tri:?}"
+                )));
+            }
+            let x = tri.map(|i| mesh.rest[i]);
+            let area = 0.5 * (x[1] - x[0]).cross(&(x[2] - x[0])).norm();
+            for i in tri {
+                convection[i].0 += h * area / 3.0;
+                convection[i].1 += h * area / 3.0 * t_air;
+            }
+        }
+        let geometry = mesh
+            .tets
+            .iter()
+            .map(|t| {
+                let x = t.map(|i| mesh.rest[i]);
+                let d = Matrix3::from_columns(&[x[1] - x[0], x[2] - x[0], x[3] - x[0]]);
+                let volume = d.determinant().abs() / 6.0;
+                // Rows of D⁻¹ are ∇λ1, ∇λ2, ∇λ3; ∇λ0 = −their sum.
+                let inv = d.try_inverse().unwrap_or_else(Matrix3::zeros);
+                let g1 = inv.row(0).transpose();
+                let g2 = inv.row(1).transpose();
+                let g3 = inv.row(2).transpose();
+                let g = [-(g1 + g2 + g3), g1, g2, g3];
+                PAIRS.map(|(a, b)| volume * g[a].dot(&g[b]))
+            })
+            .collect();
+        let system = ScalarSystem::new(&mesh.tets, &free, count).map_err(setup)?;
+        Ok(Heat {
+            phases,
+            mass,
+            tets: mesh.tets.clone(),
+            geometry,
+            free,
+            convection,
+            temperature,
+            system,
+        })
+    }
+
+    /// Nodal temperatures (°C).
+    pub fn temperature(&self) -> &[f64] {
+        &self.temperature
+    }
+
+    /// Sets the nodal temperatures (°C), e.g. from a stored frame; fixed nodes keep theirs.
+    pub fn set_temperature(&mut self, t: &[f64]) {
+        for ((dst, &src), free) in self.temperature.iter_mut().zip(t).zip(&self.free) {
+            if free.is_some() {
+                *dst = src;
+            }
+        }
+    }
+
+    /// The phases.
+    pub fn phases(&self) -> &Phases {
+        &self.phases
+    }
+
+    /// Ice fraction of each node, 0 … 1.
+    pub fn nodal_ice_fraction(&self) -> Vec<f64> {
+        let p = &self.phases;
+        self.temperature
+            .iter()
+            .map(|&t| p.ice_fraction(t))
+            .collect()
+    }
+
+    /// Ice fraction of each element: the mean of its nodes' (the lumped nodes' share of it).
+    pub fn element_ice_fraction(&self) -> Vec<f64> {
+        let f = self.nodal_ice_fraction();
+        self.tets
+            .iter()
+            .map(|t| t.iter().map(|&i| f[i]).sum::<f64>() / 4.0)
+            .collect()
+    }
+
+    /// Total enthalpy Σ m_i h(T_i) (J, relative to ice at the mushy range's lower end).
+    pub fn enthalpy(&self) -> f64 {
+        self.mass
+            .iter()
+            .zip(&self.temperature)
+            .map(|(m, &t)| m * self.phases.enthalpy(t))
+            .sum()
+    }
+
+    /// Frozen mass Σ m_i f(T_i) (kg).
+    pub fn frozen_mass(&self) -> f64 {
+        self.mass
+            .iter()
+            .zip(self.nodal_ice_fraction())
+            .map(|(m, f)| m * f)
+            .sum()
+    }
+
+    /// Element conductivities (W/(m K)) from the current ice fractions.
+    fn conductivities(&self) -> Vec<f64> {
+        self.element_ice_fraction()
+            .into_iter()
+            .map(|f| self.phases.conductivity(f))
+            .collect()
+    }
+
+    /// (K T) per node for element conductivities `k`.
+    fn conduction(&self, k: &[f64], t: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; t.len()];
+        for ((tet, g), ke) in self.tets.iter().zip(&self.geometry).zip(k) {
+            for (p, &(a, b)) in PAIRS.iter().enumerate() {
+                let v = ke * g[p];
+                out[tet[a]] += v * t[tet[b]];
+                if a != b {
+                    out[tet[b]] += v * t[tet[a]];
+                }
+            }
+        }
+        out
+    }
+
+    /// The step's potential (J/s up to a constant) at temperatures `t`, with the start
+    /// enthalpies `h0` (J/kg), conductivities `k` and step `dt`.
+    fn potential(&self, t: &[f64], h0: &[f64], k: &[f64], dt: f64) -> f64 {
+        let kt = self.conduction(k, t);
+        let p = &self.phases;
+        (0..t.len())
+            .filter(|&i| self.free[i].is_some())
+            .map(|i| {
+                let (hc, hct) = self.convection[i];
+                self.mass[i] / dt * (p.enthalpy_integral(t[i]) - h0[i] * t[i])
+                    + 0.5 * hc * t[i] * t[i]
+                    - hct * t[i]
+                    + 0.5 * kt[i] * t[i]
+            })
+            .sum::<f64>()
+            // With the fixed rows' halves, ½ Tᵀ K T over all nodes (the fixed part is constant).
+            + (0..t.len())
+                .filter(|&i| self.free[i].is_none())
+                .map(|i| 0.5 * kt[i] * t[i])
+                .sum::<f64>()
+    }
+
+    /// Advances the temperatures by one backward-Euler step of `dt` (s), to time `time` (s,
+    /// for messages).
+    pub fn step(&mut self, dt: f64, time: f64) -> Result<HeatStep, ThermalError> {
+        let start = std::time::Instant::now();
+        let p = self.phases;
+        let h0: Vec<f64> = self.temperature.iter().map(|&t| p.enthalpy(t)).collect();
+        let frozen0 = self.frozen_mass();
+        let k = self.conductivities();
+        let mut t = self.temperature.clone();
+        let n_free = self.free.iter().flatten().count();
+        let mut iterations = 0;
+        let residual = |heat: &Heat, t: &[f64]| -> Vec<f64> {
+            let kt = heat.conduction(&k, t);
+            let mut r = vec![0.0; n_free];
+            for (i, free) in heat.free.iter().enumerate() {
+                if let Some(j) = free {
+                    let (hc, hct) = heat.convection[i];
+                    r[*j] =
+                        heat.mass[i] / dt * (p.enthalpy(t[i]) - h0[i]) + kt[i] + hc * t[i] - hct;
+                }
+            }
+            r
+        };
+        let mut r = residual(self, &t);
+        loop {
+            // The Jacobian, its scale and the convergence test.
+            self.system.clear();
+            for (e, g) in self.geometry.iter().enumerate() {
+                self.system.add_element(e, &g.map(|v| k[e] * v));
+            }
+            for (i, free) in self.free.iter().enumerate() {
+                if let Some(j) = free {
+                    let d = self.mass[i] / dt * p.capacity(t[i]) + self.convection[i].0;
+                    self.system.add_diagonal(*j, d);
+                }
+            }
+            let largest_diagonal = self.system.largest_diagonal();
+            let worst = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            if worst <= RELATIVE_TOLERANCE * largest_diagonal || n_free == 0 {
+                break;
+            }
+            if iterations == MAX_ITERATIONS {
+                return Err(ThermalError::Step {
+                    time,
+                    reason: format!(
+                        "Newton did not converge in {MAX_ITERATIONS} iterations (largest residual {worst:.3e} W)"
+                    ),
+                });
+            }
+            iterations += 1;
+            self.system
+                .factor()
+                .map_err(|reason| ThermalError::Step { time, reason })?;
+            let mut step: Vec<f64> = r.iter().map(|v| -v).collect();
+            self.system.solve_in_place(&mut step);
+            // Backtracking on the convex potential (Armijo, factor ½).
+            let slope: f64 = r.iter().zip(&step).map(|(a, b)| a * b).sum();
+            let phi0 = self.potential(&t, &h0, &k, dt);
+            let mut alpha = 1.0;
+            let trial = |alpha: f64| -> Vec<f64> {
+                let mut x = t.clone();
+                for (i, free) in self.free.iter().enumerate() {
+                    if let Some(j) = free {
+                        x[i] += alpha * step[*j];
+                    }
+                }
+                x
+            };
+            let mut next = trial(alpha);
+            while alpha > 1e-8 && self.potential(&next, &h0, &k, dt) > phi0 + 1e-4 * alpha * slope {
+                alpha *= 0.5;
+                next = trial(alpha);
+            }
+            t = next;
+            r = residual(self, &t);
+        }
+        // The step's energy account.
+        let kt = self.conduction(&k, &t);
+        let heat_in = dt
+            * (0..t.len())
+                .map(|i| match self.free[i] {
+                    Some(_) => self.convection[i].1 - self.convection[i].0 * t[i],
+                    None => kt[i],
+                })
+                .sum::<f64>();
+        let enthalpy_change = self
+            .mass
+            .iter()
+            .zip(&t)
+            .zip(&h0)
+            .map(|((m, &ti), h)| m * (p.enthalpy(ti) - h))
+            .sum();
+        self.temperature = t;
+        let latent_change = -p.latent_heat * (self.frozen_mass() - frozen0);
+        Ok(HeatStep {
+            newton_iterations: iterations,
+            heat_in,
+            enthalpy_change,
+            latent_change,
+            t_step: start.elapsed().as_secs_f64(),
+        })
+    }
+}
