@@ -594,7 +594,8 @@ fn named_region_errors_name_the_field_and_the_groups() {
     let scene = parse_with_groups(&format!("{GROUPS}{freezing}")).unwrap();
     let f = scene.model.freezing.unwrap();
     let (first, last) = f
-        .arrival
+        .arrival()
+        .unwrap()
         .iter()
         .flatten()
         .fold((f64::MAX, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));

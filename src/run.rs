@@ -7,6 +7,7 @@ use crate::output::{Field, Frame, ObstacleMesh, OutputError, OutputWriter, RunHe
 use crate::physics::contact::Shape;
 use crate::scene::{Scene, SceneError};
 use crate::sim::{SimError, Simulation, StepReport};
+use crate::thermal::{Heat, HeatLink};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -129,6 +130,23 @@ pub fn run(
             error,
         })?;
     let mut fracture = scene.fracture.map(|f| Fracture::new(f, &sim.model.mesh));
+    if let Some(setup) = &scene.thermal {
+        // On the scene's mesh, before a resumed fractured run rebuilds its split mesh.
+        let mesh = &sim.model.mesh;
+        let heat = Heat::new(
+            mesh,
+            sim.model.mass.clone(),
+            setup.phases,
+            &setup.boundary,
+            setup.initial.clone(),
+        )
+        .map_err(|e| RunError::Setup {
+            path: scene.path.clone(),
+            error: e.into(),
+        })?;
+        let link = HeatLink::new(heat, mesh);
+        sim.attach_heat(link);
+    }
     let mut writer = if options.resume {
         let (mut writer, frame) = OutputWriter::resume(&output)?;
         restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?;
@@ -310,6 +328,15 @@ fn write_frame(
         cols: 3,
         data: &sim.state.u,
     }];
+    // With [thermal]: the temperature at every node (°C), read where the heat is solved.
+    let temperature = sim.node_temperatures();
+    if let Some(t) = &temperature {
+        node_fields.push(Field {
+            name: "temperature",
+            cols: 1,
+            data: t,
+        });
+    }
     let zeros;
     let active: Vec<f64>;
     if let Some(forces) = sim.contact_forces() {
@@ -489,6 +516,16 @@ fn restore(
     sim.state.v = frame.velocities.iter().flatten().copied().collect();
     sim.state.time = frame.time;
     sim.state.step = frame.step;
+    if let Some(scene_nodes) = sim.heat().map(|l| l.heat.temperature().len()) {
+        // The scene mesh's nodes keep their numbers through splits: its temperatures are the
+        // first entries of the frame's node field.
+        let t = frame
+            .node_fields
+            .iter()
+            .find(|f| f.name == "temperature" && f.columns == 1 && f.data.len() >= scene_nodes)
+            .ok_or_else(|| bad("the last complete frame has no node field `temperature`".into()))?;
+        sim.set_temperature(t.data[..scene_nodes].to_vec());
+    }
     let tets = sim.model.mesh.num_tets();
     if let Some(e) = frame
         .element_fields

@@ -71,14 +71,33 @@ fn sample_points() -> Vec<[f64; 4]> {
 /// Which faces of the freezing box cool: −x, +x, −y, +y, −z (bottom), +z (top).
 pub type CoolingFaces = [bool; 6];
 
+/// Where the elements' freeze states come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Schedule {
+    /// A prescribed front.
+    Front {
+        /// Time the front reaches each sample point of each element (s); infinite if no face
+        /// cools.
+        arrival: Vec<[f64; SAMPLES]>,
+        /// Time an element takes to freeze once the front arrives (s).
+        transition: f64,
+    },
+    /// A heat solve ([`crate::thermal`]): each element's ice fraction at the start and the
+    /// end of the current step, linear in time between them (halved substeps see the
+    /// fractions in between).
+    Thermal {
+        /// Time (s) and ice fraction per element at the step's start.
+        start: (f64, Vec<f64>),
+        /// Time (s) and ice fraction per element at the step's end.
+        end: (f64, Vec<f64>),
+    },
+}
+
 /// The freezing schedule of every element.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Freezing {
-    /// Time the front reaches each sample point of each element (s); infinite if no face
-    /// cools.
-    pub arrival: Vec<[f64; SAMPLES]>,
-    /// Time an element takes to freeze once the front arrives (s).
-    pub transition: f64,
+    /// Where the freeze states come from.
+    pub schedule: Schedule,
     /// Largest expansion eigenstrain e_max = ratio^(1/3) − 1 (dimensionless).
     pub expansion: f64,
     /// The water model.
@@ -179,8 +198,10 @@ impl Freezing {
             })
             .collect();
         Freezing {
-            arrival,
-            transition,
+            schedule: Schedule::Front {
+                arrival,
+                transition,
+            },
             expansion: expansion_ratio.cbrt() - 1.0,
             water,
             water_shear: 0.0,
@@ -188,21 +209,89 @@ impl Freezing {
         }
     }
 
-    /// Freeze state of element `e` at time `t` (s), 0 … 1: the mean of its sample points'.
+    /// Freezing driven by a heat solve, every element at ice fraction `fraction` at time `t`
+    /// (s) until the first step sets the next; the expansion and water as [`Self::from_front`].
+    pub fn thermal(fraction: Vec<f64>, t: f64, expansion_ratio: f64, water: Water) -> Self {
+        let n = fraction.len();
+        Freezing {
+            schedule: Schedule::Thermal {
+                start: (t, fraction.clone()),
+                end: (t, fraction),
+            },
+            expansion: expansion_ratio.cbrt() - 1.0,
+            water,
+            water_shear: 0.0,
+            base_eigenstrain: vec![0.0; n],
+        }
+    }
+
+    /// Freeze state of element `e` at time `t` (s), 0 … 1: for a front, the mean of its sample
+    /// points'; from a heat solve, its ice fraction interpolated over the step.
     pub fn state(&self, e: usize, t: f64) -> f64 {
-        let local = |arrival: f64| {
-            let since = t - arrival;
-            if self.transition > 0.0 {
-                (since / self.transition).clamp(0.0, 1.0)
-            } else if since >= 0.0 {
-                1.0
-            } else {
-                0.0
+        match &self.schedule {
+            Schedule::Front {
+                arrival,
+                transition,
+            } => {
+                let local = |arrival: f64| {
+                    let since = t - arrival;
+                    if *transition > 0.0 {
+                        (since / transition).clamp(0.0, 1.0)
+                    } else if since >= 0.0 {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                };
+                let frozen = arrival[e].iter().map(|&a| local(a)).sum::<f64>();
+                // Exactly 1 once every sample has frozen (the sum of ones is exact).
+                frozen / SAMPLES as f64
             }
+            Schedule::Thermal {
+                start: (t0, f0),
+                end: (t1, f1),
+            } => {
+                if t >= *t1 || t1 <= t0 {
+                    f1[e]
+                } else {
+                    let w = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+                    f0[e] + w * (f1[e] - f0[e])
+                }
+            }
+        }
+    }
+
+    /// The front's arrival times per element and sample (s), for a prescribed front.
+    pub fn arrival(&self) -> Option<&[[f64; SAMPLES]]> {
+        match &self.schedule {
+            Schedule::Front { arrival, .. } => Some(arrival),
+            Schedule::Thermal { .. } => None,
+        }
+    }
+
+    /// The schedule on a split mesh whose element `e` came from element `parent[e]`.
+    pub fn inherit(&self, parent: &[usize]) -> Self {
+        fn take<T: Copy>(v: &[T], parent: &[usize]) -> Vec<T> {
+            parent.iter().map(|&p| v[p]).collect()
+        }
+        let schedule = match &self.schedule {
+            Schedule::Front {
+                arrival,
+                transition,
+            } => Schedule::Front {
+                arrival: take(arrival, parent),
+                transition: *transition,
+            },
+            Schedule::Thermal { start, end } => Schedule::Thermal {
+                start: (start.0, take(&start.1, parent)),
+                end: (end.0, take(&end.1, parent)),
+            },
         };
-        let frozen = self.arrival[e].iter().map(|&a| local(a)).sum::<f64>();
-        // Exactly 1 once every sample has frozen (the sum of ones is exact).
-        frozen / SAMPLES as f64
+        Freezing {
+            schedule,
+            base_eigenstrain: take(&self.base_eigenstrain, parent),
+            ..self.clone()
+        }
     }
 
     /// The water's bulk modulus (Pa; 0 for inactive water).
@@ -215,7 +304,7 @@ impl Freezing {
 
     /// Sets every element's freeze state and eigenstrain in `history` for time `t` (s).
     pub fn apply(&self, t: f64, history: &mut ElementHistory) {
-        let n = self.arrival.len();
+        let n = self.base_eigenstrain.len();
         history.freeze_state.resize(n, 0.0);
         for e in 0..n {
             let s = self.state(e, t);

@@ -204,9 +204,6 @@ impl Model {
         let mesh = TetMesh::from_arrays(&rows, tets)?;
         let old = &self.elasticity;
         let elasticity = old.remeshed(&mesh, parent);
-        fn inherit<T: Copy>(v: &[T], parent: &[usize]) -> Vec<T> {
-            parent.iter().map(|&p| v[p]).collect()
-        }
         let mut model = Model::new(
             mesh,
             elasticity,
@@ -225,11 +222,7 @@ impl Model {
             young: old.material.young(),
         };
         model.terms = self.terms.iter().map(|t| t.remeshed(&remesh)).collect();
-        model.freezing = self.freezing.as_ref().map(|f| freezing::Freezing {
-            arrival: inherit(&f.arrival, parent),
-            base_eigenstrain: inherit(&f.base_eigenstrain, parent),
-            ..f.clone()
-        });
+        model.freezing = self.freezing.as_ref().map(|f| f.inherit(parent));
         Ok(model)
     }
 

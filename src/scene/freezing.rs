@@ -14,10 +14,10 @@ use crate::physics::{Obstacle, Region};
 #[serde(deny_unknown_fields)]
 pub struct FreezingSection {
     /// Cooling faces: any of "walls" (±x, ±y), "bottom" (−z), "top" (+z), or single faces
-    /// "-x", "+x", "-y", "+y", "-z", "+z".
-    pub cooling: Vec<String>,
-    /// Front speed (m/s).
-    pub front_speed: f64,
+    /// "-x", "+x", "-y", "+y", "-z", "+z". Required unless `[thermal]` drives the freezing.
+    pub cooling: Option<Vec<String>>,
+    /// Front speed (m/s). Required unless `[thermal]` drives the freezing.
+    pub front_speed: Option<f64>,
     /// Time an element takes to freeze once the front reaches it (s). Default 0.
     pub transition_time: Option<f64>,
     /// When the front leaves the cooling faces (s). Default 0.
@@ -37,12 +37,29 @@ pub struct FreezingSection {
 }
 
 /// The faces of the box `cooling` may name.
-const BOX_FACES: [&str; 9] = ["walls", "bottom", "top", "-x", "+x", "-y", "+y", "-z", "+z"];
+pub(super) const BOX_FACES: [&str; 9] =
+    ["walls", "bottom", "top", "-x", "+x", "-y", "+y", "-z", "+z"];
+
+/// The box faces (−x, +x, −y, +y, −z, +z) a name of [`BOX_FACES`] stands for.
+pub(super) fn box_face_indices(name: &str) -> &'static [usize] {
+    match name {
+        "walls" => &[0, 1, 2, 3],
+        "bottom" | "-z" => &[4],
+        "top" | "+z" => &[5],
+        "-x" => &[0],
+        "+x" => &[1],
+        "-y" => &[2],
+        "+y" => &[3],
+        _ => &[],
+    }
+}
 
 impl Validator<'_> {
-    /// The boundary faces on the named surfaces `names` (physical surfaces of the mesh file).
-    fn named_cooling_faces(
+    /// The boundary faces on the named surfaces `names` (physical surfaces of the mesh file),
+    /// for the entry `field`.
+    pub(super) fn named_faces(
         &self,
+        field: &str,
         names: &[String],
         mesh: &TetMesh,
     ) -> Result<Vec<[usize; 3]>, SceneError> {
@@ -50,22 +67,18 @@ impl Validator<'_> {
         for name in names {
             if BOX_FACES.contains(&name.as_str()) {
                 return Err(self.invalid(
-                    "freezing.cooling",
+                    field,
                     format!("box face {name:?} and named surfaces cannot be mixed"),
                 ));
             }
             let known = self.groups.borrow().iter().any(|g| &g.name == name);
             if !known {
                 return Err(self.invalid(
-                    "freezing.cooling",
+                    field,
                     format!("unknown face {name:?}: use \"surface\", \"obstacles\", box faces {}, or a physical surface of the mesh file", BOX_FACES.map(|f| format!("{f:?}")).join(", ")),
                 ));
             }
-            selections.push(self.selection(
-                "freezing.cooling",
-                (None, None, Some(name)),
-                Some(2),
-            )?);
+            selections.push(self.selection(field, (None, None, Some(name)), Some(2))?);
         }
         let faces: Vec<[usize; 3]> = mesh
             .boundary_faces()
@@ -78,11 +91,52 @@ impl Validator<'_> {
             .collect();
         if faces.is_empty() {
             return Err(self.invalid(
-                "freezing.cooling",
+                field,
                 "the named surfaces hold no boundary face of the mesh",
             ));
         }
         Ok(faces)
+    }
+
+    /// The expansion ratio, water model and water shear modulus of `[freezing]` (defaults
+    /// without it).
+    pub(super) fn water_and_expansion(
+        &self,
+        f: Option<&FreezingSection>,
+        ice: &crate::fem::Material,
+    ) -> Result<(f64, Water, f64), SceneError> {
+        let ratio = f.and_then(|f| f.expansion_ratio).unwrap_or(1.09);
+        if !(ratio > 0.5 && ratio < 2.0) {
+            return Err(self.invalid(
+                "freezing.expansion_ratio",
+                format!("must be in (0.5, 2) (ice/water volume, 1.09 for water), got {ratio}"),
+            ));
+        }
+        let bulk = f.and_then(|f| f.water_bulk_modulus);
+        let water = match f.and_then(|f| f.water.as_deref()).unwrap_or("bulk") {
+            "bulk" => Water::Bulk {
+                modulus: self.positive("freezing.water_bulk_modulus", bulk.unwrap_or(2.2e9))?,
+            },
+            "inactive" => {
+                if bulk.is_some() {
+                    return Err(
+                        self.invalid("freezing.water_bulk_modulus", "only for water = \"bulk\"")
+                    );
+                }
+                Water::Inactive
+            }
+            other => {
+                return Err(self.invalid(
+                    "freezing.water",
+                    format!("must be \"bulk\" or \"inactive\", got {other:?}"),
+                ))
+            }
+        };
+        let shear = self.non_negative(
+            "freezing.water_shear_modulus",
+            f.and_then(|f| f.water_shear_modulus).unwrap_or(1e-4 * ice.mu),
+        )?;
+        Ok((ratio, water, shear))
     }
 
     pub(super) fn freezing(
@@ -92,7 +146,15 @@ impl Validator<'_> {
         eigenstrain: &[f64],
         (ice, obstacles): (&crate::fem::Material, &[Obstacle]),
     ) -> Result<Freezing, SceneError> {
-        let surface = match f.cooling.as_slice() {
+        let required = |field: &str| {
+            self.invalid(
+                field,
+                "required: the prescribed front needs `cooling` and `front_speed` (or add [thermal] to freeze by a heat solve)",
+            )
+        };
+        let cooling = f.cooling.as_ref().ok_or_else(|| required("freezing.cooling"))?;
+        let front_speed = f.front_speed.ok_or_else(|| required("freezing.front_speed"))?;
+        let surface = match cooling.as_slice() {
             [one] if one == "surface" => Some(
                 mesh.boundary_faces()
                     .iter()
@@ -107,7 +169,7 @@ impl Validator<'_> {
                 ))
             }
             list if list.iter().any(|n| !BOX_FACES.contains(&n.as_str())) => {
-                Some(self.named_cooling_faces(list, mesh)?)
+                Some(self.named_faces("freezing.cooling", list, mesh)?)
             }
             _ => None,
         };
@@ -117,20 +179,11 @@ impl Validator<'_> {
                 "`min`/`max` are the box whose faces cool; not with \"surface\" or \"obstacles\"",
             ));
         }
+        let names = cooling;
         let mut cooling = [false; 6];
-        for name in f.cooling.iter().filter(|_| surface.is_none()) {
-            let faces: &[usize] = match name.as_str() {
-                "walls" => &[0, 1, 2, 3],
-                "bottom" | "-z" => &[4],
-                "top" | "+z" => &[5],
-                "-x" => &[0],
-                "+x" => &[1],
-                "-y" => &[2],
-                "+y" => &[3],
-                // Names other than box faces were taken as named surfaces above.
-                _ => unreachable!("box face names are listed in BOX_FACES"),
-            };
-            for &k in faces {
+        for name in names.iter().filter(|_| surface.is_none()) {
+            // Names other than box faces were taken as named surfaces above.
+            for &k in box_face_indices(name) {
                 cooling[k] = true;
             }
         }
@@ -145,39 +198,11 @@ impl Validator<'_> {
             (Some(min), Some(max)) => self.region("freezing", min, max)?,
             _ => return Err(self.invalid("freezing.min", "give both `min` and `max`, or neither")),
         };
-        let speed = self.positive("freezing.front_speed", f.front_speed)?;
+        let speed = self.positive("freezing.front_speed", front_speed)?;
         let transition =
             self.non_negative("freezing.transition_time", f.transition_time.unwrap_or(0.0))?;
         let start = self.non_negative("freezing.start_time", f.start_time.unwrap_or(0.0))?;
-        let ratio = f.expansion_ratio.unwrap_or(1.09);
-        if !(ratio > 0.5 && ratio < 2.0) {
-            return Err(self.invalid(
-                "freezing.expansion_ratio",
-                format!("must be in (0.5, 2) (ice/water volume, 1.09 for water), got {ratio}"),
-            ));
-        }
-        let water = match f.water.as_deref().unwrap_or("bulk") {
-            "bulk" => Water::Bulk {
-                modulus: self.positive(
-                    "freezing.water_bulk_modulus",
-                    f.water_bulk_modulus.unwrap_or(2.2e9),
-                )?,
-            },
-            "inactive" => {
-                if f.water_bulk_modulus.is_some() {
-                    return Err(
-                        self.invalid("freezing.water_bulk_modulus", "only for water = \"bulk\"")
-                    );
-                }
-                Water::Inactive
-            }
-            other => {
-                return Err(self.invalid(
-                    "freezing.water",
-                    format!("must be \"bulk\" or \"inactive\", got {other:?}"),
-                ))
-            }
-        };
+        let (ratio, water, water_shear) = self.water_and_expansion(Some(f), ice)?;
         let mut freezing = match &surface {
             Some(triangles) => {
                 Freezing::from_surface(mesh, triangles, (speed, start, transition), ratio, water)
@@ -187,10 +212,7 @@ impl Validator<'_> {
             ),
         };
         freezing.base_eigenstrain = eigenstrain.to_vec();
-        freezing.water_shear = self.non_negative(
-            "freezing.water_shear_modulus",
-            f.water_shear_modulus.unwrap_or(1e-4 * ice.mu),
-        )?;
+        freezing.water_shear = water_shear;
         Ok(freezing)
     }
 }

@@ -37,12 +37,14 @@ use std::sync::Arc;
 mod bodies;
 mod checks;
 mod freezing;
+mod thermal;
 mod materials;
 mod obstacles;
 mod regions;
 
 pub use bodies::{BodySection, InitialSection, RotateSection};
 pub use freezing::FreezingSection;
+pub use thermal::{HeatSetup, ThermalSection};
 pub use materials::MaterialSection;
 pub use obstacles::ObstacleSection;
 
@@ -123,6 +125,8 @@ pub struct SceneFile {
     pub obstacle: Vec<ObstacleSection>,
     /// Freezing schedule (off if absent).
     pub freezing: Option<FreezingSection>,
+    /// Heat conduction driving the freezing (instead of `[freezing]`'s prescribed front).
+    pub thermal: Option<ThermalSection>,
     /// Plasticity (off if absent).
     pub plasticity: Option<PlasticitySection>,
     /// Brittle fracture (off if absent).
@@ -359,6 +363,8 @@ pub struct Scene {
     /// Whether frames store their symmetric tensors also as 3 × 3 matrices (`[output]
     /// tensor_matrices`).
     pub tensor_matrices: bool,
+    /// The heat model driving the freezing (`[thermal]`).
+    pub thermal: Option<HeatSetup>,
     /// Fracture, if on.
     pub fracture: Option<FractureSettings>,
     /// What the user should know about the input that is not an error (one line each), such
@@ -642,7 +648,26 @@ impl Validator<'_> {
         if let Some(contact) = contact {
             model.add_obstacles(contact);
         }
-        if let Some(f) = &raw.freezing {
+        let thermal = raw
+            .thermal
+            .as_ref()
+            .map(|t| self.thermal(t, &model.mesh))
+            .transpose()?;
+        if let Some(setup) = &thermal {
+            if !raw.materials.is_empty() {
+                return Err(self.invalid(
+                    "thermal",
+                    "[thermal] freezes the `[material]` water; it is not defined for scenes with [materials.NAME] entries",
+                ));
+            }
+            model.freezing = Some(self.thermal_freezing(
+                raw.freezing.as_ref(),
+                setup,
+                &model.mesh,
+                &model.elasticity.eigenstrain,
+                &material,
+            )?);
+        } else if let Some(f) = &raw.freezing {
             if !raw.materials.is_empty() {
                 return Err(self.invalid(
                     "freezing",
@@ -706,6 +731,7 @@ impl Validator<'_> {
             output,
             tensor_matrices: raw.output.tensor_matrices.unwrap_or(true),
             fracture,
+            thermal,
             notices: self.notices.take(),
         })
     }

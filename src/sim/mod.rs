@@ -15,7 +15,9 @@ use crate::physics::history::ElementHistory;
 use crate::physics::inertia::{Inertia, StiffnessDamping};
 use crate::physics::loads::DeadLoads;
 use crate::physics::term::{Solve, StepStartView, StepTerm};
+use crate::physics::freezing::Schedule;
 use crate::physics::Model;
+use crate::thermal::HeatLink;
 use crate::solver::{
     minimize, FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams,
     NewtonReport, NewtonWorkspace,
@@ -90,6 +92,9 @@ pub struct State {
     pub step: u64,
     /// What the elements carry from step to step.
     pub history: ElementHistory,
+    /// Temperature of each node of the scene's mesh (°C), where the heat model is solved;
+    /// empty without `[thermal]`.
+    pub temperature: Vec<f64>,
 }
 
 /// Energies of a state (J).
@@ -133,6 +138,8 @@ pub struct StepReport {
     /// Contact narrow phase: gaps, forces and Jacobians of all contact pairs, inside the
     /// assembly time of `newton` (s).
     pub t_contact_narrow: f64,
+    /// The heat step that preceded the mechanics (with `[thermal]`).
+    pub heat: Option<crate::thermal::HeatStep>,
 }
 
 /// Re-solves of a step with the friction normal force updated from its end.
@@ -160,6 +167,7 @@ impl StepReport {
             newton_solves: self.newton_solves + next.newton_solves,
             t_contact_broad: self.t_contact_broad + next.t_contact_broad,
             t_contact_narrow: self.t_contact_narrow + next.t_contact_narrow,
+            heat: self.heat.or(next.heat),
         }
     }
 }
@@ -199,6 +207,9 @@ pub enum SimError {
     /// Linear solver set-up failed.
     #[error(transparent)]
     Linear(#[from] crate::solver::LinearError),
+    /// The heat model failed.
+    #[error(transparent)]
+    Heat(#[from] crate::thermal::ThermalError),
 }
 
 /// A model, its state, and the solver data built for its mesh.
@@ -229,6 +240,8 @@ pub struct Simulation {
     /// Where Newton starts the next full step instead of the predictor (a retaken step's
     /// previous solution), used once.
     initial_guess: Option<Vec<f64>>,
+    /// The heat model that drives the freezing (with `[thermal]`).
+    heat: Option<HeatLink>,
 }
 
 impl Simulation {
@@ -288,6 +301,7 @@ impl Simulation {
             time: 0.0,
             step: 0,
             history,
+            temperature: Vec::new(),
         };
         let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
         Ok(Simulation {
@@ -300,6 +314,7 @@ impl Simulation {
             couplings: Vec::new(),
             start: None,
             initial_guess: None,
+            heat: None,
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
             } else {
@@ -330,15 +345,72 @@ impl Simulation {
         let mut history = self.state.history.inherit(parent);
         let mut next = Simulation::new(model, self.settings)?;
         next.model.apply_schedule(time, &mut history);
+        let mesh = &next.model.mesh;
+        next.heat = self
+            .heat
+            .take()
+            .map(|link| link.remeshed(&mesh.rest, &mesh.tets, parent));
         next.state = State {
             u,
             v,
             time,
             step,
             history,
+            temperature: std::mem::take(&mut self.state.temperature),
         };
         *self = next;
         Ok(())
+    }
+
+    /// Drives the freezing by `link`'s heat model from now on, from its current temperatures
+    /// (the state's, when it has them: a resumed run). The model must freeze (`[freezing]`
+    /// with a thermal schedule).
+    pub fn attach_heat(&mut self, mut link: HeatLink) {
+        if self.state.temperature.len() == link.heat.temperature().len() {
+            link.heat.set_temperature(&self.state.temperature);
+        }
+        self.state.temperature = link.heat.temperature().to_vec();
+        self.heat = Some(link);
+        self.set_thermal_schedule(self.state.time, self.state.time);
+    }
+
+    /// Sets the scene-mesh temperatures (°C; a resumed run's) and the freeze states they give.
+    pub fn set_temperature(&mut self, temperature: Vec<f64>) {
+        if self.heat.is_some() {
+            self.state.temperature = temperature;
+            self.set_thermal_schedule(self.state.time, self.state.time);
+        }
+    }
+
+    /// The heat model, with `[thermal]`.
+    pub fn heat(&self) -> Option<&HeatLink> {
+        self.heat.as_ref()
+    }
+
+    /// Temperature of every node of the mechanics mesh (°C), with `[thermal]`.
+    pub fn node_temperatures(&self) -> Option<Vec<f64>> {
+        self.heat
+            .as_ref()
+            .map(|link| link.node_temperatures(&self.state.temperature))
+    }
+
+    /// Makes the freeze states run from the elements' current ones at `t0` to those of the
+    /// state's temperatures at `t1` (s), and applies them at `t0`.
+    fn set_thermal_schedule(&mut self, t0: f64, t1: f64) {
+        let Some(link) = &self.heat else { return };
+        let end = link.element_fractions(&self.state.temperature, &self.model.mesh.tets);
+        let start = if t1 > t0 && self.state.history.freeze_state.len() == end.len() {
+            self.state.history.freeze_state.clone()
+        } else {
+            end.clone()
+        };
+        if let Some(f) = &mut self.model.freezing {
+            f.schedule = Schedule::Thermal {
+                start: (t0, start),
+                end: (t1, end),
+            };
+        }
+        self.model.apply_schedule(t0, &mut self.state.history);
     }
 
     /// Where the last step started (none before the first step and after a remesh).
@@ -386,6 +458,18 @@ impl Simulation {
         // Kept for fracture's retake, and to roll back a failed step.
         self.start = Some(self.state.clone());
         let t_end = t0 + self.settings.dt;
+        // Heat first (staggered): the mechanics of the step sees the freeze states move from
+        // the start's to those of the new temperatures.
+        let heat = match &mut self.heat {
+            Some(link) => {
+                link.heat.set_temperature(&self.state.temperature);
+                let report = link.heat.step(self.settings.dt, t_end)?;
+                self.state.temperature = link.heat.temperature().to_vec();
+                self.set_thermal_schedule(t0, t_end);
+                Some(report)
+            }
+            None => None,
+        };
         self.start_terms()?;
         let t_contact_broad = start.elapsed().as_secs_f64();
         let result = self.advance(self.settings.dt, t_end, 0);
@@ -400,6 +484,7 @@ impl Simulation {
         })?;
         self.state.step += 1;
         report.t_step = start.elapsed().as_secs_f64();
+        report.heat = heat;
         report.t_contact_broad += t_contact_broad;
         report.energies = self.energies();
         Ok(report)

@@ -22,10 +22,12 @@
 //! T_i) + Σ_fixed (K T)_d), up to Δt Σ r_i: every step reports both ([`HeatStep`]).
 
 pub mod enthalpy;
+pub mod link;
 pub mod neumann;
 pub mod system;
 
 pub use enthalpy::{Phase, Phases};
+pub use link::HeatLink;
 
 use crate::mesh::TetMesh;
 use nalgebra::Matrix3;
@@ -268,28 +270,6 @@ impl Heat {
         out
     }
 
-    /// The step's potential (J/s up to a constant) at temperatures `t`, with the start
-    /// enthalpies `h0` (J/kg), conductivities `k` and step `dt`.
-    fn potential(&self, t: &[f64], h0: &[f64], k: &[f64], dt: f64) -> f64 {
-        let kt = self.conduction(k, t);
-        let p = &self.phases;
-        (0..t.len())
-            .filter(|&i| self.free[i].is_some())
-            .map(|i| {
-                let (hc, hct) = self.convection[i];
-                self.mass[i] / dt * (p.enthalpy_integral(t[i]) - h0[i] * t[i])
-                    + 0.5 * hc * t[i] * t[i]
-                    - hct * t[i]
-                    + 0.5 * kt[i] * t[i]
-            })
-            .sum::<f64>()
-            // With the fixed rows' halves, ½ Tᵀ K T over all nodes (the fixed part is constant).
-            + (0..t.len())
-                .filter(|&i| self.free[i].is_none())
-                .map(|i| 0.5 * kt[i] * t[i])
-                .sum::<f64>()
-    }
-
     /// Advances the temperatures by one backward-Euler step of `dt` (s), to time `time` (s,
     /// for messages).
     pub fn step(&mut self, dt: f64, time: f64) -> Result<HeatStep, ThermalError> {
@@ -345,10 +325,10 @@ impl Heat {
                 .map_err(|reason| ThermalError::Step { time, reason })?;
             let mut step: Vec<f64> = r.iter().map(|v| -v).collect();
             self.system.solve_in_place(&mut step);
-            // Backtracking on the convex potential (Armijo, factor ½).
-            let slope: f64 = r.iter().zip(&step).map(|(a, b)| a * b).sum();
-            let phi0 = self.potential(&t, &h0, &k, dt);
-            let mut alpha = 1.0;
+            // Exact line search: the potential is convex and piecewise quadratic along the
+            // step, so its slope φ'(α) = r(T + α δ) · δ increases; find where it crosses 0 in
+            // (0, 1] (α = 1 when it is still negative there). Backtracking alone stalls when
+            // nodes keep stepping across the steep mushy range and back.
             let trial = |alpha: f64| -> Vec<f64> {
                 let mut x = t.clone();
                 for (i, free) in self.free.iter().enumerate() {
@@ -358,10 +338,39 @@ impl Heat {
                 }
                 x
             };
+            let slope = |x: &[f64]| -> f64 {
+                residual(self, x).iter().zip(&step).map(|(a, b)| a * b).sum()
+            };
+            let mut alpha = 1.0;
             let mut next = trial(alpha);
-            while alpha > 1e-8 && self.potential(&next, &h0, &k, dt) > phi0 + 1e-4 * alpha * slope {
-                alpha *= 0.5;
-                next = trial(alpha);
+            let slope_at_one = slope(&next);
+            if slope_at_one > 0.0 {
+                // Regula falsi with the Illinois modification on [0, 1].
+                let (mut a, mut fa) = (0.0, r.iter().zip(&step).map(|(a, b)| a * b).sum::<f64>());
+                let (mut b, mut fb) = (1.0, slope_at_one);
+                let mut side = 0;
+                for _ in 0..60 {
+                    alpha = (a * fb - b * fa) / (fb - fa);
+                    let x = trial(alpha);
+                    let f = slope(&x);
+                    if f > 0.0 {
+                        (b, fb) = (alpha, f);
+                        if side == -1 {
+                            fa *= 0.5;
+                        }
+                        side = -1;
+                    } else {
+                        (a, fa) = (alpha, f);
+                        if side == 1 {
+                            fb *= 0.5;
+                        }
+                        side = 1;
+                    }
+                    next = x;
+                    if f.abs() <= 1e-12 * fa.abs().max(fb.abs()) || b - a <= 1e-12 {
+                        break;
+                    }
+                }
             }
             t = next;
             r = residual(self, &t);
