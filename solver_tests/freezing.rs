@@ -579,7 +579,15 @@ fn freezing_from_the_surface_or_the_obstacles_matches_the_box_faces_it_equals() 
         let text = format!("{}cooling = {cooling}{}", &text[..start], &text[end..]);
         icefem::scene::Scene::parse(&text, std::path::Path::new("/tmp/freezing.toml")).unwrap()
     };
-    let arrival = |cooling: &str| scene(cooling).model.freezing.unwrap().arrival().unwrap().to_vec();
+    let arrival = |cooling: &str| {
+        scene(cooling)
+            .model
+            .freezing
+            .unwrap()
+            .arrival()
+            .unwrap()
+            .to_vec()
+    };
     let same = |a: &[[f64; icefem::physics::freezing::SAMPLES]],
                 b: &[[f64; icefem::physics::freezing::SAMPLES]]| {
         a.iter()

@@ -217,3 +217,172 @@ fn stefan_convergence_study() {
         );
     }
 }
+
+/// A 4 cm cube of water at +1 °C in a container whose walls and floor (−10 °C, contact
+/// conductance 500 W/(m² K)) and the air above (−10 °C, 10 W/(m² K)) cool it: 10-minute steps.
+const FREEZING_CUBE: &str = r#"
+[mesh]
+box = { size = [0.04, 0.04, 0.04], cells = [2, 2, 2] }
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[physics]
+gravity = [0.0, 0.0, -9.81]
+[[obstacle]]
+type = "container"
+min = [0.0, 0.0, 0.0]
+max = [0.04, 0.04, 0.06]
+friction = 0.3
+[thermal]
+initial_temperature = 1.0
+[[thermal.convection]]
+faces = ["walls", "bottom"]
+h = 500.0
+ambient_temperature = -10.0
+[[thermal.convection]]
+faces = ["top"]
+h = 10.0
+ambient_temperature = -10.0
+[plasticity]
+elastic_limit = 1e-4
+[time]
+dt = 600.0
+end_time = 7200.0
+output_every = 2
+"#;
+
+fn load(dir: &std::path::Path, text: &str) -> Result<icefem::scene::Scene, String> {
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, text).unwrap();
+    icefem::scene::Scene::load(&path).map_err(|e| e.to_string())
+}
+
+fn options(path: &std::path::Path, end: Option<f64>, resume: bool) -> icefem::run::RunOptions {
+    icefem::run::RunOptions {
+        output: Some(path.to_path_buf()),
+        end_time: end,
+        resume,
+        ..Default::default()
+    }
+}
+
+/// The last frame's positions, freeze states and temperatures, and every frame's mean freeze
+/// state.
+fn frames(path: &std::path::Path) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let file = hdf5::File::open(path).unwrap();
+    let mut names = file.group("frames").unwrap().member_names().unwrap();
+    names.sort();
+    let read = |name: &str, field: &str| {
+        file.dataset(&format!("frames/{name}/{field}"))
+            .unwrap()
+            .read_raw::<f64>()
+            .unwrap()
+    };
+    let means = names
+        .iter()
+        .map(|n| {
+            let s = read(n, "freeze_state");
+            s.iter().sum::<f64>() / s.len() as f64
+        })
+        .collect();
+    let last = names.last().unwrap();
+    (
+        read(last, "positions"),
+        read(last, "freeze_state"),
+        read(last, "temperature"),
+        means,
+    )
+}
+
+#[test]
+fn a_heat_solve_freezes_the_water_and_resumes_bit_identically() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = load(dir.path(), FREEZING_CUBE).unwrap();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let full = dir.path().join("full.h5");
+    icefem::run::run(&scene, &options(&full, None, false), &never, |_| {}).unwrap();
+    let (_, last_state, temperature, means) = frames(&full);
+    // Water at the start, ice at the end, never thawing on the way (the surroundings are
+    // colder than the water throughout).
+    assert_eq!(means[0], 0.0);
+    assert!(means.windows(2).all(|w| w[1] >= w[0] - 1e-12), "{means:?}");
+    assert!(last_state.iter().all(|&s| s == 1.0), "{last_state:?}");
+    assert!(
+        temperature.iter().all(|&t| (-10.0..-0.1).contains(&t)),
+        "{temperature:?}"
+    );
+    // Every heat step balances its energy to the solver tolerance: the imbalance against
+    // the heat that leaves per step (the latent heat of the cube, 20 kJ, over a few steps).
+    let file = hdf5::File::open(&full).unwrap();
+    let stat = |name: &str| {
+        file.dataset(&format!("stats/{name}"))
+            .unwrap()
+            .read_raw::<f64>()
+            .unwrap()
+    };
+    let imbalance = stat("heat_imbalance").iter().fold(0.0f64, |m, v| m.max(*v));
+    assert!(imbalance <= 1e-6, "heat imbalance {imbalance:.2e} J");
+    let iterations = file
+        .dataset("stats/heat_newton_iterations")
+        .unwrap()
+        .read_raw::<u32>()
+        .unwrap();
+    assert!(
+        iterations.iter().all(|&n| (1..=20).contains(&n)),
+        "{iterations:?}"
+    );
+    // The sidecar shows the temperature at the nodes.
+    let xdmf = std::fs::read_to_string(full.with_extension("xdmf")).unwrap();
+    assert!(
+        xdmf.contains("<Attribute Name=\"temperature\" AttributeType=\"Scalar\" Center=\"Node\">")
+    );
+    // Cut at 1 h and resumed: the same end state, bit for bit.
+    let half = dir.path().join("half.h5");
+    icefem::run::run(&scene, &options(&half, Some(3600.0), false), &never, |_| {}).unwrap();
+    icefem::run::run(&scene, &options(&half, None, true), &never, |_| {}).unwrap();
+    let (p_full, s_full, t_full, _) = frames(&full);
+    let (p_half, s_half, t_half, _) = frames(&half);
+    assert_eq!(p_full, p_half, "positions");
+    assert_eq!(s_full, s_half, "freeze states");
+    assert_eq!(t_full, t_half, "temperatures");
+}
+
+#[test]
+fn thermal_scene_errors_name_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let with = |extra: &str| load(dir.path(), &format!("{FREEZING_CUBE}{extra}"));
+    let err = with("[freezing]\ncooling = [\"walls\"]\nfront_speed = 1e-3\n").unwrap_err();
+    assert!(
+        err.contains("freezing.cooling") && err.contains("heat solve places the front"),
+        "{err}"
+    );
+    let err = load(
+        dir.path(),
+        &FREEZING_CUBE.replace("faces = [\"top\"]", "faces = [\"lid\"]"),
+    )
+    .unwrap_err();
+    assert!(
+        err.contains("thermal.convection[1].faces") && err.contains("\"lid\""),
+        "{err}"
+    );
+    let err = load(
+        dir.path(),
+        &FREEZING_CUBE.replace("initial_temperature = 1.0", "initial_temperature = -300.0"),
+    )
+    .unwrap_err();
+    assert!(
+        err.contains("thermal.initial_temperature") && err.contains("273.15"),
+        "{err}"
+    );
+    let err = load(dir.path(), &FREEZING_CUBE.replace("h = 10.0", "h = -1.0")).unwrap_err();
+    assert!(err.contains("thermal.convection[1].h"), "{err}");
+    // Without [thermal], the prescribed front needs its keys.
+    let no_thermal = FREEZING_CUBE.split("[thermal]").next().unwrap().to_string()
+        + "[freezing]\nwater = \"bulk\"\n[time]\ndt = 600.0\nend_time = 7200.0\n";
+    let err = load(dir.path(), &no_thermal).unwrap_err();
+    assert!(
+        err.contains("freezing.cooling") && err.contains("required"),
+        "{err}"
+    );
+}

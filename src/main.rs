@@ -334,8 +334,8 @@ struct LookArgs {
     /// Background: sky, white, black, #RRGGBB, or transparent (PNG only).
     #[arg(long, default_value = "sky")]
     background: Background,
-    /// Colour the surface by freeze, plastic, stress (von Mises) or principal (largest
-    /// principal stress), with a colour bar.
+    /// Colour the surface by freeze, plastic, stress (von Mises), principal (largest
+    /// principal stress) or temperature (runs with [thermal]), with a colour bar.
     #[arg(long)]
     color_by: Option<ColorField>,
     /// Colour-bar range MIN,MAX (default: the range over the frames drawn).

@@ -266,6 +266,9 @@ fn stats_row(
         t_fracture: cracked.t_check + cracked.t_split,
         t_remesh: cracked.t_remesh,
         t_resolve: cracked.t_resolve,
+        heat_newton_iterations: report.heat.map_or(0, |h| h.newton_iterations as u32),
+        heat_imbalance: report.heat.map_or(0.0, |h| h.imbalance()),
+        t_heat: report.heat.map_or(0.0, |h| h.t_step),
     }
 }
 

@@ -273,6 +273,13 @@ pub struct StepStats {
     pub t_remesh: f64,
     /// Wall-clock time of taking the step again on the split meshes (s).
     pub t_resolve: f64,
+    /// Newton iterations of the heat step (0 without `[thermal]`).
+    pub heat_newton_iterations: u32,
+    /// |enthalpy change − heat in through the boundary| of the heat step (J; 0 without
+    /// `[thermal]`).
+    pub heat_imbalance: f64,
+    /// Wall-clock time of the heat step (s).
+    pub t_heat: f64,
 }
 
 /// Errors of the output module. Every variant names the file concerned.

@@ -44,6 +44,15 @@ impl StoredFrame {
             .map(|f| (f.columns, f.data.as_slice()))
     }
 
+    /// The node field `name`: its columns and row-major data, if the frame has it.
+    pub fn node_field(&self, name: &str) -> Option<(usize, &[f64])> {
+        self.state
+            .node_fields
+            .iter()
+            .find(|f| f.name == name)
+            .map(|f| (f.columns, f.data.as_slice()))
+    }
+
     /// Freeze state of each element, 0 (water) … 1 (ice); `None` when the run has no
     /// freezing.
     pub fn freeze_state(&self) -> Option<&[f64]> {

@@ -90,6 +90,9 @@ pub(super) fn stats(step: u64) -> StepStats {
         t_fracture: 0.005,
         t_remesh: 0.0,
         t_resolve: 0.0,
+        heat_newton_iterations: 2,
+        heat_imbalance: 1e-12,
+        t_heat: 0.001,
     }
 }
 

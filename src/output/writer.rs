@@ -34,7 +34,7 @@ pub(super) enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 31] = [
+pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 34] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -78,6 +78,12 @@ pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 31] = [
     ("t_fracture", StatsColumn::F64(|s| s.t_fracture)),
     ("t_remesh", StatsColumn::F64(|s| s.t_remesh)),
     ("t_resolve", StatsColumn::F64(|s| s.t_resolve)),
+    (
+        "heat_newton_iterations",
+        StatsColumn::U32(|s| s.heat_newton_iterations),
+    ),
+    ("heat_imbalance", StatsColumn::F64(|s| s.heat_imbalance)),
+    ("t_heat", StatsColumn::F64(|s| s.t_heat)),
 ];
 
 /// Group name of frame `index`: at least 6 digits so that names sort in
@@ -186,7 +192,7 @@ fn metadata_cache_bytes(file: &File) -> usize {
     }
 }
 
-/// Bytes one `/stats` row takes (31 columns of 8 bytes at most).
+/// Bytes one `/stats` row takes (34 columns of 8 bytes at most).
 const STATS_ROW_BYTES: u64 = 8 * STATS_COLUMNS.len() as u64;
 
 /// Room kept free beyond the frames for a commit's metadata and the XDMF sidecars (bytes);

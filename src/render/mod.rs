@@ -88,6 +88,8 @@ pub enum ColorField {
     VonMises,
     /// Largest principal stress (Pa; positive is tension).
     Principal,
+    /// Temperature (°C; runs with `[thermal]`), the mean of each element's nodes.
+    Temperature,
 }
 
 impl FromStr for ColorField {
@@ -98,8 +100,9 @@ impl FromStr for ColorField {
             "plastic" => Ok(ColorField::Plastic),
             "stress" | "von-mises" => Ok(ColorField::VonMises),
             "principal" => Ok(ColorField::Principal),
+            "temperature" => Ok(ColorField::Temperature),
             _ => Err(format!(
-                "unknown field {s:?}: expected freeze, plastic, stress (von Mises) or principal"
+                "unknown field {s:?}: expected freeze, plastic, stress (von Mises), principal or temperature"
             )),
         }
     }
@@ -113,6 +116,7 @@ impl ColorField {
             ColorField::Plastic => "plastic strain ‖εp‖",
             ColorField::VonMises => "von Mises stress",
             ColorField::Principal => "largest principal stress",
+            ColorField::Temperature => "temperature",
         }
     }
 
@@ -140,6 +144,24 @@ impl ColorField {
             ColorField::Principal => frame
                 .max_principal_stress()
                 .ok_or_else(|| missing("stress", "malformed file"))?,
+            ColorField::Temperature => {
+                let t = frame
+                    .node_field("temperature")
+                    .filter(|(cols, _)| *cols == 1)
+                    .ok_or_else(|| missing("temperature", "the scene has no [thermal]"))?
+                    .1;
+                frame
+                    .state
+                    .tets
+                    .iter()
+                    .map(|tet| {
+                        tet.iter()
+                            .map(|&i| t.get(i).copied().unwrap_or(f64::NAN))
+                            .sum::<f64>()
+                            / 4.0
+                    })
+                    .collect()
+            }
         })
     }
 }

@@ -174,6 +174,10 @@ impl DisplayUnit {
                 factor: 1.0,
                 label: "(0 water, 1 ice)".into(),
             },
+            ColorField::Temperature => DisplayUnit {
+                factor: 1.0,
+                label: "(°C)".into(),
+            },
         }
     }
 }

@@ -134,7 +134,8 @@ impl Validator<'_> {
         };
         let shear = self.non_negative(
             "freezing.water_shear_modulus",
-            f.and_then(|f| f.water_shear_modulus).unwrap_or(1e-4 * ice.mu),
+            f.and_then(|f| f.water_shear_modulus)
+                .unwrap_or(1e-4 * ice.mu),
         )?;
         Ok((ratio, water, shear))
     }
@@ -152,8 +153,13 @@ impl Validator<'_> {
                 "required: the prescribed front needs `cooling` and `front_speed` (or add [thermal] to freeze by a heat solve)",
             )
         };
-        let cooling = f.cooling.as_ref().ok_or_else(|| required("freezing.cooling"))?;
-        let front_speed = f.front_speed.ok_or_else(|| required("freezing.front_speed"))?;
+        let cooling = f
+            .cooling
+            .as_ref()
+            .ok_or_else(|| required("freezing.cooling"))?;
+        let front_speed = f
+            .front_speed
+            .ok_or_else(|| required("freezing.front_speed"))?;
         let surface = match cooling.as_slice() {
             [one] if one == "surface" => Some(
                 mesh.boundary_faces()

@@ -37,16 +37,16 @@ use std::sync::Arc;
 mod bodies;
 mod checks;
 mod freezing;
-mod thermal;
 mod materials;
 mod obstacles;
 mod regions;
+mod thermal;
 
 pub use bodies::{BodySection, InitialSection, RotateSection};
 pub use freezing::FreezingSection;
-pub use thermal::{HeatSetup, ThermalSection};
 pub use materials::MaterialSection;
 pub use obstacles::ObstacleSection;
+pub use thermal::{HeatSetup, ThermalSection};
 
 /// A scene that could not be read or is not valid.
 #[derive(Debug, thiserror::Error)]

@@ -23,7 +23,7 @@ pub struct ThermalSection {
     /// Surfaces held at a temperature.
     #[serde(default)]
     pub fixed: Vec<FixedTemperature>,
-    /// Surfaces exchanging heat with the air.
+    /// Surfaces exchanging heat with the air or a container wall.
     #[serde(default)]
     pub convection: Vec<Convection>,
     /// Ice conductivity (W/(m K)). Default 2.22.
@@ -62,15 +62,16 @@ pub struct FixedTemperature {
     pub temperature: f64,
 }
 
-/// `[[thermal.convection]]`: boundary faces losing heat h (T − T_air).
+/// `[[thermal.convection]]`: boundary faces exchanging heat h (T − T_ambient) with their
+/// surroundings: air, or a container wall through the contact's conductance.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Convection {
     pub faces: Vec<String>,
     /// Heat transfer coefficient (W/(m² K)).
     pub h: f64,
-    /// Air temperature (°C).
-    pub air_temperature: f64,
+    /// Temperature of the surroundings (°C).
+    pub ambient_temperature: f64,
 }
 
 /// The validated heat model of a scene, built on its mesh when the run starts.
@@ -113,13 +114,19 @@ impl Validator<'_> {
                     .into_iter()
                     .filter(|f| {
                         (0..6).any(|k| {
-                            let (axis, value) = (k / 2, if k % 2 == 0 { lo[k / 2] } else { hi[k / 2] });
-                            on[k] && f.iter().all(|&i| (mesh.rest[i][axis] - value).abs() <= tolerance)
+                            let (axis, value) =
+                                (k / 2, if k % 2 == 0 { lo[k / 2] } else { hi[k / 2] });
+                            on[k]
+                                && f.iter()
+                                    .all(|&i| (mesh.rest[i][axis] - value).abs() <= tolerance)
                         })
                     })
                     .collect();
                 if faces.is_empty() {
-                    return Err(self.invalid(field, "no boundary face lies on those faces of the mesh's bounding box"));
+                    return Err(self.invalid(
+                        field,
+                        "no boundary face lies on those faces of the mesh's bounding box",
+                    ));
                 }
                 Ok(faces)
             }
@@ -131,12 +138,19 @@ impl Validator<'_> {
         if t.is_finite() && t > ABSOLUTE_ZERO {
             Ok(t)
         } else {
-            Err(self.invalid(field, format!("must be a temperature above −273.15 °C, got {t}")))
+            Err(self.invalid(
+                field,
+                format!("must be a temperature above −273.15 °C, got {t}"),
+            ))
         }
     }
 
     /// The heat model of `[thermal]` on `mesh`.
-    pub(super) fn thermal(&self, t: &ThermalSection, mesh: &TetMesh) -> Result<HeatSetup, SceneError> {
+    pub(super) fn thermal(
+        &self,
+        t: &ThermalSection,
+        mesh: &TetMesh,
+    ) -> Result<HeatSetup, SceneError> {
         let d = Phases::WATER_ICE;
         let positive = |field: &str, v: Option<f64>, default: f64| {
             self.positive(&format!("thermal.{field}"), v.unwrap_or(default))
@@ -144,25 +158,47 @@ impl Validator<'_> {
         let phases = Phases {
             ice: Phase {
                 conductivity: positive("ice_conductivity", t.ice_conductivity, d.ice.conductivity)?,
-                heat_capacity: positive("ice_heat_capacity", t.ice_heat_capacity, d.ice.heat_capacity)?,
+                heat_capacity: positive(
+                    "ice_heat_capacity",
+                    t.ice_heat_capacity,
+                    d.ice.heat_capacity,
+                )?,
             },
             water: Phase {
-                conductivity: positive("water_conductivity", t.water_conductivity, d.water.conductivity)?,
-                heat_capacity: positive("water_heat_capacity", t.water_heat_capacity, d.water.heat_capacity)?,
+                conductivity: positive(
+                    "water_conductivity",
+                    t.water_conductivity,
+                    d.water.conductivity,
+                )?,
+                heat_capacity: positive(
+                    "water_heat_capacity",
+                    t.water_heat_capacity,
+                    d.water.heat_capacity,
+                )?,
             },
-            latent_heat: self.non_negative("thermal.latent_heat", t.latent_heat.unwrap_or(d.latent_heat))?,
-            melting_point: self.temperature("thermal.melting_point", t.melting_point.unwrap_or(d.melting_point))?,
+            latent_heat: self.non_negative(
+                "thermal.latent_heat",
+                t.latent_heat.unwrap_or(d.latent_heat),
+            )?,
+            melting_point: self.temperature(
+                "thermal.melting_point",
+                t.melting_point.unwrap_or(d.melting_point),
+            )?,
             mushy_range: positive("mushy_range", t.mushy_range, d.mushy_range)?,
         };
-        let mut initial = vec![
-            self.temperature("thermal.initial_temperature", t.initial_temperature)?;
-            mesh.num_nodes()
-        ];
+        let mut initial =
+            vec![
+                self.temperature("thermal.initial_temperature", t.initial_temperature)?;
+                mesh.num_nodes()
+            ];
         for (k, entry) in t.initial.iter().enumerate() {
             let field = format!("thermal.initial[{k}]");
             let value = self.temperature(&format!("{field}.temperature"), entry.temperature)?;
-            let selection =
-                self.selection(&field, (entry.min, entry.max, entry.region.as_ref()), Some(3))?;
+            let selection = self.selection(
+                &field,
+                (entry.min, entry.max, entry.region.as_ref()),
+                Some(3),
+            )?;
             let mut any = false;
             for (i, x) in mesh.rest.iter().enumerate() {
                 if selection.contains_node(x) {
@@ -190,9 +226,14 @@ impl Validator<'_> {
         for (k, entry) in t.convection.iter().enumerate() {
             let field = format!("thermal.convection[{k}]");
             let h = self.non_negative(&format!("{field}.h"), entry.h)?;
-            let air = self.temperature(&format!("{field}.air_temperature"), entry.air_temperature)?;
+            let air = self.temperature(
+                &format!("{field}.ambient_temperature"),
+                entry.ambient_temperature,
+            )?;
             let faces = self.thermal_faces(&format!("{field}.faces"), &entry.faces, mesh)?;
-            boundary.convection.extend(faces.into_iter().map(|f| (f, h, air)));
+            boundary
+                .convection
+                .extend(faces.into_iter().map(|f| (f, h, air)));
         }
         Ok(HeatSetup {
             phases,
@@ -236,7 +277,12 @@ impl Validator<'_> {
         let fractions = mesh
             .tets
             .iter()
-            .map(|tet| tet.iter().map(|&i| setup.phases.ice_fraction(fixed[i])).sum::<f64>() / 4.0)
+            .map(|tet| {
+                tet.iter()
+                    .map(|&i| setup.phases.ice_fraction(fixed[i]))
+                    .sum::<f64>()
+                    / 4.0
+            })
             .collect();
         let mut freezing = Freezing::thermal(fractions, 0.0, ratio, water);
         freezing.base_eigenstrain = eigenstrain.to_vec();

@@ -11,17 +11,17 @@ use crate::assembly::{Assembly, DofMap};
 use crate::fem::StrainOffset;
 use crate::physics::contact::ContactForces;
 use crate::physics::elasticity::ElasticStep;
+use crate::physics::freezing::Schedule;
 use crate::physics::history::ElementHistory;
 use crate::physics::inertia::{Inertia, StiffnessDamping};
 use crate::physics::loads::DeadLoads;
 use crate::physics::term::{Solve, StepStartView, StepTerm};
-use crate::physics::freezing::Schedule;
 use crate::physics::Model;
-use crate::thermal::HeatLink;
 use crate::solver::{
     minimize, FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams,
     NewtonReport, NewtonWorkspace,
 };
+use crate::thermal::HeatLink;
 use balance::{Balance, EnergyRise};
 use potential::StepPotential;
 use std::time::Instant;

@@ -75,7 +75,12 @@ impl HeatLink {
     /// The link to a mechanics mesh made by splitting the current one: element `e` of nodes
     /// `tets[e]` came from element `parent[e]`; nodes beyond the scene's are placed by their
     /// `rest` position in the scene element their element lies in.
-    pub fn remeshed(mut self, rest: &[Vector3<f64>], tets: &[[usize; 4]], parent: &[usize]) -> Self {
+    pub fn remeshed(
+        mut self,
+        rest: &[Vector3<f64>],
+        tets: &[[usize; 4]],
+        parent: &[usize],
+    ) -> Self {
         let element_source: Vec<usize> = parent.iter().map(|&p| self.element_source[p]).collect();
         let scene_nodes = self.scene_rest.len();
         let mut node_source: Vec<Option<NodeSource>> = (0..rest.len())

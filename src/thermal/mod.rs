@@ -339,7 +339,11 @@ impl Heat {
                 x
             };
             let slope = |x: &[f64]| -> f64 {
-                residual(self, x).iter().zip(&step).map(|(a, b)| a * b).sum()
+                residual(self, x)
+                    .iter()
+                    .zip(&step)
+                    .map(|(a, b)| a * b)
+                    .sum()
             };
             let mut alpha = 1.0;
             let mut next = trial(alpha);
