@@ -76,8 +76,14 @@ mod tests {
         assert!((8.5..10.0).contains(&mm(600.0)), "{}", mm(600.0));
         assert!((mm(4.0 * 3600.0) / mm(3600.0) - 2.0).abs() < 1e-12);
         assert!((20.0..25.0).contains(&mm(3600.0)), "{}", mm(3600.0));
-        // Warm water slows the front.
+        // Warm water slows the front: λ as scipy's brentq finds it for the same equation
+        // (0.1640264820987164; validation venv, scipy 1.17).
         let warm = Neumann::new(&p, 916.0, -10.0, 5.0);
         assert!(warm.lambda < n.lambda);
+        assert!(
+            (warm.lambda - 0.1640264820987164).abs() < 1e-10,
+            "{}",
+            warm.lambda
+        );
     }
 }
