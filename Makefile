@@ -22,7 +22,8 @@ demo: deps
 	cargo run --release -- run scenes/freezing_container_fracture.toml --output freezing_container_fracture.h5 --force
 	cargo run --release -- figure freezing_container_fracture.h5
 
-# The README's figures (docs/*.png) from the paper's scene without and with fracture (~25 s).
+# The README's figures (docs/*.png) from the paper's scene without and with fracture and
+# frozen by conduction (~30 s).
 FIG := target/figures
 figures: deps
 	cargo build --release
@@ -32,6 +33,8 @@ figures: deps
 	./target/release/icefem run scenes/freezing_container_fracture.toml --output $(FIG)/freezing_container_fracture.h5 --force
 	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 400x400 --output docs/freezing_container_fracture_figure.png
 	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 400x400 --cut y=0.05 --color-by plastic --style solid --output docs/freezing_container_fracture_plastic.png
+	./target/release/icefem run scenes/freezing_container_thermal.toml --output $(FIG)/freezing_container_thermal.h5 --force
+	./target/release/icefem figure $(FIG)/freezing_container_thermal.h5 --size 400x400 --frames 0,12,23,96 --cut y=0.05 --color-by temperature --style solid --output docs/freezing_container_thermal_figure.png
 
 test: deps
 	cargo test --release
