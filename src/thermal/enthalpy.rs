@@ -103,7 +103,8 @@ impl Phases {
 
     /// Conductivity of a mixture with ice fraction `f` (W/(m K)): the volume-weighted mean.
     pub fn conductivity(&self, f: f64) -> f64 {
-        f * self.ice.conductivity + (1.0 - f) * self.water.conductivity
+        // Written so that equal conductivities give exactly that value whatever f.
+        self.water.conductivity + f * (self.ice.conductivity - self.water.conductivity)
     }
 
     /// Whether the properties are physical: positive conductivities, capacities and mushy

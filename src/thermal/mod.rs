@@ -62,8 +62,11 @@ pub struct HeatBoundary {
 /// What a heat step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct HeatStep {
-    /// Newton iterations (each a factorisation and a solve).
+    /// Newton iterations (each a solve).
     pub newton_iterations: usize,
+    /// Numeric factorisations: one per iteration, less those whose matrix was the one already
+    /// factored (no node changed its segment of h, same step and conductivities).
+    pub factorizations: usize,
     /// Heat that came in through the boundary over the step (J): convection and the
     /// fixed-temperature nodes.
     pub heat_in: f64,
@@ -280,7 +283,7 @@ impl Heat {
         let k = self.conductivities();
         let mut t = self.temperature.clone();
         let n_free = self.free.iter().flatten().count();
-        let mut iterations = 0;
+        let (mut iterations, mut factorizations) = (0, 0);
         let residual = |heat: &Heat, t: &[f64]| -> Vec<f64> {
             let kt = heat.conduction(&k, t);
             let mut r = vec![0.0; n_free];
@@ -320,9 +323,11 @@ impl Heat {
                 });
             }
             iterations += 1;
-            self.system
-                .factor()
-                .map_err(|reason| ThermalError::Step { time, reason })?;
+            factorizations += usize::from(
+                self.system
+                    .factor()
+                    .map_err(|reason| ThermalError::Step { time, reason })?,
+            );
             let mut step: Vec<f64> = r.iter().map(|v| -v).collect();
             self.system.solve_in_place(&mut step);
             // Exact line search: the potential is convex and piecewise quadratic along the
@@ -399,6 +404,7 @@ impl Heat {
         let latent_change = -p.latent_heat * (self.frozen_mass() - frozen0);
         Ok(HeatStep {
             newton_iterations: iterations,
+            factorizations,
             heat_in,
             enthalpy_change,
             latent_change,

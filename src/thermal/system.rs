@@ -23,6 +23,8 @@ pub struct ScalarSystem {
     symbolic: SymbolicCholesky<usize>,
     l: Vec<f64>,
     work: MemBuffer,
+    /// The values the factor `l` is of (empty: none yet, or the last factorisation failed).
+    factored: Vec<f64>,
 }
 
 /// The element-matrix entries stored per element: (a, b) with a ≤ b, row by row.
@@ -97,6 +99,7 @@ impl ScalarSystem {
             values: vec![0.0; nnz],
             symbolic,
             work,
+            factored: Vec::new(),
         })
     }
 
@@ -126,8 +129,21 @@ impl ScalarSystem {
             .fold(0.0f64, |m, &slot| m.max(self.values[slot]))
     }
 
-    /// Factorises the current values; an error names the pivot that was not positive.
-    pub fn factor(&mut self) -> Result<(), String> {
+    /// Factorises the current values, unless the factor is already of exactly these values
+    /// (bit for bit: the same step length and phases, no node in the mushy range — a frozen
+    /// block cooling, or conduction without phase change); returns whether it factorised. An
+    /// error names the pivot that was not positive.
+    pub fn factor(&mut self) -> Result<bool, String> {
+        let same = self.factored.len() == self.values.len()
+            && self
+                .factored
+                .iter()
+                .zip(&self.values)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+        if same {
+            return Ok(false);
+        }
+        self.factored.clear();
         let matrix = SparseColMatRef::new(self.pattern.as_ref(), &self.values);
         self.symbolic
             .factorize_numeric_llt::<f64>(
@@ -139,8 +155,9 @@ impl ScalarSystem {
                 MemStack::new(&mut self.work),
                 Default::default(),
             )
-            .map(|_| ())
-            .map_err(|e| format!("the heat system is not positive definite: {e:?}"))
+            .map_err(|e| format!("the heat system is not positive definite: {e:?}"))?;
+        self.factored.clone_from(&self.values);
+        Ok(true)
     }
 
     /// x ← A⁻¹ x with the last factor.
