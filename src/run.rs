@@ -331,6 +331,15 @@ fn write_frame(
         cols: 3,
         data: &sim.state.u,
     }];
+    // With the Newmark scheme: the acceleration it carries from step to step (what a resumed
+    // run continues from; the initial frame has none: it is computed from the forces).
+    if !sim.state.a.is_empty() {
+        node_fields.push(Field {
+            name: "acceleration",
+            cols: 3,
+            data: &sim.state.a,
+        });
+    }
     // With [thermal]: the temperature at every node (°C), read where the heat is solved.
     let temperature = sim.node_temperatures();
     if let Some(t) = &temperature {
@@ -517,6 +526,9 @@ fn restore(
     }
     sim.state.u = u;
     sim.state.v = frame.velocities.iter().flatten().copied().collect();
+    // Newmark's acceleration (absent in a frame written before the first step: then it is
+    // computed from the forces, as at the start).
+    sim.state.a = field("acceleration").unwrap_or_default();
     sim.state.time = frame.time;
     sim.state.step = frame.step;
     if let Some(scene_nodes) = sim.heat().map(|l| l.heat.temperature().len()) {

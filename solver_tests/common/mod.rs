@@ -41,6 +41,7 @@ pub const ICE: Material = Material {
 pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
     StepSettings {
         analysis,
+        scheme: Default::default(),
         dt,
         newton: NewtonParams {
             tolerance: 1e-9,

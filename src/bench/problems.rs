@@ -183,6 +183,7 @@ const ICE: Material = Material {
 fn frame_steps(linear: LinearSolverKind, ordering: FillOrdering) -> StepSettings {
     StepSettings {
         analysis: Analysis::Dynamic,
+        scheme: Default::default(),
         dt: 1.0 / 30.0,
         newton: NewtonParams {
             tolerance: 1e-9,

@@ -292,6 +292,8 @@ pub struct FractureSection {
 pub struct TimeSection {
     /// Static or dynamic; default dynamic.
     pub analysis: Option<Analysis>,
+    /// "backward_euler" (default) or "newmark" (dynamic analyses).
+    pub scheme: Option<crate::sim::Scheme>,
     /// Time step (s).
     pub dt: f64,
     /// End time (s).
@@ -554,6 +556,7 @@ impl Validator<'_> {
         let (lo, hi) = mesh.bounding_box();
         let settings = StepSettings {
             analysis: time.analysis.unwrap_or(Analysis::Dynamic),
+            scheme: time.scheme.unwrap_or_default(),
             dt,
             newton: NewtonParams {
                 tolerance,
@@ -698,6 +701,18 @@ impl Validator<'_> {
             .as_ref()
             .map(|f| self.fracture(f, &model.mesh))
             .transpose()?;
+        if settings.scheme == crate::sim::Scheme::Newmark {
+            let refuse = |field: &str, why: &str| Err(self.invalid(field, why.to_string()));
+            if settings.analysis == Analysis::Static {
+                return refuse("time.scheme", "\"newmark\" integrates a dynamic analysis; a static one has no scheme (remove it or set analysis = \"dynamic\")");
+            }
+            if model.damping.is_some() {
+                return refuse("physics.damping", "Rayleigh damping is defined with the backward-Euler scheme only (remove it, or use scheme = \"backward_euler\")");
+            }
+            if fracture.is_some() {
+                return refuse("time.scheme", "\"newmark\" does not carry its accelerations through fracture's node splits yet: use scheme = \"backward_euler\" with [fracture]");
+            }
+        }
         // Separate parts touch each other: ice–ice contact.
         let ice_friction = self.non_negative(
             "physics.ice_friction",

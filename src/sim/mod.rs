@@ -36,11 +36,28 @@ pub enum Analysis {
     Dynamic,
 }
 
+/// How a dynamic step integrates in time, each as an incremental potential that Newton
+/// minimises (so contact, friction and the line search work the same).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scheme {
+    /// Backward Euler: first order; dissipates ½ ΔvᵀMΔv per step, which damps the motion.
+    #[default]
+    BackwardEuler,
+    /// Newmark's average acceleration (the trapezoidal rule, β = ¼, γ = ½): second order, no
+    /// numerical dissipation (a linear undamped system keeps its energy). The step minimises
+    /// Ψ(u) + 2/h² (u − ũ)ᵀM(u − ũ), ũ = uₙ + h vₙ + h²/4 aₙ; then aₙ₊₁ = 4 (uₙ₊₁ − ũ)/h²,
+    /// vₙ₊₁ = vₙ + h/2 (aₙ + aₙ₊₁).
+    Newmark,
+}
+
 /// How a run steps and solves.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepSettings {
     /// Static or dynamic.
     pub analysis: Analysis,
+    /// Time integration of a dynamic analysis.
+    pub scheme: Scheme,
     /// Time step (s).
     pub dt: f64,
     /// Newton tolerances.
@@ -95,6 +112,8 @@ pub struct State {
     /// Temperature of each node of the scene's mesh (°C), where the heat model is solved;
     /// empty without `[thermal]`.
     pub temperature: Vec<f64>,
+    /// Nodal acceleration (m/s², 3 per node) of the Newmark scheme; empty otherwise.
+    pub a: Vec<f64>,
 }
 
 /// Energies of a state (J).
@@ -302,6 +321,7 @@ impl Simulation {
             step: 0,
             history,
             temperature: Vec::new(),
+            a: Vec::new(),
         };
         let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
         Ok(Simulation {
@@ -357,6 +377,7 @@ impl Simulation {
             step,
             history,
             temperature: std::mem::take(&mut self.state.temperature),
+            a: Vec::new(),
         };
         *self = next;
         Ok(())
@@ -560,6 +581,11 @@ impl Simulation {
     /// One backward-Euler (or static) solve of length `h` ending at `t_new`.
     fn try_step(&mut self, h: f64, t_new: f64) -> Result<StepReport, SolveFailure> {
         let dynamic = self.settings.analysis == Analysis::Dynamic;
+        let newmark = dynamic && self.settings.scheme == Scheme::Newmark;
+        if newmark && self.state.a.len() != self.state.u.len() {
+            // The first step (or the first after a remesh): the acceleration of the state.
+            self.state.a = self.acceleration_at_start();
+        }
         self.model.apply_schedule(t_new, &mut self.state.history);
         self.previous.copy_from_slice(&self.state.u);
         // Fixed for the solve: computed once for the elastic term and the energy balance.
@@ -575,13 +601,14 @@ impl Simulation {
         );
         let mut u = self.state.u.clone();
         if dynamic {
-            for ((p, u0), v) in self
-                .predictor
-                .iter_mut()
-                .zip(&self.state.u)
-                .zip(&self.state.v)
-            {
-                *p = u0 + h * v;
+            // ũ = uₙ + h vₙ (+ h²/4 aₙ for Newmark).
+            for (d, p) in self.predictor.iter_mut().enumerate() {
+                let a = if newmark {
+                    0.25 * h * h * self.state.a[d]
+                } else {
+                    0.0
+                };
+                *p = self.state.u[d] + h * self.state.v[d] + a;
             }
             u.copy_from_slice(&self.predictor);
         }
@@ -635,7 +662,8 @@ impl Simulation {
         terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(&solve)));
         if dynamic {
             terms.push(Box::new(Inertia {
-                dt: h,
+                // Newmark's 1/(2βh²) with β = ¼ is backward Euler's 1/(2h'²) at h' = h/2.
+                dt: if newmark { 0.5 * h } else { h },
                 mass: &model.mass,
                 predictor: &self.predictor,
                 previous: &self.previous,
@@ -693,7 +721,17 @@ impl Simulation {
         let t_contact_narrow = potential.t_contact;
         let t_contact_broad = potential.broad_phase_time();
         drop(potential);
-        let velocity: Vec<f64> = if dynamic {
+        let mut acceleration = Vec::new();
+        let velocity: Vec<f64> = if newmark {
+            acceleration = u
+                .iter()
+                .zip(&self.predictor)
+                .map(|(un, p)| 4.0 * (un - p) / (h * h))
+                .collect();
+            (0..u.len())
+                .map(|d| self.state.v[d] + 0.5 * h * (self.state.a[d] + acceleration[d]))
+                .collect()
+        } else if dynamic {
             u.iter()
                 .zip(&self.previous)
                 .map(|(un, u0)| (un - u0) / h)
@@ -704,6 +742,9 @@ impl Simulation {
         let slack = self.settings.newton.tolerance * newton.force_scale;
         self.check_balance(before, &offsets, (&u, &velocity), t_new, slack)?;
         self.state.v = velocity;
+        if newmark {
+            self.state.a = acceleration;
+        }
         self.model
             .update_plastic_strain(&mut self.state.history, &u);
         self.state.u = u;
@@ -716,6 +757,49 @@ impl Simulation {
             t_contact_broad,
             ..Default::default()
         })
+    }
+
+    /// The acceleration of the current state from its forces, a = −M⁻¹ ∇Ψ(u) on the free
+    /// dofs (Ψ: elasticity, dead loads and contact at the state's time), 0 on the supported
+    /// ones: what the Newmark scheme starts from.
+    fn acceleration_at_start(&mut self) -> Vec<f64> {
+        let t = self.state.time;
+        self.model.apply_schedule(t, &mut self.state.history);
+        let offsets = self.state.history.offsets();
+        let model = &self.model;
+        let solve = Solve {
+            rest: &model.mesh.rest,
+            previous: &self.state.u,
+            velocity: &self.state.v,
+            earlier: &self.state.u,
+            h: self.settings.dt,
+            dynamic: true,
+            times: (t, t),
+        };
+        let mut terms: Vec<Box<dyn StepTerm + '_>> = vec![
+            Box::new(ElasticStep::new(
+                &model.elasticity,
+                (&model.mesh.tets, &self.state.history, &offsets),
+                &self.assembly,
+                &mut self.element_energy,
+                false,
+            )),
+            Box::new(DeadLoads {
+                force: &model.external_force,
+            }),
+        ];
+        terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(&solve)));
+        let mut potential = StepPotential::new(terms);
+        let mut gradient = vec![0.0; self.state.u.len()];
+        crate::solver::Potential::gradient(&mut potential, &self.state.u, &mut gradient);
+        drop(potential);
+        let dofs = self.assembly.dofs();
+        (0..gradient.len())
+            .map(|d| match dofs.free(d) {
+                Some(_) => -gradient[d] / model.mass[d / 3],
+                None => 0.0,
+            })
+            .collect()
     }
 
     /// Checks that the solution `(u, v)` at `t_new` holds no more energy than `before` (the

@@ -1,0 +1,140 @@
+//! Time integration: the measured order of backward Euler and Newmark's average acceleration
+//! on a cantilever, and Newmark's energy conservation.
+
+mod common;
+use common::*;
+use icefem::fem::ElasticModel;
+use icefem::mesh::box_mesh;
+use icefem::sim::{Analysis, Scheme, Simulation};
+
+/// A 0.4 m ice cantilever (8 × 1 × 1 cells, linear elasticity), clamped at x = 0, released
+/// at rest under gravity, stepped with `scheme` at `dt`.
+fn cantilever(scheme: Scheme, dt: f64) -> Simulation {
+    let mesh = box_mesh([0.0; 3], [0.4, 0.04, 0.04], [8, 1, 1], 6).unwrap();
+    let mut settings = settings(Analysis::Dynamic, dt);
+    settings.scheme = scheme;
+    // Newton to round-off: the rates are measured down to errors of 1e-7.
+    settings.newton.tolerance = 1e-12;
+    simulation(
+        mesh,
+        ICE,
+        ElasticModel::Linear,
+        [0.0, 0.0, -9.81],
+        vec![clamp_below_x(1e-9)],
+        settings,
+    )
+}
+
+/// The displacement after `end` seconds.
+fn displacement_at(scheme: Scheme, dt: f64, end: f64) -> Vec<f64> {
+    let mut sim = cantilever(scheme, dt);
+    let steps = (end / dt).round() as usize;
+    for _ in 0..steps {
+        sim.step().unwrap();
+    }
+    sim.state.u
+}
+
+#[test]
+fn backward_euler_is_first_order_and_newmark_second() {
+    // The rates show once h ω ≪ 1 for the mesh's fastest mode (5 cm cells of ice: ω ≈ 1e6
+    // 1/s; at h = 4 µs they are 0.86 and 1.75), so steps of 1, 0.5 and 0.25 µs over 0.2 ms
+    // (the tip's first swing under gravity, every mode excited). The reference: Newmark at
+    // 1/16 of the smallest step, whose own error is (1/16)² ≈ 4e-3 of Newmark's there.
+    let end = 2e-4;
+    let reference = displacement_at(Scheme::Newmark, 2.5e-7 / 16.0, end);
+    for (scheme, order) in [(Scheme::BackwardEuler, 1.0), (Scheme::Newmark, 2.0)] {
+        let errors: Vec<f64> = [1e-6, 5e-7, 2.5e-7]
+            .iter()
+            .map(|&dt| rel_l2(&displacement_at(scheme, dt, end), &reference))
+            .collect();
+        let rates: Vec<f64> = errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect();
+        eprintln!("{scheme:?}: errors {errors:?}, rates {rates:?}");
+        for rate in rates {
+            assert!(
+                (rate - order).abs() < 0.15,
+                "{scheme:?}: rate {rate:.3}, errors {errors:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn newmark_keeps_the_energy_of_an_undamped_linear_beam() {
+    let mut sim = cantilever(Scheme::Newmark, 1e-4);
+    let start = sim.energies().total();
+    let (mut drift, mut kinetic) = (0.0f64, 0.0f64);
+    for _ in 0..1000 {
+        let r = sim.step().unwrap();
+        drift = drift.max((r.energies.total() - start).abs());
+        kinetic = kinetic.max(r.energies.kinetic);
+    }
+    eprintln!("Newmark: largest energy drift {drift:.3e} J of {kinetic:.3e} J kinetic");
+    assert!(kinetic > 0.0);
+    assert!(
+        drift <= 1e-9 * kinetic,
+        "drift {drift:e} J, kinetic {kinetic:e} J"
+    );
+}
+
+/// The cantilever scene with `scheme = "newmark"` and an extra `section` text.
+fn newmark_scene(dir: &std::path::Path, extra: &str) -> Result<icefem::scene::Scene, String> {
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cantilever.toml"),
+    )
+    .unwrap()
+    .replace(
+        "analysis = \"dynamic\"",
+        "analysis = \"dynamic\"\nscheme = \"newmark\"",
+    ) + extra;
+    let path = dir.join("newmark.toml");
+    std::fs::write(&path, text).unwrap();
+    icefem::scene::Scene::load(&path).map_err(|e| e.to_string())
+}
+
+#[test]
+fn a_newmark_run_resumes_bit_identically_and_refuses_what_it_does_not_carry() {
+    use icefem::run::{run, RunOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = newmark_scene(dir.path(), "").unwrap();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let options = |path: &std::path::Path, end: Option<f64>, resume: bool| RunOptions {
+        output: Some(path.to_path_buf()),
+        end_time: end.or(Some(0.5)),
+        resume,
+        ..Default::default()
+    };
+    let full = dir.path().join("full.h5");
+    run(&scene, &options(&full, None, false), &never, |_| {}).unwrap();
+    let half = dir.path().join("half.h5");
+    run(&scene, &options(&half, Some(0.25), false), &never, |_| {}).unwrap();
+    run(&scene, &options(&half, None, true), &never, |_| {}).unwrap();
+    let last = |path: &std::path::Path, name: &str| {
+        let f = hdf5::File::open(path).unwrap();
+        let mut frames = f.group("frames").unwrap().member_names().unwrap();
+        frames.sort();
+        let g = frames.last().unwrap().clone();
+        f.dataset(&format!("frames/{g}/{name}"))
+            .unwrap()
+            .read_raw::<f64>()
+            .unwrap()
+    };
+    for name in ["positions", "velocities", "acceleration"] {
+        assert_eq!(last(&full, name), last(&half, name), "{name}");
+    }
+    // What the scheme does not support is refused, naming the field.
+    let err = newmark_scene(
+        dir.path(),
+        "[physics.damping]\nmass = 1.0\nstiffness = 0.0\n",
+    )
+    .unwrap_err();
+    assert!(
+        err.contains("physics.damping") && err.contains("backward-Euler"),
+        "{err}"
+    );
+    let err = newmark_scene(dir.path(), "[fracture]\ntoughness = 3e6\n").unwrap_err();
+    assert!(
+        err.contains("time.scheme") && err.contains("fracture"),
+        "{err}"
+    );
+}
