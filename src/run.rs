@@ -340,6 +340,20 @@ fn write_frame(
             data: &sim.state.a,
         });
     }
+    // With BDF2: the state one full step back (what a resumed run continues from).
+    let (back_u, back_v) = &sim.state.back;
+    if !back_u.is_empty() {
+        node_fields.push(Field {
+            name: "back_displacement",
+            cols: 3,
+            data: back_u,
+        });
+        node_fields.push(Field {
+            name: "back_velocity",
+            cols: 3,
+            data: back_v,
+        });
+    }
     // With [thermal]: the temperature at every node (°C), read where the heat is solved.
     let temperature = sim.node_temperatures();
     if let Some(t) = &temperature {
@@ -529,6 +543,11 @@ fn restore(
     // Newmark's acceleration (absent in a frame written before the first step: then it is
     // computed from the forces, as at the start).
     sim.state.a = field("acceleration").unwrap_or_default();
+    // BDF2's step back (absent: the next step is a backward-Euler step, as after a split).
+    sim.state.back = match (field("back_displacement"), field("back_velocity")) {
+        (Some(u), Some(v)) => (u, v),
+        _ => Default::default(),
+    };
     sim.state.time = frame.time;
     sim.state.step = frame.step;
     if let Some(scene_nodes) = sim.heat().map(|l| l.heat.temperature().len()) {

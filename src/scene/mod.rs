@@ -701,15 +701,15 @@ impl Validator<'_> {
             .as_ref()
             .map(|f| self.fracture(f, &model.mesh))
             .transpose()?;
-        if settings.scheme == crate::sim::Scheme::Newmark {
+        if settings.scheme != crate::sim::Scheme::BackwardEuler {
             let refuse = |field: &str, why: &str| Err(self.invalid(field, why.to_string()));
             if settings.analysis == Analysis::Static {
-                return refuse("time.scheme", "\"newmark\" integrates a dynamic analysis; a static one has no scheme (remove it or set analysis = \"dynamic\")");
+                return refuse("time.scheme", "\"newmark\" and \"bdf2\" integrate a dynamic analysis; a static one has no scheme (remove it or set analysis = \"dynamic\")");
             }
             if model.damping.is_some() {
                 return refuse("physics.damping", "Rayleigh damping is defined with the backward-Euler scheme only (remove it, or use scheme = \"backward_euler\")");
             }
-            if fracture.is_some() {
+            if fracture.is_some() && settings.scheme == crate::sim::Scheme::Newmark {
                 return refuse("time.scheme", "\"newmark\" does not carry its accelerations through fracture's node splits yet: use scheme = \"backward_euler\" with [fracture]");
             }
         }

@@ -49,6 +49,11 @@ pub enum Scheme {
     /// Ψ(u) + 2/h² (u − ũ)ᵀM(u − ũ), ũ = uₙ + h vₙ + h²/4 aₙ; then aₙ₊₁ = 4 (uₙ₊₁ − ũ)/h²,
     /// vₙ₊₁ = vₙ + h/2 (aₙ + aₙ₊₁).
     Newmark,
+    /// BDF2, second order with some numerical dissipation of the fastest modes: the step
+    /// minimises Ψ(u) + 9/(8h²) (u − ũ)ᵀM(u − ũ), ũ = (4uₙ − uₙ₋₁)/3 + 2h/9 (4vₙ − vₙ₋₁);
+    /// then vₙ₊₁ = (3uₙ₊₁ − 4uₙ + uₙ₋₁)/(2h). A step without a full step before it (the
+    /// first, a halved one, the first after a remesh) is a backward-Euler step.
+    Bdf2,
 }
 
 /// How a run steps and solves.
@@ -114,6 +119,9 @@ pub struct State {
     pub temperature: Vec<f64>,
     /// Nodal acceleration (m/s², 3 per node) of the Newmark scheme; empty otherwise.
     pub a: Vec<f64>,
+    /// Displacement and velocity one full step back (BDF2; empty when the last step was
+    /// not a full step).
+    pub back: (Vec<f64>, Vec<f64>),
 }
 
 /// Energies of a state (J).
@@ -322,6 +330,7 @@ impl Simulation {
             history,
             temperature: Vec::new(),
             a: Vec::new(),
+            back: Default::default(),
         };
         let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
         Ok(Simulation {
@@ -378,6 +387,7 @@ impl Simulation {
             history,
             temperature: std::mem::take(&mut self.state.temperature),
             a: Vec::new(),
+            back: Default::default(),
         };
         *self = next;
         Ok(())
@@ -600,15 +610,22 @@ impl Simulation {
             t_new,
         );
         let mut u = self.state.u.clone();
+        let (back_u, back_v) = &self.state.back;
+        let bdf2 = dynamic
+            && self.settings.scheme == Scheme::Bdf2
+            && h == self.settings.dt
+            && back_u.len() == u.len();
         if dynamic {
-            // ũ = uₙ + h vₙ (+ h²/4 aₙ for Newmark).
+            // ũ = uₙ + h vₙ (+ h²/4 aₙ for Newmark); BDF2's from two steps.
             for (d, p) in self.predictor.iter_mut().enumerate() {
-                let a = if newmark {
-                    0.25 * h * h * self.state.a[d]
+                let (un, vn) = (self.state.u[d], self.state.v[d]);
+                *p = if bdf2 {
+                    (4.0 * un - back_u[d]) / 3.0 + 2.0 * h / 9.0 * (4.0 * vn - back_v[d])
+                } else if newmark {
+                    un + h * vn + 0.25 * h * h * self.state.a[d]
                 } else {
-                    0.0
+                    un + h * vn
                 };
-                *p = self.state.u[d] + h * self.state.v[d] + a;
             }
             u.copy_from_slice(&self.predictor);
         }
@@ -663,7 +680,14 @@ impl Simulation {
         if dynamic {
             terms.push(Box::new(Inertia {
                 // Newmark's 1/(2βh²) with β = ¼ is backward Euler's 1/(2h'²) at h' = h/2.
-                dt: if newmark { 0.5 * h } else { h },
+                // BDF2's 9/(8h²) at h' = 2h/3.
+                dt: if newmark {
+                    0.5 * h
+                } else if bdf2 {
+                    2.0 * h / 3.0
+                } else {
+                    h
+                },
                 mass: &model.mass,
                 predictor: &self.predictor,
                 previous: &self.previous,
@@ -731,6 +755,11 @@ impl Simulation {
             (0..u.len())
                 .map(|d| self.state.v[d] + 0.5 * h * (self.state.a[d] + acceleration[d]))
                 .collect()
+        } else if bdf2 {
+            let back = &self.state.back.0;
+            (0..u.len())
+                .map(|d| (3.0 * u[d] - 4.0 * self.previous[d] + back[d]) / (2.0 * h))
+                .collect()
         } else if dynamic {
             u.iter()
                 .zip(&self.previous)
@@ -741,6 +770,14 @@ impl Simulation {
         };
         let slack = self.settings.newton.tolerance * newton.force_scale;
         self.check_balance(before, &offsets, (&u, &velocity), t_new, slack)?;
+        if dynamic && self.settings.scheme == Scheme::Bdf2 {
+            // The next step may use this one as its step back only if it was a full step.
+            self.state.back = if h == self.settings.dt {
+                (self.previous.clone(), std::mem::take(&mut self.state.v))
+            } else {
+                Default::default()
+            };
+        }
         self.state.v = velocity;
         if newmark {
             self.state.a = acceleration;
