@@ -269,6 +269,9 @@ pub struct Simulation {
     initial_guess: Option<Vec<f64>>,
     /// The heat model that drives the freezing (with `[thermal]`).
     heat: Option<HeatLink>,
+    /// The step's Hessian for an inertia step length (s), kept while it cannot change (see
+    /// [`Simulation::hessian_is_fixed`]): later solves copy it instead of assembling.
+    fixed_hessian: Option<(f64, Vec<f64>)>,
 }
 
 impl Simulation {
@@ -344,6 +347,7 @@ impl Simulation {
             start: None,
             initial_guess: None,
             heat: None,
+            fixed_hessian: None,
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
             } else {
@@ -654,6 +658,16 @@ impl Simulation {
         } else {
             Vec::new()
         };
+        let fixed_terms = self.fixed_hessian_terms();
+        // The inertia term of every scheme is backward Euler's 1/(2h'²) (u − ũ)ᵀM(u − ũ):
+        // Newmark's 1/(2βh²) with β = ¼ at h' = h/2, BDF2's 9/(8h²) at h' = 2h/3.
+        let inertia_step = if newmark {
+            0.5 * h
+        } else if bdf2 {
+            2.0 * h / 3.0
+        } else {
+            h
+        };
         let model = &self.model;
         let solve = Solve {
             rest: &model.mesh.rest,
@@ -679,15 +693,7 @@ impl Simulation {
         terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(&solve)));
         if dynamic {
             terms.push(Box::new(Inertia {
-                // Newmark's 1/(2βh²) with β = ¼ is backward Euler's 1/(2h'²) at h' = h/2.
-                // BDF2's 9/(8h²) at h' = 2h/3.
-                dt: if newmark {
-                    0.5 * h
-                } else if bdf2 {
-                    2.0 * h / 3.0
-                } else {
-                    h
-                },
+                dt: inertia_step,
                 mass: &model.mass,
                 predictor: &self.predictor,
                 previous: &self.previous,
@@ -704,7 +710,28 @@ impl Simulation {
                 }));
             }
         }
+        // A Hessian that cannot change is assembled once per step length and then copied.
+        let fixed = fixed_terms == Some(terms.len());
+        // Keyed by the inertia term's step: the Hessian's only dependence on the step.
+        if !fixed
+            || self
+                .fixed_hessian
+                .as_ref()
+                .is_some_and(|(k, _)| *k != inertia_step)
+        {
+            self.fixed_hessian = None;
+        }
         let mut potential = StepPotential::new(terms);
+        let mut t_fixed_assembly = 0.0;
+        if fixed && self.fixed_hessian.is_none() {
+            let start = Instant::now();
+            let mut gradient = vec![0.0; u.len()];
+            let mut hessian = vec![0.0; self.assembly.nnz()];
+            crate::solver::Potential::evaluate(&mut potential, &u, &mut gradient, &mut hessian);
+            self.fixed_hessian = Some((inertia_step, hessian));
+            t_fixed_assembly = start.elapsed().as_secs_f64();
+        }
+        potential.fixed_hessian = self.fixed_hessian.as_ref().map(|(_, k)| &k[..]);
         // Lagged quantities (friction's normal force, mesh obstacles' planes) are those of the
         // start of the solve; after each solve they are re-lagged to its solution and the step
         // is re-solved (warm-started) until they settle to FRICTION_RELAG_TOLERANCE.
@@ -726,7 +753,8 @@ impl Simulation {
             newton = Some(newton.map_or(report, |n| n.then(&report)));
             newton_solves += 1;
         }
-        let newton = newton.unwrap_or_default();
+        let mut newton = newton.unwrap_or_default();
+        newton.t_assembly += t_fixed_assembly;
         if potential.terms.iter().any(|t| t.is_contact()) {
             let n = u.len();
             let mut forces = ContactForces {
@@ -794,6 +822,21 @@ impl Simulation {
             t_contact_broad,
             ..Default::default()
         })
+    }
+
+    /// When the step's Hessian is the same at every u and every step of one length — the
+    /// linear model with per-element volume, no plasticity or freezing — the number of terms
+    /// a solve then has if no contact term joins it (elasticity and loads, plus inertia and
+    /// stiffness damping in a dynamic step); `None` otherwise.
+    fn fixed_hessian_terms(&self) -> Option<usize> {
+        let e = &self.model.elasticity;
+        let dynamic = self.settings.analysis == Analysis::Dynamic;
+        let damping = self.model.damping.is_some_and(|d| d.stiffness > 0.0);
+        (e.model == crate::fem::ElasticModel::Linear
+            && e.plasticity.is_none()
+            && e.volumetric() == crate::physics::elasticity::Volumetric::default()
+            && self.model.freezing.is_none())
+        .then(|| 2 + usize::from(dynamic) + usize::from(dynamic && damping))
     }
 
     /// The acceleration of the current state from its forces, a = −M⁻¹ ∇Ψ(u) on the free
