@@ -123,7 +123,9 @@ class Frame:
     def node_fields(self):
         """Per-node fields, dict name → float [n] or [n, k]: ``velocities`` (m/s),
         ``displacement`` (m), and when present ``contact_normal_force``,
-        ``contact_friction_force`` (N), ``contact_active`` (0/1), ``refused_split``."""
+        ``contact_friction_force`` (N), ``contact_active`` (0/1), ``refused_split``,
+        ``temperature`` (°C, [thermal]), ``acceleration`` (m/s², scheme "newmark"),
+        ``back_displacement``, ``back_velocity`` (scheme "bdf2")."""
         return self._fields["Node"]
 
     @property
@@ -142,6 +144,11 @@ class Frame:
     def freeze_state(self):
         """Frozen share per element, float [m], 0 (water) … 1 (ice); None without [freezing]."""
         return self.element_fields.get("freeze_state")
+
+    @property
+    def temperature(self):
+        """Temperature per node, float [n], °C; None without [thermal]."""
+        return self.node_fields.get("temperature")
 
     @property
     def plastic_strain(self):

@@ -152,6 +152,7 @@ def test_beam_positions_are_rest_plus_displacement(beam):
         assert all(len(a) == m for a in last.element_fields.values())
         assert last.stress.shape == (m, 6)
         assert last.freeze_state is None and last.plastic_strain is None
+        assert last.temperature is None
         with pytest.raises(KeyError, match="plastic_strain"):
             last.plastic_strain_norm()
         assert len(last.cracks) == 0 and last.cracks.vertices.shape == (0, 3)
@@ -319,3 +320,36 @@ def test_missing_frame(beam):
                 run.frame(k)
         with pytest.raises(KeyError):
             run[10]
+
+
+# --- a run frozen by heat conduction ------------------------------------------------------------
+THERMAL_CUBE = """
+[mesh]
+box = { size = [0.04, 0.04, 0.04], cells = [2, 2, 2] }
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+[[obstacle]]
+type = "container"
+min = [0.0, 0.0, 0.0]
+max = [0.04, 0.04, 0.06]
+[thermal]
+initial_temperature = 1.0
+[[thermal.convection]]
+faces = ["walls", "bottom"]
+h = 500.0
+ambient_temperature = -10.0
+[time]
+dt = 600.0
+end_time = 3600.0
+"""
+
+
+def test_temperature_of_a_thermal_run(icefem, tmp_path):
+    with Run(run_scene(icefem, tmp_path, "thermal", THERMAL_CUBE)) as run:
+        first, last = run.frame(0), run.last()
+        assert np.all(first.temperature == 1.0)  # °C, every node at the start
+        assert len(last.temperature) == len(last.positions)
+        assert last.temperature.max() < first.temperature.min()  # the walls cooled it
+        assert last.freeze_state.mean() > first.freeze_state.mean()
