@@ -26,13 +26,13 @@ use balance::{Balance, EnergyRise};
 use potential::StepPotential;
 use std::time::Instant;
 
-/// Static equilibrium per step, or backward-Euler dynamics.
+/// Static equilibrium per step, or dynamics (integrated by the [`Scheme`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Analysis {
     /// Each step solves for equilibrium at its end time (quasi-static load stepping).
     Static,
-    /// Backward-Euler dynamics.
+    /// Dynamics: inertia, integrated in time by the [`Scheme`].
     Dynamic,
 }
 
@@ -592,7 +592,8 @@ impl Simulation {
         }
     }
 
-    /// One backward-Euler (or static) solve of length `h` ending at `t_new`.
+    /// One solve of length `h` ending at `t_new`: a step of the scheme (a backward-Euler step
+    /// where BDF2 has no full step before it), or a static one.
     fn try_step(&mut self, h: f64, t_new: f64) -> Result<StepReport, SolveFailure> {
         let dynamic = self.settings.analysis == Analysis::Dynamic;
         let newmark = dynamic && self.settings.scheme == Scheme::Newmark;
