@@ -6,6 +6,7 @@
 
 pub mod balance;
 pub mod potential;
+pub mod scheme;
 
 use crate::assembly::{Assembly, DofMap};
 use crate::fem::StrainOffset;
@@ -24,6 +25,8 @@ use crate::solver::{
 use crate::thermal::HeatLink;
 use balance::{Balance, EnergyRise};
 use potential::StepPotential;
+pub use scheme::Scheme;
+use scheme::StepFormula;
 use std::time::Instant;
 
 /// Static equilibrium per step, or dynamics (integrated by the [`Scheme`]).
@@ -34,26 +37,6 @@ pub enum Analysis {
     Static,
     /// Dynamics: inertia, integrated in time by the [`Scheme`].
     Dynamic,
-}
-
-/// How a dynamic step integrates in time, each as an incremental potential that Newton
-/// minimises (so contact, friction and the line search work the same).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Scheme {
-    /// Backward Euler: first order; dissipates ½ ΔvᵀMΔv per step, which damps the motion.
-    #[default]
-    BackwardEuler,
-    /// Newmark's average acceleration (the trapezoidal rule, β = ¼, γ = ½): second order, no
-    /// numerical dissipation (a linear undamped system keeps its energy). The step minimises
-    /// Ψ(u) + 2/h² (u − ũ)ᵀM(u − ũ), ũ = uₙ + h vₙ + h²/4 aₙ; then aₙ₊₁ = 4 (uₙ₊₁ − ũ)/h²,
-    /// vₙ₊₁ = vₙ + h/2 (aₙ + aₙ₊₁).
-    Newmark,
-    /// BDF2, second order with some numerical dissipation of the fastest modes: the step
-    /// minimises Ψ(u) + 9/(8h²) (u − ũ)ᵀM(u − ũ), ũ = (4uₙ − uₙ₋₁)/3 + 2h/9 (4vₙ − vₙ₋₁);
-    /// then vₙ₊₁ = (3uₙ₊₁ − 4uₙ + uₙ₋₁)/(2h). A step without a full step before it (the
-    /// first, a halved one, the first after a remesh) is a backward-Euler step.
-    Bdf2,
 }
 
 /// How a run steps and solves.
@@ -615,23 +598,9 @@ impl Simulation {
             t_new,
         );
         let mut u = self.state.u.clone();
-        let (back_u, back_v) = &self.state.back;
-        let bdf2 = dynamic
-            && self.settings.scheme == Scheme::Bdf2
-            && h == self.settings.dt
-            && back_u.len() == u.len();
+        let formula = StepFormula::of(self.settings.scheme, &self.state, h, self.settings.dt);
         if dynamic {
-            // ũ = uₙ + h vₙ (+ h²/4 aₙ for Newmark); BDF2's from two steps.
-            for (d, p) in self.predictor.iter_mut().enumerate() {
-                let (un, vn) = (self.state.u[d], self.state.v[d]);
-                *p = if bdf2 {
-                    (4.0 * un - back_u[d]) / 3.0 + 2.0 * h / 9.0 * (4.0 * vn - back_v[d])
-                } else if newmark {
-                    un + h * vn + 0.25 * h * h * self.state.a[d]
-                } else {
-                    un + h * vn
-                };
-            }
+            formula.predict(&self.state, h, &mut self.predictor);
             u.copy_from_slice(&self.predictor);
         }
         // A retaken step starts from its earlier solution (only for the full step: a halved
@@ -660,15 +629,7 @@ impl Simulation {
             Vec::new()
         };
         let fixed_terms = self.fixed_hessian_terms();
-        // The inertia term of every scheme is backward Euler's 1/(2h'²) (u − ũ)ᵀM(u − ũ):
-        // Newmark's 1/(2βh²) with β = ¼ at h' = h/2, BDF2's 9/(8h²) at h' = 2h/3.
-        let inertia_step = if newmark {
-            0.5 * h
-        } else if bdf2 {
-            2.0 * h / 3.0
-        } else {
-            h
-        };
+        let inertia_step = formula.inertia_step(h);
         let model = &self.model;
         let solve = Solve {
             rest: &model.mesh.rest,
@@ -774,28 +735,10 @@ impl Simulation {
         let t_contact_narrow = potential.t_contact;
         let t_contact_broad = potential.broad_phase_time();
         drop(potential);
-        let mut acceleration = Vec::new();
-        let velocity: Vec<f64> = if newmark {
-            acceleration = u
-                .iter()
-                .zip(&self.predictor)
-                .map(|(un, p)| 4.0 * (un - p) / (h * h))
-                .collect();
-            (0..u.len())
-                .map(|d| self.state.v[d] + 0.5 * h * (self.state.a[d] + acceleration[d]))
-                .collect()
-        } else if bdf2 {
-            let back = &self.state.back.0;
-            (0..u.len())
-                .map(|d| (3.0 * u[d] - 4.0 * self.previous[d] + back[d]) / (2.0 * h))
-                .collect()
-        } else if dynamic {
-            u.iter()
-                .zip(&self.previous)
-                .map(|(un, u0)| (un - u0) / h)
-                .collect()
+        let (velocity, acceleration) = if dynamic {
+            formula.velocity(&self.state, (&u, &self.predictor), h)
         } else {
-            self.state.v.clone()
+            (self.state.v.clone(), Vec::new())
         };
         let slack = self.settings.newton.tolerance * newton.force_scale;
         self.check_balance(before, &offsets, (&u, &velocity), t_new, slack)?;
