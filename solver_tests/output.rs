@@ -9,24 +9,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use common::SAGGING_BAR as SCENE;
 
-/// Run options writing to `path`, optionally cut at `end` (s) or resuming it.
-fn options(path: &Path, end: Option<f64>, resume: bool) -> RunOptions {
-    RunOptions {
-        output: Some(path.to_path_buf()),
-        end_time: end,
-        resume,
-        ..Default::default()
-    }
-}
+use common::run_options as options;
 
 fn scene(dir: &Path) -> Scene {
     scene_from(dir, SCENE)
 }
 
 fn scene_from(dir: &Path, text: &str) -> Scene {
-    let path = dir.join("scene.toml");
-    std::fs::write(&path, text).unwrap();
-    Scene::load(&path).unwrap()
+    common::load_scene(dir, text).unwrap()
 }
 
 /// Freezing with plasticity: the state a resume must restore includes each element's plastic

@@ -1,6 +1,8 @@
 //! Heat conduction with freezing: scikit-fem's P1 heat equation on the same mesh, Neumann's
 //! two-phase Stefan solution, and the energy balance of every step.
 
+mod common;
+use common::{load_scene as load, reference_file, run_options as options};
 use icefem::mesh::{box_mesh, TetMesh};
 use icefem::thermal::neumann::Neumann;
 use icefem::thermal::{Heat, HeatBoundary, Phase, Phases};
@@ -18,29 +20,8 @@ fn lumped_mass(mesh: &TetMesh, rho: f64) -> Vec<f64> {
 
 #[test]
 fn conduction_matches_scikit_fem_step_by_step() {
-    let path = format!(
-        "{}/validation/reference/heat_bar.h5",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let file = hdf5::File::open(&path).unwrap();
+    let (file, mesh) = reference_file("heat_bar");
     let attr = |name: &str| file.attr(name).unwrap().read_scalar::<f64>().unwrap();
-    let nodes = file
-        .dataset("mesh/nodes")
-        .unwrap()
-        .read_2d::<f64>()
-        .unwrap();
-    let tets = file.dataset("mesh/tets").unwrap().read_2d::<i64>().unwrap();
-    let rows: Vec<[f64; 3]> = nodes
-        .rows()
-        .into_iter()
-        .map(|r| [r[0], r[1], r[2]])
-        .collect();
-    let tets: Vec<[usize; 4]> = tets
-        .rows()
-        .into_iter()
-        .map(|r| [r[0], r[1], r[2], r[3]].map(|i| i as usize))
-        .collect();
-    let mesh = TetMesh::from_arrays(&rows, tets).unwrap();
     let fixed = file
         .dataset("mesh/dirichlet_nodes")
         .unwrap()
@@ -254,21 +235,6 @@ dt = 600.0
 end_time = 7200.0
 output_every = 2
 "#;
-
-fn load(dir: &std::path::Path, text: &str) -> Result<icefem::scene::Scene, String> {
-    let path = dir.join("scene.toml");
-    std::fs::write(&path, text).unwrap();
-    icefem::scene::Scene::load(&path).map_err(|e| e.to_string())
-}
-
-fn options(path: &std::path::Path, end: Option<f64>, resume: bool) -> icefem::run::RunOptions {
-    icefem::run::RunOptions {
-        output: Some(path.to_path_buf()),
-        end_time: end,
-        resume,
-        ..Default::default()
-    }
-}
 
 /// The last frame's positions, freeze states and temperatures, and every frame's mean freeze
 /// state.

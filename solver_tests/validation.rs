@@ -23,27 +23,7 @@ fn flat(dataset: &hdf5::Dataset) -> Vec<f64> {
 }
 
 fn open(name: &str) -> Reference {
-    let path = format!(
-        "{}/validation/reference/{name}.h5",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let file = hdf5::File::open(&path).unwrap();
-    let nodes = file
-        .dataset("mesh/nodes")
-        .unwrap()
-        .read_2d::<f64>()
-        .unwrap();
-    let tets = file.dataset("mesh/tets").unwrap().read_2d::<i64>().unwrap();
-    let nodes: Vec<[f64; 3]> = nodes
-        .rows()
-        .into_iter()
-        .map(|r| [r[0], r[1], r[2]])
-        .collect();
-    let tets: Vec<[usize; 4]> = tets
-        .rows()
-        .into_iter()
-        .map(|r| [0, 1, 2, 3].map(|k| r[k] as usize))
-        .collect();
+    let (file, mesh) = reference_file(name);
     let attr = |n: &str| file.attr(n).unwrap().read_scalar::<f64>().unwrap();
     let material = Material {
         lambda: attr("lambda"),
@@ -51,7 +31,7 @@ fn open(name: &str) -> Reference {
         density: attr("rho"),
     };
     Reference {
-        mesh: TetMesh::from_arrays(&nodes, tets).unwrap(),
+        mesh,
         material,
         file,
     }

@@ -151,3 +151,55 @@ pub fn listing(dir: &Path) -> Vec<String> {
     names.sort();
     names
 }
+
+/// A reference file of `validation/reference/` (`NAME.h5`) and its mesh (`mesh/nodes`,
+/// `mesh/tets`, as make_references.py and make_heat_reference.py write them).
+#[allow(dead_code)] // not every test binary reads references
+pub fn reference_file(name: &str) -> (hdf5::File, TetMesh) {
+    let path = format!(
+        "{}/validation/reference/{name}.h5",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let file = hdf5::File::open(&path).unwrap();
+    let nodes = file
+        .dataset("mesh/nodes")
+        .unwrap()
+        .read_2d::<f64>()
+        .unwrap();
+    let tets = file.dataset("mesh/tets").unwrap().read_2d::<i64>().unwrap();
+    let nodes: Vec<[f64; 3]> = nodes
+        .rows()
+        .into_iter()
+        .map(|r| [r[0], r[1], r[2]])
+        .collect();
+    let tets: Vec<[usize; 4]> = tets
+        .rows()
+        .into_iter()
+        .map(|r| [0, 1, 2, 3].map(|k| r[k] as usize))
+        .collect();
+    let mesh = TetMesh::from_arrays(&nodes, tets).unwrap();
+    (file, mesh)
+}
+
+/// Run options writing to `path`, optionally cut at `end` (s) or resuming it.
+#[allow(dead_code)] // not every test binary runs scenes
+pub fn run_options(
+    path: &std::path::Path,
+    end: Option<f64>,
+    resume: bool,
+) -> icefem::run::RunOptions {
+    icefem::run::RunOptions {
+        output: Some(path.to_path_buf()),
+        end_time: end,
+        resume,
+        ..Default::default()
+    }
+}
+
+/// The scene `text`, written to `dir/scene.toml` and loaded; the error's message otherwise.
+#[allow(dead_code)] // not every test binary loads scenes
+pub fn load_scene(dir: &std::path::Path, text: &str) -> Result<icefem::scene::Scene, String> {
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, text).unwrap();
+    icefem::scene::Scene::load(&path).map_err(|e| e.to_string())
+}

@@ -478,4 +478,14 @@ impl StepTerm for ElasticStep<'_> {
     fn project_hessian(&mut self) -> bool {
         !std::mem::replace(&mut self.project, true)
     }
+
+    /// The linear model with per-element volume and no plasticity, whose elements' stiffness
+    /// no freezing blends from step to step: K, whatever u and the eigenstrain.
+    fn hessian_is_fixed(&self) -> bool {
+        let e = self.elasticity;
+        e.model == ElasticModel::Linear
+            && e.plasticity.is_none()
+            && e.volumetric() == Volumetric::Element
+            && self.history.freeze_state.is_empty()
+    }
 }

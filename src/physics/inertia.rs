@@ -53,6 +53,9 @@ impl StepTerm for Inertia<'_> {
             }
         }
     }
+    fn hessian_is_fixed(&self) -> bool {
+        true // M/h² + αM/h: fixed for a step length
+    }
 }
 
 /// Stiffness-proportional damping: 1/(2h) (u − uₙ)ᵀ β Kₙ (u − uₙ) on the free dofs.
@@ -96,5 +99,9 @@ impl StepTerm for StiffnessDamping<'_> {
                 *v += kv / h;
             }
         }
+    }
+    fn hessian_is_fixed(&self) -> bool {
+        // βKₙ/h: fixed when Kₙ is, i.e. when the elastic term's Hessian is.
+        true
     }
 }

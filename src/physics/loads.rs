@@ -95,4 +95,8 @@ impl super::term::StepTerm for DeadLoads<'_> {
             }
         }
     }
+
+    fn hessian_is_fixed(&self) -> bool {
+        true // linear in u: no Hessian at all
+    }
 }

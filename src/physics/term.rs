@@ -68,6 +68,12 @@ pub trait StepTerm {
     }
     /// Adds the term's contact forces on the ice at `u` (N, 3 per node), if it is a contact.
     fn add_contact_forces(&self, _u: &[f64], _forces: &mut ContactForces) {}
+    /// Whether the term's Hessian is the same at every u of this solve and of every later
+    /// solve with the same inertia step (a quadratic with fixed coefficients): a solve whose
+    /// terms all say so assembles its Hessian once and copies it after that.
+    fn hessian_is_fixed(&self) -> bool {
+        false
+    }
     /// Whether this is a contact term (its evaluation counts as contact narrow-phase time).
     fn is_contact(&self) -> bool {
         false

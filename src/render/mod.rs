@@ -583,11 +583,7 @@ impl Renderer {
 
         // The colour of the ice: a field through the colour map, else water → ice by the
         // freeze state; per element (flat) or averaged to the nodes (smooth).
-        let element_values: Option<Vec<f64>> = match (&values, freeze) {
-            (Some(v), _) => Some(v.clone()),
-            (None, Some(s)) => Some(s.to_vec()),
-            (None, None) => None,
-        };
+        let element_values: Option<&[f64]> = values.as_deref().or(freeze);
         let paint = |v: Option<f64>| -> Rgb {
             match (&values, v) {
                 (Some(_), Some(v)) => colormap(v, self.range),
@@ -597,11 +593,9 @@ impl Renderer {
                 }
             }
         };
-        let tets: Vec<[usize; 4]> = state.tets.clone();
         let nodal = element_values
-            .as_ref()
             .filter(|_| smooth)
-            .map(|v| shading::nodal_values(v, &tets, &positions));
+            .map(|v| shading::nodal_values(v, &state.tets, &positions));
         let normals = if smooth {
             shading::corner_normals(&surface, &positions, FEATURE_ANGLE_DEG)
         } else {
@@ -618,7 +612,7 @@ impl Renderer {
                 std::array::from_fn(|k| {
                     let v = match &nodal {
                         Some(nodal) => Some(nodal[nodes[k]]),
-                        None => element_values.as_ref().map(|v| v[*element]),
+                        None => element_values.map(|v| v[*element]),
                     };
                     (paint(v), n[k].cast::<f32>())
                 })

@@ -628,7 +628,6 @@ impl Simulation {
         } else {
             Vec::new()
         };
-        let fixed_terms = self.fixed_hessian_terms();
         let inertia_step = formula.inertia_step(h);
         let model = &self.model;
         let solve = Solve {
@@ -640,19 +639,13 @@ impl Simulation {
             dynamic,
             times: (self.state.time, t_new),
         };
-        let mut terms: Vec<Box<dyn StepTerm + '_>> = vec![
-            Box::new(ElasticStep::new(
-                &model.elasticity,
-                (&model.mesh.tets, &self.state.history, &offsets),
-                &self.assembly,
-                &mut self.element_energy,
-                false,
-            )),
-            Box::new(DeadLoads {
-                force: &model.external_force,
-            }),
-        ];
-        terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(&solve)));
+        let mut terms = solve_terms(
+            model,
+            &self.assembly,
+            (&self.state.history, &offsets),
+            &mut self.element_energy,
+            &solve,
+        );
         if dynamic {
             terms.push(Box::new(Inertia {
                 dt: inertia_step,
@@ -673,7 +666,7 @@ impl Simulation {
             }
         }
         // A Hessian that cannot change is assembled once per step length and then copied.
-        let fixed = fixed_terms == Some(terms.len());
+        let fixed = terms.iter().all(|t| t.hessian_is_fixed());
         // Keyed by the inertia term's step: the Hessian's only dependence on the step.
         if !fixed
             || self
@@ -768,21 +761,6 @@ impl Simulation {
         })
     }
 
-    /// When the step's Hessian is the same at every u and every step of one length — the
-    /// linear model with per-element volume, no plasticity or freezing — the number of terms
-    /// a solve then has if no contact term joins it (elasticity and loads, plus inertia and
-    /// stiffness damping in a dynamic step); `None` otherwise.
-    fn fixed_hessian_terms(&self) -> Option<usize> {
-        let e = &self.model.elasticity;
-        let dynamic = self.settings.analysis == Analysis::Dynamic;
-        let damping = self.model.damping.is_some_and(|d| d.stiffness > 0.0);
-        (e.model == crate::fem::ElasticModel::Linear
-            && e.plasticity.is_none()
-            && e.volumetric() == crate::physics::elasticity::Volumetric::default()
-            && self.model.freezing.is_none())
-        .then(|| 2 + usize::from(dynamic) + usize::from(dynamic && damping))
-    }
-
     /// The acceleration of the current state from its forces, a = −M⁻¹ ∇Ψ(u) on the free
     /// dofs (Ψ: elasticity, dead loads and contact at the state's time), 0 on the supported
     /// ones: what the Newmark scheme starts from.
@@ -800,19 +778,13 @@ impl Simulation {
             dynamic: true,
             times: (t, t),
         };
-        let mut terms: Vec<Box<dyn StepTerm + '_>> = vec![
-            Box::new(ElasticStep::new(
-                &model.elasticity,
-                (&model.mesh.tets, &self.state.history, &offsets),
-                &self.assembly,
-                &mut self.element_energy,
-                false,
-            )),
-            Box::new(DeadLoads {
-                force: &model.external_force,
-            }),
-        ];
-        terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(&solve)));
+        let terms = solve_terms(
+            model,
+            &self.assembly,
+            (&self.state.history, &offsets),
+            &mut self.element_energy,
+            &solve,
+        );
         let mut potential = StepPotential::new(terms);
         let mut gradient = vec![0.0; self.state.u.len()];
         crate::solver::Potential::gradient(&mut potential, &self.state.u, &mut gradient);
@@ -973,6 +945,31 @@ impl Simulation {
     pub fn displacement(&self, i: usize) -> [f64; 3] {
         std::array::from_fn(|a| self.state.u[3 * i + a])
     }
+}
+
+/// The terms every solve sums — elasticity, dead loads and the model's terms that act in
+/// `solve` (contact) — without inertia and damping, which a dynamic step adds.
+fn solve_terms<'a>(
+    model: &'a Model,
+    assembly: &'a Assembly,
+    (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
+    element_energy: &'a mut [f64],
+    solve: &Solve<'a>,
+) -> Vec<Box<dyn StepTerm + 'a>> {
+    let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![
+        Box::new(ElasticStep::new(
+            &model.elasticity,
+            (&model.mesh.tets, history, offsets),
+            assembly,
+            element_energy,
+            false,
+        )),
+        Box::new(DeadLoads {
+            force: &model.external_force,
+        }),
+    ];
+    terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(solve)));
+    terms
 }
 
 /// Energies of `model` at displacement and velocity `(u, v)` (m, m/s; 3 per node) and time
