@@ -10,10 +10,8 @@
 use crate::fem::ElementEval;
 use crate::mesh::TetMesh;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
+use crate::parallel::{for_each_with_scratch, MIN_PARALLEL_ITEMS, MIN_TASK_ITEMS};
 use rayon::prelude::*;
-
-/// Fewest elements a parallel task takes: below this the scheduling costs more than it saves.
-const MIN_TASK_ELEMENTS: usize = 256;
 
 /// Marks a slot or dof that is not in the free system.
 const NONE: u32 = u32::MAX;
@@ -271,11 +269,10 @@ impl Assembly {
         let grad = SharedMut(gradient.as_mut_ptr());
         let energy = SharedMut(energies.as_mut_ptr());
         for k in 0..self.num_colors() {
-            self.color_elems[self.color_ptr[k]..self.color_ptr[k + 1]]
-                .par_iter()
-                // Small colours are not worth splitting into many tasks.
-                .with_min_len(MIN_TASK_ELEMENTS)
-                .for_each_init(ElementEval::default, |out, &e| {
+            for_each_with_scratch(
+                &self.color_elems[self.color_ptr[k]..self.color_ptr[k + 1]],
+                ElementEval::default,
+                |out, &e| {
                     let e = e as usize;
                     kernel(e, with_hessian, out);
                     let tet = &self.tets[e];
@@ -290,7 +287,8 @@ impl Assembly {
                             self.scatter_hessian(e, tet, &out.hessian, vals);
                         }
                     }
-                });
+                },
+            );
         }
     }
 
@@ -322,19 +320,28 @@ impl Assembly {
         }
     }
 
-    /// Energy only: runs `kernel` on every element in parallel, writing `energies[e]`.
+    /// Energy only: runs `kernel` on every element (in parallel when there are enough),
+    /// writing `energies[e]`.
     pub fn energies<K>(&self, kernel: K, energies: &mut [f64])
     where
         K: Fn(usize, &mut ElementEval) + Sync,
     {
-        energies
-            .par_iter_mut()
-            .with_min_len(MIN_TASK_ELEMENTS)
-            .enumerate()
-            .for_each_init(ElementEval::default, |out, (e, energy)| {
-                kernel(e, out);
+        if energies.len() < MIN_PARALLEL_ITEMS {
+            let mut out = ElementEval::default();
+            for (e, energy) in energies.iter_mut().enumerate() {
+                kernel(e, &mut out);
                 *energy = out.energy;
-            });
+            }
+        } else {
+            energies
+                .par_iter_mut()
+                .with_min_len(MIN_TASK_ITEMS)
+                .enumerate()
+                .for_each_init(ElementEval::default, |out, (e, energy)| {
+                    kernel(e, out);
+                    *energy = out.energy;
+                });
+        }
     }
 }
 

@@ -11,6 +11,7 @@ pub mod fem;
 pub mod fracture;
 pub mod mesh;
 pub mod output;
+pub mod parallel;
 pub mod physics;
 pub mod render;
 pub mod run;

@@ -216,10 +216,7 @@ impl Elasticity {
         u: &[f64],
         with_hessian: bool,
     ) -> (Vec<VolumeChange>, Vec<f64>) {
-        use rayon::prelude::*;
-        (0..tets.len())
-            .into_par_iter()
-            .map(|e| {
+        crate::parallel::map_range(tets.len(), |e| {
                 let change = volume_change(
                     self.model,
                     &self.rest[e],
@@ -229,6 +226,7 @@ impl Elasticity {
                 );
                 (change, self.bulk_of(history, e))
             })
+            .into_iter()
             .unzip()
     }
 
@@ -331,14 +329,11 @@ impl Elasticity {
         history: &ElementHistory,
         u: &[f64],
     ) -> Vec<[f64; 6]> {
-        use rayon::prelude::*;
         let offsets = history.offsets();
         let pressure = self
             .nodal_pressures(tets, history, &offsets, u)
             .map(|(p, _)| p);
-        (0..tets.len())
-            .into_par_iter()
-            .map(|e| {
+        crate::parallel::map_range(tets.len(), |e| {
                 let mut s = element_stress(
                     &self.law_of(history, e),
                     &self.rest[e],
@@ -353,7 +348,6 @@ impl Elasticity {
                 }
                 s
             })
-            .collect()
     }
 
     /// Elastic energy Σ Wₑ (J) at `u`, with the elements' strain `offsets`

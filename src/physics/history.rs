@@ -63,14 +63,10 @@ impl ElementHistory {
         StrainOffset::new(self.offset_strain(e))
     }
 
-    /// The strain offsets of all elements, computed in parallel (for a solve, during which
+    /// The strain offsets of all elements, computed in parallel when there are enough (for a solve, during which
     /// they are fixed).
     pub fn offsets(&self) -> Vec<StrainOffset> {
-        use rayon::prelude::*;
-        (0..self.eigenstrain.len())
-            .into_par_iter()
-            .map(|e| self.offset_of(e))
-            .collect()
+        crate::parallel::map_range(self.eigenstrain.len(), |e| self.offset_of(e))
     }
 
     /// Whether element `e` holds any ice: its freeze state is above 0 (always, without a

@@ -73,23 +73,19 @@ impl Plasticity {
         tets: &[[usize; 4]],
         u: &[f64],
     ) -> f64 {
-        use rayon::prelude::*;
         let n = tets.len();
         if history.plastic_strain.len() != n {
             history.plastic_strain = vec![Matrix3::zeros(); n];
         }
         let h = &*history;
-        let updated: Vec<Matrix3<f64>> = (0..n)
-            .into_par_iter()
-            .map(|e| {
+        let updated: Vec<Matrix3<f64>> = crate::parallel::map_range(n, |e| {
                 if elasticity.law_of(h, e).yield_limit.is_some() {
                     let elastic = elasticity.elastic_strain(tets, h, u, e);
                     self.return_map(&elastic, &h.plastic_strain[e])
                 } else {
                     h.plastic_strain[e]
                 }
-            })
-            .collect();
+            });
         let largest = updated.iter().map(|p| p.norm()).fold(0.0, f64::max);
         history.plastic_strain = updated;
         largest

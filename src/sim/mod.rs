@@ -504,7 +504,11 @@ impl Simulation {
         report.t_step = start.elapsed().as_secs_f64();
         report.heat = heat;
         report.t_contact_broad += t_contact_broad;
-        report.energies = self.energies();
+        // The energies the balance check measured at the solution hold unless the plastic
+        // strain was updated after it.
+        if self.model.elasticity.plasticity.is_some() {
+            report.energies = self.energies();
+        }
         Ok(report)
     }
 
@@ -734,7 +738,7 @@ impl Simulation {
             (self.state.v.clone(), Vec::new())
         };
         let slack = self.settings.newton.tolerance * newton.force_scale;
-        self.check_balance(before, &offsets, (&u, &velocity), t_new, slack)?;
+        let energies = self.check_balance(before, &offsets, (&u, &velocity), t_new, slack)?;
         if dynamic && self.settings.scheme == Scheme::Bdf2 {
             // The next step may use this one as its step back only if it was a full step.
             self.state.back = if h == self.settings.dt {
@@ -753,6 +757,7 @@ impl Simulation {
         self.state.time = t_new;
         Ok(StepReport {
             newton,
+            energies,
             substeps: 1,
             newton_solves,
             t_contact_narrow,
@@ -800,7 +805,8 @@ impl Simulation {
 
     /// Checks that the solution `(u, v)` at `t_new` holds no more energy than `before` (the
     /// solve's start, measured with its loads) and the work done on the ice during the solve
-    /// (see [`balance`]); `tolerance` is the residual force Newton accepts (N).
+    /// (see [`balance`]); `tolerance` is the residual force Newton accepts (N). Returns the
+    /// solution's energies.
     fn check_balance(
         &mut self,
         before: Energies,
@@ -808,7 +814,7 @@ impl Simulation {
         (u, v): (&[f64], &[f64]),
         t_new: f64,
         tolerance: f64,
-    ) -> Result<(), EnergyRise> {
+    ) -> Result<Energies, EnergyRise> {
         let after = energies_of(
             &self.model,
             &self.assembly,
@@ -845,7 +851,7 @@ impl Simulation {
             unresolved,
         };
         if balance.holds() {
-            Ok(())
+            Ok(after)
         } else {
             Err(EnergyRise(Box::new(balance)))
         }
