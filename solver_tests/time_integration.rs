@@ -1,11 +1,12 @@
-//! Time integration: the measured order of backward Euler and Newmark's average acceleration
-//! on a cantilever, and Newmark's energy conservation.
+//! Time integration: the measured order of backward Euler, Newmark's average acceleration and
+//! BDF2 on a cantilever, with fixed and adaptive steps; Newmark's energy conservation; resume
+//! and refusals.
 
 mod common;
 use common::*;
 use icefem::fem::ElasticModel;
 use icefem::mesh::box_mesh;
-use icefem::sim::{Analysis, Scheme, Simulation};
+use icefem::sim::{Adaptive, Analysis, Scheme, Simulation};
 
 /// A 0.4 m ice cantilever (8 × 1 × 1 cells, linear elasticity), clamped at x = 0, released
 /// at rest under gravity, stepped with `scheme` at `dt`.
@@ -81,6 +82,63 @@ fn newmark_keeps_the_energy_of_an_undamped_linear_beam() {
         drift <= 1e-9 * kinetic,
         "drift {drift:e} J, kinetic {kinetic:e} J"
     );
+}
+
+/// Steps and relative error at `end` (s) of the cantilever with `scheme` stepped adaptively
+/// at `relative` tolerance, starting at 1 µs, against `reference`.
+fn adaptive_run(scheme: Scheme, relative: f64, end: f64, reference: &[f64]) -> (u64, f64) {
+    let mut sim = cantilever(scheme, 1e-6);
+    sim.settings.adaptive = Some(Adaptive {
+        relative_tolerance: relative,
+        // The tip moves ~2e-7 m in the 0.2 ms: far below the relative part.
+        absolute_tolerance: 1e-3 * relative * 1e-7,
+        dt_min: 1e-10,
+        dt_max: 1e-4,
+    });
+    let mut rejected = 0;
+    while sim.state.time < end * (1.0 - 1e-12) {
+        rejected += sim.step_adaptive(end).unwrap().rejected;
+    }
+    let error = rel_l2(&sim.state.u, reference);
+    eprintln!(
+        "{scheme:?} at {relative:e}: {} steps ({rejected} rejected), error {error:.3e}",
+        sim.state.step
+    );
+    (sim.state.step, error)
+}
+
+/// Adaptive steps at tolerances 1e-3 … 1e-7 on the cantilever: the error at 0.2 ms against
+/// the number of steps taken falls at the scheme's order (variable-step BDF2 included).
+#[test]
+fn adaptive_steps_reach_the_scheme_order_in_work() {
+    let end = 2e-4;
+    let reference = displacement_at(Scheme::Newmark, 1.25e-7 / 16.0, end);
+    for (scheme, order) in [
+        (Scheme::BackwardEuler, 1.0),
+        (Scheme::Newmark, 2.0),
+        (Scheme::Bdf2, 2.0),
+    ] {
+        let runs: Vec<(u64, f64)> = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7]
+            .iter()
+            .map(|&tol| adaptive_run(scheme, tol, end, &reference))
+            .collect();
+        let slopes: Vec<f64> = runs
+            .windows(2)
+            .map(|w| -(w[0].1 / w[1].1).ln() / (w[0].0 as f64 / w[1].0 as f64).ln())
+            .collect();
+        eprintln!("{scheme:?}: error against steps, slopes {slopes:?} (order {order})");
+        // Tighter tolerances take more steps for less error; the error falls as
+        // steps^(−order) once the steps resolve the fastest modes (h ω ≪ 1: the last pair,
+        // steps of ~0.1–0.3 µs; the looser ones are pre-asymptotic, slopes 0.9, 1.5 and 1.5).
+        for w in runs.windows(2) {
+            assert!(w[1].0 > w[0].0 && w[1].1 < w[0].1, "{scheme:?}: {runs:?}");
+        }
+        let last = slopes[slopes.len() - 1];
+        assert!(
+            (last - order).abs() < 0.15,
+            "{scheme:?}: slope {last:.3}, runs {runs:?}"
+        );
+    }
 }
 
 /// The cantilever scene with `scheme` and `analysis`, and the `extra` text appended.
@@ -161,4 +219,99 @@ fn second_order_runs_resume_bit_identically_and_refuse_what_they_do_not_carry() 
         err.contains("time.scheme") && err.contains("static"),
         "{err}"
     );
+}
+
+/// The coarse cantilever scene (10 × 2 × 2 cells, frames every 1/30 s, 0.2 s) with BDF2 and
+/// `[time.adaptive]` with `adaptive` keys.
+fn adaptive_scene(dir: &std::path::Path, adaptive: &str) -> Result<icefem::scene::Scene, String> {
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cantilever.toml"),
+    )
+    .unwrap()
+    .replace("cells = [40, 4, 4]", "cells = [10, 2, 2]")
+    .replace("end_time = 2.0", "end_time = 0.2")
+    .replace("analysis = \"dynamic\"", "analysis = \"dynamic\"\nscheme = \"bdf2\"")
+        + "\n[time.adaptive]\n"
+        + adaptive;
+    load_scene(dir, &text)
+}
+
+#[test]
+fn adaptive_runs_write_frames_on_time_count_rejections_and_resume_exactly() {
+    use icefem::run::run;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = adaptive_scene(dir.path(), "relative_tolerance = 1e-2\ndt_min = 1e-6\n").unwrap();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let full = dir.path().join("full.h5");
+    run(&scene, &run_options(&full, None, false), &never, |_| {}).unwrap();
+    let f = hdf5::File::open(&full).unwrap();
+    let column = |name: &str| {
+        f.dataset(&format!("stats/{name}"))
+            .unwrap()
+            .read_raw::<f64>()
+            .unwrap()
+    };
+    let (dt, ratio) = (column("dt"), column("error_ratio"));
+    let rejected: u32 = f
+        .dataset("stats/rejected_steps")
+        .unwrap()
+        .read_raw::<u32>()
+        .unwrap()
+        .iter()
+        .sum();
+    let (shortest, longest) = dt
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &h| (a.min(h), b.max(h)));
+    eprintln!(
+        "{} steps of {shortest:.3e} … {longest:.3e} s, {rejected} rejected",
+        dt.len()
+    );
+    // The first step (the scene's dt, 1/30 s, a whole swing of the beam) is rejected, and the
+    // steps follow the motion.
+    assert!(rejected >= 1);
+    assert!(longest > 2.0 * shortest);
+    // Every accepted step met the tolerance (none reached dt_min).
+    assert!(shortest > 1e-6);
+    assert!(ratio.iter().all(|r| *r > 0.0 && *r <= 1.0), "{ratio:?}");
+    // Frames on the frame times k/30 s, exactly.
+    let mut frames = f.group("frames").unwrap().member_names().unwrap();
+    frames.sort();
+    assert_eq!(frames.len(), 7);
+    for (k, name) in frames.iter().enumerate() {
+        let t: f64 = f
+            .group(&format!("frames/{name}"))
+            .unwrap()
+            .attr("time")
+            .unwrap()
+            .read_scalar()
+            .unwrap();
+        assert!((t - k as f64 * scene.settings.dt).abs() <= 1e-15, "frame {k}: {t}");
+    }
+    // Cut at 0.1 s and resumed: the same last frame, bit for bit.
+    let half = dir.path().join("half.h5");
+    run(&scene, &run_options(&half, Some(0.1), false), &never, |_| {}).unwrap();
+    run(&scene, &run_options(&half, None, true), &never, |_| {}).unwrap();
+    let last = |path: &std::path::Path, name: &str| {
+        let f = hdf5::File::open(path).unwrap();
+        f.dataset(&format!("frames/000006/{name}"))
+            .unwrap()
+            .read_raw::<f64>()
+            .unwrap()
+    };
+    for name in ["positions", "velocities", "back_velocity"] {
+        assert_eq!(last(&full, name), last(&half, name), "{name}");
+    }
+    // What cannot work is refused, naming the field.
+    let err = adaptive_scene(dir.path(), "dt_min = 0.1\n").unwrap_err();
+    assert!(err.contains("time.dt") && err.contains("dt_min"), "{err}");
+    let err = adaptive_scene(dir.path(), "relative_tolerance = 2.0\n").unwrap_err();
+    assert!(err.contains("time.adaptive.relative_tolerance"), "{err}");
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cantilever.toml"),
+    )
+    .unwrap()
+    .replace("analysis = \"dynamic\"", "analysis = \"static\"")
+        + "\n[time.adaptive]\n";
+    let err = load_scene(dir.path(), &text).unwrap_err();
+    assert!(err.contains("time.adaptive") && err.contains("static"), "{err}");
 }

@@ -6,7 +6,7 @@ use crate::fracture::{Fracture, FractureReport};
 use crate::output::{Field, Frame, ObstacleMesh, OutputError, OutputWriter, RunHeader, StepStats};
 use crate::physics::contact::Shape;
 use crate::scene::{Scene, SceneError};
-use crate::sim::{SimError, Simulation, StepReport};
+use crate::sim::{SimError, Simulation, StepBack, StepReport};
 use crate::thermal::{Heat, HeatLink};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -185,19 +185,49 @@ pub fn run(
             ),
         });
     }
-    let total_steps = sim.state.step + step_count(remaining.max(0.0), settings.dt);
+    let mut total_steps = sim.state.step + step_count(remaining.max(0.0), settings.dt);
+    // Adaptive steps end on the frame times, every `output_every` steps of the scene's dt.
+    let frame_interval = scene.output_every as f64 * settings.dt;
+    let frame_index = |t: f64| (t / frame_interval + 1e-9).floor();
+    let time_left = |t: f64| end_time - t > 1e-9 * end_time;
     let mut summary = RunSummary {
         output: output.clone(),
         ..Default::default()
     };
     // Whether the mesh changed since the last frame written.
     let mut topology_changed = false;
-    while sim.state.step < total_steps {
+    loop {
+        let more = match settings.adaptive {
+            Some(_) => time_left(sim.state.time),
+            None => sim.state.step < total_steps,
+        };
+        if !more {
+            break;
+        }
         if interrupt.load(Ordering::SeqCst) {
             summary.interrupted = true;
             break;
         }
-        let report = sim.step()?;
+        let (report, frame_due) = match settings.adaptive {
+            Some(_) => {
+                let next_frame = (frame_index(sim.state.time) + 1.0) * frame_interval;
+                let limit = next_frame.min(end_time);
+                let report = sim.step_adaptive(limit)?;
+                // The time left as steps of the current length (for progress).
+                let steps_left = (end_time - sim.state.time) / sim.state.next_dt.max(1e-300);
+                total_steps = sim.state.step + steps_left.max(0.0).ceil() as u64;
+                // The step ended on `limit` to round-off: it is `limit`.
+                if (sim.state.time - limit).abs() <= 1e-9 * frame_interval {
+                    sim.state.time = limit;
+                }
+                (report, sim.state.time == next_frame || !time_left(sim.state.time))
+            }
+            None => {
+                let report = sim.step()?;
+                let last = sim.state.step == total_steps;
+                (report, sim.state.step % scene.output_every == 0 || last)
+            }
+        };
         let cracked = match &mut fracture {
             Some(f) => f.after_step(&mut sim)?,
             None => FractureReport::default(),
@@ -207,8 +237,7 @@ pub fn run(
         summary.newton_iterations += report.newton.iterations as u64;
         summary.max_residual = summary.max_residual.max(report.newton.residual);
         writer.append_stats(&stats_row(&sim, &report, &cracked, fracture.as_ref()))?;
-        let last = sim.state.step == total_steps;
-        if sim.state.step % scene.output_every == 0 || last || interrupt.load(Ordering::SeqCst) {
+        if frame_due || interrupt.load(Ordering::SeqCst) {
             write_frame(&mut writer, &sim, fracture.as_ref(), topology_changed)?;
             topology_changed = false;
         }
@@ -269,6 +298,9 @@ fn stats_row(
         heat_newton_iterations: report.heat.map_or(0, |h| h.newton_iterations as u32),
         heat_imbalance: report.heat.map_or(0.0, |h| h.imbalance()),
         t_heat: report.heat.map_or(0.0, |h| h.t_step),
+        local_error: report.local_error,
+        error_ratio: report.error_ratio,
+        rejected_steps: report.rejected,
     }
 }
 
@@ -341,18 +373,24 @@ fn write_frame(
         });
     }
     // With BDF2: the state one full step back (what a resumed run continues from).
-    let (back_u, back_v) = &sim.state.back;
-    if !back_u.is_empty() {
+    let back = &sim.state.back;
+    let mut attributes = Vec::new();
+    if back.is_for(sim.state.u.len()) {
         node_fields.push(Field {
             name: "back_displacement",
             cols: 3,
-            data: back_u,
+            data: &back.u,
         });
         node_fields.push(Field {
             name: "back_velocity",
             cols: 3,
-            data: back_v,
+            data: &back.v,
         });
+        attributes.push(("back_dt", back.dt));
+    }
+    // With adaptive steps: the length the control proposes for the next step.
+    if sim.state.next_dt > 0.0 {
+        attributes.push(("next_dt", sim.state.next_dt));
     }
     // With [thermal]: the temperature at every node (°C), read where the heat is solved.
     let temperature = sim.node_temperatures();
@@ -469,6 +507,7 @@ fn write_frame(
         stress: &stress,
         element_fields: &element_fields,
         node_fields: &node_fields,
+        attributes: &attributes,
         cracks: cracks.as_ref(),
     })
 }
@@ -544,10 +583,15 @@ fn restore(
     // computed from the forces, as at the start).
     sim.state.a = field("acceleration").unwrap_or_default();
     // BDF2's step back (absent: the next step is a backward-Euler step, as after a split).
-    sim.state.back = match (field("back_displacement"), field("back_velocity")) {
-        (Some(u), Some(v)) => (u, v),
+    sim.state.back = match (
+        field("back_displacement"),
+        field("back_velocity"),
+        frame.attribute("back_dt"),
+    ) {
+        (Some(u), Some(v), Some(dt)) => StepBack { u, v, dt },
         _ => Default::default(),
     };
+    sim.state.next_dt = frame.attribute("next_dt").unwrap_or(0.0);
     sim.state.time = frame.time;
     sim.state.step = frame.step;
     if let Some(scene_nodes) = sim.heat().map(|l| l.heat.temperature().len()) {

@@ -43,6 +43,7 @@ pub fn settings(analysis: Analysis, dt: f64) -> StepSettings {
         analysis,
         scheme: Default::default(),
         dt,
+        adaptive: None,
         newton: NewtonParams {
             tolerance: 1e-9,
             step_tolerance: 1e-16,

@@ -182,6 +182,7 @@ const ICE: Material = Material {
 /// Backward Euler at one step per frame (1/30 s) with a tight Newton tolerance.
 fn frame_steps(linear: LinearSolverKind, ordering: FillOrdering) -> StepSettings {
     StepSettings {
+        adaptive: None,
         analysis: Analysis::Dynamic,
         scheme: Default::default(),
         dt: 1.0 / 30.0,

@@ -200,6 +200,9 @@ pub struct Frame<'a> {
     pub element_fields: &'a [Field<'a>],
     /// Extra per-node state (e.g. `temperature` n×1).
     pub node_fields: &'a [Field<'a>],
+    /// Scalar attributes of the frame besides `step` and `time` (e.g. `next_dt`, s): state
+    /// a resumed run continues from.
+    pub attributes: &'a [(&'a str, f64)],
     /// Crack surfaces (fracture runs), group `cracks`: `vertices` f64 [k, 3] (m),
     /// `triangles` i64 [t, 3] (indices into `vertices`), `crack` i64 [t] (which crack).
     pub cracks: Option<&'a CrackSurface>,
@@ -280,6 +283,13 @@ pub struct StepStats {
     pub heat_imbalance: f64,
     /// Wall-clock time of the heat step (s).
     pub t_heat: f64,
+    /// Estimated local displacement error of the step (m; 0 in a static analysis).
+    pub local_error: f64,
+    /// The adaptive control's error measure of the step (≤ 1 when accepted on merit; 0
+    /// without adaptive steps).
+    pub error_ratio: f64,
+    /// Tries of the step the adaptive control rejected before it.
+    pub rejected_steps: u32,
 }
 
 /// Errors of the output module. Every variant names the file concerned.

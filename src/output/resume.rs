@@ -37,6 +37,18 @@ pub struct ResumeFrame {
     pub element_fields: Vec<StoredField>,
     /// Every per-node field, sorted by name.
     pub node_fields: Vec<StoredField>,
+    /// The frame's scalar attributes besides `step`, `time` and `complete` (f64 ones).
+    pub attributes: Vec<(String, f64)>,
+}
+
+impl ResumeFrame {
+    /// The scalar attribute `name`, if the frame has it.
+    pub fn attribute(&self, name: &str) -> Option<f64> {
+        self.attributes
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| *v)
+    }
 }
 
 /// One per-element or per-node field read back from a frame (owned), row-major.
@@ -244,6 +256,16 @@ pub(super) fn read_frame(
             node_fields.push(field);
         }
     }
+    let attributes = g
+        .attr_names()
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|n| !matches!(n.as_str(), "step" | "time" | "complete"))
+        .filter_map(|n| {
+            let v = g.attr(&n).and_then(|a| a.read_scalar::<f64>()).ok()?;
+            Some((n, v))
+        })
+        .collect();
     Ok(ResumeFrame {
         step,
         time,
@@ -254,6 +276,7 @@ pub(super) fn read_frame(
         tets,
         element_fields,
         node_fields,
+        attributes,
     })
 }
 

@@ -93,6 +93,9 @@ pub(super) fn stats(step: u64) -> StepStats {
         heat_newton_iterations: 2,
         heat_imbalance: 1e-12,
         t_heat: 0.001,
+        local_error: 1e-9,
+        error_ratio: 0.5,
+        rejected_steps: 1,
     }
 }
 
@@ -166,6 +169,7 @@ pub(super) fn write(w: &mut OutputWriter, k: usize, d: &FrameData, topology_chan
         stress: &d.stress,
         element_fields: &ef,
         node_fields: &nf,
+        attributes: &[],
         cracks: None,
     })
     .unwrap();

@@ -34,7 +34,7 @@ pub(super) enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 34] = [
+pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 37] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -84,6 +84,9 @@ pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 34] = [
     ),
     ("heat_imbalance", StatsColumn::F64(|s| s.heat_imbalance)),
     ("t_heat", StatsColumn::F64(|s| s.t_heat)),
+    ("local_error", StatsColumn::F64(|s| s.local_error)),
+    ("error_ratio", StatsColumn::F64(|s| s.error_ratio)),
+    ("rejected_steps", StatsColumn::U32(|s| s.rejected_steps)),
 ];
 
 /// Group name of frame `index`: at least 6 digits so that names sort in
@@ -443,6 +446,9 @@ impl OutputWriter {
             .ctx(&path, || format!("creating the group of frame {name}"))?;
         write_attr(&path, &g, "step", &frame.step)?;
         write_attr(&path, &g, "time", &frame.time)?;
+        for (name, value) in frame.attributes {
+            write_attr(&path, &g, name, value)?;
+        }
         write_vec3(&path, &g, "positions", frame.positions)?;
         write_vec3(&path, &g, "velocities", frame.velocities)?;
         if frame.topology_changed {

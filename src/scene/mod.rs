@@ -298,8 +298,27 @@ pub struct TimeSection {
     pub dt: f64,
     /// End time (s).
     pub end_time: f64,
-    /// Write a frame every this many steps. Default 1.
+    /// Write a frame every this many steps (of `dt`). Default 1.
     pub output_every: Option<u64>,
+    /// Adaptive steps (dynamic analyses).
+    pub adaptive: Option<AdaptiveSection>,
+}
+
+/// `[time.adaptive]`: steps chosen by their local error estimate; `dt` is the first step, and
+/// frames are still written every `output_every × dt` of simulated time.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptiveSection {
+    /// Local error allowed per step relative to the largest displacement; default 1e-3.
+    pub relative_tolerance: Option<f64>,
+    /// Local error allowed per step when nothing has moved (m); default the relative
+    /// tolerance × 1e-6 × the mesh's bounding-box diagonal (the displacement of a strain of
+    /// 1e-6 across the body: ice under its own weight and loads strains 1e-8 … 1e-3).
+    pub absolute_tolerance: Option<f64>,
+    /// Shortest step (s); default dt / 1000.
+    pub dt_min: Option<f64>,
+    /// Longest step (s); default the frame interval, `output_every × dt`.
+    pub dt_max: Option<f64>,
 }
 
 /// `[solver]`.
@@ -437,6 +456,48 @@ impl Validator<'_> {
         }
     }
 
+    /// The adaptive step control of `[time.adaptive]`, for first step `dt` (s), frames every
+    /// `output_every` steps and a body of size `size` (m).
+    fn adaptive(
+        &self,
+        a: &AdaptiveSection,
+        dt: f64,
+        output_every: u64,
+        size: f64,
+    ) -> Result<crate::sim::Adaptive, SceneError> {
+        let relative = a.relative_tolerance.unwrap_or(1e-3);
+        if !(relative > 0.0 && relative < 1.0) {
+            return Err(self.invalid(
+                "time.adaptive.relative_tolerance",
+                format!("must be in (0, 1), got {relative}"),
+            ));
+        }
+        let absolute = match a.absolute_tolerance {
+            Some(v) => self.positive("time.adaptive.absolute_tolerance", v)?,
+            None => relative * 1e-6 * size,
+        };
+        let dt_min = match a.dt_min {
+            Some(v) => self.positive("time.adaptive.dt_min", v)?,
+            None => 1e-3 * dt,
+        };
+        let dt_max = match a.dt_max {
+            Some(v) => self.positive("time.adaptive.dt_max", v)?,
+            None => output_every as f64 * dt,
+        };
+        if !(dt_min <= dt && dt <= dt_max) {
+            return Err(self.invalid(
+                "time.dt",
+                format!("the first step of adaptive steps must lie in [dt_min, dt_max] = [{dt_min}, {dt_max}] s, got {dt}"),
+            ));
+        }
+        Ok(crate::sim::Adaptive {
+            relative_tolerance: relative,
+            absolute_tolerance: absolute,
+            dt_min,
+            dt_max,
+        })
+    }
+
     fn positive(&self, field: &str, v: f64) -> Result<f64, SceneError> {
         if v.is_finite() && v > 0.0 {
             Ok(v)
@@ -554,7 +615,13 @@ impl Validator<'_> {
             return Err(self.invalid("solver.cg_max_iterations", "must be ≥ 1"));
         }
         let (lo, hi) = mesh.bounding_box();
+        let adaptive = time
+            .adaptive
+            .as_ref()
+            .map(|a| self.adaptive(a, dt, output_every, (hi - lo).norm()))
+            .transpose()?;
         let settings = StepSettings {
+            adaptive,
             analysis: time.analysis.unwrap_or(Analysis::Dynamic),
             scheme: time.scheme.unwrap_or_default(),
             dt,
@@ -701,6 +768,9 @@ impl Validator<'_> {
             .as_ref()
             .map(|f| self.fracture(f, &model.mesh))
             .transpose()?;
+        if settings.adaptive.is_some() && settings.analysis == Analysis::Static {
+            return Err(self.invalid("time.adaptive", "adaptive steps control the time-integration error of a dynamic analysis; a static one has none (remove [time.adaptive] or set analysis = \"dynamic\")".to_string()));
+        }
         if settings.scheme != crate::sim::Scheme::BackwardEuler {
             let refuse = |field: &str, why: &str| Err(self.invalid(field, why.to_string()));
             if settings.analysis == Analysis::Static {

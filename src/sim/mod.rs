@@ -4,6 +4,7 @@
 //! the elastic energy, the dead loads, the terms the scene enables (obstacle contact, ice–ice
 //! contact) and, in a dynamic step, inertia and damping.
 
+pub mod adaptive;
 pub mod balance;
 pub mod potential;
 pub mod scheme;
@@ -25,7 +26,8 @@ use crate::solver::{
 use crate::thermal::HeatLink;
 use balance::{Balance, EnergyRise};
 use potential::StepPotential;
-pub use scheme::Scheme;
+pub use adaptive::Adaptive;
+pub use scheme::{Scheme, StepBack};
 use scheme::StepFormula;
 use std::time::Instant;
 
@@ -58,6 +60,8 @@ pub struct StepSettings {
     pub cg_tolerance: f64,
     /// CG iteration cap.
     pub cg_max_iterations: usize,
+    /// Adaptive step control (dynamic analyses); `None`: every step is `dt`.
+    pub adaptive: Option<Adaptive>,
     /// Multigrid-preconditioned CG keeps its hierarchy across Newton iterations and steps
     /// until the iterations grow (false: a new set-up at every Hessian refresh).
     pub amg_reuse: bool,
@@ -102,9 +106,11 @@ pub struct State {
     pub temperature: Vec<f64>,
     /// Nodal acceleration (m/s², 3 per node) of the Newmark scheme; empty otherwise.
     pub a: Vec<f64>,
-    /// Displacement and velocity one full step back (BDF2; empty when the last step was
-    /// not a full step).
-    pub back: (Vec<f64>, Vec<f64>),
+    /// The state one step back (BDF2; empty before the first step and after a remesh).
+    pub back: StepBack,
+    /// The step length the adaptive control proposes for the next step (s; 0 without
+    /// adaptive steps, or before the first step: then the scene's `dt`).
+    pub next_dt: f64,
 }
 
 /// Energies of a state (J).
@@ -150,6 +156,21 @@ pub struct StepReport {
     pub t_contact_narrow: f64,
     /// The heat step that preceded the mechanics (with `[thermal]`).
     pub heat: Option<crate::thermal::HeatStep>,
+    /// Estimated local displacement error of the step (m, largest over the free dofs; the
+    /// largest of its substeps'; 0 in a static analysis): see `StepFormula::local_error`.
+    pub local_error: f64,
+    /// Largest |displacement| of a free dof after the step (m): the adaptive control's
+    /// scale for the relative error.
+    pub displacement_scale: f64,
+    /// Order of accuracy of the step's formula (the lowest of its substeps').
+    pub order: u32,
+    /// Tries of the step the adaptive control rejected before this one (their time is in
+    /// `t_step`).
+    pub rejected: u32,
+    /// The adaptive control's error measure of the step: `local_error` / (relative
+    /// tolerance × `displacement_scale` + absolute tolerance); ≤ 1 unless the step was at
+    /// the smallest step allowed. 0 without adaptive steps.
+    pub error_ratio: f64,
 }
 
 /// Re-solves of a step with the friction normal force updated from its end.
@@ -178,6 +199,11 @@ impl StepReport {
             t_contact_broad: self.t_contact_broad + next.t_contact_broad,
             t_contact_narrow: self.t_contact_narrow + next.t_contact_narrow,
             heat: self.heat.or(next.heat),
+            local_error: self.local_error.max(next.local_error),
+            displacement_scale: next.displacement_scale,
+            order: self.order.min(next.order),
+            rejected: self.rejected + next.rejected,
+            error_ratio: self.error_ratio.max(next.error_ratio),
         }
     }
 }
@@ -317,6 +343,7 @@ impl Simulation {
             temperature: Vec::new(),
             a: Vec::new(),
             back: Default::default(),
+            next_dt: 0.0,
         };
         let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
         Ok(Simulation {
@@ -375,6 +402,7 @@ impl Simulation {
             temperature: std::mem::take(&mut self.state.temperature),
             a: Vec::new(),
             back: Default::default(),
+            next_dt: self.state.next_dt,
         };
         *self = next;
         Ok(())
@@ -429,6 +457,16 @@ impl Simulation {
             };
         }
         self.model.apply_schedule(t0, &mut self.state.history);
+    }
+
+    /// Puts the state back where the last step started (a failed step, or one the adaptive
+    /// control rejected).
+    fn undo_step(&mut self) {
+        if let Some(s) = &self.start {
+            self.state.clone_from(s);
+            self.model
+                .apply_schedule(self.state.time, &mut self.state.history);
+        }
     }
 
     /// Where the last step started (none before the first step and after a remesh).
@@ -491,9 +529,8 @@ impl Simulation {
         self.start_terms()?;
         let t_contact_broad = start.elapsed().as_secs_f64();
         let result = self.advance(self.settings.dt, t_end, 0);
-        if let (Err(_), Some(s)) = (&result, &self.start) {
-            self.state.clone_from(s);
-            self.model.apply_schedule(t0, &mut self.state.history);
+        if result.is_err() {
+            self.undo_step();
         }
         let mut report = result.map_err(|(source, time)| SimError::Step {
             step: self.state.step + 1,
@@ -602,7 +639,7 @@ impl Simulation {
             t_new,
         );
         let mut u = self.state.u.clone();
-        let formula = StepFormula::of(self.settings.scheme, &self.state, h, self.settings.dt);
+        let formula = StepFormula::of(self.settings.scheme, &self.state, h);
         if dynamic {
             formula.predict(&self.state, h, &mut self.predictor);
             u.copy_from_slice(&self.predictor);
@@ -739,12 +776,24 @@ impl Simulation {
         };
         let slack = self.settings.newton.tolerance * newton.force_scale;
         let energies = self.check_balance(before, &offsets, (&u, &velocity), t_new, slack)?;
+        let free = self.assembly.dofs().free_dofs();
+        let local_error = if dynamic {
+            free.iter()
+                .map(|&d| {
+                    formula
+                        .local_error(&self.state, (&u, &velocity, &acceleration), h, d)
+                        .abs()
+                })
+                .fold(0.0, f64::max)
+        } else {
+            0.0
+        };
+        let displacement_scale = free.iter().map(|&d| u[d].abs()).fold(0.0, f64::max);
         if dynamic && self.settings.scheme == Scheme::Bdf2 {
-            // The next step may use this one as its step back only if it was a full step.
-            self.state.back = if h == self.settings.dt {
-                (self.previous.clone(), std::mem::take(&mut self.state.v))
-            } else {
-                Default::default()
+            self.state.back = StepBack {
+                u: self.previous.clone(),
+                v: std::mem::take(&mut self.state.v),
+                dt: h,
             };
         }
         self.state.v = velocity;
@@ -758,6 +807,9 @@ impl Simulation {
         Ok(StepReport {
             newton,
             energies,
+            local_error,
+            displacement_scale,
+            order: formula.order(),
             substeps: 1,
             newton_solves,
             t_contact_narrow,

@@ -24,48 +24,109 @@ pub enum Scheme {
     Bdf2,
 }
 
-/// The formula one dynamic solve uses: its scheme's, or backward Euler where BDF2 has no full
-/// step before it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// The state one step back, for BDF2.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StepBack {
+    /// Displacement one step back (m, 3 per node).
+    pub u: Vec<f64>,
+    /// Velocity one step back (m/s, 3 per node).
+    pub v: Vec<f64>,
+    /// Length of the step from there to the current state (s).
+    pub dt: f64,
+}
+
+impl StepBack {
+    /// Whether there is a step back for a state of `n` dofs.
+    pub fn is_for(&self, n: usize) -> bool {
+        self.dt > 0.0 && self.u.len() == n && self.v.len() == n
+    }
+}
+
+/// Largest ratio of a BDF2 step to the step before it: variable-step BDF2 is zero-stable
+/// below 1 + √2; a longer step (the first full step after a chain of halved ones) is a
+/// backward-Euler step.
+pub const BDF2_MAX_STEP_RATIO: f64 = 2.0;
+
+/// The formula one dynamic solve uses: its scheme's, or backward Euler where BDF2 has no step
+/// before it.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum StepFormula {
     BackwardEuler,
     Newmark,
-    Bdf2,
+    /// Variable-step BDF2 with ω = h / (the step before), α₀ = (1 + 2ω)/(1 + ω),
+    /// α₁ = −(1 + ω), α₂ = ω²/(1 + ω): α₀ yₙ₊₁ + α₁ yₙ + α₂ yₙ₋₁ = h y'ₙ₊₁ (ω = 1: 3/2, −2, 1/2).
+    Bdf2 {
+        ratio: f64,
+    },
 }
 
 impl StepFormula {
-    /// The formula of a solve of length `h` of `scheme` (full step `dt`) from `state`.
-    pub(super) fn of(scheme: Scheme, state: &State, h: f64, dt: f64) -> Self {
+    /// The formula of a solve of length `h` of `scheme` from `state`.
+    pub(super) fn of(scheme: Scheme, state: &State, h: f64) -> Self {
         match scheme {
             Scheme::BackwardEuler => StepFormula::BackwardEuler,
             Scheme::Newmark => StepFormula::Newmark,
-            Scheme::Bdf2 if h == dt && state.back.0.len() == state.u.len() => StepFormula::Bdf2,
+            Scheme::Bdf2 if state.back.is_for(state.u.len()) => {
+                let ratio = h / state.back.dt;
+                if ratio <= BDF2_MAX_STEP_RATIO {
+                    StepFormula::Bdf2 { ratio }
+                } else {
+                    StepFormula::BackwardEuler
+                }
+            }
             Scheme::Bdf2 => StepFormula::BackwardEuler,
         }
     }
 
+    /// BDF2's coefficients α₀, α₁, α₂ at step ratio ω.
+    fn bdf2_coefficients(ratio: f64) -> (f64, f64, f64) {
+        let w = ratio;
+        ((1.0 + 2.0 * w) / (1.0 + w), -(1.0 + w), w * w / (1.0 + w))
+    }
+
     /// The length h' of backward Euler's inertia term this formula's equals (s): Newmark's
-    /// 1/(2βh²) with β = ¼ at h' = h/2, BDF2's 9/(8h²) at h' = 2h/3.
+    /// 1/(2βh²) with β = ¼ at h' = h/2, BDF2's α₀²/(2h²) at h' = h/α₀ (2h/3 at ω = 1).
     pub(super) fn inertia_step(self, h: f64) -> f64 {
         match self {
             StepFormula::BackwardEuler => h,
             StepFormula::Newmark => 0.5 * h,
-            StepFormula::Bdf2 => 2.0 * h / 3.0,
+            StepFormula::Bdf2 { ratio } => h / Self::bdf2_coefficients(ratio).0,
         }
     }
 
-    /// The predictor ũ (m, all dofs) of a solve of length `h` from `state`.
+    /// The order of accuracy of the formula.
+    pub(super) fn order(self) -> u32 {
+        match self {
+            StepFormula::BackwardEuler => 1,
+            StepFormula::Newmark | StepFormula::Bdf2 { .. } => 2,
+        }
+    }
+
+    /// The predictor ũ (m, all dofs) of a solve of length `h` from `state`: the solution
+    /// minimises Ψ(u) + 1/(2h'²)(u − ũ)ᵀM(u − ũ). BDF2's, from
+    /// M(α₀vₙ₊₁ + α₁vₙ + α₂vₙ₋₁)/h = F(uₙ₊₁) with vₙ₊₁ = (α₀uₙ₊₁ + α₁uₙ + α₂uₙ₋₁)/h:
+    /// ũ = −(α₁uₙ + α₂uₙ₋₁)/α₀ − h(α₁vₙ + α₂vₙ₋₁)/α₀².
     pub(super) fn predict(self, state: &State, h: f64, predictor: &mut [f64]) {
         let (u, v) = (&state.u, &state.v);
-        for (d, p) in predictor.iter_mut().enumerate() {
-            *p = match self {
-                StepFormula::BackwardEuler => u[d] + h * v[d],
-                StepFormula::Newmark => u[d] + h * v[d] + 0.25 * h * h * state.a[d],
-                StepFormula::Bdf2 => {
-                    let (back_u, back_v) = &state.back;
-                    (4.0 * u[d] - back_u[d]) / 3.0 + 2.0 * h / 9.0 * (4.0 * v[d] - back_v[d])
+        match self {
+            StepFormula::BackwardEuler => {
+                for (d, p) in predictor.iter_mut().enumerate() {
+                    *p = u[d] + h * v[d];
                 }
-            };
+            }
+            StepFormula::Newmark => {
+                for (d, p) in predictor.iter_mut().enumerate() {
+                    *p = u[d] + h * v[d] + 0.25 * h * h * state.a[d];
+                }
+            }
+            StepFormula::Bdf2 { ratio } => {
+                let (a0, a1, a2) = Self::bdf2_coefficients(ratio);
+                let back = &state.back;
+                for (d, p) in predictor.iter_mut().enumerate() {
+                    *p = -(a1 * u[d] + a2 * back.u[d]) / a0
+                        - h * (a1 * v[d] + a2 * back.v[d]) / (a0 * a0);
+                }
+            }
         }
     }
 
@@ -92,12 +153,42 @@ impl StepFormula {
                     .collect();
                 (v, a)
             }
-            StepFormula::Bdf2 => {
-                let back = &state.back.0;
+            StepFormula::Bdf2 { ratio } => {
+                let (a0, a1, a2) = Self::bdf2_coefficients(ratio);
+                let back = &state.back.u;
                 let v = (0..n)
-                    .map(|d| (3.0 * u[d] - 4.0 * state.u[d] + back[d]) / (2.0 * h))
+                    .map(|d| (a0 * u[d] + a1 * state.u[d] + a2 * back[d]) / h)
                     .collect();
                 (v, Vec::new())
+            }
+        }
+    }
+
+    /// An estimate of the local (one-step) displacement error of dof `d` (m) of a solve of
+    /// length `h` from `state` that reached displacement `u`, velocity `v` and (Newmark)
+    /// acceleration `a`:
+    /// - backward Euler: h/2 (vₙ₊₁ − vₙ), its difference with the trapezoidal rule's
+    ///   uₙ + h/2 (vₙ + vₙ₊₁) from the same velocities (the embedded second-order solution);
+    /// - Newmark (β = ¼): (β − 1/6) h² (aₙ₊₁ − aₙ) = h²/12 (aₙ₊₁ − aₙ), its leading error
+    ///   term (Zienkiewicz and Xie 1991);
+    /// - BDF2: Milne's device, 8/23 (uₙ₊₁ − uᴾ) with the explicit second-order predictor
+    ///   uᴾ = uₙ + h vₙ + h²/2 (vₙ − vₙ₋₁)/hₙ₋₁: its error (5/12) h³ u‴ and BDF2's −(2/9) h³ u‴
+    ///   give BDF2's as (2/9)/(5/12 + 2/9) of their difference (constants of equal steps).
+    pub(super) fn local_error(
+        self,
+        state: &State,
+        (u, v, a): (&[f64], &[f64], &[f64]),
+        h: f64,
+        d: usize,
+    ) -> f64 {
+        match self {
+            StepFormula::BackwardEuler => 0.5 * h * (v[d] - state.v[d]),
+            StepFormula::Newmark => h * h / 12.0 * (a[d] - state.a[d]),
+            StepFormula::Bdf2 { .. } => {
+                let back = &state.back;
+                let slope = (state.v[d] - back.v[d]) / back.dt;
+                let explicit = state.u[d] + h * state.v[d] + 0.5 * h * h * slope;
+                8.0 / 23.0 * (u[d] - explicit)
             }
         }
     }
