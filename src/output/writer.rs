@@ -1066,6 +1066,7 @@ mod tests {
                 stress: &d.stress,
                 element_fields: ef,
                 node_fields: &[],
+                attributes: &[],
                 cracks: None,
             });
             assert!(matches!(r, Err(OutputError::InvalidInput { .. })), "{r:?}");
@@ -1084,6 +1085,7 @@ mod tests {
             stress: &d2.stress,
             element_fields: &[],
             node_fields: &[],
+            attributes: &[],
             cracks: None,
         });
         assert!(matches!(r, Err(OutputError::InvalidInput { .. })), "{r:?}");

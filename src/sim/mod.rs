@@ -617,7 +617,7 @@ impl Simulation {
     }
 
     /// One solve of length `h` ending at `t_new`: a step of the scheme (a backward-Euler step
-    /// where BDF2 has no full step before it), or a static one.
+    /// where BDF2 has no step before it), or a static one.
     fn try_step(&mut self, h: f64, t_new: f64) -> Result<StepReport, SolveFailure> {
         let dynamic = self.settings.analysis == Analysis::Dynamic;
         let newmark = dynamic && self.settings.scheme == Scheme::Newmark;

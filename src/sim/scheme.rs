@@ -17,10 +17,12 @@ pub enum Scheme {
     /// Ψ(u) + 2/h² (u − ũ)ᵀM(u − ũ), ũ = uₙ + h vₙ + h²/4 aₙ; then aₙ₊₁ = 4 (uₙ₊₁ − ũ)/h²,
     /// vₙ₊₁ = vₙ + h/2 (aₙ + aₙ₊₁).
     Newmark,
-    /// BDF2, second order with some numerical dissipation of the fastest modes: the step
-    /// minimises Ψ(u) + 9/(8h²) (u − ũ)ᵀM(u − ũ), ũ = (4uₙ − uₙ₋₁)/3 + 2h/9 (4vₙ − vₙ₋₁);
-    /// then vₙ₊₁ = (3uₙ₊₁ − 4uₙ + uₙ₋₁)/(2h). A step without a full step before it (the
-    /// first, a halved one, the first after a remesh) is a backward-Euler step.
+    /// BDF2, second order with some numerical dissipation of the fastest modes: with equal
+    /// steps the step minimises Ψ(u) + 9/(8h²) (u − ũ)ᵀM(u − ũ),
+    /// ũ = (4uₙ − uₙ₋₁)/3 + 2h/9 (4vₙ − vₙ₋₁); then vₙ₊₁ = (3uₙ₊₁ − 4uₙ + uₙ₋₁)/(2h) (the
+    /// variable-step coefficients are in `StepFormula::Bdf2`). A step without a step before it
+    /// (the first, the first after a remesh) or more than [`BDF2_MAX_STEP_RATIO`] times as
+    /// long is a backward-Euler step.
     Bdf2,
 }
 
