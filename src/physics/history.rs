@@ -63,10 +63,13 @@ impl ElementHistory {
         StrainOffset::new(self.offset_strain(e))
     }
 
-    /// The strain offsets of all elements, computed in parallel when there are enough (for a solve, during which
-    /// they are fixed).
+    /// The strain offsets of all elements (for a solve, during which they are fixed).
     pub fn offsets(&self) -> Vec<StrainOffset> {
-        crate::parallel::map_range(self.eigenstrain.len(), |e| self.offset_of(e))
+        let n = self.eigenstrain.len();
+        if self.plastic_strain.is_empty() && self.eigenstrain.iter().all(|e| *e == 0.0) {
+            return vec![StrainOffset::zero(); n];
+        }
+        crate::parallel::map_range(n, |e| self.offset_of(e))
     }
 
     /// Whether element `e` holds any ice: its freeze state is above 0 (always, without a

@@ -248,12 +248,7 @@ pub fn minimize(
 ) -> Result<NewtonReport, NewtonError> {
     let dofs = assembly.dofs();
     let mut report = NewtonReport::default();
-    let free_max = |g: &[f64]| {
-        dofs.free_dofs()
-            .iter()
-            .map(|&d| g[d].abs())
-            .fold(0.0, f64::max)
-    };
+    let free_max = |g: &[f64]| free_max(assembly, g);
     linear.start_newton_solve();
     let mut refresh = true;
     let mut previous_residual = f64::INFINITY;
@@ -276,20 +271,7 @@ pub fn minimize(
         if !energy.is_finite() || !residual.is_finite() {
             return Err(NewtonError::NonFinite { iteration });
         }
-        // Judge the residual against the per-node loads of the problem (`force_floor`: dead
-        // and inertial loads), or, when there are none (a body moved only by its supports),
-        // against the support reactions; never against the first residual, which after an
-        // impact predictor can be 1e9 times larger than any force in the solution. Reactions
-        // are not used otherwise: they sum the load of many nodes, and on the soft inertial
-        // modes of a small step a residual of that size would be a visible error.
-        report.force_scale = if force_floor > 0.0 {
-            force_floor
-        } else {
-            (0..work.gradient.len())
-                .filter(|&d| dofs.free(d).is_none())
-                .map(|d| work.gradient[d].abs())
-                .fold(0.0, f64::max)
-        };
+        report.force_scale = force_scale(assembly, force_floor, &work.gradient);
         report.residual = residual;
         report.energy = energy;
         report.roundoff_floor = floor;
@@ -450,6 +432,100 @@ pub fn minimize(
         previous_residual = residual;
     }
     unreachable!("the loop returns at iteration max_iterations")
+}
+
+/// Largest |gradient| over the free dofs of `assembly` (N).
+fn free_max(assembly: &Assembly, gradient: &[f64]) -> f64 {
+    assembly
+        .dofs()
+        .free_dofs()
+        .iter()
+        .map(|&d| gradient[d].abs())
+        .fold(0.0, f64::max)
+}
+
+/// The force (N) Newton judges the residual against: the per-node loads of the problem
+/// (`force_floor`: dead and inertial loads), or, when there are none (a body moved only by
+/// its supports), the support reactions in `gradient`; never the first residual, which after
+/// an impact predictor can be 1e9 times larger than any force in the solution. Reactions are
+/// not used otherwise: they sum the load of many nodes, and on the soft inertial modes of a
+/// small step a residual of that size would be a visible error.
+fn force_scale(assembly: &Assembly, force_floor: f64, gradient: &[f64]) -> f64 {
+    if force_floor > 0.0 {
+        return force_floor;
+    }
+    let dofs = assembly.dofs();
+    (0..gradient.len())
+        .filter(|&d| dofs.free(d).is_none())
+        .map(|d| gradient[d].abs())
+        .fold(0.0, f64::max)
+}
+
+/// Minimises a quadratic `potential` whose free-system Hessian `hessian` (CSC values of
+/// `assembly`'s pattern) does not depend on u: one solve from `u`, then the gradient on the
+/// free dofs as g + H Δu and the potential as E + g·Δu + ½ Δuᵀ H Δu, without evaluating the
+/// potential again (the constrained dofs' gradient, the reactions, keeps its value at the
+/// start). If that does not meet the tolerance — an iterative solver's inexact solve, or a
+/// matrix the factorisation refuses — Newton carries on from there ([`minimize`]).
+pub fn minimize_quadratic(
+    potential: &mut impl Potential,
+    hessian: &[f64],
+    u: &mut [f64],
+    assembly: &Assembly,
+    linear: &mut LinearSolver,
+    (params, force_floor): (&NewtonParams, f64),
+    work: &mut NewtonWorkspace,
+) -> Result<NewtonReport, NewtonError> {
+    let mut report = NewtonReport::default();
+    linear.start_newton_solve();
+    let start = Instant::now();
+    let energy = potential.gradient(u, &mut work.gradient);
+    report.t_assembly = start.elapsed().as_secs_f64();
+    let residual = free_max(assembly, &work.gradient);
+    if !energy.is_finite() || !residual.is_finite() {
+        return Err(NewtonError::NonFinite { iteration: 0 });
+    }
+    report.force_scale = force_scale(assembly, force_floor, &work.gradient);
+    report.roundoff_floor = roundoff_floor(assembly, hessian, u);
+    report.residual = residual;
+    report.energy = energy;
+    let target = (params.tolerance * report.force_scale).max(report.roundoff_floor);
+    if residual <= target {
+        return Ok(report);
+    }
+    let solved = linear.factorize(assembly, hessian).and_then(|t| {
+        for (r, &d) in work.rhs.iter_mut().zip(assembly.dofs().free_dofs()) {
+            *r = -work.gradient[d];
+        }
+        linear.set_forcing(forcing(residual, f64::INFINITY, target));
+        Ok((t, linear.solve(assembly, hessian, &work.rhs, &mut work.direction)?))
+    });
+    let Ok((t_factorization, stats)) = solved else {
+        let rest = minimize(potential, u, assembly, linear, params, force_floor, work)?;
+        return Ok(report.then(&rest));
+    };
+    if let Some(t) = t_factorization {
+        report.t_factorization += t;
+        report.factorizations += 1;
+    }
+    report.add_solve(&stats);
+    report.iterations = 1;
+    // H Δu, into the spare free-dof buffer.
+    assembly.multiply(hessian, &work.direction, &mut work.landing);
+    let mut change = 0.0;
+    for (k, &d) in assembly.dofs().free_dofs().iter().enumerate() {
+        let dx = work.direction[k];
+        change += (work.gradient[d] + 0.5 * work.landing[k]) * dx;
+        work.gradient[d] += work.landing[k];
+        u[d] += dx;
+    }
+    report.energy = energy + change;
+    report.residual = free_max(assembly, &work.gradient);
+    if report.residual <= target {
+        return Ok(report);
+    }
+    let rest = minimize(potential, u, assembly, linear, params, force_floor, work)?;
+    Ok(report.then(&rest))
 }
 
 /// Relative accuracy a linear solve needs at an iterate with max |residual| `residual` (N),
