@@ -230,8 +230,10 @@ fn adaptive_scene(dir: &std::path::Path, adaptive: &str) -> Result<icefem::scene
     .unwrap()
     .replace("cells = [40, 4, 4]", "cells = [10, 2, 2]")
     .replace("end_time = 2.0", "end_time = 0.2")
-    .replace("analysis = \"dynamic\"", "analysis = \"dynamic\"\nscheme = \"bdf2\"")
-        + "\n[time.adaptive]\n"
+    .replace(
+        "analysis = \"dynamic\"",
+        "analysis = \"dynamic\"\nscheme = \"bdf2\"",
+    ) + "\n[time.adaptive]\n"
         + adaptive;
     load_scene(dir, &text)
 }
@@ -285,11 +287,20 @@ fn adaptive_runs_write_frames_on_time_count_rejections_and_resume_exactly() {
             .unwrap()
             .read_scalar()
             .unwrap();
-        assert!((t - k as f64 * scene.settings.dt).abs() <= 1e-15, "frame {k}: {t}");
+        assert!(
+            (t - k as f64 * scene.settings.dt).abs() <= 1e-15,
+            "frame {k}: {t}"
+        );
     }
     // Cut at 0.1 s and resumed: the same last frame, bit for bit.
     let half = dir.path().join("half.h5");
-    run(&scene, &run_options(&half, Some(0.1), false), &never, |_| {}).unwrap();
+    run(
+        &scene,
+        &run_options(&half, Some(0.1), false),
+        &never,
+        |_| {},
+    )
+    .unwrap();
     run(&scene, &run_options(&half, None, true), &never, |_| {}).unwrap();
     let last = |path: &std::path::Path, name: &str| {
         let f = hdf5::File::open(path).unwrap();
@@ -313,5 +324,8 @@ fn adaptive_runs_write_frames_on_time_count_rejections_and_resume_exactly() {
     .replace("analysis = \"dynamic\"", "analysis = \"static\"")
         + "\n[time.adaptive]\n";
     let err = load_scene(dir.path(), &text).unwrap_err();
-    assert!(err.contains("time.adaptive") && err.contains("static"), "{err}");
+    assert!(
+        err.contains("time.adaptive") && err.contains("static"),
+        "{err}"
+    );
 }

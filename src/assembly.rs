@@ -9,8 +9,8 @@
 
 use crate::fem::ElementEval;
 use crate::mesh::TetMesh;
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use crate::parallel::{for_each_with_scratch, MIN_PARALLEL_ITEMS, MIN_TASK_ITEMS};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use rayon::prelude::*;
 
 /// Marks a slot or dof that is not in the free system.

@@ -552,7 +552,8 @@ pub fn element_eval(
     out: &mut ElementEval,
 ) {
     let H = rest.displacement_gradient(u);
-    let mut tangent = Tangent::zeros();
+    // Zeroed only when asked for: an energy or gradient pass skips the 81 entries.
+    let mut tangent = with_hessian.then(Tangent::zeros);
     let model = law.model;
     let law = |He: &Matrix3<f64>, mut t: Option<&mut Tangent>| {
         let (psi, P) = constitutive(
@@ -570,7 +571,7 @@ pub fn element_eval(
             (psi, P)
         }
     };
-    let t = with_hessian.then_some(&mut tangent);
+    let t = tangent.as_mut();
     let (psi, P) = match model {
         // σ = C:(sym H − ε*); the tangent does not depend on ε*.
         ElasticModel::Linear => law(&(H - offset.strain), t),
@@ -578,8 +579,8 @@ pub fn element_eval(
         ElasticModel::Corotated => {
             let (A, He) = offset_elastic_gradient(offset, &H);
             let (psi, Pe) = law(&He, t);
-            if with_hessian {
-                tangent = through_offset(&A, &tangent);
+            if let Some(t) = &mut tangent {
+                *t = through_offset(&A, t);
             }
             (psi, Pe * A.transpose())
         }
@@ -590,9 +591,9 @@ pub fn element_eval(
         let g = v * P * rest.grads[i];
         out.gradient[3 * i..3 * i + 3].copy_from_slice(g.as_slice());
     }
-    if with_hessian {
+    if let Some(tangent) = &tangent {
         out.hessian = [0.0; 144];
-        add_stiffness(rest, v, &tangent, &mut out.hessian);
+        add_stiffness(rest, v, tangent, &mut out.hessian);
     }
 }
 

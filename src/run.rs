@@ -220,7 +220,10 @@ pub fn run(
                 if (sim.state.time - limit).abs() <= 1e-9 * frame_interval {
                     sim.state.time = limit;
                 }
-                (report, sim.state.time == next_frame || !time_left(sim.state.time))
+                (
+                    report,
+                    sim.state.time == next_frame || !time_left(sim.state.time),
+                )
             }
             None => {
                 let report = sim.step()?;

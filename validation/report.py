@@ -468,27 +468,80 @@ def case_cube(ice: Icefem, rep: int) -> list[dict]:
     return rows
 
 
+def dynamics_system(mesh: MeshTet):
+    """The cantilever's discrete dynamics on `mesh`: basis, K on the free dofs (CSC), the
+    row-sum lumped mass, gravity load and the free dofs (clamped at x = 0)."""
+    basis = Basis(mesh, ELEM)
+    K = asm(linear_elasticity(LAMBDA, MU), basis).tocsr()
+    f = body_load(basis, RHO, GRAV)
+
+    @BilinearForm
+    def mass(u, v, w):
+        return RHO * (u.value[0] * v.value[0] + u.value[1] * v.value[1]
+                      + u.value[2] * v.value[2])
+
+    m = np.asarray(asm(mass, basis).sum(axis=1)).ravel()  # row-sum lumping = rho vol / 4
+    D = clamp_dofs(basis, 0)
+    free = np.setdiff1d(np.arange(basis.N), D)
+    return basis, K[free][:, free].tocsc(), m[free], f[free], free
+
+
+def sk_dynamics(mesh: MeshTet, dt: float, t_end: float, scheme: str) -> dict:
+    """scikit-fem's run of the cantilever released under gravity on `mesh` to `t_end` with
+    `scheme` ("BE", "TR" or "BDF2") at `dt`: the displacement (nodal) and the times of the
+    assembly and of the factorisations + steps."""
+    t0 = time.perf_counter()
+    basis, Kff, mf, ff, free = dynamics_system(mesh)
+    t1 = time.perf_counter()
+    steps = int(round(t_end / dt))
+    u = np.zeros(len(free))
+    v = np.zeros(len(free))
+    if scheme == "BE":
+        # (M/h^2 + K) u_{n+1} = M/h^2 (u_n + h v_n) + f
+        lu = spla.splu((sp.diags(mf / dt**2) + Kff).tocsc())
+        for _ in range(steps):
+            un = lu.solve(mf / dt**2 * (u + dt * v) + ff)
+            v = (un - u) / dt
+            u = un
+    elif scheme == "BDF2":
+        # first step backward Euler, as icefem's scheme = "bdf2" (no state one step back)
+        lu = spla.splu((sp.diags(mf / dt**2) + Kff).tocsc())
+        un = lu.solve(mf / dt**2 * (u + dt * v) + ff)
+        up, vp, u, v = u, v, un, (un - u) / dt
+        # then M a_(n+1) = f - K u_(n+1), a_(n+1) = 9/(4h^2) (u_(n+1) - ut),
+        # ut = (4u_n - u_(n-1))/3 + 2h (4v_n - v_(n-1))/9:
+        # (9M/(4h^2) + K) u_(n+1) = f + 9M/(4h^2) ut, v_(n+1) = (3u_(n+1) - 4u_n + u_(n-1))/(2h)
+        c = 9 / (4 * dt**2)
+        lu = spla.splu((sp.diags(c * mf) + Kff).tocsc())
+        for _ in range(steps - 1):
+            ut = (4 * u - up) / 3 + 2 * dt * (4 * v - vp) / 9
+            un = lu.solve(ff + c * mf * ut)
+            vn = (3 * un - 4 * u + up) / (2 * dt)
+            up, vp, u, v = u, v, un, vn
+    else:
+        # trapezoidal rule = Newmark average acceleration (beta = 1/4, gamma = 1/2)
+        # (K + 4/h^2 M) u_{n+1} = f + M (4/h^2 u_n + 4/h v_n + a_n), started from the
+        # consistent acceleration a0 = M^-1 (f - K u0) on the free dofs (= M^-1 f here), as
+        # icefem's scheme = "newmark" is
+        a = (ff - Kff @ u) / mf
+        lu = spla.splu((sp.diags(4 * mf / dt**2) + Kff).tocsc())
+        for _ in range(steps):
+            un = lu.solve(ff + mf * (4 / dt**2 * u + 4 / dt * v + a))
+            an = 4 / dt**2 * (un - u) - 4 / dt * v - a
+            v = v + dt / 2 * (a + an)
+            u, a = un, an
+    t2 = time.perf_counter()
+    x = np.zeros(basis.N)
+    x[free] = u
+    return dict(u=to_nodal(basis, x), t_asm=t1 - t0, t_sol=t2 - t1, steps=steps)
+
+
 def case_dynamics(ice: Icefem, rep: int) -> tuple[list[dict], dict]:
     mesh = box_mesh((BEAM_L, BEAM_W, BEAM_H), DYN_CELLS)
     tip = int(np.argmin(np.linalg.norm(mesh.p.T - [BEAM_L, BEAM_W, BEAM_H], axis=1)))
 
-    def assemble():
-        basis = Basis(mesh, ELEM)
-        K = asm(linear_elasticity(LAMBDA, MU), basis).tocsr()
-        f = body_load(basis, RHO, GRAV)
-
-        @BilinearForm
-        def mass(u, v, w):
-            return RHO * (u.value[0] * v.value[0] + u.value[1] * v.value[1]
-                          + u.value[2] * v.value[2])
-
-        m = np.asarray(asm(mass, basis).sum(axis=1)).ravel()  # row-sum lumping = rho vol / 4
-        D = clamp_dofs(basis, 0)
-        free = np.setdiff1d(np.arange(basis.N), D)
-        return basis, K[free][:, free].tocsc(), m[free], f[free], free
-
     # exact solution of the semi-discrete system M u'' + K u = f, u(0) = u'(0) = 0
-    basis, Kff, mf, ff, free = assemble()
+    basis, Kff, mf, ff, free = dynamics_system(mesh)
     Kd = Kff.toarray()
     omega2, phi = sla.eigh(Kd, np.diag(mf))  # phi^T M phi = I
     us = np.linalg.solve(Kd, ff)
@@ -506,50 +559,7 @@ def case_dynamics(ice: Icefem, rep: int) -> tuple[list[dict], dict]:
         return float(np.linalg.norm(U[tip] - U_exact[tip]) / scale)
 
     def sk_run(dt, scheme):
-        t0 = time.perf_counter()
-        basis, Kff, mf, ff, free = assemble()
-        t1 = time.perf_counter()
-        steps = int(round(DYN_T / dt))
-        u = np.zeros(len(free))
-        v = np.zeros(len(free))
-        if scheme == "BE":
-            # (M/h^2 + K) u_{n+1} = M/h^2 (u_n + h v_n) + f
-            lu = spla.splu((sp.diags(mf / dt**2) + Kff).tocsc())
-            for _ in range(steps):
-                un = lu.solve(mf / dt**2 * (u + dt * v) + ff)
-                v = (un - u) / dt
-                u = un
-        elif scheme == "BDF2":
-            # first step backward Euler, as icefem's scheme = "bdf2" (no state one step back)
-            lu = spla.splu((sp.diags(mf / dt**2) + Kff).tocsc())
-            un = lu.solve(mf / dt**2 * (u + dt * v) + ff)
-            up, vp, u, v = u, v, un, (un - u) / dt
-            # then M a_(n+1) = f - K u_(n+1), a_(n+1) = 9/(4h^2) (u_(n+1) - ut),
-            # ut = (4u_n - u_(n-1))/3 + 2h (4v_n - v_(n-1))/9:
-            # (9M/(4h^2) + K) u_(n+1) = f + 9M/(4h^2) ut, v_(n+1) = (3u_(n+1) - 4u_n + u_(n-1))/(2h)
-            c = 9 / (4 * dt**2)
-            lu = spla.splu((sp.diags(c * mf) + Kff).tocsc())
-            for _ in range(steps - 1):
-                ut = (4 * u - up) / 3 + 2 * dt * (4 * v - vp) / 9
-                un = lu.solve(ff + c * mf * ut)
-                vn = (3 * un - 4 * u + up) / (2 * dt)
-                up, vp, u, v = u, v, un, vn
-        else:
-            # trapezoidal rule = Newmark average acceleration (beta = 1/4, gamma = 1/2)
-            # (K + 4/h^2 M) u_{n+1} = f + M (4/h^2 u_n + 4/h v_n + a_n), started from the
-            # consistent acceleration a0 = M^-1 (f - K u0) on the free dofs (= M^-1 f here), as
-            # icefem's scheme = "newmark" is
-            a = (ff - Kff @ u) / mf
-            lu = spla.splu((sp.diags(4 * mf / dt**2) + Kff).tocsc())
-            for _ in range(steps):
-                un = lu.solve(ff + mf * (4 / dt**2 * u + 4 / dt * v + a))
-                an = 4 / dt**2 * (un - u) - 4 / dt * v - a
-                v = v + dt / 2 * (a + an)
-                u, a = un, an
-        t2 = time.perf_counter()
-        x = np.zeros(basis.N)
-        x[free] = u
-        return dict(u=to_nodal(basis, x), t_asm=t1 - t0, t_sol=t2 - t1, steps=steps)
+        return sk_dynamics(mesh, dt, DYN_T, scheme)
 
     rows = []
     body = ice_material() + ice_gravity() + ice_dirichlet(0)

@@ -217,17 +217,17 @@ impl Elasticity {
         with_hessian: bool,
     ) -> (Vec<VolumeChange>, Vec<f64>) {
         crate::parallel::map_range(tets.len(), |e| {
-                let change = volume_change(
-                    self.model,
-                    &self.rest[e],
-                    &Self::local(u, &tets[e]),
-                    &offsets[e],
-                    with_hessian,
-                );
-                (change, self.bulk_of(history, e))
-            })
-            .into_iter()
-            .unzip()
+            let change = volume_change(
+                self.model,
+                &self.rest[e],
+                &Self::local(u, &tets[e]),
+                &offsets[e],
+                with_hessian,
+            );
+            (change, self.bulk_of(history, e))
+        })
+        .into_iter()
+        .unzip()
     }
 
     /// With the nodal volumetric energy: each element's pressure p̄ₑ (Pa) at `u`, and the
@@ -334,20 +334,20 @@ impl Elasticity {
             .nodal_pressures(tets, history, &offsets, u)
             .map(|(p, _)| p);
         crate::parallel::map_range(tets.len(), |e| {
-                let mut s = element_stress(
-                    &self.law_of(history, e),
-                    &self.rest[e],
-                    &Self::local(u, &tets[e]),
-                    &offsets[e],
-                );
-                // The averaged pressure (the elements' own laws are deviatoric then).
-                if let Some(p) = &pressure {
-                    for v in &mut s[..3] {
-                        *v += p[e];
-                    }
+            let mut s = element_stress(
+                &self.law_of(history, e),
+                &self.rest[e],
+                &Self::local(u, &tets[e]),
+                &offsets[e],
+            );
+            // The averaged pressure (the elements' own laws are deviatoric then).
+            if let Some(p) = &pressure {
+                for v in &mut s[..3] {
+                    *v += p[e];
                 }
-                s
-            })
+            }
+            s
+        })
     }
 
     /// Elastic energy Σ Wₑ (J) at `u`, with the elements' strain `offsets`

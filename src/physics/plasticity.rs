@@ -79,13 +79,13 @@ impl Plasticity {
         }
         let h = &*history;
         let updated: Vec<Matrix3<f64>> = crate::parallel::map_range(n, |e| {
-                if elasticity.law_of(h, e).yield_limit.is_some() {
-                    let elastic = elasticity.elastic_strain(tets, h, u, e);
-                    self.return_map(&elastic, &h.plastic_strain[e])
-                } else {
-                    h.plastic_strain[e]
-                }
-            });
+            if elasticity.law_of(h, e).yield_limit.is_some() {
+                let elastic = elasticity.elastic_strain(tets, h, u, e);
+                self.return_map(&elastic, &h.plastic_strain[e])
+            } else {
+                h.plastic_strain[e]
+            }
+        });
         let largest = updated.iter().map(|p| p.norm()).fold(0.0, f64::max);
         history.plastic_strain = updated;
         largest

@@ -20,15 +20,15 @@ use crate::physics::loads::DeadLoads;
 use crate::physics::term::{Solve, StepStartView, StepTerm};
 use crate::physics::Model;
 use crate::solver::{
-    minimize, minimize_quadratic, FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams,
-    NewtonReport, NewtonWorkspace,
+    minimize, minimize_quadratic, FillOrdering, LinearSolver, LinearSolverKind, NewtonError,
+    NewtonParams, NewtonReport, NewtonWorkspace,
 };
 use crate::thermal::HeatLink;
+pub use adaptive::Adaptive;
 use balance::{Balance, EnergyRise};
 use potential::StepPotential;
-pub use adaptive::Adaptive;
-pub use scheme::{Scheme, StepBack};
 use scheme::StepFormula;
+pub use scheme::{Scheme, StepBack};
 use std::time::Instant;
 
 /// Static equilibrium per step, or dynamics (integrated by the [`Scheme`]).
@@ -279,8 +279,10 @@ pub struct Simulation {
     /// The heat model that drives the freezing (with `[thermal]`).
     heat: Option<HeatLink>,
     /// The step's Hessian for an inertia step length (s), kept while it cannot change (see
-    /// [`Simulation::hessian_is_fixed`]): later solves copy it instead of assembling.
+    /// `StepTerm::hessian_is_fixed`): later solves use it instead of assembling.
     fixed_hessian: Option<(f64, Vec<f64>)>,
+    /// Whether the linear solver holds the factorisation of `fixed_hessian`.
+    fixed_factored: bool,
 }
 
 impl Simulation {
@@ -358,6 +360,7 @@ impl Simulation {
             initial_guess: None,
             heat: None,
             fixed_hessian: None,
+            fixed_factored: false,
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
             } else {
@@ -585,6 +588,7 @@ impl Simulation {
                 &s.iterative(),
             )?;
             self.workspace = NewtonWorkspace::new(&self.assembly);
+            self.fixed_factored = false;
             self.model.elasticity.pattern_ready(&self.assembly);
             if !self.damping_stiffness.is_empty() {
                 self.damping_stiffness = vec![0.0; self.assembly.nnz()];
@@ -708,6 +712,9 @@ impl Simulation {
         {
             self.fixed_hessian = None;
         }
+        if self.fixed_hessian.is_none() {
+            self.fixed_factored = false;
+        }
         let mut potential = StepPotential::new(terms);
         let mut t_fixed_assembly = 0.0;
         if fixed && self.fixed_hessian.is_none() {
@@ -731,22 +738,26 @@ impl Simulation {
             let report = match &self.fixed_hessian {
                 Some((_, hessian)) if fixed => minimize_quadratic(
                     &mut potential,
-                    hessian,
+                    (hessian, &mut self.fixed_factored),
                     &mut u,
                     &self.assembly,
                     &mut self.linear,
                     (&self.settings.newton, force_floor),
                     &mut self.workspace,
                 )?,
-                _ => minimize(
-                    &mut potential,
-                    &mut u,
-                    &self.assembly,
-                    &mut self.linear,
-                    &self.settings.newton,
-                    force_floor,
-                    &mut self.workspace,
-                )?,
+                _ => {
+                    // Newton factorises other matrices.
+                    self.fixed_factored = false;
+                    minimize(
+                        &mut potential,
+                        &mut u,
+                        &self.assembly,
+                        &mut self.linear,
+                        &self.settings.newton,
+                        force_floor,
+                        &mut self.workspace,
+                    )?
+                }
             };
             newton = Some(newton.map_or(report, |n| n.then(&report)));
             newton_solves += 1;
@@ -874,7 +885,12 @@ impl Simulation {
 
     /// Energies at displacement and velocity `(u, v)` and time `t` with the solve's strain
     /// `offsets`.
-    fn energies_at(&mut self, offsets: &[StrainOffset], (u, v): (&[f64], &[f64]), t: f64) -> Energies {
+    fn energies_at(
+        &mut self,
+        offsets: &[StrainOffset],
+        (u, v): (&[f64], &[f64]),
+        t: f64,
+    ) -> Energies {
         energies_of(
             &self.model,
             &self.assembly,

@@ -12,5 +12,8 @@ mod vector;
 pub use linear::{
     FactorPrecision, IterativeSettings, LinearError, LinearSolver, LinearSolverKind, LinearStats,
 };
-pub use newton::{minimize, minimize_quadratic, NewtonError, NewtonParams, NewtonReport, NewtonWorkspace, Potential};
+pub use newton::{
+    minimize, minimize_quadratic, NewtonError, NewtonParams, NewtonReport, NewtonWorkspace,
+    Potential,
+};
 pub use ordering::FillOrdering;

@@ -467,9 +467,13 @@ fn force_scale(assembly: &Assembly, force_floor: f64, gradient: &[f64]) -> f64 {
 /// potential again (the constrained dofs' gradient, the reactions, keeps its value at the
 /// start). If that does not meet the tolerance — an iterative solver's inexact solve, or a
 /// matrix the factorisation refuses — Newton carries on from there ([`minimize`]).
+///
+/// `factored` says whether `linear` is already prepared for `hessian` (the caller's promise,
+/// which spares comparing the values); it is left true when it is afterwards, false when
+/// Newton took over.
 pub fn minimize_quadratic(
     potential: &mut impl Potential,
-    hessian: &[f64],
+    (hessian, factored): (&[f64], &mut bool),
     u: &mut [f64],
     assembly: &Assembly,
     linear: &mut LinearSolver,
@@ -493,17 +497,26 @@ pub fn minimize_quadratic(
     if residual <= target {
         return Ok(report);
     }
-    let solved = linear.factorize(assembly, hessian).and_then(|t| {
+    let prepare = |linear: &mut LinearSolver| match *factored {
+        true => Ok(None),
+        false => linear.factorize(assembly, hessian),
+    };
+    let solved = prepare(linear).and_then(|t| {
         for (r, &d) in work.rhs.iter_mut().zip(assembly.dofs().free_dofs()) {
             *r = -work.gradient[d];
         }
         linear.set_forcing(forcing(residual, f64::INFINITY, target));
-        Ok((t, linear.solve(assembly, hessian, &work.rhs, &mut work.direction)?))
+        Ok((
+            t,
+            linear.solve(assembly, hessian, &work.rhs, &mut work.direction)?,
+        ))
     });
     let Ok((t_factorization, stats)) = solved else {
+        *factored = false;
         let rest = minimize(potential, u, assembly, linear, params, force_floor, work)?;
         return Ok(report.then(&rest));
     };
+    *factored = true;
     if let Some(t) = t_factorization {
         report.t_factorization += t;
         report.factorizations += 1;
@@ -524,6 +537,7 @@ pub fn minimize_quadratic(
     if report.residual <= target {
         return Ok(report);
     }
+    *factored = false;
     let rest = minimize(potential, u, assembly, linear, params, force_floor, work)?;
     Ok(report.then(&rest))
 }
