@@ -263,6 +263,8 @@ pub struct Simulation {
     scratch: Vec<f64>,
     previous: Vec<f64>,
     predictor: Vec<f64>,
+    /// Origin p of the step's velocity vₙ₊₁ = (u − p)/h_d, for the damping terms.
+    damping_origin: Vec<f64>,
     damping_stiffness: Vec<f64>,
     /// Contact forces on the ice after the last step (N, 3 per node; empty without contact).
     contact_forces: ContactForces,
@@ -353,6 +355,7 @@ impl Simulation {
             scratch: vec![0.0; 2 * assembly.dofs().num_free()],
             previous: vec![0.0; n],
             predictor: vec![0.0; n],
+            damping_origin: vec![0.0; n],
             contact_forces: ContactForces::default(),
             elastic_couplings: couplings,
             couplings: Vec::new(),
@@ -665,6 +668,11 @@ impl Simulation {
             Vec::new()
         };
         let inertia_step = formula.inertia_step(h);
+        let damping_step = if dynamic && (damping.mass > 0.0 || damping.stiffness > 0.0) {
+            formula.velocity_form(&self.state, (h, &self.predictor), &mut self.damping_origin)
+        } else {
+            h
+        };
         let model = &self.model;
         let solve = Solve {
             rest: &model.mesh.rest,
@@ -687,15 +695,14 @@ impl Simulation {
                 dt: inertia_step,
                 mass: &model.mass,
                 predictor: &self.predictor,
-                previous: &self.previous,
+                velocity_form: (damping_step, &self.damping_origin),
                 alpha: damping.mass,
                 assembly: &self.assembly,
             }));
             if damping.stiffness > 0.0 {
                 terms.push(Box::new(StiffnessDamping {
-                    dt: h,
+                    velocity_form: (damping_step, &self.damping_origin),
                     beta_stiffness: &self.damping_stiffness,
-                    previous: &self.previous,
                     assembly: &self.assembly,
                     scratch: &mut self.scratch,
                 }));
@@ -846,9 +853,9 @@ impl Simulation {
         })
     }
 
-    /// The acceleration of the current state from its forces, a = −M⁻¹ ∇Ψ(u) on the free
-    /// dofs (Ψ: elasticity, dead loads and contact at the state's time), 0 on the supported
-    /// ones: what the Newmark scheme starts from.
+    /// The acceleration of the current state from its forces, a = −M⁻¹ (∇Ψ(u) + D v) on the
+    /// free dofs (Ψ: elasticity, dead loads and contact at the state's time; D the Rayleigh
+    /// damping), 0 on the supported ones: what the Newmark scheme starts from.
     fn acceleration_at_start(&mut self) -> Vec<f64> {
         let t = self.state.time;
         self.model.apply_schedule(t, &mut self.state.history);
@@ -874,6 +881,22 @@ impl Simulation {
         let mut gradient = vec![0.0; self.state.u.len()];
         crate::solver::Potential::gradient(&mut potential, &self.state.u, &mut gradient);
         drop(potential);
+        let damping = model.damping.unwrap_or_default();
+        for (d, g) in gradient.iter_mut().enumerate() {
+            *g += damping.mass * model.mass[d / 3] * self.state.v[d];
+        }
+        if damping.stiffness > 0.0 {
+            self.previous.copy_from_slice(&self.state.u);
+            self.stiffness_at_previous(damping.stiffness);
+            let dofs = self.assembly.dofs();
+            let v: Vec<f64> = dofs.free_dofs().iter().map(|&d| self.state.v[d]).collect();
+            let mut force = vec![0.0; v.len()];
+            self.assembly.multiply(&self.damping_stiffness, &v, &mut force);
+            for (f, &d) in force.iter().zip(dofs.free_dofs()) {
+                gradient[d] += f;
+            }
+        }
+        let model = &self.model;
         let dofs = self.assembly.dofs();
         (0..gradient.len())
             .map(|d| match dofs.free(d) {

@@ -132,6 +132,39 @@ impl StepFormula {
         }
     }
 
+    /// The velocity as an affine function of the solution u, vₙ₊₁ = (u − p)/h_d: returns h_d
+    /// (s) and writes the origin p (m, all dofs) of a solve of length `h` from `state` with
+    /// `predictor` — what the damping terms need. Backward Euler: h, uₙ. Newmark:
+    /// vₙ₊₁ = vₙ + h/2 aₙ + 2(u − ũ)/h, so h/2 and ũ − h/2 (vₙ + h/2 aₙ). BDF2: h/α₀ and
+    /// −(α₁uₙ + α₂uₙ₋₁)/α₀.
+    pub(super) fn velocity_form(
+        self,
+        state: &State,
+        (h, predictor): (f64, &[f64]),
+        origin: &mut [f64],
+    ) -> f64 {
+        let u = &state.u;
+        match self {
+            StepFormula::BackwardEuler => {
+                origin.copy_from_slice(u);
+                h
+            }
+            StepFormula::Newmark => {
+                for (d, p) in origin.iter_mut().enumerate() {
+                    *p = predictor[d] - 0.5 * h * (state.v[d] + 0.5 * h * state.a[d]);
+                }
+                0.5 * h
+            }
+            StepFormula::Bdf2 { ratio } => {
+                let (a0, a1, a2) = Self::bdf2_coefficients(ratio);
+                for (d, p) in origin.iter_mut().enumerate() {
+                    *p = -(a1 * u[d] + a2 * state.back.u[d]) / a0;
+                }
+                h / a0
+            }
+        }
+    }
+
     /// The velocity (m/s) and, for Newmark, the acceleration (m/s²; empty otherwise) at the
     /// solution `u` of a solve of length `h` from `state` with `predictor`.
     pub(super) fn velocity(
