@@ -559,7 +559,7 @@ fn inertia_with_mass_damping() {
         dt: 1e-2,
         mass: &mass,
         predictor: &predictor,
-        previous: &previous,
+        velocity_form: (1e-2, &previous),
         alpha: 3.0,
         assembly: &assembly,
     };
@@ -597,9 +597,8 @@ fn stiffness_damping() {
     let u: Vec<f64> = previous.iter().map(|p| p + 1e-5 * rng.next()).collect();
     let mut scratch = vec![0.0; 2 * assembly.dofs().num_free()];
     let mut term = StiffnessDamping {
-        dt: 1e-2,
+        velocity_form: (1e-2, &previous),
         beta_stiffness: &beta_k,
-        previous: &previous,
         assembly: &assembly,
         scratch: &mut scratch,
     };
