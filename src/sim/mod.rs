@@ -773,6 +773,7 @@ impl Simulation {
         newton.t_assembly += t_fixed_assembly;
         // A quadratic solve knows the potential at its solution: the elastic energy is that
         // less the other terms' (cheap, per dof), with no pass over the elements.
+        // Otherwise Newton's last evaluation was at its solution.
         let quadratic_elastic = fixed.then(|| {
             let mut others = 0.0;
             for term in potential.terms.iter_mut().skip(1) {
@@ -780,6 +781,7 @@ impl Simulation {
             }
             newton.energy - others
         });
+        let elastic_at_solution = potential.last_elastic;
         if potential.terms.iter().any(|t| t.is_contact()) {
             let n = u.len();
             let mut forces = ContactForces {
@@ -809,7 +811,8 @@ impl Simulation {
             // to the residual the Newton test already bounds: no check, no passes for it.
             energies_with(&self.model, elastic, (&u, &velocity), t_new)
         } else {
-            self.check_balance(&offsets, (&u, &velocity), t_new, slack)?
+            let after = energies_with(&self.model, elastic_at_solution, (&u, &velocity), t_new);
+            self.check_balance(&offsets, after, (&u, t_new), slack)?
         };
         let free = self.assembly.dofs().free_dofs();
         let local_error = if dynamic {
@@ -924,15 +927,15 @@ impl Simulation {
         )
     }
 
-    /// Checks that the solution `(u, v)` at `t_new` holds no more energy than the solve's
-    /// start (the state, measured with the solve's loads, freeze state and obstacles) and the
-    /// work done on the ice during the solve (see [`balance`]); `tolerance` is the residual
-    /// force Newton accepts (N). Returns the solution's energies.
+    /// Checks that the solution `u` at `t_new`, with energies `after`, holds no more energy
+    /// than the solve's start (the state, measured with the solve's loads, freeze state and
+    /// obstacles) and the work done on the ice during the solve (see [`balance`]); `tolerance`
+    /// is the residual force Newton accepts (N). Returns `after`.
     fn check_balance(
         &mut self,
         offsets: &[StrainOffset],
-        (u, v): (&[f64], &[f64]),
-        t_new: f64,
+        after: Energies,
+        (u, t_new): (&[f64], f64),
         tolerance: f64,
     ) -> Result<Energies, EnergyRise> {
         let start_v = std::mem::take(&mut self.state.v);
@@ -940,7 +943,6 @@ impl Simulation {
         let before = self.energies_at(offsets, (&previous, &start_v), t_new);
         self.state.v = start_v;
         self.previous = previous;
-        let after = self.energies_at(offsets, (u, v), t_new);
         let dofs = self.assembly.dofs();
         // The reactions are the gradient of the solve's potential on the constrained dofs.
         let reaction = self.workspace.gradient();

@@ -17,6 +17,9 @@ pub struct StepPotential<'a> {
     pub terms: Vec<Box<dyn StepTerm + 'a>>,
     /// Wall time spent evaluating contact terms (s).
     pub t_contact: f64,
+    /// The elastic term's energy at the last u the potential was evaluated at (J): after
+    /// Newton returns, its solution's.
+    pub last_elastic: f64,
     /// The Hessian when it does not depend on u or on the step (a linear model without
     /// contact, plasticity or freezing, at a fixed step): copied instead of assembled.
     pub fixed_hessian: Option<&'a [f64]>,
@@ -28,6 +31,7 @@ impl<'a> StepPotential<'a> {
         StepPotential {
             terms,
             t_contact: 0.0,
+            last_elastic: 0.0,
             fixed_hessian: None,
         }
     }
@@ -62,6 +66,7 @@ impl<'a> StepPotential<'a> {
                 self.t_contact += clock.elapsed().as_secs_f64();
             }
         }
+        self.last_elastic = elastic;
         elastic + rest
     }
 
