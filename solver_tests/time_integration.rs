@@ -395,3 +395,89 @@ fn rayleigh_damping_keeps_each_schemes_order_and_only_takes_energy() {
         assert!(last < 0.1 * largest, "{scheme:?}: {largest:e} → {last:e} J");
     }
 }
+
+#[test]
+fn adaptive_bdf2_runs_the_fracture_scene_and_resumes_exactly_after_splits() {
+    use icefem::run::run;
+    // The paper's fracture scene with BDF2 and adaptive steps to 25 s: the first splits come
+    // at ~21.8 s (each retakes the step at the accepted length); cut at 23 s (a frame time,
+    // after them) and resumed, the run ends where the uninterrupted one does, bit for bit.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/freezing_container_fracture.toml"),
+    )
+    .unwrap()
+    .replace("[time]", "[time]\nscheme = \"bdf2\"")
+        + "\n[time.adaptive]\nrelative_tolerance = 1e-3\n";
+    let scene = load_scene(dir.path(), &text).unwrap();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let full = dir.path().join("full.h5");
+    run(
+        &scene,
+        &run_options(&full, Some(25.0), false),
+        &never,
+        |_| {},
+    )
+    .unwrap();
+    let half = dir.path().join("half.h5");
+    run(
+        &scene,
+        &run_options(&half, Some(23.0), false),
+        &never,
+        |_| {},
+    )
+    .unwrap();
+    run(
+        &scene,
+        &run_options(&half, Some(25.0), true),
+        &never,
+        |_| {},
+    )
+    .unwrap();
+    let f = hdf5::File::open(&full).unwrap();
+    let elements = f
+        .dataset("stats/elements")
+        .unwrap()
+        .read_raw::<u64>()
+        .unwrap();
+    let rejected: u32 = f
+        .dataset("stats/rejected_steps")
+        .unwrap()
+        .read_raw::<u32>()
+        .unwrap()
+        .iter()
+        .sum();
+    eprintln!(
+        "{} steps, {rejected} rejected, {} → {} elements",
+        elements.len(),
+        elements[0],
+        elements[elements.len() - 1]
+    );
+    assert!(elements[elements.len() - 1] > 216, "no split by 25 s");
+    let last = |path: &std::path::Path, name: &str| {
+        let f = hdf5::File::open(path).unwrap();
+        let mut frames = f.group("frames").unwrap().member_names().unwrap();
+        frames.sort();
+        let g = frames.last().unwrap().clone();
+        let time: f64 = f
+            .group(&format!("frames/{g}"))
+            .unwrap()
+            .attr("time")
+            .unwrap()
+            .read_scalar()
+            .unwrap();
+        (
+            time,
+            f.dataset(&format!("frames/{g}/{name}"))
+                .unwrap()
+                .read_raw::<f64>()
+                .unwrap(),
+        )
+    };
+    for name in ["positions", "velocities", "back_velocity"] {
+        let (a, b) = (last(&full, name), last(&half, name));
+        assert_eq!(a.0, 25.0);
+        assert_eq!(a, b, "{name}");
+    }
+}

@@ -894,7 +894,8 @@ impl Simulation {
             let dofs = self.assembly.dofs();
             let v: Vec<f64> = dofs.free_dofs().iter().map(|&d| self.state.v[d]).collect();
             let mut force = vec![0.0; v.len()];
-            self.assembly.multiply(&self.damping_stiffness, &v, &mut force);
+            self.assembly
+                .multiply(&self.damping_stiffness, &v, &mut force);
             for (f, &d) in force.iter().zip(dofs.free_dofs()) {
                 gradient[d] += f;
             }
