@@ -70,12 +70,12 @@ impl Simulation {
     /// again shorter (counted in the report's `rejected`), unless it is at `dt_min` already. A
     /// step that fails (Newton, after its halvings) is taken again at a quarter of its length
     /// while that is above `dt_min`. Leaves `settings.dt` at the length of the step taken
-    /// (what fracture's retake uses) and the next proposal in the state.
+    /// (what fracture's retake uses) and the next proposal in the state. Without adaptive
+    /// settings it is [`Simulation::step`].
     pub fn step_adaptive(&mut self, limit: f64) -> Result<StepReport, SimError> {
-        let control = self
-            .settings
-            .adaptive
-            .expect("step_adaptive needs adaptive settings");
+        let Some(control) = self.settings.adaptive else {
+            return self.step();
+        };
         let mut wanted = if self.state.next_dt > 0.0 {
             self.state.next_dt
         } else {
