@@ -208,32 +208,30 @@ pub fn run(
             summary.interrupted = true;
             break;
         }
-        let (report, frame_due) = match settings.adaptive {
-            Some(_) => {
-                let next_frame = (frame_index(sim.state.time) + 1.0) * frame_interval;
-                let limit = next_frame.min(end_time);
-                let report = sim.step_adaptive(limit)?;
-                // The time left as steps of the current length (for progress).
-                let steps_left = (end_time - sim.state.time) / sim.state.next_dt.max(1e-300);
-                total_steps = sim.state.step + steps_left.max(0.0).ceil() as u64;
-                // The step ended on `limit` to round-off: it is `limit`.
-                if (sim.state.time - limit).abs() <= 1e-9 * frame_interval {
-                    sim.state.time = limit;
-                }
-                (
-                    report,
-                    sim.state.time == next_frame || !time_left(sim.state.time),
-                )
-            }
-            None => {
-                let report = sim.step()?;
-                let last = sim.state.step == total_steps;
-                (report, sim.state.step % scene.output_every == 0 || last)
-            }
+        // Adaptive steps end on the next frame time (or the end).
+        let next_frame = (frame_index(sim.state.time) + 1.0) * frame_interval;
+        let limit = next_frame.min(end_time);
+        let report = match settings.adaptive {
+            Some(_) => sim.step_adaptive(limit)?,
+            None => sim.step()?,
         };
         let cracked = match &mut fracture {
             Some(f) => f.after_step(&mut sim)?,
             None => FractureReport::default(),
+        };
+        let frame_due = match settings.adaptive {
+            Some(_) => {
+                // The step (or fracture's retake of it) ended on `limit` to round-off: it is
+                // `limit`.
+                if (sim.state.time - limit).abs() <= 1e-9 * frame_interval {
+                    sim.state.time = limit;
+                }
+                // The time left as steps of the current length (for progress).
+                let steps_left = (end_time - sim.state.time) / sim.state.next_dt.max(1e-300);
+                total_steps = sim.state.step + steps_left.max(0.0).ceil() as u64;
+                sim.state.time == next_frame || !time_left(sim.state.time)
+            }
+            None => sim.state.step % scene.output_every == 0 || sim.state.step == total_steps,
         };
         topology_changed |= !cracked.events.is_empty();
         summary.steps += 1;
@@ -375,7 +373,7 @@ fn write_frame(
             data: &sim.state.a,
         });
     }
-    // With BDF2: the state one full step back (what a resumed run continues from).
+    // With BDF2: the state one step back (what a resumed run continues from).
     let back = &sim.state.back;
     let mut attributes = Vec::new();
     if back.is_for(sim.state.u.len()) {
