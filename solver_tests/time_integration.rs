@@ -36,6 +36,50 @@ fn displacement_at(scheme: Scheme, dt: f64, end: f64) -> Vec<f64> {
     sim.state.u
 }
 
+/// log₂ of the ratios of successive errors: the convergence rates of halved steps.
+fn rates(errors: &[f64]) -> Vec<f64> {
+    errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect()
+}
+
+/// The text of the shipped scene `scenes/NAME`.
+fn shipped(name: &str) -> String {
+    std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes")
+            .join(name),
+    )
+    .unwrap()
+}
+
+/// Runs `scene` to `end` (s; `None`: the scene's end) into `dir/full.h5`, and to `cut` then
+/// resumed to `end` into `dir/half.h5`; returns the two files.
+fn full_and_resumed(
+    dir: &std::path::Path,
+    scene: &icefem::scene::Scene,
+    cut: f64,
+    end: Option<f64>,
+) -> (std::path::PathBuf, std::path::PathBuf) {
+    use icefem::run::run;
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let (full, half) = (dir.join("full.h5"), dir.join("half.h5"));
+    run(scene, &run_options(&full, end, false), &never, |_| {}).unwrap();
+    run(scene, &run_options(&half, Some(cut), false), &never, |_| {}).unwrap();
+    run(scene, &run_options(&half, end, true), &never, |_| {}).unwrap();
+    (full, half)
+}
+
+/// The time (s) of the last frame of `path` and its dataset `name`.
+fn last_frame(path: &std::path::Path, name: &str) -> (f64, Vec<f64>) {
+    let f = hdf5::File::open(path).unwrap();
+    let mut frames = f.group("frames").unwrap().member_names().unwrap();
+    frames.sort();
+    let g = f
+        .group(&format!("frames/{}", frames.last().unwrap()))
+        .unwrap();
+    let time = g.attr("time").unwrap().read_scalar().unwrap();
+    (time, g.dataset(name).unwrap().read_raw::<f64>().unwrap())
+}
+
 #[test]
 fn backward_euler_is_first_order_newmark_and_bdf2_second() {
     // The rates show once h ω ≪ 1 for the mesh's fastest mode (5 cm cells of ice: ω ≈ 1e6
@@ -55,7 +99,7 @@ fn backward_euler_is_first_order_newmark_and_bdf2_second() {
             .iter()
             .map(|&dt| rel_l2(&displacement_at(scheme, dt, end), &reference))
             .collect();
-        let rates: Vec<f64> = errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect();
+        let rates = rates(&errors);
         eprintln!("{scheme:?}: errors {errors:?}, rates {rates:?}");
         for rate in rates {
             assert!(
@@ -147,49 +191,27 @@ fn scheme_scene(
     (scheme, analysis): (&str, &str),
     extra: &str,
 ) -> Result<icefem::scene::Scene, String> {
-    let text = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cantilever.toml"),
-    )
-    .unwrap()
-    .replace(
+    let text = shipped("cantilever.toml").replace(
         "analysis = \"dynamic\"",
         &format!("analysis = \"{analysis}\"\nscheme = \"{scheme}\""),
     ) + extra;
-    let path = dir.join("scheme.toml");
-    std::fs::write(&path, text).unwrap();
-    icefem::scene::Scene::load(&path).map_err(|e| e.to_string())
+    load_scene(dir, &text)
 }
 
 /// A run of the cantilever with `scheme` cut at 0.25 s and resumed ends where the
 /// uninterrupted one does, bit for bit, the scheme's own state (node field `carried`)
 /// included.
 fn resumes_bit_identically(dir: &std::path::Path, scheme: &str, carried: &str) {
-    use icefem::run::{run, RunOptions};
     let scene = scheme_scene(dir, (scheme, "dynamic"), "").unwrap();
-    let never = std::sync::atomic::AtomicBool::new(false);
-    let options = |path: &std::path::Path, end: f64, resume: bool| RunOptions {
-        output: Some(path.to_path_buf()),
-        end_time: Some(end),
-        resume,
-        ..Default::default()
-    };
-    let full = dir.join(format!("{scheme}_full.h5"));
-    run(&scene, &options(&full, 0.5, false), &never, |_| {}).unwrap();
-    let half = dir.join(format!("{scheme}_half.h5"));
-    run(&scene, &options(&half, 0.25, false), &never, |_| {}).unwrap();
-    run(&scene, &options(&half, 0.5, true), &never, |_| {}).unwrap();
-    let last = |path: &std::path::Path, name: &str| {
-        let f = hdf5::File::open(path).unwrap();
-        let mut frames = f.group("frames").unwrap().member_names().unwrap();
-        frames.sort();
-        let g = frames.last().unwrap().clone();
-        f.dataset(&format!("frames/{g}/{name}"))
-            .unwrap()
-            .read_raw::<f64>()
-            .unwrap()
-    };
+    let runs = dir.join(scheme);
+    std::fs::create_dir(&runs).unwrap();
+    let (full, half) = full_and_resumed(&runs, &scene, 0.25, Some(0.5));
     for name in ["positions", "velocities", carried] {
-        assert_eq!(last(&full, name), last(&half, name), "{scheme}: {name}");
+        assert_eq!(
+            last_frame(&full, name),
+            last_frame(&half, name),
+            "{scheme}: {name}"
+        );
     }
 }
 
@@ -223,28 +245,24 @@ fn second_order_runs_resume_bit_identically_and_refuse_what_they_do_not_carry() 
 /// The coarse cantilever scene (10 × 2 × 2 cells, frames every 1/30 s, 0.2 s) with BDF2 and
 /// `[time.adaptive]` with `adaptive` keys.
 fn adaptive_scene(dir: &std::path::Path, adaptive: &str) -> Result<icefem::scene::Scene, String> {
-    let text = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cantilever.toml"),
-    )
-    .unwrap()
-    .replace("cells = [40, 4, 4]", "cells = [10, 2, 2]")
-    .replace("end_time = 2.0", "end_time = 0.2")
-    .replace(
-        "analysis = \"dynamic\"",
-        "analysis = \"dynamic\"\nscheme = \"bdf2\"",
-    ) + "\n[time.adaptive]\n"
+    let text = shipped("cantilever.toml")
+        .replace("cells = [40, 4, 4]", "cells = [10, 2, 2]")
+        .replace("end_time = 2.0", "end_time = 0.2")
+        .replace(
+            "analysis = \"dynamic\"",
+            "analysis = \"dynamic\"\nscheme = \"bdf2\"",
+        )
+        + "\n[time.adaptive]\n"
         + adaptive;
     load_scene(dir, &text)
 }
 
 #[test]
 fn adaptive_runs_write_frames_on_time_count_rejections_and_resume_exactly() {
-    use icefem::run::run;
     let dir = tempfile::tempdir().unwrap();
     let scene = adaptive_scene(dir.path(), "relative_tolerance = 1e-2\ndt_min = 1e-6\n").unwrap();
-    let never = std::sync::atomic::AtomicBool::new(false);
-    let full = dir.path().join("full.h5");
-    run(&scene, &run_options(&full, None, false), &never, |_| {}).unwrap();
+    // The whole run, and one cut at 0.1 s and resumed.
+    let (full, half) = full_and_resumed(dir.path(), &scene, 0.1, None);
     let f = hdf5::File::open(&full).unwrap();
     let column = |name: &str| {
         f.dataset(&format!("stats/{name}"))
@@ -291,36 +309,19 @@ fn adaptive_runs_write_frames_on_time_count_rejections_and_resume_exactly() {
             "frame {k}: {t}"
         );
     }
-    // Cut at 0.1 s and resumed: the same last frame, bit for bit.
-    let half = dir.path().join("half.h5");
-    run(
-        &scene,
-        &run_options(&half, Some(0.1), false),
-        &never,
-        |_| {},
-    )
-    .unwrap();
-    run(&scene, &run_options(&half, None, true), &never, |_| {}).unwrap();
-    let last = |path: &std::path::Path, name: &str| {
-        let f = hdf5::File::open(path).unwrap();
-        f.dataset(&format!("frames/000006/{name}"))
-            .unwrap()
-            .read_raw::<f64>()
-            .unwrap()
-    };
+    // The run cut at 0.1 s and resumed ends where the uninterrupted one does, bit for bit.
     for name in ["positions", "velocities", "back_velocity"] {
-        assert_eq!(last(&full, name), last(&half, name), "{name}");
+        let (a, b) = (last_frame(&full, name), last_frame(&half, name));
+        assert_eq!(a.0, 0.2);
+        assert_eq!(a, b, "{name}");
     }
     // What cannot work is refused, naming the field.
     let err = adaptive_scene(dir.path(), "dt_min = 0.1\n").unwrap_err();
     assert!(err.contains("time.dt") && err.contains("dt_min"), "{err}");
     let err = adaptive_scene(dir.path(), "relative_tolerance = 2.0\n").unwrap_err();
     assert!(err.contains("time.adaptive.relative_tolerance"), "{err}");
-    let text = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cantilever.toml"),
-    )
-    .unwrap()
-    .replace("analysis = \"dynamic\"", "analysis = \"static\"")
+    let text = shipped("cantilever.toml")
+        .replace("analysis = \"dynamic\"", "analysis = \"static\"")
         + "\n[time.adaptive]\n";
     let err = load_scene(dir.path(), &text).unwrap_err();
     assert!(
@@ -368,7 +369,7 @@ fn rayleigh_damping_keeps_each_schemes_order_and_only_takes_energy() {
                 (sim.state.v[0] - (-alpha * 0.1f64).exp()).abs()
             })
             .collect();
-        let rates: Vec<f64> = errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect();
+        let rates = rates(&errors);
         eprintln!("{scheme:?} with α = {alpha}: errors {errors:?}, rates {rates:?}");
         for rate in rates {
             assert!((rate - order).abs() < 0.15, "{scheme:?}: {errors:?}");
@@ -398,43 +399,15 @@ fn rayleigh_damping_keeps_each_schemes_order_and_only_takes_energy() {
 
 #[test]
 fn adaptive_bdf2_runs_the_fracture_scene_and_resumes_exactly_after_splits() {
-    use icefem::run::run;
     // The paper's fracture scene with BDF2 and adaptive steps to 25 s: the first splits come
     // at ~21.8 s (each retakes the step at the accepted length); cut at 23 s (a frame time,
     // after them) and resumed, the run ends where the uninterrupted one does, bit for bit.
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("scenes/freezing_container_fracture.toml"),
-    )
-    .unwrap()
-    .replace("[time]", "[time]\nscheme = \"bdf2\"")
+    let text = shipped("freezing_container_fracture.toml")
+        .replace("[time]", "[time]\nscheme = \"bdf2\"")
         + "\n[time.adaptive]\nrelative_tolerance = 1e-3\n";
     let scene = load_scene(dir.path(), &text).unwrap();
-    let never = std::sync::atomic::AtomicBool::new(false);
-    let full = dir.path().join("full.h5");
-    run(
-        &scene,
-        &run_options(&full, Some(25.0), false),
-        &never,
-        |_| {},
-    )
-    .unwrap();
-    let half = dir.path().join("half.h5");
-    run(
-        &scene,
-        &run_options(&half, Some(23.0), false),
-        &never,
-        |_| {},
-    )
-    .unwrap();
-    run(
-        &scene,
-        &run_options(&half, Some(25.0), true),
-        &never,
-        |_| {},
-    )
-    .unwrap();
+    let (full, half) = full_and_resumed(dir.path(), &scene, 23.0, Some(25.0));
     let f = hdf5::File::open(&full).unwrap();
     let elements = f
         .dataset("stats/elements")
@@ -455,28 +428,8 @@ fn adaptive_bdf2_runs_the_fracture_scene_and_resumes_exactly_after_splits() {
         elements[elements.len() - 1]
     );
     assert!(elements[elements.len() - 1] > 216, "no split by 25 s");
-    let last = |path: &std::path::Path, name: &str| {
-        let f = hdf5::File::open(path).unwrap();
-        let mut frames = f.group("frames").unwrap().member_names().unwrap();
-        frames.sort();
-        let g = frames.last().unwrap().clone();
-        let time: f64 = f
-            .group(&format!("frames/{g}"))
-            .unwrap()
-            .attr("time")
-            .unwrap()
-            .read_scalar()
-            .unwrap();
-        (
-            time,
-            f.dataset(&format!("frames/{g}/{name}"))
-                .unwrap()
-                .read_raw::<f64>()
-                .unwrap(),
-        )
-    };
     for name in ["positions", "velocities", "back_velocity"] {
-        let (a, b) = (last(&full, name), last(&half, name));
+        let (a, b) = (last_frame(&full, name), last_frame(&half, name));
         assert_eq!(a.0, 25.0);
         assert_eq!(a, b, "{name}");
     }
