@@ -1,5 +1,5 @@
 //! The energy balance of a solve: the energy after it may exceed the energy before it only by
-//! the work done on the ice.
+//! the work done on the ice. Also the energies of a state, which the check and `/stats` use.
 //!
 //! For the backward-Euler incremental potential, with Ψ the stored energy of the solve (the
 //! elastic energy with the step's eigenstrain and freeze state, the dead loads' potential and
@@ -18,7 +18,11 @@
 //! potential it adds disagree. Non-convex elasticity and contact make D_Ψ slightly negative,
 //! which [`EXCESS_TOLERANCE`] allows.
 
-use super::Energies;
+use super::{Energies, Simulation};
+use crate::assembly::Assembly;
+use crate::fem::StrainOffset;
+use crate::physics::history::ElementHistory;
+use crate::physics::Model;
 
 /// Energy that may appear in a solve beyond the work done, as a fraction of the solve's
 /// energy scale ([`Balance::scale`]). On the shipped scenes the largest excess measured is
@@ -98,6 +102,127 @@ impl Balance {
     .0.scale()
 )]
 pub struct EnergyRise(pub Box<Balance>);
+
+impl Simulation {
+    /// Energies at displacement and velocity `(u, v)` and time `t` with the solve's strain
+    /// `offsets`.
+    fn energies_at(
+        &mut self,
+        offsets: &[StrainOffset],
+        (u, v): (&[f64], &[f64]),
+        t: f64,
+    ) -> Energies {
+        energies_of(
+            &self.model,
+            &self.assembly,
+            (&self.state.history, offsets),
+            &mut self.element_energy,
+            (u, v),
+            t,
+        )
+    }
+
+    /// Checks that the solution `u` at `t_new`, with energies `after`, holds no more energy
+    /// than the solve's start (the state, measured with the solve's loads, freeze state and
+    /// obstacles) and the work done on the ice during the solve (see this module); `tolerance`
+    /// is the residual force Newton accepts (N). Returns `after`.
+    pub(super) fn check_balance(
+        &mut self,
+        offsets: &[StrainOffset],
+        after: Energies,
+        (u, t_new): (&[f64], f64),
+        tolerance: f64,
+    ) -> Result<Energies, EnergyRise> {
+        let start_v = std::mem::take(&mut self.state.v);
+        let previous = std::mem::take(&mut self.previous);
+        let before = self.energies_at(offsets, (&previous, &start_v), t_new);
+        self.state.v = start_v;
+        self.previous = previous;
+        let dofs = self.assembly.dofs();
+        // The reactions are the gradient of the solve's potential on the constrained dofs.
+        let reaction = self.workspace.gradient();
+        let supports = (0..u.len())
+            .filter(|&d| dofs.free(d).is_none())
+            .map(|d| reaction[d] * (u[d] - self.previous[d]))
+            .sum();
+        let unresolved = tolerance
+            * dofs
+                .free_dofs()
+                .iter()
+                .map(|&d| (u[d] - self.previous[d]).abs())
+                .sum::<f64>();
+        let friction = self
+            .contact_forces
+            .friction
+            .iter()
+            .zip(u.iter().zip(&self.previous))
+            .map(|(f, (un, u0))| f * (un - u0))
+            .sum();
+        let balance = Balance {
+            before,
+            after,
+            supports,
+            friction,
+            unresolved,
+        };
+        if balance.holds() {
+            Ok(after)
+        } else {
+            Err(EnergyRise(Box::new(balance)))
+        }
+    }
+}
+
+/// Energies of `model` at displacement and velocity `(u, v)` (m, m/s; 3 per node) and time
+/// `t` (s), with the elements' `history` and its strain `offsets`; `element_energy` is
+/// scratch, one per element.
+pub(super) fn energies_of(
+    model: &Model,
+    assembly: &Assembly,
+    (history, offsets): (&ElementHistory, &[StrainOffset]),
+    element_energy: &mut [f64],
+    (u, v): (&[f64], &[f64]),
+    t: f64,
+) -> Energies {
+    let elastic = model.elasticity.energy(
+        assembly,
+        (&model.mesh.tets, history, offsets),
+        u,
+        element_energy,
+    );
+    energies_with(model, elastic, (u, v), t)
+}
+
+/// Energies of `model` at `(u, v)` and time `t` with the elastic energy `elastic` (J) known.
+pub(super) fn energies_with(
+    model: &Model,
+    elastic: f64,
+    (u, v): (&[f64], &[f64]),
+    t: f64,
+) -> Energies {
+    let kinetic = v
+        .iter()
+        .enumerate()
+        .map(|(d, v)| 0.5 * model.mass[d / 3] * v * v)
+        .sum();
+    let potential = -model
+        .external_force
+        .iter()
+        .zip(u)
+        .map(|(f, u)| f * u)
+        .sum::<f64>();
+    let contact = model
+        .terms
+        .iter()
+        .map(|term| term.stored_energy(&model.mesh.rest, u, t))
+        .sum();
+    Energies {
+        kinetic,
+        elastic,
+        potential,
+        contact,
+    }
+}
 
 #[cfg(test)]
 mod tests {

@@ -25,7 +25,7 @@ use crate::solver::{
 };
 use crate::thermal::HeatLink;
 pub use adaptive::Adaptive;
-use balance::{Balance, EnergyRise};
+use balance::{energies_of, energies_with, EnergyRise};
 use potential::StepPotential;
 use scheme::StepFormula;
 pub use scheme::{Scheme, StepBack};
@@ -856,128 +856,6 @@ impl Simulation {
         })
     }
 
-    /// The acceleration of the current state from its forces, a = −M⁻¹ (∇Ψ(u) + D v) on the
-    /// free dofs (Ψ: elasticity, dead loads and contact at the state's time; D the Rayleigh
-    /// damping), 0 on the supported ones: what the Newmark scheme starts from.
-    fn acceleration_at_start(&mut self) -> Vec<f64> {
-        let t = self.state.time;
-        self.model.apply_schedule(t, &mut self.state.history);
-        let offsets = self.state.history.offsets();
-        let model = &self.model;
-        let solve = Solve {
-            rest: &model.mesh.rest,
-            previous: &self.state.u,
-            velocity: &self.state.v,
-            earlier: &self.state.u,
-            h: self.settings.dt,
-            dynamic: true,
-            times: (t, t),
-        };
-        let terms = solve_terms(
-            model,
-            &self.assembly,
-            (&self.state.history, &offsets),
-            &mut self.element_energy,
-            &solve,
-        );
-        let mut potential = StepPotential::new(terms);
-        let mut gradient = vec![0.0; self.state.u.len()];
-        crate::solver::Potential::gradient(&mut potential, &self.state.u, &mut gradient);
-        drop(potential);
-        let damping = model.damping.unwrap_or_default();
-        for (d, g) in gradient.iter_mut().enumerate() {
-            *g += damping.mass * model.mass[d / 3] * self.state.v[d];
-        }
-        if damping.stiffness > 0.0 {
-            self.previous.copy_from_slice(&self.state.u);
-            self.stiffness_at_previous(damping.stiffness);
-            let dofs = self.assembly.dofs();
-            let v: Vec<f64> = dofs.free_dofs().iter().map(|&d| self.state.v[d]).collect();
-            let mut force = vec![0.0; v.len()];
-            self.assembly
-                .multiply(&self.damping_stiffness, &v, &mut force);
-            for (f, &d) in force.iter().zip(dofs.free_dofs()) {
-                gradient[d] += f;
-            }
-        }
-        let model = &self.model;
-        let dofs = self.assembly.dofs();
-        (0..gradient.len())
-            .map(|d| match dofs.free(d) {
-                Some(_) => -gradient[d] / model.mass[d / 3],
-                None => 0.0,
-            })
-            .collect()
-    }
-
-    /// Energies at displacement and velocity `(u, v)` and time `t` with the solve's strain
-    /// `offsets`.
-    fn energies_at(
-        &mut self,
-        offsets: &[StrainOffset],
-        (u, v): (&[f64], &[f64]),
-        t: f64,
-    ) -> Energies {
-        energies_of(
-            &self.model,
-            &self.assembly,
-            (&self.state.history, offsets),
-            &mut self.element_energy,
-            (u, v),
-            t,
-        )
-    }
-
-    /// Checks that the solution `u` at `t_new`, with energies `after`, holds no more energy
-    /// than the solve's start (the state, measured with the solve's loads, freeze state and
-    /// obstacles) and the work done on the ice during the solve (see [`balance`]); `tolerance`
-    /// is the residual force Newton accepts (N). Returns `after`.
-    fn check_balance(
-        &mut self,
-        offsets: &[StrainOffset],
-        after: Energies,
-        (u, t_new): (&[f64], f64),
-        tolerance: f64,
-    ) -> Result<Energies, EnergyRise> {
-        let start_v = std::mem::take(&mut self.state.v);
-        let previous = std::mem::take(&mut self.previous);
-        let before = self.energies_at(offsets, (&previous, &start_v), t_new);
-        self.state.v = start_v;
-        self.previous = previous;
-        let dofs = self.assembly.dofs();
-        // The reactions are the gradient of the solve's potential on the constrained dofs.
-        let reaction = self.workspace.gradient();
-        let supports = (0..u.len())
-            .filter(|&d| dofs.free(d).is_none())
-            .map(|d| reaction[d] * (u[d] - self.previous[d]))
-            .sum();
-        let unresolved = tolerance
-            * dofs
-                .free_dofs()
-                .iter()
-                .map(|&d| (u[d] - self.previous[d]).abs())
-                .sum::<f64>();
-        let friction = self
-            .contact_forces
-            .friction
-            .iter()
-            .zip(u.iter().zip(&self.previous))
-            .map(|(f, (un, u0))| f * (un - u0))
-            .sum();
-        let balance = Balance {
-            before,
-            after,
-            supports,
-            friction,
-            unresolved,
-        };
-        if balance.holds() {
-            Ok(after)
-        } else {
-            Err(EnergyRise(Box::new(balance)))
-        }
-    }
-
     /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.
     fn stiffness_at_previous(&mut self, beta: f64) {
         let offsets = self.state.history.offsets();
@@ -1097,50 +975,4 @@ fn solve_terms<'a>(
     ];
     terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(solve)));
     terms
-}
-
-/// Energies of `model` at displacement and velocity `(u, v)` (m, m/s; 3 per node) and time
-/// `t` (s), with the elements' `history` and its strain `offsets`; `element_energy` is
-/// scratch, one per element.
-fn energies_of(
-    model: &Model,
-    assembly: &Assembly,
-    (history, offsets): (&ElementHistory, &[StrainOffset]),
-    element_energy: &mut [f64],
-    (u, v): (&[f64], &[f64]),
-    t: f64,
-) -> Energies {
-    let elastic = model.elasticity.energy(
-        assembly,
-        (&model.mesh.tets, history, offsets),
-        u,
-        element_energy,
-    );
-    energies_with(model, elastic, (u, v), t)
-}
-
-/// Energies of `model` at `(u, v)` and time `t` with the elastic energy `elastic` (J) known.
-fn energies_with(model: &Model, elastic: f64, (u, v): (&[f64], &[f64]), t: f64) -> Energies {
-    let kinetic = v
-        .iter()
-        .enumerate()
-        .map(|(d, v)| 0.5 * model.mass[d / 3] * v * v)
-        .sum();
-    let potential = -model
-        .external_force
-        .iter()
-        .zip(u)
-        .map(|(f, u)| f * u)
-        .sum::<f64>();
-    let contact = model
-        .terms
-        .iter()
-        .map(|term| term.stored_energy(&model.mesh.rest, u, t))
-        .sum();
-    Energies {
-        kinetic,
-        elastic,
-        potential,
-        contact,
-    }
 }

@@ -2,8 +2,11 @@
 //! inertia term is backward Euler's 1/(2h'²) (u − ũ)ᵀM(u − ũ) with its own predictor ũ and
 //! length h', so Newton, the line search, contact and friction see the same kind of problem;
 //! after the solve the scheme turns the solution into the new velocity (and acceleration).
+//! Newmark's start acceleration, from the state's forces, is computed here too.
 
-use super::State;
+use super::potential::StepPotential;
+use super::{solve_terms, Simulation, State};
+use crate::physics::term::Solve;
 
 /// How a dynamic step integrates in time.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
@@ -226,5 +229,61 @@ impl StepFormula {
                 8.0 / 23.0 * (u[d] - explicit)
             }
         }
+    }
+}
+
+impl Simulation {
+    /// The acceleration of the current state from its forces, a = −M⁻¹ (∇Ψ(u) + D v) on the
+    /// free dofs (Ψ: elasticity, dead loads and contact at the state's time; D the Rayleigh
+    /// damping), 0 on the supported ones: what the Newmark scheme starts from.
+    pub(super) fn acceleration_at_start(&mut self) -> Vec<f64> {
+        let t = self.state.time;
+        self.model.apply_schedule(t, &mut self.state.history);
+        let offsets = self.state.history.offsets();
+        let model = &self.model;
+        let solve = Solve {
+            rest: &model.mesh.rest,
+            previous: &self.state.u,
+            velocity: &self.state.v,
+            earlier: &self.state.u,
+            h: self.settings.dt,
+            dynamic: true,
+            times: (t, t),
+        };
+        let terms = solve_terms(
+            model,
+            &self.assembly,
+            (&self.state.history, &offsets),
+            &mut self.element_energy,
+            &solve,
+        );
+        let mut potential = StepPotential::new(terms);
+        let mut gradient = vec![0.0; self.state.u.len()];
+        crate::solver::Potential::gradient(&mut potential, &self.state.u, &mut gradient);
+        drop(potential);
+        let damping = model.damping.unwrap_or_default();
+        for (d, g) in gradient.iter_mut().enumerate() {
+            *g += damping.mass * model.mass[d / 3] * self.state.v[d];
+        }
+        if damping.stiffness > 0.0 {
+            self.previous.copy_from_slice(&self.state.u);
+            self.stiffness_at_previous(damping.stiffness);
+            let dofs = self.assembly.dofs();
+            let v: Vec<f64> = dofs.free_dofs().iter().map(|&d| self.state.v[d]).collect();
+            let mut force = vec![0.0; v.len()];
+            self.assembly
+                .multiply(&self.damping_stiffness, &v, &mut force);
+            for (f, &d) in force.iter().zip(dofs.free_dofs()) {
+                gradient[d] += f;
+            }
+        }
+        let model = &self.model;
+        let dofs = self.assembly.dofs();
+        (0..gradient.len())
+            .map(|d| match dofs.free(d) {
+                Some(_) => -gradient[d] / model.mass[d / 3],
+                None => 0.0,
+            })
+            .collect()
     }
 }
