@@ -660,8 +660,8 @@ pub fn element_eval(
     };
     let v = rest.volume;
     out.energy = v * psi;
-    for i in 0..4 {
-        let g = v * P * grads[i];
+    for (i, gi) in grads.iter().enumerate() {
+        let g = v * P * gi;
         out.gradient[3 * i..3 * i + 3].copy_from_slice(g.as_slice());
     }
     if let Some(tangent) = &tangent {
