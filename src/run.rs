@@ -170,7 +170,7 @@ pub fn run(
             OutputWriter::create(&output, &header)?
         };
         writer.store_tensor_matrices(scene.tensor_matrices);
-        write_frame(&mut writer, &sim, fracture.as_ref(), true)?;
+        write_frame(&mut writer, &sim, fracture.as_ref(), (true, true))?;
         writer
     };
     // Steps from the state reached (a resumed file's last frame, possibly written with
@@ -219,6 +219,9 @@ pub fn run(
             Some(f) => f.after_step(&mut sim)?,
             None => FractureReport::default(),
         };
+        // A frame on the output grid is one every run through this time writes, wherever it
+        // ends: a restart point.
+        let on_grid;
         let frame_due = match settings.adaptive {
             Some(_) => {
                 // The step (or fracture's retake of it) ended on `limit` to round-off: it is
@@ -229,9 +232,13 @@ pub fn run(
                 // The time left as steps of the current length (for progress).
                 let steps_left = (end_time - sim.state.time) / sim.state.next_dt.max(1e-300);
                 total_steps = sim.state.step + steps_left.max(0.0).ceil() as u64;
-                sim.state.time == next_frame || !time_left(sim.state.time)
+                on_grid = sim.state.time == next_frame;
+                on_grid || !time_left(sim.state.time)
             }
-            None => sim.state.step % scene.output_every == 0 || sim.state.step == total_steps,
+            None => {
+                on_grid = sim.state.step % scene.output_every == 0;
+                on_grid || sim.state.step == total_steps
+            }
         };
         topology_changed |= !cracked.events.is_empty();
         summary.steps += 1;
@@ -239,8 +246,17 @@ pub fn run(
         summary.max_residual = summary.max_residual.max(report.newton.residual);
         writer.append_stats(&stats_row(&sim, &report, &cracked, fracture.as_ref()))?;
         if frame_due || interrupt.load(Ordering::SeqCst) {
-            write_frame(&mut writer, &sim, fracture.as_ref(), topology_changed)?;
+            write_frame(
+                &mut writer,
+                &sim,
+                fracture.as_ref(),
+                (topology_changed, on_grid),
+            )?;
             topology_changed = false;
+            // A run resumed from this frame starts without solver memory: so does this one.
+            if on_grid {
+                sim.forget_solver_memory();
+            }
         }
         progress(&Progress {
             step: sim.state.step,
@@ -346,11 +362,14 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
     rows
 }
 
+/// Writes the current state as a frame; `restart_point` marks a frame on the output grid,
+/// after which the run forgets its solver memory (see [`Simulation::forget_solver_memory`]):
+/// `--resume` continues from the last such frame.
 fn write_frame(
     writer: &mut OutputWriter,
     sim: &Simulation,
     fracture: Option<&Fracture>,
-    topology_changed: bool,
+    (topology_changed, restart_point): (bool, bool),
 ) -> Result<(), OutputError> {
     let rest = rows(&sim.model.mesh.rest);
     let positions = sim.positions();
@@ -375,7 +394,7 @@ fn write_frame(
     }
     // With BDF2: the state one step back (what a resumed run continues from).
     let back = &sim.state.back;
-    let mut attributes = Vec::new();
+    let mut attributes = vec![("restart_point", f64::from(u8::from(restart_point)))];
     if back.is_for(sim.state.u.len()) {
         node_fields.push(Field {
             name: "back_displacement",

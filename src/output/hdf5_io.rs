@@ -219,8 +219,8 @@ pub(super) fn read_string_attr(
 /// bytes) than they save — a 200-tet run would spend most of its time in zlib.
 const COMPRESS_MIN_VALUES: usize = 4096;
 
-/// Writes a row-major `rows × cols` f64 matrix (1-D when `cols == 1`),
-/// chunked and compressed when it holds at least `COMPRESS_MIN_VALUES` values.
+/// Writes a row-major `rows × cols` f64 matrix (1-D when `cols == 1`), chunked and
+/// compressed when it holds at least `COMPRESS_MIN_VALUES` values; returns the dataset.
 pub(super) fn write_matrix(
     path: &Path,
     g: &Group,
@@ -228,26 +228,23 @@ pub(super) fn write_matrix(
     rows: usize,
     cols: usize,
     data: &[f64],
-) -> Result<(), OutputError> {
+) -> Result<Dataset, OutputError> {
     let ctx = || format!("writing {}/{name} [{rows}, {cols}]", g.name());
+    let mut b = g.new_dataset_builder();
+    if rows * cols >= COMPRESS_MIN_VALUES {
+        let chunk_rows = (FRAME_CHUNK_VALUES / cols).clamp(1, rows);
+        b = compress(match cols {
+            1 => b.chunk(chunk_rows),
+            _ => b.chunk((chunk_rows, cols)),
+        });
+    }
     if cols == 1 {
-        let view = ArrayView1::from(data);
-        let mut b = g.new_dataset_builder();
-        if rows >= COMPRESS_MIN_VALUES {
-            b = compress(b.chunk(rows.min(FRAME_CHUNK_VALUES)));
-        }
-        b.with_data(view).create(name).ctx(path, ctx)?;
+        b.with_data(ArrayView1::from(data)).create(name).ctx(path, ctx)
     } else {
         let view = ArrayView2::from_shape((rows, cols), data)
             .map_err(|e| invalid(path, format!("{name}: {e}")))?;
-        let mut b = g.new_dataset_builder();
-        if rows * cols >= COMPRESS_MIN_VALUES {
-            let chunk_rows = (FRAME_CHUNK_VALUES / cols).clamp(1, rows);
-            b = compress(b.chunk((chunk_rows, cols)));
-        }
-        b.with_data(view).create(name).ctx(path, ctx)?;
+        b.with_data(view).create(name).ctx(path, ctx)
     }
-    Ok(())
 }
 
 /// Shuffle + deflate level 1: cheap, and shuffle (which must precede deflate)
@@ -266,7 +263,7 @@ pub(super) fn write_vec3(
     name: &str,
     v: &[[f64; 3]],
 ) -> Result<(), OutputError> {
-    write_matrix(path, g, name, v.len(), 3, v.as_flattened())
+    write_matrix(path, g, name, v.len(), 3, v.as_flattened()).map(drop)
 }
 
 pub(super) fn write_tets(

@@ -1,5 +1,5 @@
-//! Resuming a run: [`OutputWriter::resume`] reopens the file after its last complete frame,
-//! discards what came after it, and reads that frame back as a [`ResumeFrame`] (which the
+//! Resuming a run: [`OutputWriter::resume`] reopens the file after its last complete restart
+//! point (a frame on the output grid), discards what came after it, and reads that frame back as a [`ResumeFrame`] (which the
 //! frame reader also uses for every frame it reads).
 
 use std::path::Path;
@@ -67,8 +67,10 @@ pub struct StoredField {
 impl OutputWriter {
     /// Opens an existing icefem file to continue it.
     ///
-    /// Finds the last frame whose `complete` attribute is 1, deletes every
-    /// frame group after it, truncates each `/stats` column to the rows before
+    /// Finds the last frame whose `complete` attribute is 1 and whose `restart_point`
+    /// attribute is 1 (a frame on the output grid, after which the run forgot its solver
+    /// memory; the final frame of a run that stopped between grid frames is not one, and is
+    /// computed again), deletes every frame group after it, truncates each `/stats` column to the rows before
     /// the first row whose step exceeds that frame's step (and to the shortest
     /// column, in case a kill interrupted a stats append), and returns a
     /// writer whose next frame follows it, plus the frame's data.
@@ -88,7 +90,19 @@ impl OutputWriter {
             .group("frames")
             .ctx(path, || "opening /frames".into())?;
         let list = list_frames(path, &frames)?;
-        let Some(last) = list.iter().rev().find(|f| f.complete) else {
+        // The last restart point (a frame on the output grid); in a file without the marker,
+        // the last complete frame.
+        let restart_point = |name: &str| {
+            frames
+                .group(name)
+                .ok()
+                .and_then(|g| g.attr("restart_point").ok())
+                .and_then(|a| a.read_scalar::<f64>().ok())
+        };
+        let complete = || list.iter().rev().filter(|f| f.complete);
+        let marked = complete().any(|f| restart_point(&f.name).is_some());
+        let mut resumable = complete().filter(|f| !marked || restart_point(&f.name) == Some(1.0));
+        let Some(last) = resumable.next() else {
             return Err(OutputError::NoCompleteFrame {
                 path: path.to_path_buf(),
             });

@@ -471,10 +471,7 @@ impl OutputWriter {
         for (fields, center) in [(frame.element_fields, "Cell"), (frame.node_fields, "Node")] {
             for f in fields {
                 let rows = f.data.len() / f.cols;
-                write_matrix(&path, &g, f.name, rows, f.cols, f.data)?;
-                let ds = g
-                    .dataset(f.name)
-                    .ctx(&path, || format!("reopening field {}", f.name))?;
+                let ds = write_matrix(&path, &g, f.name, rows, f.cols, f.data)?;
                 write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
             }
         }

@@ -496,6 +496,15 @@ impl Simulation {
         self.step()
     }
 
+    /// Forgets what the solves carry from step to step outside the state: the next solve
+    /// starts from a fresh Hessian rather than the factor kept from the solves before (see
+    /// [`NewtonWorkspace::forget_factor`]). It changes the iterates, not the tolerance the
+    /// solutions meet. A run does this at every frame on its output grid, so that a run
+    /// resumed from such a frame repeats the uninterrupted run's iterations bit for bit.
+    pub fn forget_solver_memory(&mut self) {
+        self.workspace.forget_factor();
+    }
+
     /// The assembled pattern (for statistics).
     pub fn assembly(&self) -> &Assembly {
         &self.assembly

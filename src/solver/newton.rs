@@ -1,12 +1,14 @@
 //! Newton's method with a backtracking line search on a scalar potential (the incremental
 //! potential of a backward-Euler step, or the total potential energy of a static step).
 //!
-//! The first iteration of every solve assembles and factorises the Hessian. Later iterations
-//! keep that factorisation (a chord step: any positive-definite matrix gives a descent
-//! direction, and the line search and the residual test see the true potential) as long as
-//! each iteration reduces the residual at least [`CHORD_CONTRACTION`]-fold; otherwise they
-//! reassemble and refactorise. Ice is stiff and nearly linear at the strains it survives, so the
-//! second solve of a step almost always reuses the first factorisation. With a solver that
+//! The first iteration of a solve assembles and factorises the Hessian, unless a direct solver
+//! holds the factor of an earlier solve's Hessian (see [`NewtonWorkspace::forget_factor`]):
+//! then it starts with that. Iterations keep the factorisation they have (a chord step: any
+//! positive-definite matrix gives a descent direction, and the line search and the residual
+//! test see the true potential) as long as each iteration reduces the residual at least
+//! [`CHORD_CONTRACTION`]-fold; otherwise they reassemble and refactorise. Ice is stiff and
+//! nearly linear at the strains it survives, so a factor serves several solves (modified
+//! Newton with the Jacobian kept across steps, as in stiff ODE codes). With a solver that
 //! multiplies by the matrix (CG, possibly preconditioned by a kept factor) a chord iteration
 //! also brings the cheap, far-from-quadratic part of the matrix to the iterate
 //! ([`Potential::refresh_hessian`]), which costs little against a whole assembly.
@@ -156,6 +158,10 @@ pub struct NewtonWorkspace {
     landing: Vec<f64>,
     /// Gradient at the line search's full step (all dofs): the next iterate's, if accepted.
     trial_gradient: Vec<f64>,
+    /// The linear solver holds the factorisation of a Hessian of these buffers' problem (the
+    /// last one assembled into `hessian`, or its projection), which the next solve may start
+    /// with.
+    factor_kept: bool,
 }
 
 impl NewtonWorkspace {
@@ -171,7 +177,17 @@ impl NewtonWorkspace {
             trial: vec![0.0; n],
             landing: vec![0.0; nf],
             trial_gradient: vec![0.0; n],
+            factor_kept: false,
         }
+    }
+
+    /// Makes the next solve assemble and factorise the Hessian at its first iteration
+    /// instead of starting with the factor kept from the solves before. The factor a solve
+    /// starts with changes its iterates (not its tolerance): a caller that must repeat a
+    /// computation bit for bit from a saved state (a resumed run, from a frame) forgets the
+    /// factor wherever such a state is saved.
+    pub fn forget_factor(&mut self) {
+        self.factor_kept = false;
     }
     /// Gradient over all dofs at the last evaluated iterate (N).
     pub fn gradient(&self) -> &[f64] {
@@ -191,6 +207,7 @@ fn factorize_or_project(
     report: &mut NewtonReport,
     energy: &mut f64,
 ) -> Result<(), NewtonError> {
+    work.factor_kept = false;
     let t = match linear.factorize(assembly, &work.hessian) {
         Err(e) if e.is_indefinite() && potential.project_hessian() => {
             let start = Instant::now();
@@ -200,6 +217,7 @@ fn factorize_or_project(
         }
         other => other?,
     };
+    work.factor_kept = linear.is_direct();
     if let Some(t) = t {
         report.t_factorization += t;
         report.factorizations += 1;
@@ -223,10 +241,12 @@ fn solve_or_project(
             let start = Instant::now();
             potential.evaluate(u, &mut work.gradient, &mut work.hessian);
             report.t_assembly += start.elapsed().as_secs_f64();
+            work.factor_kept = false;
             if let Some(t) = linear.factorize(assembly, &work.hessian)? {
                 report.t_factorization += t;
                 report.factorizations += 1;
             }
+            work.factor_kept = linear.is_direct();
             Ok(linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction)?)
         }
         other => Ok(other?),
@@ -236,7 +256,8 @@ fn solve_or_project(
 /// Minimises `potential` over the free dofs of `u` (constrained dofs keep their values).
 /// `force_floor` (N) is a force scale of the problem (external and inertial forces per node);
 /// the residual is judged against it (or the support reactions when it is zero), and never
-/// below the round-off floor of [`roundoff_floor`].
+/// below the round-off floor of [`roundoff_floor`]. Starts with the factor a direct solver
+/// kept from the solves before, if any (see [`NewtonWorkspace::forget_factor`]).
 pub fn minimize(
     potential: &mut impl Potential,
     u: &mut [f64],
@@ -246,11 +267,30 @@ pub fn minimize(
     force_floor: f64,
     work: &mut NewtonWorkspace,
 ) -> Result<NewtonReport, NewtonError> {
+    let result = iterate(potential, u, assembly, linear, (params, force_floor), work);
+    if result.is_err() {
+        // A failed solve may have left a factor of a state far from any solution.
+        work.factor_kept = false;
+    }
+    result
+}
+
+/// Newton's iterations of [`minimize`].
+fn iterate(
+    potential: &mut impl Potential,
+    u: &mut [f64],
+    assembly: &Assembly,
+    linear: &mut LinearSolver,
+    (params, force_floor): (&NewtonParams, f64),
+    work: &mut NewtonWorkspace,
+) -> Result<NewtonReport, NewtonError> {
     let dofs = assembly.dofs();
     let mut report = NewtonReport::default();
     let free_max = |g: &[f64]| free_max(assembly, g);
     linear.start_newton_solve();
-    let mut refresh = true;
+    // A kept factor serves as the first iteration's matrix; the chord test below replaces it
+    // once it stops contracting.
+    let mut refresh = !(work.factor_kept && linear.is_direct());
     let mut previous_residual = f64::INFINITY;
     let mut floor = 0.0;
     // Potential at `u` when `work.gradient` already holds its gradient (from the line search).
@@ -275,7 +315,8 @@ pub fn minimize(
         report.residual = residual;
         report.energy = energy;
         report.roundoff_floor = floor;
-        if refresh {
+        if refresh || iteration == 0 {
+            // A kept factor's Hessian is still in the buffer.
             floor = roundoff_floor(assembly, &work.hessian, u);
         }
         let target = (params.tolerance * report.force_scale).max(floor);
@@ -482,6 +523,8 @@ pub fn minimize_quadratic(
 ) -> Result<NewtonReport, NewtonError> {
     let mut report = NewtonReport::default();
     linear.start_newton_solve();
+    // The solver is about to hold the fixed Hessian's factor, not the buffer's.
+    work.factor_kept = false;
     let start = Instant::now();
     let energy = potential.gradient(u, &mut work.gradient);
     report.t_assembly = start.elapsed().as_secs_f64();

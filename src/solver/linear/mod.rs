@@ -194,6 +194,12 @@ impl LinearSolver {
         }
     }
 
+    /// Whether this is a plain direct solver: a solve uses the factor only, so a factor kept
+    /// from an earlier matrix solves with that matrix (a chord step).
+    pub fn is_direct(&self) -> bool {
+        matches!(self, LinearSolver::Cholesky(_))
+    }
+
     /// Whether [`LinearSolver::solve`] works with the matrix values themselves (CG and the
     /// multigrid, and CG preconditioned by a kept factor) rather than with a factor only (a
     /// plain direct solve): only then does a change of the values in place reach the solves.
