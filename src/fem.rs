@@ -708,9 +708,10 @@ pub struct VolumeChange {
     pub theta: f64,
     /// ∂θ/∂F (3 × 3).
     pub gradient: Matrix3<f64>,
-    /// ∂²θ/∂Fe² (9 × 9) of the elastic deformation Fe = F A, if asked for; `None` also for
-    /// the linear model, whose θ is linear.
-    pub hessian: Option<Tangent>,
+    /// The elastic deformation Fe = F A if the second derivative ∂²θ/∂Fe² = ∂² det Fe/∂Fe²
+    /// was asked for (formed where it is used, from Fe: a 9 × 9 matrix per element would be
+    /// 650 bytes to move); `None` also for the linear model, whose θ is linear.
+    pub deformation: Option<Matrix3<f64>>,
     /// The offset factor A of Fe = F A (identity without an offset or in the linear model).
     pub offset_factor: Matrix3<f64>,
 }
@@ -734,9 +735,11 @@ impl VolumeChange {
         for (o, g) in out.gradient.iter_mut().zip(self.nodal_gradient(rest)) {
             *o += v * p * g;
         }
-        if let (true, Some(t)) = (hessian, &self.hessian) {
+        if let (true, Some(fe)) = (hessian, &self.deformation) {
+            let mut t = Tangent::zeros();
+            add_det_hessian(fe, 1.0, &mut t);
             let grads = offset_grads(&self.offset_factor, rest);
-            add_stiffness(&grads, v * p, t, &mut out.hessian);
+            add_stiffness(&grads, v * p, &t, &mut out.hessian);
         }
     }
 }
@@ -756,21 +759,16 @@ pub fn volume_change(
         ElasticModel::Linear => VolumeChange {
             theta: H.trace() - offset.strain.trace(),
             gradient: Matrix3::identity(),
-            hessian: None,
+            deformation: None,
             offset_factor: Matrix3::identity(),
         },
         ElasticModel::Corotated => {
             let (A, He) = offset_elastic_gradient(offset, &H);
             let Fe = Matrix3::identity() + He;
-            let hessian = with_hessian.then(|| {
-                let mut t = Tangent::zeros();
-                add_det_hessian(&Fe, 1.0, &mut t);
-                t
-            });
             VolumeChange {
                 theta: det_minus_one(&He),
                 gradient: cofactor(&Fe) * A.transpose(),
-                hessian,
+                deformation: with_hessian.then_some(Fe),
                 offset_factor: A,
             }
         }

@@ -148,7 +148,7 @@ pub fn run(
         sim.attach_heat(link);
     }
     let mut writer = if options.resume {
-        let (mut writer, frame) = OutputWriter::resume(&output)?;
+        let (mut writer, frame) = OutputWriter::resume_until(&output, end_time)?;
         restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?;
         writer.store_tensor_matrices(scene.tensor_matrices);
         writer

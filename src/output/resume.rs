@@ -78,6 +78,13 @@ impl OutputWriter {
     /// Deleted groups' space is not reclaimed (an HDF5 limitation; `h5repack`
     /// compacts the file).
     pub fn resume(path: &Path) -> Result<(Self, ResumeFrame), OutputError> {
+        Self::resume_until(path, f64::INFINITY)
+    }
+
+    /// [`OutputWriter::resume`] for a run to `end_time` (s): a last complete frame at or past
+    /// it is resumed from even if it is not a restart point (nothing is computed after it;
+    /// the caller reports one past the end time), so the file keeps it.
+    pub fn resume_until(path: &Path, end_time: f64) -> Result<(Self, ResumeFrame), OutputError> {
         check_hdf5_signature(path)?;
         let lock = RunLock::acquire(path)?;
         let file = crash_safe_options()
@@ -101,7 +108,17 @@ impl OutputWriter {
         };
         let complete = || list.iter().rev().filter(|f| f.complete);
         let marked = complete().any(|f| restart_point(&f.name).is_some());
-        let mut resumable = complete().filter(|f| !marked || restart_point(&f.name) == Some(1.0));
+        let at_end = complete().next().filter(|f| {
+            let time = frames
+                .group(&f.name)
+                .ok()
+                .and_then(|g| g.attr("time").ok())
+                .and_then(|a| a.read_scalar::<f64>().ok());
+            time.is_some_and(|t| t >= end_time * (1.0 - 1e-9))
+        });
+        let mut resumable = at_end.into_iter().chain(
+            complete().filter(|f| !marked || restart_point(&f.name) == Some(1.0)),
+        );
         let Some(last) = resumable.next() else {
             return Err(OutputError::NoCompleteFrame {
                 path: path.to_path_buf(),

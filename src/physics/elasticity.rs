@@ -305,21 +305,16 @@ impl Elasticity {
             .fold(0.0, f64::max)
     }
 
-    /// Elastic strain of element `e` in its own frame (see `fem::elastic_strain`).
+    /// Elastic strain of element `e` in its own frame with its strain `offset` (see
+    /// `fem::elastic_strain`).
     pub fn elastic_strain(
         &self,
         tets: &[[usize; 4]],
-        history: &ElementHistory,
         u: &[f64],
         e: usize,
+        offset: &StrainOffset,
     ) -> Matrix3<f64> {
-        elastic_strain(
-            self.model,
-            &self.rest[e],
-            &Self::local(u, &tets[e]),
-            &history.offset_of(e),
-        )
-        .0
+        elastic_strain(self.model, &self.rest[e], &Self::local(u, &tets[e]), offset).0
     }
 
     /// Cauchy stress (Pa, Voigt xx yy zz yz xz xy) of every element.

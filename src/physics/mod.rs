@@ -269,10 +269,16 @@ impl Model {
     }
 
     /// Return mapping of the plastic strains in `history` for converged displacements `u`
-    /// (m); returns the largest plastic strain norm (0 without plasticity).
-    pub fn update_plastic_strain(&self, history: &mut ElementHistory, u: &[f64]) -> f64 {
+    /// (m), with the strain `offsets` of `history` (those of the solve); returns the largest
+    /// plastic strain norm (0 without plasticity).
+    pub fn update_plastic_strain(
+        &self,
+        history: &mut ElementHistory,
+        offsets: &[crate::fem::StrainOffset],
+        u: &[f64],
+    ) -> f64 {
         match &self.elasticity.plasticity {
-            Some(p) => p.update(&self.elasticity, history, &self.mesh.tets, u),
+            Some(p) => p.update(&self.elasticity, (history, offsets), &self.mesh.tets, u),
             None => 0.0,
         }
     }

@@ -26,7 +26,7 @@
 
 use super::elasticity::Elasticity;
 use super::history::ElementHistory;
-use crate::fem::YIELD_SMOOTHING;
+use crate::fem::{StrainOffset, YIELD_SMOOTHING};
 use nalgebra::Matrix3;
 
 /// Plasticity parameters.
@@ -64,12 +64,13 @@ impl Plasticity {
     }
 
     /// Updates the plastic strain in `history` of every element that yields (see
-    /// `Elasticity::law_of`) for the converged displacements `u` (m); returns the largest
+    /// `Elasticity::law_of`) for the converged displacements `u` (m), with the strain
+    /// `offsets` of `history`; returns the largest
     /// ‖ε_p‖ afterwards.
     pub fn update(
         &self,
         elasticity: &Elasticity,
-        history: &mut ElementHistory,
+        (history, offsets): (&mut ElementHistory, &[StrainOffset]),
         tets: &[[usize; 4]],
         u: &[f64],
     ) -> f64 {
@@ -80,7 +81,7 @@ impl Plasticity {
         let h = &*history;
         let updated: Vec<Matrix3<f64>> = crate::parallel::map_range(n, |e| {
             if elasticity.law_of(h, e).yield_limit.is_some() {
-                let elastic = elasticity.elastic_strain(tets, h, u, e);
+                let elastic = elasticity.elastic_strain(tets, u, e, &offsets[e]);
                 self.return_map(&elastic, &h.plastic_strain[e])
             } else {
                 h.plastic_strain[e]
