@@ -72,6 +72,24 @@ impl ElementHistory {
         crate::parallel::map_range(n, |e| self.offset_of(e))
     }
 
+    /// [`ElementHistory::offsets`], taking each element's offset from `earlier` (offsets of
+    /// an earlier history of the same elements) where its strain is unchanged bit for bit:
+    /// the corotated factor costs an exponential series per element, and from step to step
+    /// only the freezing band and the yielding elements change.
+    pub fn offsets_reusing(&self, earlier: &[StrainOffset]) -> Vec<StrainOffset> {
+        if earlier.len() != self.eigenstrain.len() {
+            return self.offsets();
+        }
+        crate::parallel::map_range(earlier.len(), |e| {
+            let strain = self.offset_strain(e);
+            if earlier[e].strain == strain {
+                earlier[e]
+            } else {
+                StrainOffset::new(strain)
+            }
+        })
+    }
+
     /// Whether element `e` holds any ice: its freeze state is above 0 (always, without a
     /// freezing schedule).
     pub fn holds_ice(&self, e: usize) -> bool {

@@ -282,6 +282,8 @@ pub struct Simulation {
     /// the next solve of the same length starts that much beyond its own predictor (see
     /// `try_step`).
     last_correction: Option<(f64, Vec<f64>)>,
+    /// The strain offsets of the last solve, from which the next takes those unchanged.
+    last_offsets: Vec<StrainOffset>,
     /// The heat model that drives the freezing (with `[thermal]`).
     heat: Option<HeatLink>,
     /// The step's Hessian for an inertia step length (s), kept while it cannot change (see
@@ -366,6 +368,7 @@ impl Simulation {
             start: None,
             initial_guess: None,
             last_correction: None,
+            last_offsets: Vec::new(),
             heat: None,
             fixed_hessian: None,
             fixed_factored: false,
@@ -652,7 +655,8 @@ impl Simulation {
         self.model.apply_schedule(t_new, &mut self.state.history);
         self.previous.copy_from_slice(&self.state.u);
         // Fixed for the solve: computed once for the elastic term and the energy balance.
-        let offsets = self.state.history.offsets();
+        let offsets = self.state.history.offsets_reusing(&self.last_offsets);
+        self.last_offsets.clone_from(&offsets);
         let mut u = self.state.u.clone();
         let formula = StepFormula::of(self.settings.scheme, &self.state, h);
         if dynamic {
