@@ -278,10 +278,6 @@ pub struct Simulation {
     /// Where Newton starts the next full step instead of the predictor (a retaken step's
     /// previous solution), used once.
     initial_guess: Option<Vec<f64>>,
-    /// The last solve's length (s) and the correction it made to its start (m, all dofs):
-    /// the next solve of the same length starts that much beyond its own predictor (see
-    /// `try_step`).
-    last_correction: Option<(f64, Vec<f64>)>,
     /// The strain offsets of the last solve, from which the next takes those unchanged.
     last_offsets: Vec<StrainOffset>,
     /// The heat model that drives the freezing (with `[thermal]`).
@@ -367,7 +363,6 @@ impl Simulation {
             couplings: Vec::new(),
             start: None,
             initial_guess: None,
-            last_correction: None,
             last_offsets: Vec::new(),
             heat: None,
             fixed_hessian: None,
@@ -476,7 +471,6 @@ impl Simulation {
     /// Puts the state back where the last step started (a failed step, or one the adaptive
     /// control rejected).
     fn undo_step(&mut self) {
-        self.last_correction = None;
         if let Some(s) = &self.start {
             self.state.clone_from(s);
             self.model
@@ -507,13 +501,11 @@ impl Simulation {
 
     /// Forgets what the solves carry from step to step outside the state: the next solve
     /// starts from a fresh Hessian rather than the factor kept from the solves before (see
-    /// [`NewtonWorkspace::forget_factor`]), and from its predictor rather than one
-    /// extrapolated from the step before. It changes the iterates, not the tolerance the
+    /// [`NewtonWorkspace::forget_factor`]). It changes the iterates, not the tolerance the
     /// solutions meet. A run does this at every frame on its output grid, so that a run
     /// resumed from such a frame repeats the uninterrupted run's iterations bit for bit.
     pub fn forget_solver_memory(&mut self) {
         self.workspace.forget_factor();
-        self.last_correction = None;
     }
 
     /// The assembled pattern (for statistics).
@@ -662,20 +654,6 @@ impl Simulation {
         if dynamic {
             formula.predict(&self.state, h, &mut self.predictor);
             u.copy_from_slice(&self.predictor);
-        }
-        // Newton's start (only that: the potential keeps its predictor) is extrapolated from
-        // the step before, as in Abaqus/Standard's default: the predictor (dynamic) or the
-        // last solution (static) plus the correction the step before made to its own. For
-        // motion that is smooth in time — freezing — that correction changes by O(h) per
-        // step, and the start lands an order of h closer (paper scene: the first residual
-        // 3–10× smaller).
-        let base = u.clone();
-        if let Some((last_h, correction)) = &self.last_correction {
-            if *last_h == h && correction.len() == u.len() {
-                for (u, c) in u.iter_mut().zip(correction) {
-                    *u += c;
-                }
-            }
         }
         // A retaken step starts from its earlier solution (only for the full step: a halved
         // one starts from the predictor).
@@ -875,11 +853,6 @@ impl Simulation {
         }
         self.model
             .update_plastic_strain(&mut self.state.history, &offsets, &u);
-        let mut correction = base;
-        for (c, u) in correction.iter_mut().zip(&u) {
-            *c = u - *c;
-        }
-        self.last_correction = Some((h, correction));
         self.state.u = u;
         self.state.time = t_new;
         Ok(StepReport {
