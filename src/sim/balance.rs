@@ -104,40 +104,17 @@ impl Balance {
 pub struct EnergyRise(pub Box<Balance>);
 
 impl Simulation {
-    /// Energies at displacement and velocity `(u, v)` and time `t` with the solve's strain
-    /// `offsets`.
-    fn energies_at(
-        &mut self,
-        offsets: &[StrainOffset],
-        (u, v): (&[f64], &[f64]),
-        t: f64,
-    ) -> Energies {
-        energies_of(
-            &self.model,
-            &self.assembly,
-            (&self.state.history, offsets),
-            &mut self.element_energy,
-            (u, v),
-            t,
-        )
-    }
-
-    /// Checks that the solution `u` at `t_new`, with energies `after`, holds no more energy
-    /// than the solve's start (the state, measured with the solve's loads, freeze state and
-    /// obstacles) and the work done on the ice during the solve (see this module); `tolerance`
-    /// is the residual force Newton accepts (N). Returns `after`.
+    /// Checks that the solution `u`, with energies `after`, holds no more energy
+    /// than the solve's start — its energies `before`, measured at the state with the solve's
+    /// loads, freeze state and obstacles — and the work done on the ice during the solve (see
+    /// this module); `tolerance` is the residual force Newton accepts (N). Returns `after`.
     pub(super) fn check_balance(
         &mut self,
-        offsets: &[StrainOffset],
+        before: Energies,
         after: Energies,
-        (u, t_new): (&[f64], f64),
+        u: &[f64],
         tolerance: f64,
     ) -> Result<Energies, EnergyRise> {
-        let start_v = std::mem::take(&mut self.state.v);
-        let previous = std::mem::take(&mut self.previous);
-        let before = self.energies_at(offsets, (&previous, &start_v), t_new);
-        self.state.v = start_v;
-        self.previous = previous;
         let dofs = self.assembly.dofs();
         // The reactions are the gradient of the solve's potential on the constrained dofs.
         let reaction = self.workspace.gradient();

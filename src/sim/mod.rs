@@ -280,6 +280,8 @@ pub struct Simulation {
     initial_guess: Option<Vec<f64>>,
     /// The strain offsets of the last solve, from which the next takes those unchanged.
     last_offsets: Vec<StrainOffset>,
+    /// Element energies of the balance check's start energies (J, scratch, one per element).
+    balance_scratch: Vec<f64>,
     /// The heat model that drives the freezing (with `[thermal]`).
     heat: Option<HeatLink>,
     /// The step's Hessian for an inertia step length (s), kept while it cannot change (see
@@ -364,6 +366,7 @@ impl Simulation {
             start: None,
             initial_guess: None,
             last_offsets: Vec::new(),
+            balance_scratch: Vec::new(),
             heat: None,
             fixed_hessian: None,
             fixed_factored: false,
@@ -749,39 +752,65 @@ impl Simulation {
         // Lagged quantities (friction's normal force, mesh obstacles' planes) are those of the
         // start of the solve; after each solve they are re-lagged to its solution and the step
         // is re-solved (warm-started) until they settle to FRICTION_RELAG_TOLERANCE.
-        let mut newton: Option<NewtonReport> = None;
-        let mut newton_solves = 0;
-        for _ in 0..=MAX_FRICTION_UPDATES {
-            if newton.is_some() && potential.relag(&u) <= FRICTION_RELAG_TOLERANCE {
-                break;
+        // The energies of the solve's start, which the balance check needs, do not depend on
+        // the solution: computed on another thread while Newton runs (a pass over the
+        // elements less on the solve's path).
+        let mut before: Option<Energies> = None;
+        let mut balance_scratch = std::mem::take(&mut self.balance_scratch);
+        balance_scratch.resize(self.model.mesh.num_tets(), 0.0);
+        let solved = rayon::in_place_scope(|scope| {
+            if !fixed {
+                let (model, assembly) = (&self.model, &self.assembly);
+                let (history, previous, v) = (&self.state.history, &self.previous, &self.state.v);
+                let (offsets, scratch, before) = (&offsets, &mut balance_scratch, &mut before);
+                scope.spawn(move |_| {
+                    *before = Some(energies_of(
+                        model,
+                        assembly,
+                        (history, offsets),
+                        scratch,
+                        (previous, v),
+                        t_new,
+                    ));
+                });
             }
-            let report = match &self.fixed_hessian {
-                Some((_, hessian)) if fixed => minimize_quadratic(
-                    &mut potential,
-                    (hessian, &mut self.fixed_factored),
-                    &mut u,
-                    &self.assembly,
-                    &mut self.linear,
-                    (&self.settings.newton, force_floor),
-                    &mut self.workspace,
-                )?,
-                _ => {
-                    // Newton factorises other matrices.
-                    self.fixed_factored = false;
-                    minimize(
+            let mut newton: Option<NewtonReport> = None;
+            let mut newton_solves = 0;
+            for _ in 0..=MAX_FRICTION_UPDATES {
+                if newton.is_some() && potential.relag(&u) <= FRICTION_RELAG_TOLERANCE {
+                    break;
+                }
+                let report = match &self.fixed_hessian {
+                    Some((_, hessian)) if fixed => minimize_quadratic(
                         &mut potential,
+                        (hessian, &mut self.fixed_factored),
                         &mut u,
                         &self.assembly,
                         &mut self.linear,
-                        &self.settings.newton,
-                        force_floor,
+                        (&self.settings.newton, force_floor),
                         &mut self.workspace,
-                    )?
-                }
-            };
-            newton = Some(newton.map_or(report, |n| n.then(&report)));
-            newton_solves += 1;
-        }
+                    )?,
+                    _ => {
+                        // Newton factorises other matrices.
+                        self.fixed_factored = false;
+                        minimize(
+                            &mut potential,
+                            &mut u,
+                            &self.assembly,
+                            &mut self.linear,
+                            &self.settings.newton,
+                            force_floor,
+                            &mut self.workspace,
+                        )?
+                    }
+                };
+                newton = Some(newton.map_or(report, |n| n.then(&report)));
+                newton_solves += 1;
+            }
+            Ok::<_, SolveFailure>((newton, newton_solves))
+        });
+        self.balance_scratch = balance_scratch;
+        let (newton, newton_solves) = solved?;
         let mut newton = newton.unwrap_or_default();
         newton.t_assembly += t_fixed_assembly;
         // A quadratic solve knows the potential at its solution: the elastic energy is that
@@ -825,7 +854,9 @@ impl Simulation {
             energies_with(&self.model, elastic, (&u, &velocity), t_new)
         } else {
             let after = energies_with(&self.model, elastic_at_solution, (&u, &velocity), t_new);
-            self.check_balance(&offsets, after, (&u, t_new), slack)?
+            // Computed beside Newton (above) whenever the Hessian is not fixed.
+            let before = before.unwrap_or_default();
+            self.check_balance(before, after, &u, slack)?
         };
         let free = self.assembly.dofs().free_dofs();
         let local_error = if dynamic {
