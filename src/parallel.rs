@@ -51,3 +51,20 @@ where
             .for_each_init(init, f);
     }
 }
+
+/// Runs `f(index, item)` on every item of `items` in place, in parallel when there are enough.
+pub fn for_each_mut<T, F>(items: &mut [T], f: F)
+where
+    T: Send,
+    F: Fn(usize, &mut T) + Sync + Send,
+{
+    if items.len() < MIN_PARALLEL_ITEMS {
+        items.iter_mut().enumerate().for_each(|(i, item)| f(i, item));
+    } else {
+        items
+            .par_iter_mut()
+            .with_min_len(MIN_TASK_ITEMS)
+            .enumerate()
+            .for_each(|(i, item)| f(i, item));
+    }
+}

@@ -72,22 +72,27 @@ impl ElementHistory {
         crate::parallel::map_range(n, |e| self.offset_of(e))
     }
 
-    /// [`ElementHistory::offsets`], taking each element's offset from `earlier` (offsets of
-    /// an earlier history of the same elements) where its strain is unchanged bit for bit:
-    /// the corotated factor costs an exponential series per element, and from step to step
-    /// only the freezing band and the yielding elements change.
-    pub fn offsets_reusing(&self, earlier: &[StrainOffset]) -> Vec<StrainOffset> {
-        if earlier.len() != self.eigenstrain.len() {
-            return self.offsets();
+    /// Brings `offsets` (those of an earlier history of the same elements, or empty) to
+    /// [`ElementHistory::offsets`] in place, forming only the offsets whose strain changed
+    /// bit for bit: the corotated factor costs an exponential series per element, and from
+    /// step to step only the freezing band and the yielding elements change.
+    pub fn update_offsets(&self, offsets: &mut Vec<StrainOffset>) {
+        if offsets.len() != self.eigenstrain.len() {
+            *offsets = self.offsets();
+            return;
         }
-        crate::parallel::map_range(earlier.len(), |e| {
-            let strain = self.offset_strain(e);
-            if earlier[e].strain == strain {
-                earlier[e]
-            } else {
-                StrainOffset::new(strain)
+        if self.plastic_strain.is_empty() && self.eigenstrain.iter().all(|e| *e == 0.0) {
+            if offsets.iter().any(|o| !o.is_zero()) {
+                offsets.fill(StrainOffset::zero());
             }
-        })
+            return;
+        }
+        crate::parallel::for_each_mut(offsets, |e, offset| {
+            let strain = self.offset_strain(e);
+            if offset.strain != strain {
+                *offset = StrainOffset::new(strain);
+            }
+        });
     }
 
     /// Whether element `e` holds any ice: its freeze state is above 0 (always, without a

@@ -278,8 +278,9 @@ pub struct Simulation {
     /// Where Newton starts the next full step instead of the predictor (a retaken step's
     /// previous solution), used once.
     initial_guess: Option<Vec<f64>>,
-    /// The strain offsets of the last solve, from which the next takes those unchanged.
-    last_offsets: Vec<StrainOffset>,
+    /// The strain offsets of the last solve (lent to the solve while it runs; empty if it
+    /// failed), from which the next forms only those that changed.
+    offsets: Vec<StrainOffset>,
     /// Element energies of the balance check's start energies (J, scratch, one per element).
     balance_scratch: Vec<f64>,
     /// The heat model that drives the freezing (with `[thermal]`).
@@ -365,7 +366,7 @@ impl Simulation {
             couplings: Vec::new(),
             start: None,
             initial_guess: None,
-            last_offsets: Vec::new(),
+            offsets: Vec::new(),
             balance_scratch: Vec::new(),
             heat: None,
             fixed_hessian: None,
@@ -650,8 +651,8 @@ impl Simulation {
         self.model.apply_schedule(t_new, &mut self.state.history);
         self.previous.copy_from_slice(&self.state.u);
         // Fixed for the solve: computed once for the elastic term and the energy balance.
-        let offsets = self.state.history.offsets_reusing(&self.last_offsets);
-        self.last_offsets.clone_from(&offsets);
+        let mut offsets = std::mem::take(&mut self.offsets);
+        self.state.history.update_offsets(&mut offsets);
         let mut u = self.state.u.clone();
         let formula = StepFormula::of(self.settings.scheme, &self.state, h);
         if dynamic {
@@ -884,6 +885,7 @@ impl Simulation {
         }
         self.model
             .update_plastic_strain(&mut self.state.history, &offsets, &u);
+        self.offsets = offsets;
         self.state.u = u;
         self.state.time = t_new;
         Ok(StepReport {
