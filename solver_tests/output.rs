@@ -87,8 +87,16 @@ fn freezing_run_with_plasticity_resumes_bit_identically() {
     for name in file.group("frames").unwrap().member_names().unwrap() {
         let g = file.group(&format!("frames/{name}")).unwrap();
         let step = g.attr("step").unwrap().read_scalar::<u64>().unwrap();
-        let restart = g.attr("restart_point").unwrap().read_scalar::<f64>().unwrap();
-        assert_eq!(restart == 1.0, step.is_multiple_of(3), "frame of step {step}");
+        let restart = g
+            .attr("restart_point")
+            .unwrap()
+            .read_scalar::<f64>()
+            .unwrap();
+        assert_eq!(
+            restart == 1.0,
+            step.is_multiple_of(3),
+            "frame of step {step}"
+        );
     }
     // ‖ε_p‖ per element and ε_p as 3 × 3 matrices, in the file and in the sidecar.
     let mut names = file.group("frames").unwrap().member_names().unwrap();

@@ -427,18 +427,22 @@ fn corotated(
     if let Some(t) = tangent {
         // Away from inversion (Newton's polar factor applied) the unprojected tangent needs
         // no singular vectors; projecting needs the twist eigenvalues one by one.
-        if project || newton_rotation.is_none() || !corotated_tangent(&R, &strain, &response, t)
-        {
+        if project || newton_rotation.is_none() || !corotated_tangent(&R, &strain, &response, t) {
             corotated_tangent_svd(&F, &response, project, t);
         }
     }
-        (response.psi, P)
+    (response.psi, P)
 }
 
 /// The corotated tangent dP/dF in the singular basis F = U diag(s) Vᵀ, written into `t`:
 /// stretch modes 2μδᵢⱼ + λ − flow_drop fᵢfⱼ (f the unit flow direction), shear modes 2μ and
 /// twist modes (ψᵢ + ψⱼ)/(sᵢ + sⱼ), made |·| with `project`.
-fn corotated_tangent_svd(F: &Matrix3<f64>, response: &SolidResponse, project: bool, t: &mut Tangent) {
+fn corotated_tangent_svd(
+    F: &Matrix3<f64>,
+    response: &SolidResponse,
+    project: bool,
+    t: &mut Tangent,
+) {
     let (mu, lambda) = (response.mu, response.lambda);
     let (U, s, V) = signed_svd(F);
     let tr = s.sum() - 3.0;
@@ -516,14 +520,19 @@ fn corotated_tangent(
             // Z = Rᵀ eₐ e_bᵀ: column b is row a of R.
             let mut Z = Matrix3::zeros();
             Z.set_column(b, &R.row(a).transpose());
-            let w = Vector3::new(Z[(2, 1)] - Z[(1, 2)], Z[(0, 2)] - Z[(2, 0)], Z[(1, 0)] - Z[(0, 1)])
-                * 0.5;
-            let Y = (Z + Z.transpose()) * mu
-                + Matrix3::identity() * (lambda * Z.trace())
+            let w = Vector3::new(
+                Z[(2, 1)] - Z[(1, 2)],
+                Z[(0, 2)] - Z[(2, 0)],
+                Z[(1, 0)] - Z[(0, 1)],
+            ) * 0.5;
+            let Y = (Z + Z.transpose()) * mu + Matrix3::identity() * (lambda * Z.trace())
                 - flow * (response.flow_drop * flow.dot(&Z))
                 + (twist * w).cross_matrix();
             let dP = R * Y;
-            t.set_column(a + 3 * b, &SMatrix::<f64, 9, 1>::from_column_slice(dP.as_slice()));
+            t.set_column(
+                a + 3 * b,
+                &SMatrix::<f64, 9, 1>::from_column_slice(dP.as_slice()),
+            );
         }
     }
     true
@@ -1128,7 +1137,12 @@ pub(crate) mod tests {
                 let strain = corotated_strain(&polar_rotation(&F), &(F - Matrix3::identity()));
                 let response = solid_response(&ICE, limit, &strain);
                 let (mut closed, mut svd) = (Tangent::zeros(), Tangent::zeros());
-                assert!(corotated_tangent(&polar_rotation(&F), &strain, &response, &mut closed));
+                assert!(corotated_tangent(
+                    &polar_rotation(&F),
+                    &strain,
+                    &response,
+                    &mut closed
+                ));
                 corotated_tangent_svd(&F, &response, false, &mut svd);
                 // The same tangent to round-off: ~1e-15 relative, except that the SVD's flow
                 // direction comes from sᵢ − 1, whose ~1e-16 absolute error is 1e-12 of a 1e-4

@@ -59,7 +59,10 @@ where
     F: Fn(usize, &mut T) + Sync + Send,
 {
     if items.len() < MIN_PARALLEL_ITEMS {
-        items.iter_mut().enumerate().for_each(|(i, item)| f(i, item));
+        items
+            .iter_mut()
+            .enumerate()
+            .for_each(|(i, item)| f(i, item));
     } else {
         items
             .par_iter_mut()

@@ -239,7 +239,9 @@ pub(super) fn write_matrix(
         });
     }
     if cols == 1 {
-        b.with_data(ArrayView1::from(data)).create(name).ctx(path, ctx)
+        b.with_data(ArrayView1::from(data))
+            .create(name)
+            .ctx(path, ctx)
     } else {
         let view = ArrayView2::from_shape((rows, cols), data)
             .map_err(|e| invalid(path, format!("{name}: {e}")))?;

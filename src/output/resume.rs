@@ -116,9 +116,9 @@ impl OutputWriter {
                 .and_then(|a| a.read_scalar::<f64>().ok());
             time.is_some_and(|t| t >= end_time * (1.0 - 1e-9))
         });
-        let mut resumable = at_end.into_iter().chain(
-            complete().filter(|f| !marked || restart_point(&f.name) == Some(1.0)),
-        );
+        let mut resumable = at_end
+            .into_iter()
+            .chain(complete().filter(|f| !marked || restart_point(&f.name) == Some(1.0)));
         let Some(last) = resumable.next() else {
             return Err(OutputError::NoCompleteFrame {
                 path: path.to_path_buf(),

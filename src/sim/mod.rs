@@ -26,7 +26,7 @@ use crate::solver::{
 use crate::thermal::HeatLink;
 pub use adaptive::Adaptive;
 use balance::{energies_of, energies_with, EnergyRise};
-use potential::StepPotential;
+use potential::{ElasticQuadratic, StepPotential};
 use scheme::StepFormula;
 pub use scheme::{Scheme, StepBack};
 use std::time::Instant;
@@ -171,6 +171,11 @@ pub struct StepReport {
     /// tolerance × `displacement_scale` + absolute tolerance); ≤ 1 unless the step was at
     /// the smallest step allowed. 0 without adaptive steps.
     pub error_ratio: f64,
+    /// Passes over the elements of the step's solves, summed over substeps: evaluations of
+    /// the elastic term (energy, gradient, and Hessian when assembled), one per Newton
+    /// iteration; none where the elastic energy is a fixed quadratic whose Hessian is kept
+    /// (see `ElasticQuadratic`). The energy balance check's passes are not counted.
+    pub element_passes: u32,
 }
 
 /// Re-solves of a step with the friction normal force updated from its end.
@@ -204,6 +209,7 @@ impl StepReport {
             order: self.order.min(next.order),
             rejected: self.rejected + next.rejected,
             error_ratio: self.error_ratio.max(next.error_ratio),
+            element_passes: self.element_passes + next.element_passes,
         }
     }
 }
@@ -290,6 +296,12 @@ pub struct Simulation {
     fixed_hessian: Option<(f64, Vec<f64>)>,
     /// Whether the linear solver holds the factorisation of `fixed_hessian`.
     fixed_factored: bool,
+    /// The elastic energy while it is a fixed quadratic, for the constrained values it was
+    /// built with (see [`ElasticQuadratic`]).
+    elastic_quadratic: Option<ElasticQuadratic>,
+    /// The supports hold every part of the mesh against rigid motion
+    /// (`physics::dirichlet::hold_every_part`).
+    parts_held: bool,
 }
 
 impl Simulation {
@@ -371,6 +383,8 @@ impl Simulation {
             heat: None,
             fixed_hessian: None,
             fixed_factored: false,
+            elastic_quadratic: None,
+            parts_held: crate::physics::dirichlet::hold_every_part(&model.mesh, &constrained),
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
             } else {
@@ -608,6 +622,7 @@ impl Simulation {
             )?;
             self.workspace = NewtonWorkspace::new(&self.assembly);
             self.fixed_factored = false;
+            self.elastic_quadratic = None;
             self.model.elasticity.pattern_ready(&self.assembly);
             if !self.damping_stiffness.is_empty() {
                 self.damping_stiffness = vec![0.0; self.assembly.nnz()];
@@ -739,15 +754,41 @@ impl Simulation {
         if self.fixed_hessian.is_none() {
             self.fixed_factored = false;
         }
-        let mut potential = StepPotential::new(terms);
+        // While the elastic energy is a fixed quadratic, its Hessian is kept and its gradient
+        // found by a sparse product instead of a pass over the elements: where the supports
+        // hold every part (a rigid motion of any size would enter the product's round-off,
+        // while a pass's strains cancel it), and not where the force scale comes from the
+        // reactions, which the product does not update.
+        let mut element_passes = 0;
         let mut t_fixed_assembly = 0.0;
+        if !fixed || force_floor <= 0.0 || !self.parts_held {
+            self.elastic_quadratic = None;
+        } else {
+            let start = Instant::now();
+            let elastic = terms[0].as_mut();
+            match &mut self.elastic_quadratic {
+                Some(q) if q.holds_at(&u, &self.assembly) => {}
+                Some(q) => {
+                    q.rereference(elastic, &u, &self.assembly);
+                    element_passes += 1;
+                }
+                None => {
+                    let q = ElasticQuadratic::new(elastic, &u, &self.assembly);
+                    self.elastic_quadratic = Some(q);
+                    element_passes += 1;
+                }
+            }
+            t_fixed_assembly += start.elapsed().as_secs_f64();
+        }
+        let mut potential = StepPotential::new(terms);
+        potential.elastic_quadratic = self.elastic_quadratic.as_ref().map(|q| (q, &self.assembly));
         if fixed && self.fixed_hessian.is_none() {
             let start = Instant::now();
             let mut gradient = vec![0.0; u.len()];
             let mut hessian = vec![0.0; self.assembly.nnz()];
             crate::solver::Potential::evaluate(&mut potential, &u, &mut gradient, &mut hessian);
             self.fixed_hessian = Some((inertia_step, hessian));
-            t_fixed_assembly = start.elapsed().as_secs_f64();
+            t_fixed_assembly += start.elapsed().as_secs_f64();
         }
         potential.fixed_hessian = self.fixed_hessian.as_ref().map(|(_, k)| &k[..]);
         // Lagged quantities (friction's normal force, mesh obstacles' planes) are those of the
@@ -842,6 +883,7 @@ impl Simulation {
         }
         let t_contact_narrow = potential.t_contact;
         let t_contact_broad = potential.broad_phase_time();
+        element_passes += potential.element_passes;
         drop(potential);
         let (velocity, acceleration) = if dynamic {
             formula.velocity(&self.state, (&u, &self.predictor), h)
@@ -898,12 +940,21 @@ impl Simulation {
             newton_solves,
             t_contact_narrow,
             t_contact_broad,
+            element_passes,
             ..Default::default()
         })
     }
 
     /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.
     fn stiffness_at_previous(&mut self, beta: f64) {
+        if let Some(quadratic) = &self.elastic_quadratic {
+            // A fixed quadratic's Hessian is Kₙ at every step: no pass over the elements.
+            let k = quadratic.hessian();
+            for (damping, k) in self.damping_stiffness.iter_mut().zip(k) {
+                *damping = beta * k;
+            }
+            return;
+        }
         let offsets = self.state.history.offsets();
         let mut elastic = ElasticStep::new(
             &self.model.elasticity,
