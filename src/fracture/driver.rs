@@ -32,9 +32,9 @@ use super::cracks::{
 };
 use super::split::Fracturable;
 use super::{separation, Averaging, NodeSeparation};
+use crate::mesh::parts_of;
 use crate::mesh::TetMesh;
 use crate::physics::history::ElementHistory;
-use crate::physics::ice_contact::parts_of;
 use crate::sim::{SimError, Simulation, State};
 use nalgebra::Vector3;
 use std::time::Instant;

@@ -6,9 +6,11 @@
 
 pub mod generate;
 pub mod gmsh;
+pub mod parts;
 pub mod surface;
 
 pub use generate::box_mesh;
+pub use parts::{parts, parts_of};
 
 use nalgebra::{Matrix3, Vector3};
 

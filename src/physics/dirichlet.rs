@@ -55,7 +55,7 @@ impl Dirichlet {
 /// `mesh` against rigid motion: no translation or infinitesimal rotation of a part keeps all
 /// its constrained dofs at zero. A part that is not held can move rigidly by any amount.
 pub fn hold_every_part(mesh: &TetMesh, constrained: &[bool]) -> bool {
-    let (part, count) = super::ice_contact::parts(mesh);
+    let (part, count) = crate::mesh::parts(mesh);
     let mut centroid = vec![Vector3::zeros(); count];
     let mut nodes = vec![0.0; count];
     for (p, &k) in mesh.rest.iter().zip(&part) {

@@ -166,44 +166,6 @@ fn copy_pairs(mesh: &TetMesh, cracks: &[[usize; 3]]) -> Vec<CopyPair> {
     pairs
 }
 
-/// Connected components of the mesh (nodes joined by tets): part index per node and count.
-pub fn parts(mesh: &TetMesh) -> (Vec<u32>, usize) {
-    parts_of(mesh.num_nodes(), &mesh.tets)
-}
-
-/// [`parts`] of `nodes` nodes joined by `tets`.
-pub fn parts_of(nodes: usize, tets: &[[usize; 4]]) -> (Vec<u32>, usize) {
-    let n = nodes;
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn find(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
-    for tet in tets {
-        for &v in &tet[1..] {
-            let (a, b) = (find(&mut parent, tet[0]), find(&mut parent, v));
-            if a != b {
-                parent[a.max(b)] = a.min(b);
-            }
-        }
-    }
-    let mut label = vec![u32::MAX; n];
-    let mut part = vec![0u32; n];
-    let mut count = 0;
-    for (i, p) in part.iter_mut().enumerate() {
-        let r = find(&mut parent, i);
-        if label[r] == u32::MAX {
-            label[r] = count;
-            count += 1;
-        }
-        *p = label[r];
-    }
-    (part, count as usize)
-}
-
 fn position(rest: &[Vector3<f64>], u: &[f64], i: usize) -> Vector3<f64> {
     rest[i] + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2])
 }
@@ -218,7 +180,7 @@ impl IceContact {
         smoothing_velocity: f64,
         cracks: &[[usize; 3]],
     ) -> Option<Self> {
-        let (part, parts) = parts(mesh);
+        let (part, parts) = crate::mesh::parts(mesh);
         if parts < 2 && cracks.is_empty() {
             return None;
         }

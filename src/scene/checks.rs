@@ -6,10 +6,10 @@ use nalgebra::Vector3;
 
 use super::{BoxSection, SceneError, Validator};
 use crate::fem::Material;
+use crate::mesh::parts;
 use crate::mesh::TetMesh;
 use crate::physics::contact::{default_stiffness, Shape};
 use crate::physics::grid::BoxGrid;
-use crate::physics::ice_contact::parts;
 use crate::physics::Obstacle;
 
 /// Allowed penalty stiffnesses, as factors of the default 10 E / h (h: the ice's mean boundary
