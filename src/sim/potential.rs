@@ -81,12 +81,15 @@ impl ElasticQuadratic {
         assembly: &Assembly,
         with_hessian: bool,
     ) {
-        self.reference = u.to_vec();
+        // In place: a moved support re-references every step.
+        self.reference.clear();
+        self.reference.extend_from_slice(u);
         for &d in assembly.dofs().free_dofs() {
             self.reference[d] = 0.0;
         }
         self.energy = 0.0;
-        self.gradient = vec![0.0; u.len()];
+        self.gradient.clear();
+        self.gradient.resize(u.len(), 0.0);
         elastic.add(
             &self.reference,
             &mut self.energy,
