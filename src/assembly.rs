@@ -264,13 +264,32 @@ impl Assembly {
     ) where
         K: Fn(usize, bool, &mut ElementEval) + Sync,
     {
+        self.assemble_in(None, kernel, energies, gradient, values);
+    }
+
+    /// As [`Assembly::assemble`], on the elements of `subset` only (all if `None`); the
+    /// energies of the other elements are left as they are.
+    pub fn assemble_in<K>(
+        &self,
+        subset: Option<&ElementSubset>,
+        kernel: K,
+        energies: &mut [f64],
+        gradient: &mut [f64],
+        values: Option<&mut [f64]>,
+    ) where
+        K: Fn(usize, bool, &mut ElementEval) + Sync,
+    {
+        let (color_ptr, color_elems) = match subset {
+            Some(s) => (&s.color_ptr[..], &s.color_elems[..]),
+            None => (&self.color_ptr[..], &self.color_elems[..]),
+        };
         let with_hessian = values.is_some();
         let vals = SharedMut(values.map_or(std::ptr::null_mut(), |v| v.as_mut_ptr()));
         let grad = SharedMut(gradient.as_mut_ptr());
         let energy = SharedMut(energies.as_mut_ptr());
-        for k in 0..self.num_colors() {
+        for k in 0..color_ptr.len() - 1 {
             for_each_with_scratch(
-                &self.color_elems[self.color_ptr[k]..self.color_ptr[k + 1]],
+                &color_elems[color_ptr[k]..color_ptr[k + 1]],
                 ElementEval::default,
                 |out, &e| {
                     let e = e as usize;
@@ -320,12 +339,49 @@ impl Assembly {
         }
     }
 
+    /// The elements marked in `keep` (one flag per element) as a subset the assembly can be
+    /// restricted to, with the colouring of this assembly.
+    pub fn subset(&self, keep: &[bool]) -> ElementSubset {
+        let mut color_ptr = vec![0];
+        let mut color_elems = Vec::new();
+        for k in 0..self.num_colors() {
+            let colour = &self.color_elems[self.color_ptr[k]..self.color_ptr[k + 1]];
+            color_elems.extend(colour.iter().filter(|&&e| keep[e as usize]));
+            color_ptr.push(color_elems.len());
+        }
+        let mut elements = color_elems.clone();
+        elements.sort_unstable();
+        ElementSubset {
+            color_ptr,
+            color_elems,
+            elements,
+        }
+    }
+
     /// Energy only: runs `kernel` on every element (in parallel when there are enough),
     /// writing `energies[e]`.
     pub fn energies<K>(&self, kernel: K, energies: &mut [f64])
     where
         K: Fn(usize, &mut ElementEval) + Sync,
     {
+        self.energies_in(None, kernel, energies);
+    }
+
+    /// As [`Assembly::energies`], on the elements of `subset` only (all if `None`); the
+    /// energies of the other elements are left as they are.
+    pub fn energies_in<K>(&self, subset: Option<&ElementSubset>, kernel: K, energies: &mut [f64])
+    where
+        K: Fn(usize, &mut ElementEval) + Sync,
+    {
+        if let Some(subset) = subset {
+            let energy = SharedMut(energies.as_mut_ptr());
+            for_each_with_scratch(&subset.elements, ElementEval::default, |out, &e| {
+                kernel(e as usize, out);
+                // SAFETY: the subset's elements are unique and index `energies`.
+                unsafe { energy.set(e as usize, out.energy) };
+            });
+            return;
+        }
         if energies.len() < MIN_PARALLEL_ITEMS {
             let mut out = ElementEval::default();
             for (e, energy) in energies.iter_mut().enumerate() {
@@ -342,6 +398,28 @@ impl Assembly {
                     *energy = out.energy;
                 });
         }
+    }
+}
+
+/// A subset of a mesh's elements (a process's share of a distributed run), coloured as the
+/// assembly it was made from.
+#[derive(Clone, Debug)]
+pub struct ElementSubset {
+    color_ptr: Vec<usize>,
+    color_elems: Vec<u32>,
+    /// The elements, ascending.
+    elements: Vec<u32>,
+}
+
+impl ElementSubset {
+    /// The elements, ascending.
+    pub fn elements(&self) -> &[u32] {
+        &self.elements
+    }
+
+    /// Σ of `per_element` over the subset's elements, in ascending order.
+    pub fn sum(&self, per_element: &[f64]) -> f64 {
+        self.elements.iter().map(|&e| per_element[e as usize]).sum()
     }
 }
 

@@ -93,14 +93,52 @@ pub fn step_count(end_time: f64, dt: f64) -> u64 {
     (end_time / dt + 1e-9).floor() as u64
 }
 
+/// The processes a run is shared among (see `distributed`): every process runs [`run_on`]
+/// with the same scene and options and takes the same steps; one writes the output.
+pub trait Processes {
+    /// Shares `sim` among the processes before its first step.
+    fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError>;
+    /// Whether this process writes the output file.
+    fn writes(&self) -> bool;
+    /// Whether `flag` is set on any process (every process must stop at the same step).
+    fn any(&self, flag: bool) -> bool;
+}
+
 /// Runs `scene` with `options`, calling `progress` after every step; stops early (cleanly, with
 /// the last state written) once `interrupt` is set.
 pub fn run(
     scene: &Scene,
     options: &RunOptions,
     interrupt: &AtomicBool,
+    progress: impl FnMut(&Progress),
+) -> Result<RunSummary, RunError> {
+    run_on(scene, options, None, interrupt, progress)
+}
+
+/// [`run`], shared among `processes` if given. A shared run refuses fracture (its remeshing
+/// is not distributed) and `--resume`.
+pub fn run_on(
+    scene: &Scene,
+    options: &RunOptions,
+    processes: Option<&dyn Processes>,
+    interrupt: &AtomicBool,
     mut progress: impl FnMut(&Progress),
 ) -> Result<RunSummary, RunError> {
+    if processes.is_some() {
+        let refused = if scene.fracture.is_some() {
+            Some("fracture ([fracture]: its remeshing is not distributed)")
+        } else if options.resume {
+            Some("--resume")
+        } else {
+            None
+        };
+        if let Some(what) = refused {
+            return Err(RunError::Setup {
+                path: scene.path.clone(),
+                error: SimError::NotDistributed(what),
+            });
+        }
+    }
     let mut settings = scene.settings;
     if let Some(dt) = options.dt {
         if !(dt.is_finite() && dt > 0.0) {
@@ -147,11 +185,22 @@ pub fn run(
         let link = HeatLink::new(heat, mesh);
         sim.attach_heat(link);
     }
-    let mut writer = if options.resume {
+    if let Some(processes) = processes {
+        processes
+            .distribute(&mut sim)
+            .map_err(|error| RunError::Setup {
+                path: scene.path.clone(),
+                error,
+            })?;
+    }
+    let writes = processes.is_none_or(|p| p.writes());
+    let mut writer = if !writes {
+        None
+    } else if options.resume {
         let (mut writer, frame) = OutputWriter::resume_until(&output, end_time)?;
         restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?;
         writer.store_tensor_matrices(scene.tensor_matrices);
-        writer
+        Some(writer)
     } else {
         let rest = rows(&sim.model.mesh.rest);
         let obstacles = obstacle_meshes(&sim);
@@ -171,7 +220,7 @@ pub fn run(
         };
         writer.store_tensor_matrices(scene.tensor_matrices);
         write_frame(&mut writer, &sim, fracture.as_ref(), (true, true))?;
-        writer
+        Some(writer)
     };
     // Steps from the state reached (a resumed file's last frame, possibly written with
     // another dt) to the last whole step not past the end time.
@@ -204,7 +253,8 @@ pub fn run(
         if !more {
             break;
         }
-        if interrupt.load(Ordering::SeqCst) {
+        let interrupted = interrupt.load(Ordering::SeqCst);
+        if processes.map_or(interrupted, |p| p.any(interrupted)) {
             summary.interrupted = true;
             break;
         }
@@ -244,14 +294,16 @@ pub fn run(
         summary.steps += 1;
         summary.newton_iterations += report.newton.iterations as u64;
         summary.max_residual = summary.max_residual.max(report.newton.residual);
-        writer.append_stats(&stats_row(&sim, &report, &cracked, fracture.as_ref()))?;
-        if frame_due || interrupt.load(Ordering::SeqCst) {
-            write_frame(
-                &mut writer,
-                &sim,
-                fracture.as_ref(),
-                (topology_changed, on_grid),
-            )?;
+        if let Some(writer) = &mut writer {
+            writer.append_stats(&stats_row(&sim, &report, &cracked, fracture.as_ref()))?;
+        }
+        // Alike on every process: an interrupt on one stops them all after this step.
+        let stopping = interrupt.load(Ordering::SeqCst);
+        let stopping = processes.map_or(stopping, |p| p.any(stopping));
+        if frame_due || stopping {
+            if let Some(writer) = &mut writer {
+                write_frame(writer, &sim, fracture.as_ref(), (topology_changed, on_grid))?;
+            }
             topology_changed = false;
             // A run resumed from this frame starts without solver memory: so does this one.
             if on_grid {
@@ -268,8 +320,10 @@ pub fn run(
     }
     summary.final_step = sim.state.step;
     summary.final_time = sim.state.time;
-    summary.frames = writer.frame_count();
-    writer.finish()?;
+    if let Some(writer) = writer {
+        summary.frames = writer.frame_count();
+        writer.finish()?;
+    }
     Ok(summary)
 }
 

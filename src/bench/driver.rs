@@ -171,6 +171,7 @@ pub fn solver_name(linear: LinearSolverKind) -> &'static str {
         LinearSolverKind::Cg => "cg",
         LinearSolverKind::Amg => "amg",
         LinearSolverKind::Auto => "auto",
+        LinearSolverKind::Petsc => "petsc",
     }
 }
 

@@ -13,7 +13,7 @@ use super::history::ElementHistory;
 use super::plasticity::Plasticity;
 use super::term::StepTerm;
 use super::volumetric::NodalVolume;
-use crate::assembly::Assembly;
+use crate::assembly::{Assembly, ElementSubset};
 use crate::fem::{
     elastic_strain, element_eval, element_stress, volume_change, ElasticModel, ElementEval,
     ElementRest, Law, Material, StrainOffset, VolumeChange,
@@ -382,6 +382,9 @@ pub struct ElasticStep<'a> {
     pub project: bool,
     /// Each element's strain offset, fixed during the solve (`history.offsets()`).
     pub offsets: &'a [StrainOffset],
+    /// The elements this process evaluates in a distributed run (all if `None`); the energy
+    /// is then theirs alone. Not with the nodal volumetric energy, which couples elements.
+    pub subset: Option<&'a ElementSubset>,
 }
 
 impl<'a> ElasticStep<'a> {
@@ -402,6 +405,7 @@ impl<'a> ElasticStep<'a> {
             element_energy,
             project,
             offsets,
+            subset: None,
         }
     }
 }
@@ -419,7 +423,8 @@ impl StepTerm for ElasticStep<'_> {
             Some(gradient) => {
                 let project = self.project;
                 let Some(nodal) = &el.nodal else {
-                    self.assembly.assemble(
+                    self.assembly.assemble_in(
+                        self.subset,
                         |e, with_h, out| {
                             el.element_with(tets, history, u, e, &offsets[e], with_h, project, out)
                         },
@@ -427,9 +432,13 @@ impl StepTerm for ElasticStep<'_> {
                         gradient,
                         hessian,
                     );
-                    *energy += self.element_energy.iter().sum::<f64>();
+                    *energy += match self.subset {
+                        Some(subset) => subset.sum(self.element_energy),
+                        None => self.element_energy.iter().sum::<f64>(),
+                    };
                     return;
                 };
+                debug_assert!(self.subset.is_none(), "nodal volumetric energy on a subset");
                 // Nodal volumetric energy: element pressures first, then the elements'
                 // deviatoric energy with their pressure's forces and stiffness (its ∂²θ part
                 // is indefinite and left out when projecting), then the nodes' Σ Vₐ κₐ ∇θ̄ₐ ∇θ̄ₐᵀ.
@@ -453,14 +462,24 @@ impl StepTerm for ElasticStep<'_> {
                 }
                 *energy += self.element_energy.iter().sum::<f64>() + volumetric;
             }
-            None => {
-                *energy += el.energy(
-                    self.assembly,
-                    (tets, history, offsets),
-                    u,
-                    self.element_energy,
-                );
-            }
+            None => match self.subset {
+                Some(subset) => {
+                    self.assembly.energies_in(
+                        Some(subset),
+                        |e, out| el.element_with(tets, history, u, e, &offsets[e], false, false, out),
+                        self.element_energy,
+                    );
+                    *energy += subset.sum(self.element_energy);
+                }
+                None => {
+                    *energy += el.energy(
+                        self.assembly,
+                        (tets, history, offsets),
+                        u,
+                        self.element_energy,
+                    );
+                }
+            },
         }
     }
 

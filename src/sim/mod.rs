@@ -9,7 +9,7 @@ pub mod balance;
 pub mod potential;
 pub mod scheme;
 
-use crate::assembly::{Assembly, DofMap};
+use crate::assembly::{Assembly, DofMap, ElementSubset};
 use crate::fem::StrainOffset;
 use crate::physics::contact::ContactForces;
 use crate::physics::elasticity::ElasticStep;
@@ -26,7 +26,9 @@ use crate::solver::{
 use crate::thermal::HeatLink;
 pub use adaptive::Adaptive;
 use balance::{energies_of, energies_with, EnergyRise};
-use potential::{ElasticQuadratic, StepPotential};
+use potential::{ElasticQuadratic, Share, StepPotential};
+pub use potential::Collective;
+use crate::solver::{ExternalSolver, LinearError};
 use scheme::StepFormula;
 pub use scheme::{Scheme, StepBack};
 use std::time::Instant;
@@ -246,12 +248,36 @@ pub enum SimError {
     /// Building the problem failed.
     #[error("set-up failed: {0}")]
     Setup(String),
+    /// The scene uses something a distributed run does not do.
+    #[error("a run on several processes does not support {0}; run this scene on one process")]
+    NotDistributed(&'static str),
     /// Linear solver set-up failed.
     #[error(transparent)]
     Linear(#[from] crate::solver::LinearError),
     /// The heat model failed.
     #[error(transparent)]
     Heat(#[from] crate::thermal::ThermalError),
+}
+
+/// How a simulation is shared among several processes (implemented by `distributed` over
+/// MPI and PETSc). Every process holds the whole mesh and state and takes the same steps;
+/// each evaluates the elastic energy of its own elements, and the linear solves are shared.
+pub trait Distribution {
+    /// The sums across the processes.
+    fn collective(&self) -> &dyn Collective;
+    /// Whether this process owns each dof (all 3n): every dof has one owner.
+    fn owned_dofs(&self) -> &[bool];
+    /// Whether this process evaluates each element: every element has one.
+    fn owned_elements(&self) -> &[bool];
+    /// A linear solver shared by the processes, for `assembly`'s pattern.
+    fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError>;
+}
+
+/// A simulation's share of a distributed run: the distribution and this process's elements
+/// on the current pattern's colouring.
+struct Shared {
+    distribution: Box<dyn Distribution>,
+    elements: ElementSubset,
 }
 
 /// A model, its state, and the solver data built for its mesh.
@@ -302,6 +328,8 @@ pub struct Simulation {
     /// The supports hold every part of the mesh against rigid motion
     /// (`physics::dirichlet::hold_every_part`).
     parts_held: bool,
+    /// This process's share of a distributed run.
+    shared: Option<Shared>,
 }
 
 impl Simulation {
@@ -385,6 +413,7 @@ impl Simulation {
             fixed_factored: false,
             elastic_quadratic: None,
             parts_held: crate::physics::dirichlet::hold_every_part(&model.mesh, &constrained),
+            shared: None,
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]
             } else {
@@ -397,6 +426,38 @@ impl Simulation {
             linear,
             workspace,
         })
+    }
+
+    /// Shares the simulation among the processes of `distribution` from its next step on.
+    /// Fails, saying why, for what is not distributed: the nodal volumetric energy
+    /// (`volumetric = "nodal"`), which couples the elements around a node, and Rayleigh
+    /// stiffness damping, whose β K is one process's part.
+    pub fn distribute(&mut self, distribution: Box<dyn Distribution>) -> Result<(), SimError> {
+        if self.model.elasticity.nodal.is_some() {
+            return Err(SimError::NotDistributed(
+                "the nodal volumetric energy (volumetric = \"nodal\")",
+            ));
+        }
+        if !self.damping_stiffness.is_empty() {
+            return Err(SimError::NotDistributed(
+                "Rayleigh stiffness damping ([damping] stiffness > 0)",
+            ));
+        }
+        self.linear = LinearSolver::External(distribution.solver(&self.assembly)?);
+        self.workspace.forget_factor();
+        self.fixed_hessian = None;
+        self.fixed_factored = false;
+        self.elastic_quadratic = None;
+        self.shared = Some(Shared {
+            elements: self.assembly.subset(distribution.owned_elements()),
+            distribution,
+        });
+        Ok(())
+    }
+
+    /// Whether the simulation is shared among several processes.
+    pub fn is_distributed(&self) -> bool {
+        self.shared.is_some()
     }
 
     /// Continues with `model` on a new mesh after a topology change (fracture; see
@@ -613,13 +674,20 @@ impl Simulation {
             let all = [&couplings[..], &self.elastic_couplings[..]].concat();
             self.assembly = Assembly::with_couplings(&self.model.mesh, dofs, &all);
             let s = &self.settings;
-            self.linear = LinearSolver::new(
-                s.linear,
-                s.ordering,
-                &self.assembly,
-                &self.model.mesh.rest,
-                &s.iterative(),
-            )?;
+            self.linear = match &mut self.shared {
+                Some(shared) => {
+                    let owned = shared.distribution.owned_elements();
+                    shared.elements = self.assembly.subset(owned);
+                    LinearSolver::External(shared.distribution.solver(&self.assembly)?)
+                }
+                None => LinearSolver::new(
+                    s.linear,
+                    s.ordering,
+                    &self.assembly,
+                    &self.model.mesh.rest,
+                    &s.iterative(),
+                )?,
+            };
             self.workspace = NewtonWorkspace::new(&self.assembly);
             self.fixed_factored = false;
             self.elastic_quadratic = None;
@@ -719,7 +787,7 @@ impl Simulation {
             model,
             &self.assembly,
             (&self.state.history, &offsets),
-            &mut self.element_energy,
+            (&mut self.element_energy, self.shared.as_ref().map(|s| &s.elements)),
             &solve,
         );
         if dynamic {
@@ -740,8 +808,9 @@ impl Simulation {
                 }));
             }
         }
-        // A Hessian that cannot change is assembled once per step length and then copied.
-        let fixed = terms.iter().all(|t| t.hessian_is_fixed());
+        // A Hessian that cannot change is assembled once per step length and then copied
+        // (not in a distributed run, whose processes hold parts of it).
+        let fixed = self.shared.is_none() && terms.iter().all(|t| t.hessian_is_fixed());
         // Keyed by the inertia term's step: the Hessian's only dependence on the step.
         if !fixed
             || self
@@ -782,6 +851,11 @@ impl Simulation {
         }
         let mut potential = StepPotential::new(terms);
         potential.elastic_quadratic = self.elastic_quadratic.as_ref().map(|q| (q, &self.assembly));
+        potential.share = self.shared.as_ref().map(|s| Share {
+            collective: s.distribution.collective(),
+            owned: s.distribution.owned_dofs(),
+            assembly: &self.assembly,
+        });
         if fixed && self.fixed_hessian.is_none() {
             let start = Instant::now();
             let mut gradient = vec![0.0; u.len()];
@@ -1055,17 +1129,19 @@ fn solve_terms<'a>(
     model: &'a Model,
     assembly: &'a Assembly,
     (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
-    element_energy: &'a mut [f64],
+    (element_energy, subset): (&'a mut [f64], Option<&'a ElementSubset>),
     solve: &Solve<'a>,
 ) -> Vec<Box<dyn StepTerm + 'a>> {
+    let mut elastic = ElasticStep::new(
+        &model.elasticity,
+        (&model.mesh.tets, history, offsets),
+        assembly,
+        element_energy,
+        false,
+    );
+    elastic.subset = subset;
     let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![
-        Box::new(ElasticStep::new(
-            &model.elasticity,
-            (&model.mesh.tets, history, offsets),
-            assembly,
-            element_energy,
-            false,
-        )),
+        Box::new(elastic),
         Box::new(DeadLoads {
             force: &model.external_force,
         }),

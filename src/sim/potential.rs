@@ -7,6 +7,54 @@ use crate::physics::term::StepTerm;
 use crate::solver::Potential;
 use std::time::Instant;
 
+/// How the parts of a potential evaluated on several processes combine into the whole, the
+/// same on every process (implemented by `distributed` over MPI).
+pub trait Collective {
+    /// Σ over the processes of `x`, the same on every process.
+    fn sum(&self, x: f64) -> f64;
+    /// Σ over the processes of `v`, entry by entry, in place; the same on every process.
+    fn sum_in_place(&self, v: &mut [f64]);
+    /// Largest `x` over the processes.
+    fn max(&self, x: f64) -> f64;
+}
+
+/// A process's share of a solve distributed over several processes. Each process evaluates
+/// the elastic energy of its own elements (the elastic term's subset) and the other terms
+/// whole, keeping of those only the dofs it owns — the gradient's entries and the Hessian's
+/// columns — so that the processes' parts add up to the potential. Energies and gradients
+/// are then summed across the processes; the Hessian stays in parts, which the distributed
+/// linear solver adds up.
+#[derive(Clone, Copy)]
+pub struct Share<'a> {
+    /// The sums across processes.
+    pub collective: &'a dyn Collective,
+    /// Whether this process owns each dof (all 3n).
+    pub owned: &'a [bool],
+    /// The pattern the Hessian's values are on.
+    pub assembly: &'a Assembly,
+}
+
+impl Share<'_> {
+    /// Clears the gradient entries and Hessian columns of the dofs this process does not own.
+    fn keep_owned(&self, gradient: Option<&mut [f64]>, hessian: Option<&mut [f64]>) {
+        if let Some(g) = gradient {
+            for (g, &owned) in g.iter_mut().zip(self.owned) {
+                if !owned {
+                    *g = 0.0;
+                }
+            }
+        }
+        if let Some(h) = hessian {
+            let col_ptr = self.assembly.symbolic().col_ptr();
+            for (c, &d) in self.assembly.dofs().free_dofs().iter().enumerate() {
+                if !self.owned[d] {
+                    h[col_ptr[c]..col_ptr[c + 1]].fill(0.0);
+                }
+            }
+        }
+    }
+}
+
 /// The sum of a solve's terms.
 ///
 /// The first term is the elastic energy, assembled element by element in parallel and summed
@@ -29,6 +77,8 @@ pub struct StepPotential<'a> {
     pub elastic_quadratic: Option<(&'a ElasticQuadratic, &'a Assembly)>,
     /// Passes over the elements (evaluations of the elastic term) so far.
     pub element_passes: u32,
+    /// This process's share, in a run distributed over several processes.
+    pub share: Option<Share<'a>>,
 }
 
 /// The elastic energy when it is a fixed quadratic (a linear model without plasticity or
@@ -156,7 +206,52 @@ impl<'a> StepPotential<'a> {
             fixed_hessian: None,
             elastic_quadratic: None,
             element_passes: 0,
+            share: None,
         }
+    }
+
+    /// [`StepPotential::sum`] on one process's share: the other terms first, kept on the
+    /// owned dofs, then the elastic energy of the process's elements; the energy and the
+    /// gradient summed across the processes.
+    fn sum_shared(
+        &mut self,
+        share: Share<'_>,
+        u: &[f64],
+        mut gradient: Option<&mut [f64]>,
+        mut hessian: Option<&mut [f64]>,
+    ) -> f64 {
+        let Some((elastic_term, others)) = self.terms.split_first_mut() else {
+            return 0.0;
+        };
+        // Every process evaluates these alike: each keeps what it owns.
+        let mut rest = 0.0;
+        for term in others {
+            let clock = term.is_contact().then(Instant::now);
+            term.add(
+                u,
+                &mut rest,
+                gradient.as_deref_mut(),
+                hessian.as_deref_mut(),
+            );
+            if let Some(clock) = clock {
+                self.t_contact += clock.elapsed().as_secs_f64();
+            }
+        }
+        share.keep_owned(gradient.as_deref_mut(), hessian.as_deref_mut());
+        let mut elastic = 0.0;
+        self.element_passes += 1;
+        elastic_term.add(
+            u,
+            &mut elastic,
+            gradient.as_deref_mut(),
+            hessian.as_deref_mut(),
+        );
+        let elastic = share.collective.sum(elastic);
+        if let Some(g) = gradient {
+            share.collective.sum_in_place(g);
+        }
+        self.last_elastic = elastic;
+        elastic + rest
     }
 
     /// Potential at `u`, adding the gradient and Hessian into those given.
@@ -166,6 +261,9 @@ impl<'a> StepPotential<'a> {
         mut gradient: Option<&mut [f64]>,
         mut hessian: Option<&mut [f64]>,
     ) -> f64 {
+        if let Some(share) = self.share {
+            return self.sum_shared(share, u, gradient, hessian);
+        }
         let Some((elastic_term, others)) = self.terms.split_first_mut() else {
             return 0.0;
         };
@@ -238,6 +336,10 @@ impl Potential for StepPotential<'_> {
     fn gradient(&mut self, u: &[f64], gradient: &mut [f64]) -> f64 {
         gradient.fill(0.0);
         self.sum(u, Some(gradient), None)
+    }
+
+    fn max_over_processes(&self, x: f64) -> f64 {
+        self.share.map_or(x, |share| share.collective.max(x))
     }
 
     fn project_hessian(&mut self) -> bool {

@@ -254,7 +254,8 @@ impl Simulation {
             model,
             &self.assembly,
             (&self.state.history, &offsets),
-            &mut self.element_energy,
+            // The whole mesh on every process of a distributed run: no sums needed.
+            (&mut self.element_energy, None),
             &solve,
         );
         let mut potential = StepPotential::new(terms);

@@ -26,6 +26,11 @@ pub trait Potential {
     fn evaluate(&mut self, u: &[f64], gradient: &mut [f64], hessian: &mut [f64]) -> f64;
     /// Potential and its gradient over all dofs (N), without the Hessian.
     fn gradient(&mut self, u: &[f64], gradient: &mut [f64]) -> f64;
+    /// The largest of `x` over the processes of a distributed run (`x` itself on one): what
+    /// Newton computes from this process's part of the Hessian must be the same on all.
+    fn max_over_processes(&self, x: f64) -> f64 {
+        x
+    }
     /// Switches to a positive semi-definite approximation of the Hessian from now on; returns
     /// whether anything changed (false if already projected or nothing to project).
     fn project_hessian(&mut self) -> bool {
@@ -317,7 +322,9 @@ fn iterate(
         report.roundoff_floor = floor;
         if refresh || iteration == 0 {
             // A kept factor's Hessian is still in the buffer.
-            floor = roundoff_floor(assembly, &work.hessian, u);
+            // In a distributed run each process holds a part of the Hessian: the largest
+            // part of the diagonal stands for it, at most its whole.
+            floor = potential.max_over_processes(roundoff_floor(assembly, &work.hessian, u));
         }
         let target = (params.tolerance * report.force_scale).max(floor);
         if residual <= target {

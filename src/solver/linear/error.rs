@@ -24,6 +24,9 @@ pub enum LinearError {
     /// Memory or other failure inside faer.
     #[error("sparse solver failure: {0}")]
     Faer(String),
+    /// A failure of the distributed solver (PETSc), with its message.
+    #[error("distributed linear solver: {0}")]
+    External(String),
 }
 
 impl LinearError {

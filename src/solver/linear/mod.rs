@@ -44,6 +44,18 @@ pub const AMG_FALLBACK_ITERATIONS: usize = 200;
 /// factor of 3e5 dofs holds ~2e8 entries (1.6 GB).
 pub const FALLBACK_DIRECT_MAX_DOFS: usize = 300_000;
 
+/// A linear solver that lives outside this crate's methods (PETSc across processes, see
+/// `distributed`). Like a direct solver it solves with the matrix last given to
+/// [`ExternalSolver::factorize`] until the next, so Newton may keep it for chord steps.
+pub trait ExternalSolver {
+    /// Takes the matrix with `values` on `assembly`'s pattern (this process's part of it, in
+    /// a distributed run) and prepares its preconditioner.
+    fn factorize(&mut self, assembly: &Assembly, values: &[f64]) -> Result<(), LinearError>;
+    /// Solves with the matrix of the last [`ExternalSolver::factorize`]; `b` and `x` are
+    /// the free dofs, whole on every process.
+    fn solve(&mut self, b: &[f64], x: &mut [f64]) -> Result<LinearStats, LinearError>;
+}
+
 /// A linear solver bound to one sparsity pattern: one of the linear methods.
 // One instance per simulation: the size difference between the variants does not matter.
 #[allow(clippy::large_enum_variant)]
@@ -63,6 +75,8 @@ pub enum LinearSolver {
         /// [`AMG_FALLBACK_ITERATIONS`]).
         fallback: Option<DirectFallback>,
     },
+    /// A solver outside this crate (PETSc in a distributed run).
+    External(Box<dyn ExternalSolver>),
 }
 
 /// The Cholesky solver `Auto` switches to when multigrid struggles: its ordering and
@@ -103,7 +117,11 @@ impl LinearSolver {
                     fallback,
                 })
             }
-            LinearSolverKind::Cholesky => LinearSolver::direct(ordering, assembly, iterative),
+            // PETSc's solver is made by a distributed run itself (`ExternalSolver`); asked
+            // for here, on one process, the direct solver stands in for it.
+            LinearSolverKind::Cholesky | LinearSolverKind::Petsc => {
+                LinearSolver::direct(ordering, assembly, iterative)
+            }
             LinearSolverKind::Cg => Ok(LinearSolver::Cg(JacobiCg::new(n, iterative))),
         }
     }
@@ -128,7 +146,7 @@ impl LinearSolver {
         match self {
             LinearSolver::Cholesky(c) => Some(c),
             LinearSolver::KeptFactor(k) => Some(k.direct()),
-            LinearSolver::Cg(_) | LinearSolver::Amg { .. } => None,
+            LinearSolver::Cg(_) | LinearSolver::Amg { .. } | LinearSolver::External(_) => None,
         }
     }
 
@@ -143,6 +161,7 @@ impl LinearSolver {
             LinearSolver::Cholesky(_) | LinearSolver::KeptFactor(_) => LinearSolverKind::Cholesky,
             LinearSolver::Cg(_) => LinearSolverKind::Cg,
             LinearSolver::Amg { .. } => LinearSolverKind::Amg,
+            LinearSolver::External(_) => LinearSolverKind::Petsc,
         }
     }
 
@@ -197,7 +216,7 @@ impl LinearSolver {
     /// Whether this is a plain direct solver: a solve uses the factor only, so a factor kept
     /// from an earlier matrix solves with that matrix (a chord step).
     pub fn is_direct(&self) -> bool {
-        matches!(self, LinearSolver::Cholesky(_))
+        matches!(self, LinearSolver::Cholesky(_) | LinearSolver::External(_))
     }
 
     /// Whether [`LinearSolver::solve`] works with the matrix values themselves (CG and the
@@ -205,7 +224,7 @@ impl LinearSolver {
     /// plain direct solve): only then does a change of the values in place reach the solves.
     pub fn iterates_on_matrix(&self) -> bool {
         match self {
-            LinearSolver::Cholesky(_) => false,
+            LinearSolver::Cholesky(_) | LinearSolver::External(_) => false,
             LinearSolver::KeptFactor(_) | LinearSolver::Cg(_) => true,
             LinearSolver::Amg { solver, .. } => solver.reuses(),
         }
@@ -216,7 +235,7 @@ impl LinearSolver {
     /// or hierarchy is now merely a preconditioner of them, Jacobi's diagonal is recomputed.
     pub fn matrix_changed(&mut self, assembly: &Assembly, values: &[f64]) {
         match self {
-            LinearSolver::Cholesky(_) => {}
+            LinearSolver::Cholesky(_) | LinearSolver::External(_) => {}
             LinearSolver::KeptFactor(k) => k.matrix_changed(),
             LinearSolver::Cg(cg) => cg.factorize(assembly, values),
             LinearSolver::Amg { solver, .. } => solver.matrix_changed(),
@@ -242,6 +261,10 @@ impl LinearSolver {
                 true
             }
             LinearSolver::Amg { solver, .. } => solver.factorize(assembly, values)?,
+            LinearSolver::External(external) => {
+                external.factorize(assembly, values)?;
+                true
+            }
         };
         Ok(computed.then(|| start.elapsed().as_secs_f64()))
     }
@@ -264,6 +287,7 @@ impl LinearSolver {
             LinearSolver::Cholesky(c) => Ok(c.solve(b, x)),
             LinearSolver::KeptFactor(k) => k.solve(assembly, values, b, x),
             LinearSolver::Cg(cg) => cg.solve(assembly, values, b, x),
+            LinearSolver::External(external) => external.solve(b, x),
             LinearSolver::Amg { solver, fallback } => {
                 let multigrid = solver.solve(assembly, values, b, x);
                 let Some(direct) = fallback.filter(|_| multigrid_struggled(&multigrid)) else {

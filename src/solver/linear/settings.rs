@@ -14,6 +14,10 @@ pub enum LinearSolverKind {
     Amg,
     /// Cholesky below [`AUTO_DIRECT_MAX_DOFS`] free dofs, multigrid-preconditioned CG above.
     Auto,
+    /// PETSc's solver of a distributed run (`distributed`): not chosen in a scene, which a
+    /// distributed run solves with it whatever the scene says.
+    #[serde(skip)]
+    Petsc,
 }
 
 /// Largest free-dof count for which `Auto` picks the direct solver. Measured with
