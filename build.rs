@@ -17,7 +17,10 @@ mod petsc {
 
     /// Flags `pkg-config` prints for `package`, if it knows it.
     fn pkg_config(package: &str, flag: &str) -> Option<Vec<String>> {
-        let out = Command::new("pkg-config").args([flag, package]).output().ok()?;
+        let out = Command::new("pkg-config")
+            .args([flag, package])
+            .output()
+            .ok()?;
         out.status.success().then(|| {
             String::from_utf8_lossy(&out.stdout)
                 .split_whitespace()
@@ -46,7 +49,7 @@ mod petsc {
             .clang_arg(format!("-I{include}"))
             .clang_args(mpi_includes)
             .allowlist_function("Petsc(Initialize|InitializeNoArguments|Finalize|Initialized)")
-            .allowlist_function("Vec(CreateMPI|SetBlockSize|SetValues|AssemblyBegin|AssemblyEnd|GetArray|RestoreArray|GetArrayRead|RestoreArrayRead|Destroy|Duplicate|Set|ScatterCreateToAll|ScatterBegin|ScatterEnd|ScatterDestroy|GetOwnershipRange|Norm)")
+            .allowlist_function("Vec(CreateMPI|SetBlockSize|GetLocalSize|SetValues|AssemblyBegin|AssemblyEnd|GetArray|RestoreArray|GetArrayRead|RestoreArrayRead|Destroy|Duplicate|Set|ScatterCreateToAll|ScatterBegin|ScatterEnd|ScatterDestroy|GetOwnershipRange|Norm)")
             .allowlist_function("Mat(Create|SetSizes|SetType|SetBlockSize|SeqAIJSetPreallocation|MPIAIJSetPreallocation|SetValues|AssemblyBegin|AssemblyEnd|ZeroEntries|SetOption|SetNearNullSpace|NullSpaceCreateRigidBody|NullSpaceDestroy|Destroy|GetInfo)")
             .allowlist_function("KSP(Create|SetOperators|SetType|GetPC|SetTolerances|SetFromOptions|SetUp|Solve|GetIterationNumber|GetConvergedReason|Destroy|SetReusePreconditioner|SetInitialGuessNonzero)")
             .allowlist_function("PC(SetType|GAMGSetNSmooths|SetFromOptions)")

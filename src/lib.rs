@@ -5,6 +5,8 @@
 
 pub mod assembly;
 pub mod bench;
+#[cfg(feature = "mpi")]
+pub mod distributed;
 pub mod eta;
 pub mod export;
 pub mod fem;

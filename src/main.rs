@@ -9,7 +9,7 @@ use icefem::output::FrameReader;
 use icefem::render::{
     self, Background, ColorField, Cut, Lens, RenderOptions, Shading, Style, View,
 };
-use icefem::run::{run, Progress, RunOptions};
+use icefem::run::{run_on, Processes, Progress, RunOptions};
 use icefem::scene::Scene;
 use icefem::solver::{FillOrdering, LinearSolverKind};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -191,7 +191,7 @@ fn main() {
                 resume: resume.is_some(),
                 force,
             };
-            run_command(&scene, &options, verbosity)
+            run_distributed(&scene, &options, verbosity)
         }
         Command::Bench {
             tets,
@@ -594,7 +594,56 @@ impl From<OrderingArg> for FillOrdering {
     }
 }
 
-fn run_command(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
+/// `icefem run` on one process.
+#[cfg(not(feature = "mpi"))]
+fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
+    run_command(scene_path, options, None, verbosity)
+}
+
+/// `icefem run`, shared among the processes `mpirun` started (on one process, the serial
+/// run). Only process 0 reports; an error on any process ends them all.
+#[cfg(feature = "mpi")]
+fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
+    let processes = icefem::distributed::MpiProcesses::init()?;
+    if processes.size() == 1 {
+        return run_command(scene_path, options, None, verbosity);
+    }
+    // One process per core by default: each process's threads share the node's cores.
+    if std::env::var_os("RAYON_NUM_THREADS").is_none() {
+        let on_node = std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")
+            .ok()
+            .and_then(|n| n.parse::<usize>().ok())
+            .unwrap_or(processes.size());
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = (cores / on_node.max(1)).max(1);
+        // Fails only if a pool exists already: then that one is used.
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build_global();
+    }
+    let rank = processes.rank();
+    let verbosity = if rank == 0 {
+        verbosity
+    } else {
+        Verbosity::Quiet
+    };
+    if let Err(e) = run_command(scene_path, options, Some(&processes), verbosity) {
+        eprintln!(
+            "error (process {rank} of {}): {}",
+            processes.size(),
+            message(&e)
+        );
+        processes.abort(1);
+    }
+    Ok(())
+}
+
+fn run_command(
+    scene_path: &Path,
+    options: &RunOptions,
+    processes: Option<&dyn Processes>,
+    verbosity: Verbosity,
+) -> Result<()> {
     let scene = Scene::load(scene_path)?;
     let interrupt = Arc::new(AtomicBool::new(false));
     {
@@ -646,7 +695,7 @@ fn run_command(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) ->
     let start = Instant::now();
     let mut last_log = Instant::now();
     let mut eta = Eta::new();
-    let summary = run(&scene, options, &interrupt, |p: &Progress| {
+    let summary = run_on(&scene, options, processes, &interrupt, |p: &Progress| {
         let left = eta.update(start.elapsed().as_secs_f64(), p.time, p.end_time);
         let left = left.map_or_else(|| "…".to_string(), format_duration);
         if bar_shown {

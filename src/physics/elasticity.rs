@@ -466,7 +466,9 @@ impl StepTerm for ElasticStep<'_> {
                 Some(subset) => {
                     self.assembly.energies_in(
                         Some(subset),
-                        |e, out| el.element_with(tets, history, u, e, &offsets[e], false, false, out),
+                        |e, out| {
+                            el.element_with(tets, history, u, e, &offsets[e], false, false, out)
+                        },
                         self.element_energy,
                     );
                     *energy += subset.sum(self.element_energy);

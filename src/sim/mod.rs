@@ -23,12 +23,12 @@ use crate::solver::{
     minimize, minimize_quadratic, FillOrdering, LinearSolver, LinearSolverKind, NewtonError,
     NewtonParams, NewtonReport, NewtonWorkspace,
 };
+use crate::solver::{ExternalSolver, LinearError};
 use crate::thermal::HeatLink;
 pub use adaptive::Adaptive;
 use balance::{energies_of, energies_with, EnergyRise};
-use potential::{ElasticQuadratic, Share, StepPotential};
 pub use potential::Collective;
-use crate::solver::{ExternalSolver, LinearError};
+use potential::{ElasticQuadratic, Share, StepPotential};
 use scheme::StepFormula;
 pub use scheme::{Scheme, StepBack};
 use std::time::Instant;
@@ -787,7 +787,10 @@ impl Simulation {
             model,
             &self.assembly,
             (&self.state.history, &offsets),
-            (&mut self.element_energy, self.shared.as_ref().map(|s| &s.elements)),
+            (
+                &mut self.element_energy,
+                self.shared.as_ref().map(|s| &s.elements),
+            ),
             &solve,
         );
         if dynamic {

@@ -10,7 +10,8 @@ pub mod tree_solve;
 mod vector;
 
 pub use linear::{
-    ExternalSolver, FactorPrecision, IterativeSettings, LinearError, LinearSolver, LinearSolverKind, LinearStats,
+    ExternalSolver, FactorPrecision, IterativeSettings, LinearError, LinearSolver,
+    LinearSolverKind, LinearStats,
 };
 pub use newton::{
     minimize, minimize_quadratic, NewtonError, NewtonParams, NewtonReport, NewtonWorkspace,

@@ -1,0 +1,211 @@
+//! Runs on several processes (the `mpi` feature): `mpirun -n N icefem run SCENE.toml`.
+//!
+//! Every process reads the scene, builds the whole mesh and state and takes the same steps,
+//! with the same decisions: Newton's iterates, residuals and line searches are the same
+//! numbers on every process. What is shared out is the work of an iteration — METIS splits
+//! the elements ([`partition`]); each process evaluates the elastic energy, gradient and
+//! Hessian of its own elements and the other terms on the dofs it owns; energies and
+//! gradients are summed across the processes (`sim::Collective`, over MPI), and the Hessian's
+//! parts go into one PETSc matrix, solved by conjugate gradients with algebraic multigrid
+//! ([`solver`]). Process 0 writes the output, the same file a run on one process writes.
+//!
+//! Not distributed: fracture (its remeshing), `--resume`, the nodal volumetric energy and
+//! Rayleigh stiffness damping — a run that needs them is refused with a message. Memory per
+//! process is that of the whole mesh and state plus its share of the matrix.
+
+pub mod partition;
+pub mod petsc;
+pub mod solver;
+
+use crate::assembly::Assembly;
+use crate::run::Processes;
+use crate::sim::{Collective, Distribution, SimError, Simulation};
+use crate::solver::{ExternalSolver, LinearError};
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+use partition::Partition;
+use std::cell::RefCell;
+
+/// Failure to start the processes' libraries.
+#[derive(Debug, thiserror::Error)]
+pub enum DistributedError {
+    /// MPI could not be initialised (or was already).
+    #[error("MPI could not be initialised")]
+    Mpi,
+    /// PETSc could not be initialised.
+    #[error(transparent)]
+    Petsc(#[from] petsc::PetscError),
+}
+
+/// MPI and PETSc, initialised for the life of this value; the processes of `mpirun`.
+pub struct MpiProcesses {
+    // Dropped in this order: PETSc before MPI.
+    _petsc: petsc::Petsc,
+    _universe: mpi::environment::Universe,
+    world: SimpleCommunicator,
+}
+
+impl MpiProcesses {
+    /// Initialises MPI (only this thread calls it) and PETSc.
+    pub fn init() -> Result<Self, DistributedError> {
+        let (universe, _) = mpi::initialize_with_threading(mpi::Threading::Funneled)
+            .ok_or(DistributedError::Mpi)?;
+        let world = universe.world();
+        let petsc = petsc::Petsc::init()?;
+        Ok(MpiProcesses {
+            _petsc: petsc,
+            _universe: universe,
+            world,
+        })
+    }
+
+    /// This process's number, from 0.
+    pub fn rank(&self) -> u32 {
+        self.world.rank() as u32
+    }
+
+    /// Number of processes.
+    pub fn size(&self) -> usize {
+        self.world.size() as usize
+    }
+
+    /// Ends every process of the run with `code` (after an error on any of them: the others
+    /// may be waiting for it in a collective call).
+    pub fn abort(&self, code: i32) -> ! {
+        self.world.abort(code)
+    }
+
+    /// The largest of `x` over the processes.
+    pub fn max(&self, x: f64) -> f64 {
+        let mut y = 0.0;
+        self.world
+            .all_reduce_into(&x, &mut y, SystemOperation::max());
+        y
+    }
+}
+
+impl Processes for MpiProcesses {
+    fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError> {
+        let mesh = &sim.model.mesh;
+        let size = self.size();
+        // Process 0 partitions; every process uses its partition.
+        let mut element_part = match self.rank() {
+            0 => {
+                Partition::new(mesh, size)
+                    .map_err(|e| SimError::Setup(e.to_string()))?
+                    .element_part
+            }
+            _ => vec![0u32; mesh.num_tets()],
+        };
+        self.world
+            .process_at_rank(0)
+            .broadcast_into(&mut element_part[..]);
+        let partition = Partition::from_element_parts(mesh, element_part, size);
+        let rank = self.rank();
+        let owned_elements: Vec<bool> = partition.element_part.iter().map(|&p| p == rank).collect();
+        let owned_dofs: Vec<bool> = partition
+            .node_owner
+            .iter()
+            .flat_map(|&o| [o == rank; 3])
+            .collect();
+        let iterative = sim.settings.iterative();
+        let share = ProcessShare {
+            collective: MpiCollective {
+                world: SimpleCommunicator::world(),
+                scratch: RefCell::new(Vec::new()),
+            },
+            owned_dofs,
+            owned_elements,
+            rank,
+            partition,
+            tets: mesh.tets.clone(),
+            rest: mesh.rest.clone(),
+            solve: (iterative.tolerance, iterative.max_iterations),
+        };
+        sim.distribute(Box::new(share))
+    }
+
+    fn writes(&self) -> bool {
+        self.rank() == 0
+    }
+
+    fn any(&self, flag: bool) -> bool {
+        let mut any = 0u8;
+        self.world
+            .all_reduce_into(&u8::from(flag), &mut any, SystemOperation::max());
+        any != 0
+    }
+}
+
+/// Sums across the processes over MPI, made the same on every process: scalars gathered and
+/// added in process order, vectors reduced onto process 0 and broadcast from it.
+struct MpiCollective {
+    world: SimpleCommunicator,
+    scratch: RefCell<Vec<f64>>,
+}
+
+impl Collective for MpiCollective {
+    fn sum(&self, x: f64) -> f64 {
+        let mut all = vec![0.0; self.world.size() as usize];
+        self.world.all_gather_into(&x, &mut all[..]);
+        all.iter().sum()
+    }
+
+    fn sum_in_place(&self, v: &mut [f64]) {
+        let root = self.world.process_at_rank(0);
+        if self.world.rank() == 0 {
+            let mut total = self.scratch.borrow_mut();
+            total.resize(v.len(), 0.0);
+            root.reduce_into_root(v, &mut total[..], SystemOperation::sum());
+            v.copy_from_slice(&total);
+        } else {
+            root.reduce_into(v, SystemOperation::sum());
+        }
+        root.broadcast_into(v);
+    }
+
+    fn max(&self, x: f64) -> f64 {
+        let mut y = 0.0;
+        self.world
+            .all_reduce_into(&x, &mut y, SystemOperation::max());
+        y
+    }
+}
+
+/// One process's share of a distributed simulation.
+struct ProcessShare {
+    collective: MpiCollective,
+    owned_dofs: Vec<bool>,
+    owned_elements: Vec<bool>,
+    rank: u32,
+    partition: Partition,
+    tets: Vec<[usize; 4]>,
+    rest: Vec<nalgebra::Vector3<f64>>,
+    /// CG's relative tolerance and iteration cap.
+    solve: (f64, usize),
+}
+
+impl Distribution for ProcessShare {
+    fn collective(&self) -> &dyn Collective {
+        &self.collective
+    }
+
+    fn owned_dofs(&self) -> &[bool] {
+        &self.owned_dofs
+    }
+
+    fn owned_elements(&self) -> &[bool] {
+        &self.owned_elements
+    }
+
+    fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError> {
+        Ok(Box::new(solver::PetscSolver::new(
+            assembly,
+            &self.partition,
+            (self.rank, &self.owned_elements, &self.tets),
+            &self.rest,
+            self.solve,
+        )?))
+    }
+}

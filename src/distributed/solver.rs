@@ -1,0 +1,216 @@
+//! The linear solve of a distributed run: each process adds its part of the Hessian (the
+//! columns of the dofs of its elements' nodes) into a PETSc matrix over all 3n dofs, whose
+//! rows the processes own by node; PETSc sums the parts, and conjugate gradients with
+//! algebraic multigrid (GAMG, with the rigid-body modes as near-null space) solve. The
+//! constrained dofs are rows of the diagonal only (their update is zero), which keeps every
+//! node's 3 × 3 block for the multigrid. The solution is gathered whole onto every process.
+
+use super::partition::Partition;
+use super::petsc::{Divergence, GatherToAll, Int, Krylov, Matrix, PetscError, Vector};
+use crate::assembly::Assembly;
+use crate::solver::{ExternalSolver, LinearError, LinearStats};
+use nalgebra::Vector3;
+use std::time::Instant;
+
+impl From<PetscError> for LinearError {
+    fn from(e: PetscError) -> Self {
+        LinearError::External(e.to_string())
+    }
+}
+
+/// PETSc's solver on one pattern.
+pub struct PetscSolver {
+    matrix: Matrix,
+    krylov: Krylov,
+    rhs: Vector,
+    solution: Vector,
+    gather: GatherToAll,
+    /// Free columns this process adds (the dofs of its elements' nodes), and for each its
+    /// rows' PETSc indices (`rows[row_ptr[k]..row_ptr[k + 1]]`).
+    columns: Vec<usize>,
+    row_ptr: Vec<usize>,
+    rows: Vec<Int>,
+    /// PETSc index of each free dof.
+    petsc_of_free: Vec<Int>,
+    /// For each of this process's rows, its free dof (`None`: constrained).
+    local_free: Vec<Option<usize>>,
+    /// First PETSc row of this process.
+    first_row: usize,
+    n_free: usize,
+}
+
+impl PetscSolver {
+    /// The solver for `assembly`'s pattern on process `rank` of `partition`, whose elements
+    /// are marked in `owned_elements`, with the nodes' rest positions `rest` (m); CG stops
+    /// at the relative residual `rtol` or after `max_iterations`.
+    pub fn new(
+        assembly: &Assembly,
+        partition: &Partition,
+        (rank, owned_elements, tets): (u32, &[bool], &[[usize; 4]]),
+        rest: &[Vector3<f64>],
+        (rtol, max_iterations): (f64, usize),
+    ) -> Result<Self, LinearError> {
+        let n_nodes = rest.len();
+        if 3 * n_nodes > Int::MAX as usize {
+            return Err(LinearError::External(format!(
+                "{} dofs exceed PETSc's 32-bit indices",
+                3 * n_nodes
+            )));
+        }
+        let dofs = assembly.dofs();
+        let petsc_dof = |d: usize| (3 * partition.petsc_node[d / 3] + d % 3) as Int;
+        let petsc_of_free: Vec<Int> = dofs.free_dofs().iter().map(|&d| petsc_dof(d)).collect();
+        let r = rank as usize;
+        let (start, end) = (partition.node_start[r], partition.node_start[r + 1]);
+        let (first_row, local) = (3 * start, 3 * (end - start));
+        let global = 3 * n_nodes;
+        // This process's rows in PETSc order: its nodes' dofs.
+        let mut node_of_row = vec![0usize; end - start];
+        for (v, &i) in partition.petsc_node.iter().enumerate() {
+            if (start..end).contains(&i) {
+                node_of_row[i - start] = v;
+            }
+        }
+        let local_free: Vec<Option<usize>> = node_of_row
+            .iter()
+            .flat_map(|&v| (0..3).map(move |k| 3 * v + k))
+            .map(|d| dofs.free(d))
+            .collect();
+        // Preallocation from the pattern: every entry any process adds is in it.
+        let symbolic = assembly.symbolic();
+        let in_range = |i: Int| (first_row..first_row + local).contains(&(i as usize));
+        let mut diagonal = vec![1 as Int; local];
+        let mut off = vec![0 as Int; local];
+        for (i, f) in local_free.iter().enumerate() {
+            if let Some(c) = *f {
+                let rows = symbolic.row_idx_of_col_raw(c);
+                let inside = rows.iter().filter(|&&r| in_range(petsc_of_free[r])).count();
+                diagonal[i] = inside as Int;
+                off[i] = (rows.len() - inside) as Int;
+            }
+        }
+        let mut matrix = Matrix::new(local, global, (&diagonal, &off))?;
+        let coordinates: Vec<f64> = node_of_row
+            .iter()
+            .flat_map(|&v| [rest[v].x, rest[v].y, rest[v].z])
+            .collect();
+        matrix.set_rigid_body_modes(&coordinates, global)?;
+        // The columns this process adds: the free dofs of its elements' nodes.
+        let mut touched = vec![false; n_nodes];
+        for (tet, &own) in tets.iter().zip(owned_elements) {
+            if own {
+                for &v in tet {
+                    touched[v] = true;
+                }
+            }
+        }
+        let columns: Vec<usize> = (0..dofs.num_free())
+            .filter(|&c| touched[dofs.free_dofs()[c] / 3])
+            .collect();
+        let mut row_ptr = vec![0];
+        let mut rows = Vec::new();
+        for &c in &columns {
+            rows.extend(
+                symbolic
+                    .row_idx_of_col_raw(c)
+                    .iter()
+                    .map(|&r| petsc_of_free[r]),
+            );
+            row_ptr.push(rows.len());
+        }
+        let rhs = Vector::new(local, global, 3)?;
+        let solution = Vector::new(local, global, 3)?;
+        let gather = GatherToAll::new(&solution)?;
+        Ok(PetscSolver {
+            matrix,
+            krylov: Krylov::cg_gamg(rtol, max_iterations)?,
+            rhs,
+            solution,
+            gather,
+            columns,
+            row_ptr,
+            rows,
+            petsc_of_free,
+            local_free,
+            first_row,
+            n_free: dofs.num_free(),
+        })
+    }
+}
+
+impl ExternalSolver for PetscSolver {
+    fn factorize(&mut self, assembly: &Assembly, values: &[f64]) -> Result<(), LinearError> {
+        self.matrix.zero()?;
+        let col_ptr = assembly.symbolic().col_ptr();
+        let mut diagonal_sum = 0.0;
+        let mut diagonal_count = 0usize;
+        for (k, &c) in self.columns.iter().enumerate() {
+            // The pattern and the values are symmetric: column c is row c.
+            let column = &values[col_ptr[c]..col_ptr[c + 1]];
+            let rows = &self.rows[self.row_ptr[k]..self.row_ptr[k + 1]];
+            self.matrix.add_row(self.petsc_of_free[c], rows, column)?;
+            diagonal_sum += values[assembly.diagonal_slot(c)].abs();
+            diagonal_count += 1;
+        }
+        // A constrained dof's row is its diagonal alone, scaled like this process's part of
+        // the others so as not to stand out in the multigrid's smoothing.
+        let scale = if diagonal_sum > 0.0 {
+            diagonal_sum / diagonal_count as f64
+        } else {
+            1.0
+        };
+        for (i, f) in self.local_free.iter().enumerate() {
+            if f.is_none() {
+                let row = (self.first_row + i) as Int;
+                self.matrix.add_row(row, &[row], &[scale])?;
+            }
+        }
+        self.matrix.assemble()?;
+        self.krylov.set_matrix(&self.matrix)?;
+        Ok(())
+    }
+
+    fn solve(&mut self, b: &[f64], x: &mut [f64]) -> Result<LinearStats, LinearError> {
+        let start = Instant::now();
+        let local_free = &self.local_free;
+        self.rhs.write_local(|local| {
+            for (entry, f) in local.iter_mut().zip(local_free) {
+                *entry = f.map_or(0.0, |f| b[f]);
+            }
+        })?;
+        let outcome = self.krylov.solve(&self.rhs, &mut self.solution)?;
+        let iterations = match outcome {
+            Ok(iterations) => iterations,
+            Err((Divergence::Indefinite, iteration)) => {
+                return Err(LinearError::NegativeCurvature {
+                    iteration,
+                    n: self.n_free,
+                })
+            }
+            Err((Divergence::Iterations, iterations)) => {
+                return Err(LinearError::CgNotConverged {
+                    iterations,
+                    residual: f64::NAN,
+                })
+            }
+            Err((Divergence::Other(code), iterations)) => {
+                return Err(LinearError::External(format!(
+                    "conjugate gradients stopped after {iterations} iterations \
+                     (KSPConvergedReason {code})"
+                )))
+            }
+        };
+        let petsc_of_free = &self.petsc_of_free;
+        self.gather.gather(&self.solution, |whole| {
+            for (x, &i) in x.iter_mut().zip(petsc_of_free) {
+                *x = whole[i as usize];
+            }
+        })?;
+        Ok(LinearStats {
+            t_solve: start.elapsed().as_secs_f64(),
+            iterations,
+            setups: 0,
+            t_setup: 0.0,
+        })
+    }
+}
