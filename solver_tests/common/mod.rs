@@ -204,3 +204,62 @@ pub fn load_scene(dir: &std::path::Path, text: &str) -> Result<icefem::scene::Sc
     std::fs::write(&path, text).unwrap();
     icefem::scene::Scene::load(&path).map_err(|e| e.to_string())
 }
+
+/// `sim`, shared among the processes when the test runs under `mpirun` with more than one
+/// (the `mpi` feature; `make test-mpi` runs the scikit-fem validation so), else as it is.
+pub fn shared(sim: Simulation) -> Simulation {
+    #[cfg(feature = "mpi")]
+    {
+        let mut sim = sim;
+        if let Some(processes) = mpi_processes::get() {
+            icefem::run::Processes::distribute(processes, &mut sim).unwrap();
+        }
+        sim
+    }
+    #[cfg(not(feature = "mpi"))]
+    sim
+}
+
+#[cfg(feature = "mpi")]
+mod mpi_processes {
+    use icefem::distributed::MpiProcesses;
+    use std::sync::OnceLock;
+
+    /// The processes, initialised at the first use and finalised at exit.
+    struct Global(MpiProcesses);
+    // SAFETY: MPI is initialised with MPI_THREAD_MULTIPLE and the tests of a run under
+    // `mpirun` go one at a time (`--test-threads=1`), so no two threads use it at once.
+    unsafe impl Send for Global {}
+    unsafe impl Sync for Global {}
+
+    static PROCESSES: OnceLock<Option<Global>> = OnceLock::new();
+
+    extern "C" fn finalize() {
+        // SAFETY: at exit, after every test: MPI was initialised by `get`.
+        unsafe {
+            mpi::ffi::MPI_Finalize();
+        }
+    }
+
+    /// The processes of `mpirun`, if more than one.
+    pub fn get() -> Option<&'static MpiProcesses> {
+        PROCESSES
+            .get_or_init(|| {
+                let launched = std::env::var("OMPI_COMM_WORLD_SIZE")
+                    .ok()
+                    .and_then(|n| n.parse::<usize>().ok())
+                    .is_some_and(|n| n > 1);
+                if !launched {
+                    return None;
+                }
+                let processes = MpiProcesses::init().expect("MPI and PETSc start");
+                // SAFETY: registering a plain function to run at exit.
+                unsafe {
+                    libc::atexit(finalize);
+                }
+                Some(Global(processes))
+            })
+            .as_ref()
+            .map(|g| &g.0)
+    }
+}

@@ -47,9 +47,10 @@ pub struct MpiProcesses {
 }
 
 impl MpiProcesses {
-    /// Initialises MPI (only this thread calls it) and PETSc.
+    /// Initialises MPI (calls may come from any thread, one at a time: a test harness runs
+    /// tests on threads of its own) and PETSc.
     pub fn init() -> Result<Self, DistributedError> {
-        let (universe, _) = mpi::initialize_with_threading(mpi::Threading::Funneled)
+        let (universe, _) = mpi::initialize_with_threading(mpi::Threading::Multiple)
             .ok_or(DistributedError::Mpi)?;
         let world = universe.world();
         let petsc = petsc::Petsc::init()?;

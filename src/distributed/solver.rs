@@ -1,5 +1,5 @@
 //! The linear solve of a distributed run: each process adds its part of the Hessian (the
-//! columns of the dofs of its elements' nodes) into a PETSc matrix over all 3n dofs, whose
+//! columns where its elements and nodes write) into a PETSc matrix over all 3n dofs, whose
 //! rows the processes own by node; PETSc sums the parts, and conjugate gradients with
 //! algebraic multigrid (GAMG, with the rigid-body modes as near-null space) solve. The
 //! constrained dofs are rows of the diagonal only (their update is zero), which keeps every
@@ -95,12 +95,23 @@ impl PetscSolver {
             .flat_map(|&v| [rest[v].x, rest[v].y, rest[v].z])
             .collect();
         matrix.set_rigid_body_modes(&coordinates, global)?;
-        // The columns this process adds: the free dofs of its elements' nodes.
+        // The columns this process adds: the free dofs of its elements' nodes, and of the
+        // nodes its own nodes are coupled to (a nodal volumetric energy's ring, a contact
+        // pair), where its nodes' terms write.
         let mut touched = vec![false; n_nodes];
         for (tet, &own) in tets.iter().zip(owned_elements) {
             if own {
                 for &v in tet {
                     touched[v] = true;
+                }
+            }
+        }
+        for &v in &node_of_row {
+            for k in 0..3 {
+                if let Some(c) = dofs.free(3 * v + k) {
+                    for &r in symbolic.row_idx_of_col_raw(c) {
+                        touched[dofs.free_dofs()[r] / 3] = true;
+                    }
                 }
             }
         }

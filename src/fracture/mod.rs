@@ -153,7 +153,7 @@ pub fn separation(
     // p̄ₑ acts through their volume change θₑ.
     let offsets = history.offsets();
     let pressure = elasticity
-        .nodal_pressures(tets, history, &offsets, u)
+        .nodal_pressures(tets, history, &offsets, u, None)
         .map(|(p, _)| p);
     for (e, tet) in tets.iter().enumerate() {
         if !history.holds_ice(e) {

@@ -231,18 +231,20 @@ impl Elasticity {
     }
 
     /// With the nodal volumetric energy: each element's pressure p̄ₑ (Pa) at `u`, and the
-    /// volumetric energy (J); none per element.
+    /// volumetric energy (J) — of the nodes whose dofs `owned` marks, if given; none per
+    /// element.
     pub fn nodal_pressures(
         &self,
         tets: &[[usize; 4]],
         history: &ElementHistory,
         offsets: &[StrainOffset],
         u: &[f64],
+        owned: Option<&[bool]>,
     ) -> Option<(Vec<f64>, f64)> {
         let nodal = self.nodal.as_ref()?;
         let (change, bulk) = self.volume_changes(tets, history, offsets, u, false);
         let theta: Vec<f64> = change.iter().map(|c| c.theta).collect();
-        Some(nodal.pressures(&theta, &bulk, &self.rest, tets))
+        Some(nodal.pressures(&theta, &bulk, &self.rest, tets, owned))
     }
 
     /// Energy, gradient and optionally the exact stiffness of element `e` for displacements `u`.
@@ -326,7 +328,7 @@ impl Elasticity {
     ) -> Vec<[f64; 6]> {
         let offsets = history.offsets();
         let pressure = self
-            .nodal_pressures(tets, history, &offsets, u)
+            .nodal_pressures(tets, history, &offsets, u, None)
             .map(|(p, _)| p);
         crate::parallel::map_range(tets.len(), |e| {
             let mut s = element_stress(
@@ -359,10 +361,18 @@ impl Elasticity {
             element_energy,
         );
         let volumetric = self
-            .nodal_pressures(tets, history, offsets, u)
+            .nodal_pressures(tets, history, offsets, u, None)
             .map_or(0.0, |(_, energy)| energy);
         // Summed in order so the result does not depend on thread scheduling.
         element_energy.iter().sum::<f64>() + volumetric
+    }
+}
+
+/// Σ of the element energies, in element order: of `subset`'s elements if given.
+fn element_sum(subset: Option<&ElementSubset>, element_energy: &[f64]) -> f64 {
+    match subset {
+        Some(subset) => subset.sum(element_energy),
+        None => element_energy.iter().sum(),
     }
 }
 
@@ -382,9 +392,10 @@ pub struct ElasticStep<'a> {
     pub project: bool,
     /// Each element's strain offset, fixed during the solve (`history.offsets()`).
     pub offsets: &'a [StrainOffset],
-    /// The elements this process evaluates in a distributed run (all if `None`); the energy
-    /// is then theirs alone. Not with the nodal volumetric energy, which couples elements.
-    pub subset: Option<&'a ElementSubset>,
+    /// In a distributed run, the elements this process evaluates and the dofs it owns (all
+    /// 3n): the energy, gradient and Hessian are then those of its elements, plus the nodal
+    /// volumetric energy and Hessian of its nodes.
+    pub subset: Option<(&'a ElementSubset, &'a [bool])>,
 }
 
 impl<'a> ElasticStep<'a> {
@@ -419,12 +430,13 @@ impl StepTerm for ElasticStep<'_> {
         hessian: Option<&mut [f64]>,
     ) {
         let (el, tets, history, offsets) = (self.elasticity, self.tets, self.history, self.offsets);
+        let (subset, owned) = self.subset.unzip();
         match gradient {
             Some(gradient) => {
                 let project = self.project;
                 let Some(nodal) = &el.nodal else {
                     self.assembly.assemble_in(
-                        self.subset,
+                        subset,
                         |e, with_h, out| {
                             el.element_with(tets, history, u, e, &offsets[e], with_h, project, out)
                         },
@@ -432,23 +444,22 @@ impl StepTerm for ElasticStep<'_> {
                         gradient,
                         hessian,
                     );
-                    *energy += match self.subset {
-                        Some(subset) => subset.sum(self.element_energy),
-                        None => self.element_energy.iter().sum::<f64>(),
-                    };
+                    *energy += element_sum(subset, self.element_energy);
                     return;
                 };
-                debug_assert!(self.subset.is_none(), "nodal volumetric energy on a subset");
                 // Nodal volumetric energy: element pressures first, then the elements'
                 // deviatoric energy with their pressure's forces and stiffness (its ∂²θ part
                 // is indefinite and left out when projecting), then the nodes' Σ Vₐ κₐ ∇θ̄ₐ ∇θ̄ₐᵀ.
+                // On a subset, the pressures need every element's volume change; the nodes'
+                // energy and Hessian are those of the owned nodes.
                 let with_h = hessian.is_some();
                 let (change, bulk) =
                     el.volume_changes(tets, history, offsets, u, with_h && !project);
                 let theta: Vec<f64> = change.iter().map(|c| c.theta).collect();
-                let (pressure, volumetric) = nodal.pressures(&theta, &bulk, &el.rest, tets);
+                let (pressure, volumetric) = nodal.pressures(&theta, &bulk, &el.rest, tets, owned);
                 let mut hessian = hessian;
-                self.assembly.assemble(
+                self.assembly.assemble_in(
+                    subset,
                     |e, with_h, out| {
                         el.element_with(tets, history, u, e, &offsets[e], with_h, project, out);
                         change[e].add_pressure(&el.rest[e], pressure[e], out, with_h);
@@ -458,12 +469,12 @@ impl StepTerm for ElasticStep<'_> {
                     hessian.as_deref_mut(),
                 );
                 if let Some(h) = hessian {
-                    nodal.add_hessian(&change, &bulk, &el.rest, h);
+                    nodal.add_hessian(&change, &bulk, &el.rest, h, owned);
                 }
-                *energy += self.element_energy.iter().sum::<f64>() + volumetric;
+                *energy += element_sum(subset, self.element_energy) + volumetric;
             }
             None => match self.subset {
-                Some(subset) => {
+                Some((subset, owned)) => {
                     self.assembly.energies_in(
                         Some(subset),
                         |e, out| {
@@ -471,7 +482,10 @@ impl StepTerm for ElasticStep<'_> {
                         },
                         self.element_energy,
                     );
-                    *energy += subset.sum(self.element_energy);
+                    let volumetric = el
+                        .nodal_pressures(tets, history, offsets, u, Some(owned))
+                        .map_or(0.0, |(_, energy)| energy);
+                    *energy += subset.sum(self.element_energy) + volumetric;
                 }
                 None => {
                     *energy += el.energy(

@@ -134,6 +134,7 @@ impl NodalVolume {
         bulk: &[f64],
         rest: &[ElementRest],
         tets: &[[usize; 4]],
+        owned: Option<&[bool]>,
     ) -> (Vec<f64>, f64) {
         let mut node_pressure = vec![0.0; self.node_volume.len()];
         let mut energy = 0.0;
@@ -149,7 +150,9 @@ impl NodalVolume {
                 k += w * bulk[e as usize];
             }
             *p = k * t;
-            energy += 0.5 * va * k * t * t;
+            if owned.is_none_or(|owned| owned[3 * a]) {
+                energy += 0.5 * va * k * t * t;
+            }
         }
         let pressure = tets
             .iter()
@@ -168,12 +171,13 @@ impl NodalVolume {
         bulk: &[f64],
         rest: &[ElementRest],
         hessian: &mut [f64],
+        owned: Option<&[bool]>,
     ) {
         let mut grad: Vec<f64> = Vec::new();
         for a in 0..self.node_volume.len() {
             let va = self.node_volume[a];
             let r = self.ring_ptr[a + 1] - self.ring_ptr[a];
-            if va <= 0.0 {
+            if va <= 0.0 || owned.is_some_and(|owned| !owned[3 * a]) {
                 continue;
             }
             grad.clear();

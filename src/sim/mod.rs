@@ -429,15 +429,9 @@ impl Simulation {
     }
 
     /// Shares the simulation among the processes of `distribution` from its next step on.
-    /// Fails, saying why, for what is not distributed: the nodal volumetric energy
-    /// (`volumetric = "nodal"`), which couples the elements around a node, and Rayleigh
-    /// stiffness damping, whose β K is one process's part.
+    /// Fails, saying why, for what is not distributed: Rayleigh stiffness damping, whose β K
+    /// would be one process's part.
     pub fn distribute(&mut self, distribution: Box<dyn Distribution>) -> Result<(), SimError> {
-        if self.model.elasticity.nodal.is_some() {
-            return Err(SimError::NotDistributed(
-                "the nodal volumetric energy (volumetric = \"nodal\")",
-            ));
-        }
         if !self.damping_stiffness.is_empty() {
             return Err(SimError::NotDistributed(
                 "Rayleigh stiffness damping ([damping] stiffness > 0)",
@@ -789,7 +783,9 @@ impl Simulation {
             (&self.state.history, &offsets),
             (
                 &mut self.element_energy,
-                self.shared.as_ref().map(|s| &s.elements),
+                self.shared
+                    .as_ref()
+                    .map(|s| (&s.elements, s.distribution.owned_dofs())),
             ),
             &solve,
         );
@@ -1132,7 +1128,7 @@ fn solve_terms<'a>(
     model: &'a Model,
     assembly: &'a Assembly,
     (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
-    (element_energy, subset): (&'a mut [f64], Option<&'a ElementSubset>),
+    (element_energy, subset): (&'a mut [f64], Option<(&'a ElementSubset, &'a [bool])>),
     solve: &Solve<'a>,
 ) -> Vec<Box<dyn StepTerm + 'a>> {
     let mut elastic = ElasticStep::new(
