@@ -6,17 +6,40 @@
 #   make test   — runs the whole test suite (cargo test --release), then reads icefem's files
 #                 with readers that are not icefem's (validation/check_readers.sh: the Python
 #                 reader's tests, the XDMF through VTK, the exports through pxr.Usd, meshio, VTK)
+# and, for runs on several processes (the `mpi` feature):
+#   make mpi      — installs OpenMPI, PETSc, parallel HDF5 and libclang (apt-get), builds
+#                   target/release/icefem with the feature: `mpirun -n N target/release/icefem run SCENE`
+#   make test-mpi — the distributed tests (2 processes against 1) and the scikit-fem
+#                   validation on 2 processes
 # The only system library needed is HDF5 (libhdf5-dev), installed with apt-get when missing;
 # the readers' Python venv (wheels only) is created in target/readers-venv.
 
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: deps demo test figures
+.PHONY: deps demo test figures mpi-deps mpi test-mpi
 
 deps:
 	@pkg-config --exists hdf5 2>/dev/null || { \
 		echo "installing libhdf5-dev (HDF5 C library for the hdf5-metno crate)"; \
 		$(SUDO) apt-get update -qq && $(SUDO) DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libhdf5-dev pkg-config; }
+
+# PETSc 3.18 (with hypre), OpenMPI 4.1 and HDF5 built for MPI from Debian; libclang for
+# bindgen, which generates the PETSc declarations at build time.
+MPI_PACKAGES := libopenmpi-dev openmpi-bin libpetsc-real-dev libhdf5-openmpi-dev libclang-dev pkg-config
+mpi-deps:
+	@dpkg -s $(MPI_PACKAGES) >/dev/null 2>&1 || { \
+		echo "installing $(MPI_PACKAGES)"; \
+		$(SUDO) apt-get update -qq && $(SUDO) DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(MPI_PACKAGES); }
+
+mpi: mpi-deps
+	cargo build --release --features mpi
+
+# Processes as root (CI containers) need OpenMPI's consent; more processes than cores, too.
+MPIRUN := mpirun --oversubscribe --allow-run-as-root
+test-mpi: mpi-deps
+	cargo test --release --features mpi --test distributed
+	$(MPIRUN) -n 2 $$(cargo test --release --features mpi --test validation --no-run 2>&1 \
+		| sed -n 's/.*Executable .*(\(.*validation-[0-9a-f]*\)).*/\1/p') --test-threads=1
 
 demo: deps
 	cargo run --release -- run scenes/freezing_container_fracture.toml --output freezing_container_fracture.h5 --force
