@@ -597,7 +597,7 @@ impl From<OrderingArg> for FillOrdering {
 /// `icefem run` on one process.
 #[cfg(not(feature = "mpi"))]
 fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
-    run_command(scene_path, options, None, verbosity)
+    run_command(scene_path, options, None, verbosity).map(|_| ())
 }
 
 /// `icefem run`, shared among the processes `mpirun` started (on one process, the serial
@@ -605,8 +605,11 @@ fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity
 #[cfg(feature = "mpi")]
 fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
     let processes = icefem::distributed::MpiProcesses::init()?;
-    if processes.size() == 1 {
-        return run_command(scene_path, options, None, verbosity);
+    // ICEFEM_DISTRIBUTE_ONE=1 takes the distributed path (PETSc) on one process too: the
+    // one-process column of the scaling measurements.
+    let one_shared = std::env::var_os("ICEFEM_DISTRIBUTE_ONE").is_some_and(|v| v == "1");
+    if processes.size() == 1 && !one_shared {
+        return run_command(scene_path, options, None, verbosity).map(|_| ());
     }
     // One process per core by default: each process's threads share the node's cores.
     if std::env::var_os("RAYON_NUM_THREADS").is_none() {
@@ -627,13 +630,30 @@ fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity
     } else {
         Verbosity::Quiet
     };
-    if let Err(e) = run_command(scene_path, options, Some(&processes), verbosity) {
+    let summary = match run_command(scene_path, options, Some(&processes), verbosity) {
+        Ok(summary) => summary,
+        Err(e) => {
+            eprintln!("error (process {rank} of {}): {}", processes.size(), message(&e));
+            processes.abort(1);
+        }
+    };
+    let by_process = processes.traffic_by_process();
+    if verbosity != Verbosity::Quiet {
+        let iterations = summary.newton_iterations.max(1) as f64;
         eprintln!(
-            "error (process {rank} of {}): {}",
-            processes.size(),
-            message(&e)
+            "per Newton iteration ({} iterations), values of 8 bytes exchanged by each process:",
+            summary.newton_iterations
         );
-        processes.abort(1);
+        for (p, ([sums, entries, gathered, halo], memory)) in by_process.iter().enumerate() {
+            eprintln!(
+                "  process {p}: sums {:.0}, matrix entries {:.0}, gathered {:.0}, CG halo {:.0}; peak memory {:.0} MB",
+                *sums as f64 / iterations,
+                *entries as f64 / iterations,
+                *gathered as f64 / iterations,
+                *halo as f64 / iterations,
+                *memory as f64 / 1e6
+            );
+        }
     }
     Ok(())
 }
@@ -643,7 +663,7 @@ fn run_command(
     options: &RunOptions,
     processes: Option<&dyn Processes>,
     verbosity: Verbosity,
-) -> Result<()> {
+) -> Result<icefem::run::RunSummary> {
     let scene = Scene::load(scene_path)?;
     let interrupt = Arc::new(AtomicBool::new(false));
     {
@@ -727,7 +747,7 @@ fn run_command(
     })?;
     bar.finish_and_clear();
     if !talk && !summary.interrupted {
-        return Ok(());
+        return Ok(summary);
     }
     eprintln!(
         "{} {} steps in {:.2} s ({} Newton iterations, max residual {:.2e} N); t = {:.4} s; {} frames in {}",
@@ -755,5 +775,5 @@ fn run_command(
         eprintln!("resume with: {again}");
         std::process::exit(130);
     }
-    Ok(())
+    Ok(summary)
 }

@@ -27,6 +27,33 @@ use mpi::traits::*;
 use partition::Partition;
 use std::cell::RefCell;
 
+/// What this process exchanged with the others so far, counted where it is sent (in values
+/// of 8 bytes; a matrix entry also carries its two 4-byte indices): the measured side of the
+/// communication volume (`docs/distributed.md`).
+pub mod traffic {
+    use std::sync::atomic::{AtomicU64, Ordering};
+
+    /// Values of the energy and gradient sums (sent and received).
+    pub static SUMS: AtomicU64 = AtomicU64::new(0);
+    /// Matrix entries added to other processes' rows.
+    pub static MATRIX_ENTRIES: AtomicU64 = AtomicU64::new(0);
+    /// Values of the solutions gathered onto this process.
+    pub static GATHERED: AtomicU64 = AtomicU64::new(0);
+    /// Other processes' vector entries the conjugate gradients' products read (finest level,
+    /// per iteration, summed over iterations).
+    pub static HALO: AtomicU64 = AtomicU64::new(0);
+
+    /// Adds `n` to `counter`.
+    pub fn add(counter: &AtomicU64, n: usize) {
+        counter.fetch_add(n as u64, Ordering::Relaxed);
+    }
+
+    /// The four counts: sums, matrix entries, gathered values, halo values.
+    pub fn read() -> [u64; 4] {
+        [&SUMS, &MATRIX_ENTRIES, &GATHERED, &HALO].map(|c| c.load(Ordering::Relaxed))
+    }
+}
+
 /// Failure to start the processes' libraries.
 #[derive(Debug, thiserror::Error)]
 pub enum DistributedError {
@@ -75,6 +102,24 @@ impl MpiProcesses {
     /// may be waiting for it in a collective call).
     pub fn abort(&self, code: i32) -> ! {
         self.world.abort(code)
+    }
+
+    /// Each process's exchanged values (see [`traffic`]) and peak resident memory (bytes),
+    /// gathered onto process 0 (empty elsewhere).
+    pub fn traffic_by_process(&self) -> Vec<([u64; 4], u64)> {
+        let mine = traffic::read();
+        let local = [mine[0], mine[1], mine[2], mine[3], peak_memory()];
+        let root = self.world.process_at_rank(0);
+        if self.rank() == 0 {
+            let mut all = vec![0u64; 5 * self.size()];
+            root.gather_into_root(&local[..], &mut all[..]);
+            all.chunks(5)
+                .map(|c| ([c[0], c[1], c[2], c[3]], c[4]))
+                .collect()
+        } else {
+            root.gather_into(&local[..]);
+            Vec::new()
+        }
     }
 
     /// The largest of `x` over the processes.
@@ -139,6 +184,19 @@ impl Processes for MpiProcesses {
     }
 }
 
+/// This process's peak resident memory (bytes).
+fn peak_memory() -> u64 {
+    // SAFETY: getrusage fills the struct it is given.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let ok = unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } == 0;
+    // Linux reports kilobytes.
+    if ok {
+        usage.ru_maxrss.max(0) as u64 * 1024
+    } else {
+        0
+    }
+}
+
 /// Sums across the processes over MPI, made the same on every process: scalars gathered and
 /// added in process order, vectors reduced onto process 0 and broadcast from it.
 struct MpiCollective {
@@ -150,6 +208,7 @@ impl Collective for MpiCollective {
     fn sum(&self, x: f64) -> f64 {
         let mut all = vec![0.0; self.world.size() as usize];
         self.world.all_gather_into(&x, &mut all[..]);
+        traffic::add(&traffic::SUMS, 2 * (all.len() - 1));
         all.iter().sum()
     }
 
@@ -164,6 +223,10 @@ impl Collective for MpiCollective {
             root.reduce_into(v, SystemOperation::sum());
         }
         root.broadcast_into(v);
+        // Process 0 receives and sends every other's vector; the others one each way.
+        let others = self.world.size() as usize - 1;
+        let sent = if self.world.rank() == 0 { 2 * others } else { 2 };
+        traffic::add(&traffic::SUMS, sent * v.len());
     }
 
     fn max(&self, x: f64) -> f64 {

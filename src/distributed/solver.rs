@@ -1,11 +1,13 @@
 //! The linear solve of a distributed run: each process adds its part of the Hessian (the
 //! columns where its elements and nodes write) into a PETSc matrix over all 3n dofs, whose
 //! rows the processes own by node; PETSc sums the parts, and conjugate gradients with
-//! algebraic multigrid (GAMG, with the rigid-body modes as near-null space) solve. The
+//! algebraic multigrid (hypre's BoomerAMG; PETSc's GAMG, with the rigid-body modes as
+//! near-null space, on request) solve. The
 //! constrained dofs are rows of the diagonal only (their update is zero), which keeps every
 //! node's 3 × 3 block for the multigrid. The solution is gathered whole onto every process.
 
 use super::partition::Partition;
+use super::traffic;
 use super::petsc::{Divergence, GatherToAll, Int, Krylov, Matrix, PetscError, Vector};
 use crate::assembly::Assembly;
 use crate::solver::{ExternalSolver, LinearError, LinearStats};
@@ -37,6 +39,12 @@ pub struct PetscSolver {
     /// First PETSc row of this process.
     first_row: usize,
     n_free: usize,
+    /// Entries a factorisation adds to other processes' rows.
+    entries_sent: usize,
+    /// Other processes' entries a product with the matrix reads (its off-process columns).
+    halo: usize,
+    /// Entries gathered from the others per solve.
+    gathered: usize,
 }
 
 impl PetscSolver {
@@ -129,12 +137,26 @@ impl PetscSolver {
             );
             row_ptr.push(rows.len());
         }
+        let entries_sent = columns
+            .iter()
+            .zip(row_ptr.windows(2))
+            .filter(|(&c, _)| !in_range(petsc_of_free[c]))
+            .map(|(_, w)| w[1] - w[0])
+            .sum();
+        let mut halo: Vec<Int> = local_free
+            .iter()
+            .flatten()
+            .flat_map(|&c| symbolic.row_idx_of_col_raw(c).iter().map(|&r| petsc_of_free[r]))
+            .filter(|&i| !in_range(i))
+            .collect();
+        halo.sort_unstable();
+        halo.dedup();
         let rhs = Vector::new(local, global, 3)?;
         let solution = Vector::new(local, global, 3)?;
         let gather = GatherToAll::new(&solution)?;
         Ok(PetscSolver {
             matrix,
-            krylov: Krylov::cg_gamg(rtol, max_iterations)?,
+            krylov: Krylov::cg_amg(rtol, max_iterations)?,
             rhs,
             solution,
             gather,
@@ -145,6 +167,9 @@ impl PetscSolver {
             local_free,
             first_row,
             n_free: dofs.num_free(),
+            entries_sent,
+            halo: halo.len(),
+            gathered: global - local,
         })
     }
 }
@@ -177,6 +202,7 @@ impl ExternalSolver for PetscSolver {
             }
         }
         self.matrix.assemble()?;
+        traffic::add(&traffic::MATRIX_ENTRIES, self.entries_sent);
         self.krylov.set_matrix(&self.matrix)?;
         Ok(())
     }
@@ -211,6 +237,8 @@ impl ExternalSolver for PetscSolver {
                 )))
             }
         };
+        traffic::add(&traffic::HALO, self.halo * iterations);
+        traffic::add(&traffic::GATHERED, self.gathered);
         let petsc_of_free = &self.petsc_of_free;
         self.gather.gather(&self.solution, |whole| {
             for (x, &i) in x.iter_mut().zip(petsc_of_free) {
