@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# The scaling table of docs/distributed.md: the ice cubes of this folder (1e5 and 1e6 dofs,
+# 3 backward-Euler steps) on one process with icefem's shared-memory multigrid (2 threads),
+# on one process through PETSc (ICEFEM_DISTRIBUTE_ONE=1) and on two processes through
+# PETSc. Prints, per run: seconds per Newton iteration (assembly, preconditioner set-up,
+# solve), CG iterations per solve, peak memory per process, and the values each process
+# exchanged per Newton iteration. Needs `make mpi` (binary with the `mpi` feature) and the
+# validation venv (validation/setup_venv.sh) for h5py.
+#   validation/distributed/scaling.sh [SIZES]     SIZES: 1e5 (default) and/or 1e6
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+BIN=target/release/icefem
+PY=validation/.venv/bin/python
+MPIRUN="mpirun --oversubscribe --allow-run-as-root"
+OUT=$(mktemp -d)
+trap 'rm -rf "$OUT"' EXIT
+sizes=${*:-1e5}
+summarise() { # label, h5, log
+    "$PY" - "$1" "$2" "$3" <<'PY'
+import sys, re, h5py, numpy as np
+label, path, log = sys.argv[1:]
+s = h5py.File(path)["stats"]
+n = s["newton_iterations"][()].sum()
+solves = s["factorizations"][()].sum()
+per = lambda k: s[k][()].sum() / n
+cg = s["linear_iterations"][()].sum() / n
+text = open(log).read()
+mem = re.findall(r"peak memory (\d+) MB", text)
+maxrss = re.findall(r"maxrss (\d+)", text)
+memory = "/".join(mem) if mem else f"{int(maxrss[-1]) // 1000}"
+traffic = re.findall(r"sums (\d+), matrix entries (\d+), gathered (\d+), CG halo (\d+)", text)
+t = "; ".join("/".join(x) for x in traffic) if traffic else "-"
+print(f"| {label} | {n} | {per('t_assembly'):.3f} | {s['t_factorization'][()].sum():.2f} ({solves}) | "
+      f"{per('t_solve'):.3f} | {cg:.0f} | {s['t_step'][()].sum():.1f} | {memory} | {t} |")
+PY
+}
+echo "| run | Newton it. | assembly s/it | set-up s (count) | solve s/it | CG it./it | total s | peak MB per process | exchanged per it.: sums/entries/gathered/halo |"
+echo "|---|---|---|---|---|---|---|---|---|"
+for size in $sizes; do
+    scene=validation/distributed/cube_$size.toml
+    /usr/bin/time -f "maxrss %M" "$BIN" -q run "$scene" -o "$OUT/s.h5" --force 2> "$OUT/s.log"
+    summarise "$size icefem AMG, 1 process" "$OUT/s.h5" "$OUT/s.log"
+    ICEFEM_DISTRIBUTE_ONE=1 $MPIRUN -n 1 -x ICEFEM_DISTRIBUTE_ONE "$BIN" run "$scene" -o "$OUT/p1.h5" --force 2> "$OUT/p1.log"
+    summarise "$size PETSc, 1 process" "$OUT/p1.h5" "$OUT/p1.log"
+    $MPIRUN -n 2 "$BIN" run "$scene" -o "$OUT/p2.h5" --force 2> "$OUT/p2.log"
+    summarise "$size PETSc, 2 processes" "$OUT/p2.h5" "$OUT/p2.log"
+done
