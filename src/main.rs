@@ -633,7 +633,11 @@ fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity
     let summary = match run_command(scene_path, options, Some(&processes), verbosity) {
         Ok(summary) => summary,
         Err(e) => {
-            eprintln!("error (process {rank} of {}): {}", processes.size(), message(&e));
+            eprintln!(
+                "error (process {rank} of {}): {}",
+                processes.size(),
+                message(&e)
+            );
             processes.abort(1);
         }
     };

@@ -225,7 +225,11 @@ impl Collective for MpiCollective {
         root.broadcast_into(v);
         // Process 0 receives and sends every other's vector; the others one each way.
         let others = self.world.size() as usize - 1;
-        let sent = if self.world.rank() == 0 { 2 * others } else { 2 };
+        let sent = if self.world.rank() == 0 {
+            2 * others
+        } else {
+            2
+        };
         traffic::add(&traffic::SUMS, sent * v.len());
     }
 

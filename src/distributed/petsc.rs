@@ -33,10 +33,7 @@ fn check(code: ffi::PetscErrorCode, call: &'static str) -> Result<(), PetscError
     if code == 0 {
         Ok(())
     } else {
-        Err(PetscError {
-            call,
-            code: code as i32,
-        })
+        Err(PetscError { call, code })
     }
 }
 

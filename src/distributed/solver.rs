@@ -7,8 +7,8 @@
 //! node's 3 × 3 block for the multigrid. The solution is gathered whole onto every process.
 
 use super::partition::Partition;
-use super::traffic;
 use super::petsc::{Divergence, GatherToAll, Int, Krylov, Matrix, PetscError, Vector};
+use super::traffic;
 use crate::assembly::Assembly;
 use crate::solver::{ExternalSolver, LinearError, LinearStats};
 use nalgebra::Vector3;
@@ -146,7 +146,12 @@ impl PetscSolver {
         let mut halo: Vec<Int> = local_free
             .iter()
             .flatten()
-            .flat_map(|&c| symbolic.row_idx_of_col_raw(c).iter().map(|&r| petsc_of_free[r]))
+            .flat_map(|&c| {
+                symbolic
+                    .row_idx_of_col_raw(c)
+                    .iter()
+                    .map(|&r| petsc_of_free[r])
+            })
             .filter(|&i| !in_range(i))
             .collect();
         halo.sort_unstable();

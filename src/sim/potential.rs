@@ -240,12 +240,7 @@ impl<'a> StepPotential<'a> {
         share.keep_owned(gradient.as_deref_mut(), hessian.as_deref_mut());
         let mut elastic = 0.0;
         self.element_passes += 1;
-        elastic_term.add(
-            u,
-            &mut elastic,
-            gradient.as_deref_mut(),
-            hessian.as_deref_mut(),
-        );
+        elastic_term.add(u, &mut elastic, gradient.as_deref_mut(), hessian);
         let elastic = share.collective.sum(elastic);
         if let Some(g) = gradient {
             share.collective.sum_in_place(g);
