@@ -1,6 +1,6 @@
 //! Runs on two processes (`mpirun -n 2 icefem run`, the `mpi` feature) against the same
-//! scenes on one: the cantilever, the static block and the paper's freezing container
-//! without fracture. `make test-mpi` runs these and the scikit-fem validation on 2 processes.
+//! scenes on one: the cantilever, the static block, the paper's freezing container without
+//! fracture, a damped bar and ice–ice contact. `make test-mpi` runs these and the scikit-fem validation on 2 processes.
 //!
 //! A distributed run solves each Newton iteration by PETSc's conjugate gradients to the
 //! relative residual `cg_tolerance` (1e-10 by default) where one process factorises exactly:
@@ -98,11 +98,12 @@ fn difference(a: &Path, b: &Path) -> f64 {
 
 /// One process against two on `scene` (with `extra` arguments): positions within the
 /// solver's tolerance, the same Newton iterations in every step.
-fn two_processes_match_one(name: &str, extra: &[&str]) {
+fn two_processes_match_one(path: &Path, extra: &[&str]) {
+    let name = path.file_name().unwrap().to_string_lossy();
     let dir = tempfile::tempdir().unwrap();
     let (one, two) = (dir.path().join("one.h5"), dir.path().join("two.h5"));
-    icefem_run(1, &scene(name), &one, extra);
-    icefem_run(2, &scene(name), &two, extra);
+    icefem_run(1, path, &one, extra);
+    icefem_run(2, path, &two, extra);
     let diff = difference(&one, &two);
     eprintln!("{name}: max |Δu| / max |u| = {diff:.2e}");
     assert!(diff <= 1e-8, "{name}: {diff:e}");
@@ -127,19 +128,28 @@ fn two_processes_match_one(name: &str, extra: &[&str]) {
 
 #[test]
 fn the_static_block_on_two_processes_matches_one() {
-    two_processes_match_one("static_block.toml", &[]);
+    two_processes_match_one(&scene("static_block.toml"), &[]);
 }
 
 #[test]
 fn the_cantilever_on_two_processes_matches_one() {
-    two_processes_match_one("cantilever.toml", &["--end-time", "1.0"]);
+    two_processes_match_one(&scene("cantilever.toml"), &["--end-time", "1.0"]);
 }
 
 #[test]
 fn the_freezing_container_on_two_processes_matches_one() {
     // Freezing, the nodal volumetric energy, plasticity and the container's walls; the first
     // 400 of its 2400 steps (the ice front moves in from the walls, the water is squeezed).
-    two_processes_match_one("freezing_container.toml", &["--end-time", "13.34"]);
+    two_processes_match_one(&scene("freezing_container.toml"), &["--end-time", "13.34"]);
+}
+
+#[test]
+fn a_damped_bar_on_two_processes_matches_one() {
+    // Mass and stiffness (Rayleigh) damping: β Kₙ is assembled whole on every process.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sagging_bar.toml");
+    std::fs::write(&path, common::SAGGING_BAR).unwrap();
+    two_processes_match_one(&path, &[]);
 }
 
 #[test]
@@ -200,5 +210,8 @@ fn ice_contact_on_two_processes_is_within_the_spread_of_one_process_solvers() {
     let distributed = difference(&cholesky, &two);
     eprintln!("stacked cubes: Cholesky vs AMG {spread:.2e}, 1 vs 2 processes {distributed:.2e}");
     assert!(spread < 1e-3, "{spread:e}");
-    assert!(distributed <= 3.0 * spread, "{distributed:e} against {spread:e}");
+    assert!(
+        distributed <= 3.0 * spread,
+        "{distributed:e} against {spread:e}"
+    );
 }

@@ -9,9 +9,9 @@
 //! parts go into one PETSc matrix, solved by conjugate gradients with algebraic multigrid
 //! ([`solver`]). Process 0 writes the output, the same file a run on one process writes.
 //!
-//! Not distributed: fracture (its remeshing), `--resume`, the nodal volumetric energy and
-//! Rayleigh stiffness damping — a run that needs them is refused with a message. Memory per
-//! process is that of the whole mesh and state plus its share of the matrix.
+//! Not distributed: fracture (its remeshing) and `--resume` — a run that needs them is
+//! refused with a message. Memory per process is that of the whole mesh and state plus its
+//! share of the matrix.
 
 pub mod partition;
 pub mod petsc;

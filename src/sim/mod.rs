@@ -428,15 +428,10 @@ impl Simulation {
         })
     }
 
-    /// Shares the simulation among the processes of `distribution` from its next step on.
-    /// Fails, saying why, for what is not distributed: Rayleigh stiffness damping, whose β K
-    /// would be one process's part.
+    /// Shares the simulation among the processes of `distribution` from its next step on
+    /// (fails only if the distributed solver cannot be made). Rayleigh damping's β Kₙ is
+    /// assembled whole on every process, like the other terms every process evaluates.
     pub fn distribute(&mut self, distribution: Box<dyn Distribution>) -> Result<(), SimError> {
-        if !self.damping_stiffness.is_empty() {
-            return Err(SimError::NotDistributed(
-                "Rayleigh stiffness damping ([damping] stiffness > 0)",
-            ));
-        }
         self.linear = LinearSolver::External(distribution.solver(&self.assembly)?);
         self.workspace.forget_factor();
         self.fixed_hessian = None;
