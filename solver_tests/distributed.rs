@@ -215,3 +215,29 @@ fn ice_contact_on_two_processes_is_within_the_spread_of_one_process_solvers() {
         "{distributed:e} against {spread:e}"
     );
 }
+
+#[test]
+fn a_run_on_two_processes_resumed_on_two_is_the_uninterrupted_run_bit_for_bit() {
+    // Process 0 reads the frame and gives it to the other; every process forgets its solver
+    // memory at frames, as a run on one process does.
+    let dir = tempfile::tempdir().unwrap();
+    let (cut, whole) = (dir.path().join("cut.h5"), dir.path().join("whole.h5"));
+    let cantilever = scene("cantilever.toml");
+    icefem_run(2, &cantilever, &cut, &["--end-time", "0.5"]);
+    let out = Command::new("mpirun")
+        .args(["--oversubscribe", "--allow-run-as-root", "-n", "2"])
+        .arg(env!("CARGO_BIN_EXE_icefem"))
+        .arg("run")
+        .arg(&cantilever)
+        .args(["--end-time", "1.0", "--resume"])
+        .arg(&cut)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    icefem_run(2, &cantilever, &whole, &["--end-time", "1.0"]);
+    assert_eq!(displacements(&cut), displacements(&whole));
+}

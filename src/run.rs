@@ -102,6 +102,8 @@ pub trait Processes {
     fn writes(&self) -> bool;
     /// Whether `flag` is set on any process (every process must stop at the same step).
     fn any(&self, flag: bool) -> bool;
+    /// The bytes the writing process gives, on every process (the others give none).
+    fn broadcast_bytes(&self, bytes: Vec<u8>) -> Vec<u8>;
 }
 
 /// Runs `scene` with `options`, calling `progress` after every step; stops early (cleanly, with
@@ -116,7 +118,8 @@ pub fn run(
 }
 
 /// [`run`], shared among `processes` if given. A shared run refuses fracture (its remeshing
-/// is not distributed) and `--resume`.
+/// is not distributed); resuming, the writing process reads the frame and gives it to the
+/// others.
 pub fn run_on(
     scene: &Scene,
     options: &RunOptions,
@@ -125,17 +128,12 @@ pub fn run_on(
     mut progress: impl FnMut(&Progress),
 ) -> Result<RunSummary, RunError> {
     if processes.is_some() {
-        let refused = if scene.fracture.is_some() {
-            Some("fracture ([fracture]: its remeshing is not distributed)")
-        } else if options.resume {
-            Some("--resume")
-        } else {
-            None
-        };
-        if let Some(what) = refused {
+        if scene.fracture.is_some() {
             return Err(RunError::Setup {
                 path: scene.path.clone(),
-                error: SimError::NotDistributed(what),
+                error: SimError::NotDistributed(
+                    "fracture ([fracture]: its remeshing is not distributed)",
+                ),
             });
         }
     }
@@ -194,13 +192,27 @@ pub fn run_on(
             })?;
     }
     let writes = processes.is_none_or(|p| p.writes());
-    let mut writer = if !writes {
-        None
-    } else if options.resume {
-        let (mut writer, frame) = OutputWriter::resume_until(&output, end_time)?;
+    let mut writer = if options.resume {
+        let (writer, frame) = if writes {
+            let (mut writer, frame) = OutputWriter::resume_until(&output, end_time)?;
+            writer.store_tensor_matrices(scene.tensor_matrices);
+            if let Some(processes) = processes {
+                processes.broadcast_bytes(frame.to_bytes());
+            }
+            (Some(writer), frame)
+        } else {
+            let bytes = processes.map_or(Vec::new(), |p| p.broadcast_bytes(Vec::new()));
+            let frame =
+                crate::output::ResumeFrame::from_bytes(&bytes).ok_or_else(|| RunError::Resume {
+                    path: output.clone(),
+                    reason: "the frame process 0 read did not arrive whole".into(),
+                })?;
+            (None, frame)
+        };
         restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?;
-        writer.store_tensor_matrices(scene.tensor_matrices);
-        Some(writer)
+        writer
+    } else if !writes {
+        None
     } else {
         let rest = rows(&sim.model.mesh.rest);
         let obstacles = obstacle_meshes(&sim);

@@ -9,9 +9,9 @@
 //! parts go into one PETSc matrix, solved by conjugate gradients with algebraic multigrid
 //! ([`solver`]). Process 0 writes the output, the same file a run on one process writes.
 //!
-//! Not distributed: fracture (its remeshing) and `--resume` — a run that needs them is
-//! refused with a message. Memory per process is that of the whole mesh and state plus its
-//! share of the matrix.
+//! Not distributed: fracture (its remeshing) — a run that needs it is refused with a
+//! message. Memory per process is that of the whole mesh and state plus its share of the
+//! matrix.
 
 pub mod partition;
 pub mod petsc;
@@ -174,6 +174,15 @@ impl Processes for MpiProcesses {
 
     fn writes(&self) -> bool {
         self.rank() == 0
+    }
+
+    fn broadcast_bytes(&self, mut bytes: Vec<u8>) -> Vec<u8> {
+        let root = self.world.process_at_rank(0);
+        let mut len = bytes.len() as u64;
+        root.broadcast_into(&mut len);
+        bytes.resize(len as usize, 0);
+        root.broadcast_into(&mut bytes[..]);
+        bytes
     }
 
     fn any(&self, flag: bool) -> bool {

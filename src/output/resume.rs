@@ -42,12 +42,136 @@ pub struct ResumeFrame {
 }
 
 impl ResumeFrame {
+    /// The frame as bytes, for [`ResumeFrame::from_bytes`] in another process.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        let put = |out: &mut Vec<u8>, x: u64| out.extend_from_slice(&x.to_le_bytes());
+        let put_str = |out: &mut Vec<u8>, t: &str| {
+            put(out, t.len() as u64);
+            out.extend_from_slice(t.as_bytes());
+        };
+        let put_f64s = |out: &mut Vec<u8>, v: &[f64]| {
+            put(out, v.len() as u64);
+            v.iter()
+                .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+        };
+        put(&mut out, self.step);
+        put(&mut out, self.time.to_bits());
+        put_str(&mut out, &self.scene_text);
+        for rows in [&self.positions, &self.velocities, &self.rest_positions] {
+            put_f64s(&mut out, rows.as_flattened());
+        }
+        put(&mut out, self.tets.len() as u64);
+        self.tets
+            .iter()
+            .flatten()
+            .for_each(|&v| put(&mut out, v as u64));
+        for fields in [&self.element_fields, &self.node_fields] {
+            put(&mut out, fields.len() as u64);
+            for f in fields {
+                put_str(&mut out, &f.name);
+                put(&mut out, f.columns as u64);
+                put_f64s(&mut out, &f.data);
+            }
+        }
+        put(&mut out, self.attributes.len() as u64);
+        for (name, value) in &self.attributes {
+            put_str(&mut out, name);
+            put(&mut out, value.to_bits());
+        }
+        out
+    }
+
+    /// The frame [`ResumeFrame::to_bytes`] wrote; `None` if the bytes are not one.
+    pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
+        let mut r = ByteReader { bytes, at: 0 };
+        let step = r.word()?;
+        let time = f64::from_bits(r.word()?);
+        let scene_text = r.string()?;
+        let mut rows = || -> Option<Vec<[f64; 3]>> {
+            let flat = r.f64s()?;
+            (flat.len() % 3 == 0).then(|| flat.chunks(3).map(|c| [c[0], c[1], c[2]]).collect())
+        };
+        let (positions, velocities, rest_positions) = (rows()?, rows()?, rows()?);
+        let n = r.count()?;
+        if n > bytes.len() / 32 {
+            return None;
+        }
+        let flat: Vec<usize> = (0..4 * n).map(|_| r.count()).collect::<Option<_>>()?;
+        let tets = flat.chunks(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
+        let mut fields = || -> Option<Vec<StoredField>> {
+            (0..r.count()?)
+                .map(|_| {
+                    Some(StoredField {
+                        name: r.string()?,
+                        columns: r.count()?,
+                        data: r.f64s()?,
+                    })
+                })
+                .collect()
+        };
+        let (element_fields, node_fields) = (fields()?, fields()?);
+        let attributes = (0..r.count()?)
+            .map(|_| Some((r.string()?, f64::from_bits(r.word()?))))
+            .collect::<Option<_>>()?;
+        (r.at == bytes.len()).then_some(ResumeFrame {
+            step,
+            time,
+            scene_text,
+            positions,
+            velocities,
+            rest_positions,
+            tets,
+            element_fields,
+            node_fields,
+            attributes,
+        })
+    }
+
     /// The scalar attribute `name`, if the frame has it.
     pub fn attribute(&self, name: &str) -> Option<f64> {
         self.attributes
             .iter()
             .find(|(n, _)| n == name)
             .map(|(_, v)| *v)
+    }
+}
+
+/// Reads what [`ResumeFrame::to_bytes`] wrote.
+struct ByteReader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl ByteReader<'_> {
+    fn word(&mut self) -> Option<u64> {
+        let end = self.at.checked_add(8)?;
+        let word = u64::from_le_bytes(self.bytes.get(self.at..end)?.try_into().ok()?);
+        self.at = end;
+        Some(word)
+    }
+
+    fn count(&mut self) -> Option<usize> {
+        usize::try_from(self.word()?).ok()
+    }
+
+    fn string(&mut self) -> Option<String> {
+        let n = self.count()?;
+        let end = self.at.checked_add(n)?;
+        let text = std::str::from_utf8(self.bytes.get(self.at..end)?)
+            .ok()?
+            .to_owned();
+        self.at = end;
+        Some(text)
+    }
+
+    fn f64s(&mut self) -> Option<Vec<f64>> {
+        let n = self.count()?;
+        // A length the bytes cannot hold is refused before allocating.
+        if n > (self.bytes.len() - self.at) / 8 {
+            return None;
+        }
+        (0..n).map(|_| Some(f64::from_bits(self.word()?))).collect()
     }
 }
 
@@ -314,6 +438,34 @@ pub(super) fn read_frame(
 #[cfg(test)]
 mod tests {
     use std::path::PathBuf;
+
+    #[test]
+    fn a_frame_survives_its_bytes_and_damaged_bytes_are_refused() {
+        let frame = super::ResumeFrame {
+            step: 7,
+            time: 0.25,
+            scene_text: "[mesh] é".into(),
+            positions: vec![[1.0, -2.0, 3.5], [f64::MIN_POSITIVE, 0.0, -0.0]],
+            velocities: vec![[0.1, 0.2, 0.3], [4.0, 5.0, 6.0]],
+            rest_positions: vec![[0.0; 3], [1.0; 3]],
+            tets: vec![[0, 1, 1, 0]],
+            element_fields: vec![super::StoredField {
+                name: "plastic_strain".into(),
+                columns: 6,
+                data: (0..6).map(f64::from).collect(),
+            }],
+            node_fields: Vec::new(),
+            attributes: vec![("next_dt".into(), 1e-3)],
+        };
+        let bytes = frame.to_bytes();
+        assert_eq!(super::ResumeFrame::from_bytes(&bytes), Some(frame));
+        for cut in [0, 8, bytes.len() / 2, bytes.len() - 1] {
+            assert_eq!(super::ResumeFrame::from_bytes(&bytes[..cut]), None);
+        }
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert_eq!(super::ResumeFrame::from_bytes(&longer), None);
+    }
 
     use hdf5::File;
 
