@@ -127,15 +127,13 @@ pub fn run_on(
     interrupt: &AtomicBool,
     mut progress: impl FnMut(&Progress),
 ) -> Result<RunSummary, RunError> {
-    if processes.is_some() {
-        if scene.fracture.is_some() {
-            return Err(RunError::Setup {
-                path: scene.path.clone(),
-                error: SimError::NotDistributed(
-                    "fracture ([fracture]: its remeshing is not distributed)",
-                ),
-            });
-        }
+    if processes.is_some() && scene.fracture.is_some() {
+        return Err(RunError::Setup {
+            path: scene.path.clone(),
+            error: SimError::NotDistributed(
+                "fracture ([fracture]: its remeshing is not distributed)",
+            ),
+        });
     }
     let mut settings = scene.settings;
     if let Some(dt) = options.dt {
