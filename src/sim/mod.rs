@@ -461,6 +461,11 @@ impl Simulation {
         v: Vec<f64>,
         parent: &[usize],
     ) -> Result<(), SimError> {
+        if self.shared.is_some() {
+            return Err(SimError::NotDistributed(
+                "remeshing (fracture: its remeshing is not distributed)",
+            ));
+        }
         let (time, step) = (self.state.time, self.state.step);
         let mut history = self.state.history.inherit(parent);
         let mut next = Simulation::new(model, self.settings)?;
