@@ -19,9 +19,11 @@
 //! which [`EXCESS_TOLERANCE`] allows.
 
 use super::{Energies, Simulation};
-use crate::assembly::Assembly;
+use crate::assembly::{Assembly, ElementSubset};
 use crate::fem::StrainOffset;
+use crate::physics::elasticity::ElasticStep;
 use crate::physics::history::ElementHistory;
+use crate::physics::term::StepTerm;
 use crate::physics::Model;
 
 /// Energy that may appear in a solve beyond the work done, as a fraction of the solve's
@@ -153,21 +155,28 @@ impl Simulation {
 /// Energies of `model` at displacement and velocity `(u, v)` (m, m/s; 3 per node) and time
 /// `t` (s), with the elements' `history` and its strain `offsets`; `element_energy` is
 /// scratch, one per element.
+///
+/// With `subset` (a process's elements and owned dofs in a distributed run) the elastic
+/// energy is that process's part of it, to be summed across the processes.
 pub(super) fn energies_of(
     model: &Model,
     assembly: &Assembly,
     (history, offsets): (&ElementHistory, &[StrainOffset]),
-    element_energy: &mut [f64],
+    (element_energy, subset): (&mut [f64], Option<(&ElementSubset, &[bool])>),
     (u, v): (&[f64], &[f64]),
     t: f64,
 ) -> Energies {
-    let elastic = model.elasticity.energy(
-        assembly,
+    let mut elastic = ElasticStep::new(
+        &model.elasticity,
         (&model.mesh.tets, history, offsets),
-        u,
+        assembly,
         element_energy,
+        false,
     );
-    energies_with(model, elastic, (u, v), t)
+    elastic.subset = subset;
+    let mut energy = 0.0;
+    elastic.add(u, &mut energy, None, None);
+    energies_with(model, energy, (u, v), t)
 }
 
 /// Energies of `model` at `(u, v)` and time `t` with the elastic energy `elastic` (J) known.

@@ -873,6 +873,12 @@ impl Simulation {
         let mut before: Option<Energies> = None;
         let mut balance_scratch = std::mem::take(&mut self.balance_scratch);
         balance_scratch.resize(self.model.mesh.num_tets(), 0.0);
+        // In a distributed run each process computes its part of the elastic energy, summed
+        // after the scope (MPI is called from this thread only).
+        let subset = self
+            .shared
+            .as_ref()
+            .map(|s| (&s.elements, s.distribution.owned_dofs()));
         let solved = rayon::in_place_scope(|scope| {
             if !fixed {
                 let (model, assembly) = (&self.model, &self.assembly);
@@ -883,7 +889,7 @@ impl Simulation {
                         model,
                         assembly,
                         (history, offsets),
-                        scratch,
+                        (scratch, subset),
                         (previous, v),
                         t_new,
                     ));
@@ -971,7 +977,10 @@ impl Simulation {
         } else {
             let after = energies_with(&self.model, elastic_at_solution, (&u, &velocity), t_new);
             // Computed beside Newton (above) whenever the Hessian is not fixed.
-            let before = before.unwrap_or_default();
+            let mut before = before.unwrap_or_default();
+            if let Some(shared) = &self.shared {
+                before.elastic = shared.distribution.collective().sum(before.elastic);
+            }
             self.check_balance(before, after, &u, slack)?
         };
         let free = self.assembly.dofs().free_dofs();
@@ -1076,7 +1085,7 @@ impl Simulation {
             &self.model,
             &self.assembly,
             (&self.state.history, &self.state.history.offsets()),
-            &mut self.element_energy,
+            (&mut self.element_energy, None),
             (&self.state.u, &self.state.v),
             self.state.time,
         )
