@@ -46,7 +46,8 @@ enum Verbosity {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Simulate a scene and write every output frame to HDF5 (plus an XDMF sidecar).
+    /// Simulate a scene and write every output frame to HDF5 (plus an XDMF sidecar). Built
+    /// with the `mpi` feature, `mpirun -n N icefem run …` shares the run among N processes.
     Run {
         /// Scene file (TOML).
         scene: PathBuf,
