@@ -598,7 +598,8 @@ impl From<OrderingArg> for FillOrdering {
 /// `icefem run` on one process.
 #[cfg(not(feature = "mpi"))]
 fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
-    run_command(scene_path, options, None, verbosity).map(|_| ())
+    exit_if_interrupted(&run_command(scene_path, options, None, verbosity)?);
+    Ok(())
 }
 
 /// `icefem run`, shared among the processes `mpirun` started (on one process, the serial
@@ -610,7 +611,10 @@ fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity
     // one-process column of the scaling measurements.
     let one_shared = std::env::var_os("ICEFEM_DISTRIBUTE_ONE").is_some_and(|v| v == "1");
     if processes.size() == 1 && !one_shared {
-        return run_command(scene_path, options, None, verbosity).map(|_| ());
+        let summary = run_command(scene_path, options, None, verbosity)?;
+        drop(processes);
+        exit_if_interrupted(&summary);
+        return Ok(());
     }
     // One process per core by default: each process's threads share the node's cores.
     if std::env::var_os("RAYON_NUM_THREADS").is_none() {
@@ -660,6 +664,8 @@ fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity
             );
         }
     }
+    drop(processes);
+    exit_if_interrupted(&summary);
     Ok(())
 }
 
@@ -751,7 +757,9 @@ fn run_command(
         }
     })?;
     bar.finish_and_clear();
-    if !talk && !summary.interrupted {
+    // An interrupted run says so even when quiet (from the process that writes).
+    let writes = processes.is_none_or(|p| p.writes());
+    if !talk && !(summary.interrupted && writes) {
         return Ok(summary);
     }
     eprintln!(
@@ -766,8 +774,9 @@ fn run_command(
         summary.output.display()
     );
     if summary.interrupted {
+        let launcher = processes.map_or(String::new(), |p| format!("mpirun -n {} ", p.count()));
         let mut again = format!(
-            "icefem run {} --resume {}",
+            "{launcher}icefem run {} --resume {}",
             scene_path.display(),
             summary.output.display()
         );
@@ -778,7 +787,13 @@ fn run_command(
             again += &format!(" --dt {dt}");
         }
         eprintln!("resume with: {again}");
-        std::process::exit(130);
     }
     Ok(summary)
+}
+
+/// Exit code 130 for a run stopped by a signal (after the processes' last MPI calls).
+fn exit_if_interrupted(summary: &icefem::run::RunSummary) {
+    if summary.interrupted {
+        std::process::exit(130);
+    }
 }

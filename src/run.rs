@@ -98,6 +98,8 @@ pub fn step_count(end_time: f64, dt: f64) -> u64 {
 pub trait Processes {
     /// Shares `sim` among the processes before its first step.
     fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError>;
+    /// Number of processes.
+    fn count(&self) -> usize;
     /// Whether this process writes the output file.
     fn writes(&self) -> bool;
     /// Whether `flag` is set on any process (every process must stop at the same step).

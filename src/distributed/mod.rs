@@ -172,6 +172,10 @@ impl Processes for MpiProcesses {
         sim.distribute(Box::new(share))
     }
 
+    fn count(&self) -> usize {
+        self.size()
+    }
+
     fn writes(&self) -> bool {
         self.rank() == 0
     }
