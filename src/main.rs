@@ -758,8 +758,8 @@ fn run_command(
     })?;
     bar.finish_and_clear();
     // An interrupted run says so even when quiet (from the process that writes).
-    let writes = processes.is_none_or(|p| p.writes());
-    if !talk && !(summary.interrupted && writes) {
+    let says_interrupted = summary.interrupted && processes.is_none_or(|p| p.writes());
+    if !(talk || says_interrupted) {
         return Ok(summary);
     }
     eprintln!(
