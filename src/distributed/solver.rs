@@ -2,9 +2,9 @@
 //! columns where its elements and nodes write) into a PETSc matrix over all 3n dofs, whose
 //! rows the processes own by node; PETSc sums the parts, and conjugate gradients with
 //! algebraic multigrid (hypre's BoomerAMG; PETSc's GAMG, with the rigid-body modes as
-//! near-null space, on request) solve. The
-//! constrained dofs are rows of the diagonal only (their update is zero), which keeps every
-//! node's 3 × 3 block for the multigrid. The solution is gathered whole onto every process.
+//! near-null space, on request) solve. The constrained dofs are rows of the diagonal only
+//! (their update is zero), which keeps every node's 3 × 3 block for the multigrid. The
+//! solution is gathered whole onto every process.
 
 use super::partition::Partition;
 use super::petsc::{Divergence, GatherToAll, Int, Krylov, Matrix, PetscError, Vector};
@@ -27,8 +27,9 @@ pub struct PetscSolver {
     rhs: Vector,
     solution: Vector,
     gather: GatherToAll,
-    /// Free columns this process adds (the dofs of its elements' nodes), and for each its
-    /// rows' PETSc indices (`rows[row_ptr[k]..row_ptr[k + 1]]`).
+    /// Free columns this process adds (the dofs of its elements' nodes and of the nodes its
+    /// own nodes are coupled to), and for each its rows' PETSc indices
+    /// (`rows[row_ptr[k]..row_ptr[k + 1]]`).
     columns: Vec<usize>,
     row_ptr: Vec<usize>,
     rows: Vec<Int>,
