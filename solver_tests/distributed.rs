@@ -3,7 +3,7 @@
 //! fracture, a damped bar and ice–ice contact. `make test-mpi` runs these and the scikit-fem validation on 2 processes.
 //!
 //! A distributed run solves each Newton iteration by PETSc's conjugate gradients to the
-//! relative residual `cg_tolerance` (1e-10 by default) where one process factorises exactly:
+//! relative residual `cg_tolerance` (1e-12 by default) where one process factorises exactly:
 //! positions agree to that solve's tolerance, amplified over the steps by the conditioning.
 //! Measured: 1.3e-12 (static block), 4.9e-11 (cantilever, 60 steps), 7.3e-12 (freezing
 //! container, 2400 steps) of the largest displacement. Asserted ≤ 1e-8: two orders above
