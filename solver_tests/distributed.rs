@@ -11,8 +11,9 @@
 
 mod common;
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 fn scene(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -23,30 +24,43 @@ fn scene(name: &str) -> PathBuf {
 /// Runs `icefem run scene` on `processes` processes (1: without mpirun) to `output`, with
 /// extra arguments; returns stderr, panicking if it failed.
 fn icefem_run(processes: usize, scene: &Path, output: &Path, extra: &[&str]) -> String {
-    let out = launch(processes, scene, output, extra);
+    succeeded(launch(processes, scene, output, extra))
+}
+
+/// Stderr of a run that must have succeeded.
+fn succeeded(out: Output) -> String {
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(out.status.success(), "{processes} processes: {stderr}");
+    assert!(out.status.success(), "{stderr}");
     stderr
 }
 
-fn launch(processes: usize, scene: &Path, output: &Path, extra: &[&str]) -> std::process::Output {
+fn launch(processes: usize, scene: &Path, output: &Path, extra: &[&str]) -> Output {
+    let mut args: Vec<&OsStr> = vec![
+        "run".as_ref(),
+        scene.as_ref(),
+        "--output".as_ref(),
+        output.as_ref(),
+        "--force".as_ref(),
+    ];
+    args.extend(extra.iter().map(OsStr::new));
+    icefem((processes > 1).then_some(processes), &args)
+}
+
+/// `icefem args…`, under `mpirun -n N` when `mpirun` is `Some(N)`.
+fn icefem(mpirun: Option<usize>, args: &[&OsStr]) -> Output {
     let binary = env!("CARGO_BIN_EXE_icefem");
-    let mut command = if processes == 1 {
-        Command::new(binary)
-    } else {
-        let mut c = Command::new("mpirun");
-        c.args(["--oversubscribe", "--allow-run-as-root", "-n"])
-            .arg(processes.to_string())
-            .arg(binary);
-        c
+    let mut command = match mpirun {
+        None => Command::new(binary),
+        Some(n) => {
+            let mut c = Command::new("mpirun");
+            c.args(["--oversubscribe", "--allow-run-as-root", "-n"])
+                .arg(n.to_string())
+                .arg(binary);
+            c
+        }
     };
     command
-        .arg("run")
-        .arg(scene)
-        .arg("--output")
-        .arg(output)
-        .arg("--force")
-        .args(extra)
+        .args(args)
         .output()
         .expect("mpirun (OpenMPI's openmpi-bin) is installed")
 }
@@ -158,20 +172,16 @@ fn one_process_under_mpirun_is_the_serial_run_bit_for_bit() {
     let (serial, mpi1) = (dir.path().join("serial.h5"), dir.path().join("mpi1.h5"));
     let cantilever = scene("cantilever.toml");
     icefem_run(1, &cantilever, &serial, &["--end-time", "0.5"]);
-    let out = Command::new("mpirun")
-        .args(["--oversubscribe", "--allow-run-as-root", "-n", "1"])
-        .arg(env!("CARGO_BIN_EXE_icefem"))
-        .arg("run")
-        .arg(&cantilever)
-        .args(["--end-time", "0.5", "--force", "--output"])
-        .arg(&mpi1)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let args: [&OsStr; 7] = [
+        "run".as_ref(),
+        cantilever.as_ref(),
+        "--end-time".as_ref(),
+        "0.5".as_ref(),
+        "--force".as_ref(),
+        "--output".as_ref(),
+        mpi1.as_ref(),
+    ];
+    succeeded(icefem(Some(1), &args));
     assert_eq!(displacements(&serial), displacements(&mpi1));
 }
 
@@ -224,20 +234,15 @@ fn a_run_on_two_processes_resumed_on_two_is_the_uninterrupted_run_bit_for_bit() 
     let (cut, whole) = (dir.path().join("cut.h5"), dir.path().join("whole.h5"));
     let cantilever = scene("cantilever.toml");
     icefem_run(2, &cantilever, &cut, &["--end-time", "0.5"]);
-    let out = Command::new("mpirun")
-        .args(["--oversubscribe", "--allow-run-as-root", "-n", "2"])
-        .arg(env!("CARGO_BIN_EXE_icefem"))
-        .arg("run")
-        .arg(&cantilever)
-        .args(["--end-time", "1.0", "--resume"])
-        .arg(&cut)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let args: [&OsStr; 6] = [
+        "run".as_ref(),
+        cantilever.as_ref(),
+        "--end-time".as_ref(),
+        "1.0".as_ref(),
+        "--resume".as_ref(),
+        cut.as_ref(),
+    ];
+    succeeded(icefem(Some(2), &args));
     icefem_run(2, &cantilever, &whole, &["--end-time", "1.0"]);
     assert_eq!(displacements(&cut), displacements(&whole));
 }

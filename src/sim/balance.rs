@@ -18,10 +18,9 @@
 //! potential it adds disagree. Non-convex elasticity and contact make D_Ψ slightly negative,
 //! which [`EXCESS_TOLERANCE`] allows.
 
-use super::{Energies, Simulation};
+use super::{elastic_term, Energies, Simulation};
 use crate::assembly::{Assembly, ElementSubset};
 use crate::fem::StrainOffset;
-use crate::physics::elasticity::ElasticStep;
 use crate::physics::history::ElementHistory;
 use crate::physics::term::StepTerm;
 use crate::physics::Model;
@@ -166,16 +165,14 @@ pub(super) fn energies_of(
     (u, v): (&[f64], &[f64]),
     t: f64,
 ) -> Energies {
-    let mut elastic = ElasticStep::new(
-        &model.elasticity,
-        (&model.mesh.tets, history, offsets),
-        assembly,
-        element_energy,
-        false,
-    );
-    elastic.subset = subset;
     let mut energy = 0.0;
-    elastic.add(u, &mut energy, None, None);
+    elastic_term(
+        model,
+        assembly,
+        (history, offsets),
+        (element_energy, subset),
+    )
+    .add(u, &mut energy, None, None);
     energies_with(model, energy, (u, v), t)
 }
 

@@ -1131,6 +1131,25 @@ impl Simulation {
     }
 }
 
+/// The elastic energy of `model` as a term (exact tangents), on a process's elements and
+/// owned dofs if `subset` is given; `element_energy` is scratch, one per element.
+fn elastic_term<'a>(
+    model: &'a Model,
+    assembly: &'a Assembly,
+    (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
+    (element_energy, subset): (&'a mut [f64], Option<(&'a ElementSubset, &'a [bool])>),
+) -> ElasticStep<'a> {
+    let mut elastic = ElasticStep::new(
+        &model.elasticity,
+        (&model.mesh.tets, history, offsets),
+        assembly,
+        element_energy,
+        false,
+    );
+    elastic.subset = subset;
+    elastic
+}
+
 /// The terms every solve sums — elasticity, dead loads and the model's terms that act in
 /// `solve` (contact) — without inertia and damping, which a dynamic step adds.
 fn solve_terms<'a>(
@@ -1140,16 +1159,13 @@ fn solve_terms<'a>(
     (element_energy, subset): (&'a mut [f64], Option<(&'a ElementSubset, &'a [bool])>),
     solve: &Solve<'a>,
 ) -> Vec<Box<dyn StepTerm + 'a>> {
-    let mut elastic = ElasticStep::new(
-        &model.elasticity,
-        (&model.mesh.tets, history, offsets),
-        assembly,
-        element_energy,
-        false,
-    );
-    elastic.subset = subset;
     let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![
-        Box::new(elastic),
+        Box::new(elastic_term(
+            model,
+            assembly,
+            (history, offsets),
+            (element_energy, subset),
+        )),
         Box::new(DeadLoads {
             force: &model.external_force,
         }),

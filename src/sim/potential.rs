@@ -224,19 +224,12 @@ impl<'a> StepPotential<'a> {
             return 0.0;
         };
         // Every process evaluates these alike: each keeps what it owns.
-        let mut rest = 0.0;
-        for term in others {
-            let clock = term.is_contact().then(Instant::now);
-            term.add(
-                u,
-                &mut rest,
-                gradient.as_deref_mut(),
-                hessian.as_deref_mut(),
-            );
-            if let Some(clock) = clock {
-                self.t_contact += clock.elapsed().as_secs_f64();
-            }
-        }
+        let rest = add_in_order(
+            others,
+            &mut self.t_contact,
+            u,
+            (gradient.as_deref_mut(), hessian.as_deref_mut()),
+        );
         share.keep_owned(gradient.as_deref_mut(), hessian.as_deref_mut());
         let mut elastic = 0.0;
         self.element_passes += 1;
@@ -281,19 +274,7 @@ impl<'a> StepPotential<'a> {
                 );
             }
         }
-        let mut rest = 0.0;
-        for term in others {
-            let clock = term.is_contact().then(Instant::now);
-            term.add(
-                u,
-                &mut rest,
-                gradient.as_deref_mut(),
-                hessian.as_deref_mut(),
-            );
-            if let Some(clock) = clock {
-                self.t_contact += clock.elapsed().as_secs_f64();
-            }
-        }
+        let rest = add_in_order(others, &mut self.t_contact, u, (gradient, hessian));
         self.last_elastic = elastic;
         elastic + rest
     }
@@ -311,6 +292,30 @@ impl<'a> StepPotential<'a> {
     pub fn broad_phase_time(&self) -> f64 {
         self.terms.iter().map(|t| t.broad_phase_time()).sum()
     }
+}
+
+/// The energy of `terms` at `u`, summed in order, adding their gradients and Hessians into
+/// those given; contact terms' time is added to `t_contact` (s).
+fn add_in_order(
+    terms: &mut [Box<dyn StepTerm + '_>],
+    t_contact: &mut f64,
+    u: &[f64],
+    (mut gradient, mut hessian): (Option<&mut [f64]>, Option<&mut [f64]>),
+) -> f64 {
+    let mut energy = 0.0;
+    for term in terms {
+        let clock = term.is_contact().then(Instant::now);
+        term.add(
+            u,
+            &mut energy,
+            gradient.as_deref_mut(),
+            hessian.as_deref_mut(),
+        );
+        if let Some(clock) = clock {
+            *t_contact += clock.elapsed().as_secs_f64();
+        }
+    }
+    energy
 }
 
 impl Potential for StepPotential<'_> {
