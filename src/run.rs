@@ -5,6 +5,7 @@ use crate::fracture::split::Fracturable;
 use crate::fracture::{Fracture, FractureReport};
 use crate::output::{Field, Frame, ObstacleMesh, OutputError, OutputWriter, RunHeader, StepStats};
 use crate::physics::contact::Shape;
+use crate::physics::Model;
 use crate::scene::{Scene, SceneError};
 use crate::sim::{SimError, Simulation, StepBack, StepReport};
 use crate::thermal::{Heat, HeatLink};
@@ -96,7 +97,11 @@ pub fn step_count(end_time: f64, dt: f64) -> u64 {
 /// The processes a run is shared among (see `distributed`): every process runs [`run_on`]
 /// with the same scene and options and takes the same steps; one writes the output.
 pub trait Processes {
-    /// Shares `sim` among the processes before its first step.
+    /// This process's part of `model` (see `sim::part`): the whole mesh if `whole`, else its
+    /// elements and those around its owned nodes.
+    fn part_model(&self, model: &Model, whole: bool) -> Result<Model, SimError>;
+    /// Shares `sim`, built on [`Processes::part_model`], among the processes before its
+    /// first step.
     fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError>;
     /// Number of processes.
     fn count(&self) -> usize;
@@ -160,18 +165,27 @@ pub fn run_on(
         .output
         .clone()
         .unwrap_or_else(|| scene.output.clone());
-    let mut sim =
-        Simulation::new(scene.model.clone(), settings).map_err(|error| RunError::Setup {
-            path: scene.path.clone(),
-            error,
-        })?;
+    let setup = |error| RunError::Setup {
+        path: scene.path.clone(),
+        error,
+    };
+    let mut sim = match processes {
+        None => Simulation::new(scene.model.clone(), settings).map_err(setup)?,
+        Some(processes) => {
+            Simulation::check(&scene.model, &settings).map_err(setup)?;
+            // Every process holds the whole mesh (the output is written from it).
+            let model = processes.part_model(&scene.model, true).map_err(setup)?;
+            Simulation::for_part(model, settings).map_err(setup)?
+        }
+    };
     let mut fracture = scene.fracture.map(|f| Fracture::new(f, &sim.model.mesh));
     if let Some(setup) = &scene.thermal {
-        // On the scene's mesh, before a resumed fractured run rebuilds its split mesh.
+        // On the scene's mesh, before a resumed fractured run rebuilds its split mesh (with
+        // the whole masses: a process's part of a distributed run has those of its nodes).
         let mesh = &sim.model.mesh;
         let heat = Heat::new(
             mesh,
-            sim.model.mass.clone(),
+            scene.model.mass.clone(),
             setup.phases,
             &setup.boundary,
             setup.initial.clone(),
@@ -184,12 +198,7 @@ pub fn run_on(
         sim.attach_heat(link);
     }
     if let Some(processes) = processes {
-        processes
-            .distribute(&mut sim)
-            .map_err(|error| RunError::Setup {
-                path: scene.path.clone(),
-                error,
-            })?;
+        processes.distribute(&mut sim).map_err(setup)?;
     }
     let writes = processes.is_none_or(|p| p.writes());
     let mut writer = if options.resume {

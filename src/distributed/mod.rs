@@ -18,7 +18,9 @@ pub mod petsc;
 pub mod solver;
 
 use crate::assembly::Assembly;
+use crate::physics::Model;
 use crate::run::Processes;
+use crate::sim::part::Part;
 use crate::sim::{Collective, Distribution, SimError, Simulation};
 use crate::solver::{ExternalSolver, LinearError};
 use mpi::collective::SystemOperation;
@@ -71,6 +73,9 @@ pub struct MpiProcesses {
     _petsc: petsc::Petsc,
     _universe: mpi::environment::Universe,
     world: SimpleCommunicator,
+    /// The partition and this process's part, from [`Processes::part_model`] until
+    /// [`Processes::distribute`].
+    part: RefCell<Option<(Partition, Part)>>,
 }
 
 impl MpiProcesses {
@@ -85,6 +90,7 @@ impl MpiProcesses {
             _petsc: petsc,
             _universe: universe,
             world,
+            part: RefCell::new(None),
         })
     }
 
@@ -132,8 +138,8 @@ impl MpiProcesses {
 }
 
 impl Processes for MpiProcesses {
-    fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError> {
-        let mesh = &sim.model.mesh;
+    fn part_model(&self, model: &Model, whole: bool) -> Result<Model, SimError> {
+        let mesh = &model.mesh;
         let size = self.size();
         // Process 0 partitions; every process uses its partition.
         let mut element_part = match self.rank() {
@@ -148,22 +154,35 @@ impl Processes for MpiProcesses {
             .process_at_rank(0)
             .broadcast_into(&mut element_part[..]);
         let partition = Partition::from_element_parts(mesh, element_part, size);
-        let rank = self.rank();
-        let owned_elements: Vec<bool> = partition.element_part.iter().map(|&p| p == rank).collect();
-        let owned_dofs: Vec<bool> = partition
-            .node_owner
-            .iter()
-            .flat_map(|&o| [o == rank; 3])
-            .collect();
+        let part = Part::new(
+            &mesh.tets,
+            (&partition.element_part, &partition.node_owner),
+            self.rank(),
+            whole,
+        );
+        let model = part
+            .model(model)
+            .map_err(|e| SimError::Setup(e.to_string()))?;
+        *self.part.borrow_mut() = Some((partition, part));
+        Ok(model)
+    }
+
+    fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError> {
+        let Some((partition, part)) = self.part.borrow_mut().take() else {
+            return Err(SimError::Setup(
+                "the simulation was not built on this process's part".into(),
+            ));
+        };
+        let mesh = &sim.model.mesh;
         let iterative = sim.settings.iterative();
         let share = ProcessShare {
             collective: MpiCollective {
                 world: SimpleCommunicator::world(),
                 scratch: RefCell::new(Vec::new()),
             },
-            owned_dofs,
-            owned_elements,
-            rank,
+            owned_dofs: part.owned_dofs(),
+            owned_elements: part.own_elements,
+            rank: self.rank(),
             partition,
             tets: mesh.tets.clone(),
             rest: mesh.rest.clone(),
@@ -225,7 +244,7 @@ impl Collective for MpiCollective {
         all.iter().sum()
     }
 
-    fn sum_in_place(&self, v: &mut [f64]) {
+    fn exchange(&self, v: &mut [f64]) {
         let root = self.world.process_at_rank(0);
         if self.world.rank() == 0 {
             let mut total = self.scratch.borrow_mut();

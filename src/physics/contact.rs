@@ -24,7 +24,7 @@
 
 use super::motion::Motion;
 use super::obstacle_mesh::ObstacleSurface;
-use super::term::{Remesh, Solve, StepTerm, Term};
+use super::term::{LagChange, NodeRestriction, Remesh, Solve, StepTerm, Term};
 use super::Region;
 use crate::assembly::Assembly;
 use crate::mesh::TetMesh;
@@ -204,6 +204,38 @@ pub fn default_stiffness(mesh: &TetMesh, young: f64) -> f64 {
 }
 
 impl Contact {
+    /// The contact of the nodes `part` keeps, numbered as in its mesh (a process's share of
+    /// a distributed run). Areas, faces and the mean edge stay those of the whole boundary:
+    /// a kept node's faces are all in the part's mesh.
+    pub fn restricted(&self, part: &NodeRestriction) -> Contact {
+        let mut kept = Contact {
+            obstacles: self.obstacles.clone(),
+            nodes: Vec::new(),
+            area: Vec::new(),
+            faces: Vec::new(),
+            face_areas: Vec::new(),
+            node_faces: Vec::new(),
+            ..*self
+        };
+        let mut face_index = vec![u32::MAX; self.faces.len()];
+        for (k, &i) in self.nodes.iter().enumerate() {
+            let Some(local) = part.kept(i) else { continue };
+            kept.nodes.push(local);
+            kept.area.push(self.area[k]);
+            let faces = self.node_faces[k].iter().map(|&f| {
+                let f = f as usize;
+                if face_index[f] == u32::MAX {
+                    face_index[f] = kept.faces.len() as u32;
+                    kept.faces.push(self.faces[f].map(|n| part.local(n)));
+                    kept.face_areas.push(self.face_areas[f]);
+                }
+                face_index[f]
+            });
+            kept.node_faces.push(faces.collect());
+        }
+        kept
+    }
+
     /// Contact of `mesh`'s boundary with `obstacles`.
     pub fn new(mesh: &TetMesh, obstacles: Vec<Obstacle>, smoothing_velocity: f64) -> Self {
         let boundary = mesh.boundary_faces();
@@ -605,13 +637,13 @@ impl<'a> ContactStep<'a> {
 
     /// Re-lags friction's normal forces to `u` (the solution of the last solve); returns how
     /// far that moves friction: the largest change of a pair's friction force at `u`,
-    /// α |Δλ| f₁(|y|), relative to the largest α λ (0 without friction). This is the residual
+    /// α |Δλ| f₁(|y|) (N), and the largest α λ (N) it is relative to (0 without friction). This is the residual
     /// a re-solve starts from. A sliding pair (f₁ = 1) feels the whole change of λ; a sticking
     /// one (slip below ε = ε_v h) only in proportion to f₁ < 1, since inside the cone its
     /// force is set by equilibrium and λ only bounds it.
-    pub fn relag(&mut self, u: &[f64]) -> f64 {
+    pub fn relag(&mut self, u: &[f64]) -> LagChange {
         let Some(h) = self.dt.filter(|_| self.has_friction()) else {
-            return 0.0;
+            return LagChange::default();
         };
         let updated = self.normal_forces(u);
         let eps = self.contact.smoothing_velocity * h;
@@ -627,11 +659,7 @@ impl<'a> ContactStep<'a> {
             });
         }
         self.lagged = updated;
-        if scale > 0.0 {
-            change / scale
-        } else {
-            0.0
-        }
+        LagChange { change, scale }
     }
 
     /// Whether any obstacle has friction (then the lagged normal force matters).
@@ -834,6 +862,10 @@ impl Term for ObstacleContact {
         let contact = Contact::new(remesh.mesh, c.obstacles.clone(), c.smoothing_velocity);
         Box::new(ObstacleContact::new(contact, remesh.mesh.num_nodes()))
     }
+    fn restricted(&self, part: &NodeRestriction) -> Box<dyn Term> {
+        let contact = self.contact.restricted(part);
+        Box::new(ObstacleContact::new(contact, part.num_nodes()))
+    }
 }
 
 /// Obstacle contact during one solve.
@@ -894,13 +926,16 @@ impl StepTerm for ObstacleStep<'_> {
         }
         changed
     }
-    fn relag(&mut self, u: &[f64]) -> f64 {
+    fn relag(&mut self, u: &[f64]) -> LagChange {
         let reselection = Instant::now();
         let replaned = self.step.reselect_node_planes(u);
         self.t_broad += reselection.elapsed().as_secs_f64();
         let change = self.step.relag(u);
         if replaned {
-            f64::INFINITY
+            LagChange {
+                change: f64::INFINITY,
+                ..change
+            }
         } else {
             change
         }

@@ -44,7 +44,7 @@
 
 use super::contact::{default_stiffness, friction_terms, ContactForces};
 use super::grid::BoxGrid;
-use super::term::{Remesh, Solve, StepStartView, StepTerm, Term};
+use super::term::{LagChange, NodeRestriction, Remesh, Solve, StepStartView, StepTerm, Term};
 use crate::assembly::Assembly;
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
@@ -503,17 +503,17 @@ impl<'a> IceStep<'a> {
         frames
     }
 
-    /// Re-lags the friction frames to `u`; returns the largest change of a normal force relative
-    /// to the largest normal force (0 without friction).
-    pub fn relag_friction(&mut self, u: &[f64]) -> f64 {
+    /// Re-lags the friction frames to `u`; returns the largest change of a normal force and
+    /// the largest normal force (N; 0 without friction).
+    pub fn relag_friction(&mut self, u: &[f64]) -> LagChange {
         if self.friction.is_none() {
-            return 0.0;
+            return LagChange::default();
         }
         let new = self.friction_frames(self.rest, u);
         let lam = |f: &Option<FrictionFrame>| f.map_or(0.0, |x| x.2);
         let scale = new.iter().map(lam).fold(0.0f64, f64::max);
         let Some(fr) = self.friction.as_mut() else {
-            return 0.0;
+            return LagChange::default();
         };
         let change = new
             .iter()
@@ -521,11 +521,7 @@ impl<'a> IceStep<'a> {
             .map(|(a, b)| (lam(a) - lam(b)).abs())
             .fold(0.0f64, f64::max);
         fr.frames = new;
-        if scale > 0.0 {
-            change / scale
-        } else {
-            0.0
-        }
+        LagChange { change, scale }
     }
 
     /// Friction energy (J), adding gradient, Hessian and forces.
@@ -698,7 +694,10 @@ impl StepTerm for IceStep<'_> {
     fn add_anticipated_gradient(&self, u: &[f64], gradient: &mut [f64]) -> bool {
         self.add_anticipated_pair_gradient(u, gradient)
     }
-    fn relag(&mut self, u: &[f64]) -> f64 {
+    fn evaluated_whole(&self) -> bool {
+        true
+    }
+    fn relag(&mut self, u: &[f64]) -> LagChange {
         self.relag_friction(u)
     }
     fn add_contact_forces(&self, u: &[f64], forces: &mut ContactForces) {
@@ -855,6 +854,12 @@ impl Term for IceContactTerm {
     }
     fn bookkeeping_len(&self) -> usize {
         self.candidate_slots.len()
+    }
+    fn evaluated_whole(&self) -> bool {
+        true
+    }
+    fn restricted(&self, _part: &NodeRestriction) -> Box<dyn Term> {
+        self.clone_box()
     }
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term> {
         Box::new(IceContactTerm::new(

@@ -107,4 +107,8 @@ impl StepTerm for StiffnessDamping<'_> {
         // βKₙ/h: fixed when Kₙ is, i.e. when the elastic term's Hessian is.
         true
     }
+    fn evaluated_whole(&self) -> bool {
+        // Kₙ couples each node with its neighbours through every element around them.
+        true
+    }
 }

@@ -33,7 +33,7 @@ use crate::mesh::{MeshError, TetMesh};
 use history::ElementHistory;
 use ice_contact::{IceContact, IceContactTerm};
 use nalgebra::Vector3;
-use term::{Remesh, Term};
+use term::{NodeRestriction, Remesh, Term};
 
 /// Axis-aligned box region in rest coordinates (m), bounds inclusive.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -224,6 +224,23 @@ impl Model {
         model.terms = self.terms.iter().map(|t| t.remeshed(&remesh)).collect();
         model.freezing = self.freezing.as_ref().map(|f| f.inherit(parent));
         Ok(model)
+    }
+
+    /// Makes this model a process's share of a distributed run: masses and dead loads only
+    /// on the nodes the process owns (`owned`, one per node of this model's mesh), zero on
+    /// the others, and `terms` (the whole model's) restricted to them by `part`. Each owned
+    /// node's elements must all be in this model's mesh, so that its mass and loads are whole.
+    pub fn restrict(&mut self, owned: &[bool], terms: &[Box<dyn Term>], part: &NodeRestriction) {
+        for (i, _) in owned.iter().enumerate().filter(|(_, &o)| !o) {
+            self.mass[i] = 0.0;
+            let forces = std::iter::once(&mut self.constant_force)
+                .chain(self.varying_forces.iter_mut().map(|(_, f)| f))
+                .chain(std::iter::once(&mut self.external_force));
+            for f in forces {
+                f[3 * i..3 * i + 3].fill(0.0);
+            }
+        }
+        self.terms = terms.iter().map(|t| t.restricted(part)).collect();
     }
 
     /// Adds contact with rigid obstacles, summed before the other contact terms.

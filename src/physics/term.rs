@@ -60,11 +60,9 @@ pub trait StepTerm {
         false
     }
     /// Re-lags what the term holds fixed during a solve (friction's normal force, the plane a
-    /// node meets a mesh obstacle on) to the solution `u`; returns how much that changes the
-    /// term relative to its own scale (∞ when the solve must be repeated regardless, 0 when
-    /// nothing is lagged).
-    fn relag(&mut self, _u: &[f64]) -> f64 {
-        0.0
+    /// node meets a mesh obstacle on) to the solution `u`; returns how much that changes it.
+    fn relag(&mut self, _u: &[f64]) -> LagChange {
+        LagChange::default()
     }
     /// Adds the term's contact forces on the ice at `u` (N, 3 per node), if it is a contact.
     fn add_contact_forces(&self, _u: &[f64], _forces: &mut ContactForces) {}
@@ -81,6 +79,33 @@ pub trait StepTerm {
     /// Wall time this term spent choosing its contact pairs during the solve (s).
     fn broad_phase_time(&self) -> f64 {
         0.0
+    }
+    /// Whether the term couples nodes beyond the elements' (see [`Term::evaluated_whole`]).
+    fn evaluated_whole(&self) -> bool {
+        false
+    }
+}
+
+/// How much re-lagging changed what a term holds fixed (see [`StepTerm::relag`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LagChange {
+    /// The largest change of a lagged value (its unit; ∞ when the solve must be repeated
+    /// regardless).
+    pub change: f64,
+    /// The largest lagged value (its unit; 0 when nothing is lagged).
+    pub scale: f64,
+}
+
+impl LagChange {
+    /// The change relative to the scale (∞ if the change is, 0 when nothing is lagged).
+    pub fn relative(&self) -> f64 {
+        if self.change == f64::INFINITY {
+            f64::INFINITY
+        } else if self.scale > 0.0 {
+            self.change / self.scale
+        } else {
+            0.0
+        }
     }
 }
 
@@ -159,6 +184,44 @@ pub trait Term: Send + Sync + std::fmt::Debug {
     }
     /// The term on a mesh made by splitting elements of this one's.
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term>;
+    /// Whether the term couples nodes that share no element (ice–ice contact): in a
+    /// distributed run every process then evaluates it whole, on the whole mesh, and counts
+    /// its energy once, instead of evaluating it on the nodes it owns.
+    fn evaluated_whole(&self) -> bool {
+        false
+    }
+    /// The term on the nodes `part` keeps (a process's owned nodes in a distributed run),
+    /// numbered as in its mesh: its per-node contributions on those nodes only. A term
+    /// evaluated whole stays as it is.
+    fn restricted(&self, part: &NodeRestriction) -> Box<dyn Term>;
+}
+
+/// Which nodes of a mesh a process keeps, and their numbers in its own mesh (a part of the
+/// whole, or the whole).
+#[derive(Clone, Debug)]
+pub struct NodeRestriction {
+    /// For each node of the whole mesh, its number in the process's mesh (`usize::MAX`: not
+    /// in it).
+    pub local: Vec<usize>,
+    /// Whether the process keeps each node of the whole mesh (owns it).
+    pub kept: Vec<bool>,
+    /// Number of nodes of the process's mesh.
+    pub local_nodes: usize,
+}
+
+impl NodeRestriction {
+    /// Node `i` of the whole mesh in the process's mesh, if the process keeps it.
+    pub fn kept(&self, i: usize) -> Option<usize> {
+        self.kept[i].then(|| self.local[i])
+    }
+    /// Node `i` of the whole mesh in the process's mesh (it must be in it).
+    pub fn local(&self, i: usize) -> usize {
+        self.local[i]
+    }
+    /// Number of nodes of the process's mesh.
+    pub fn num_nodes(&self) -> usize {
+        self.local_nodes
+    }
 }
 
 impl Clone for Box<dyn Term> {

@@ -118,24 +118,26 @@ impl Simulation {
     ) -> Result<Energies, EnergyRise> {
         let dofs = self.assembly.dofs();
         // The reactions are the gradient of the solve's potential on the constrained dofs.
+        // Each dof counted on the process that owns it, in a distributed run.
         let reaction = self.workspace.gradient();
         let supports = (0..u.len())
-            .filter(|&d| dofs.free(d).is_none())
+            .filter(|&d| dofs.free(d).is_none() && self.counts(d))
             .map(|d| reaction[d] * (u[d] - self.previous[d]))
             .sum();
         let unresolved = tolerance
             * dofs
                 .free_dofs()
                 .iter()
+                .filter(|&&d| self.counts(d))
                 .map(|&d| (u[d] - self.previous[d]).abs())
                 .sum::<f64>();
-        let friction = self
-            .contact_forces
-            .friction
-            .iter()
-            .zip(u.iter().zip(&self.previous))
-            .map(|(f, (un, u0))| f * (un - u0))
+        let friction = (0..self.contact_forces.friction.len())
+            .filter(|&d| self.counts(d))
+            .map(|d| self.contact_forces.friction[d] * (u[d] - self.previous[d]))
             .sum();
+        let supports = self.sum_over_processes(supports);
+        let unresolved = self.sum_over_processes(unresolved);
+        let friction = self.sum_over_processes(friction);
         let balance = Balance {
             before,
             after,
@@ -164,7 +166,7 @@ pub(super) fn energies_of(
     (element_energy, subset): (&mut [f64], Option<(&ElementSubset, &[bool])>),
     (u, v): (&[f64], &[f64]),
     t: f64,
-) -> Energies {
+) -> EnergyParts {
     let mut energy = 0.0;
     elastic_term(
         model,
@@ -176,13 +178,26 @@ pub(super) fn energies_of(
     energies_with(model, energy, (u, v), t)
 }
 
+/// The energies of a state, with the contact energy in its two parts: that of the terms
+/// evaluated on a process's owned nodes and that of the terms evaluated whole on every
+/// process ([`crate::physics::term::Term::evaluated_whole`]); on one process they simply add.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct EnergyParts {
+    /// The energies (J), the contact energy both parts'.
+    pub energies: Energies,
+    /// Contact energy of the terms evaluated on the owned nodes (J).
+    pub contact_owned: f64,
+    /// Contact energy of the terms evaluated whole (J).
+    pub contact_whole: f64,
+}
+
 /// Energies of `model` at `(u, v)` and time `t` with the elastic energy `elastic` (J) known.
 pub(super) fn energies_with(
     model: &Model,
     elastic: f64,
     (u, v): (&[f64], &[f64]),
     t: f64,
-) -> Energies {
+) -> EnergyParts {
     let kinetic = v
         .iter()
         .enumerate()
@@ -194,16 +209,27 @@ pub(super) fn energies_with(
         .zip(u)
         .map(|(f, u)| f * u)
         .sum::<f64>();
-    let contact = model
-        .terms
-        .iter()
-        .map(|term| term.stored_energy(&model.mesh.rest, u, t))
-        .sum();
-    Energies {
-        kinetic,
-        elastic,
-        potential,
-        contact,
+    let contact_of = |whole: bool| -> f64 {
+        model
+            .terms
+            .iter()
+            .filter(|term| term.evaluated_whole() == whole)
+            .map(|term| term.stored_energy(&model.mesh.rest, u, t))
+            .sum()
+    };
+    // The model's terms evaluated on owned nodes come first (obstacles, then ice–ice
+    // contact): the total is their sum in order.
+    let contact_owned = contact_of(false);
+    let contact_whole = contact_of(true);
+    EnergyParts {
+        energies: Energies {
+            kinetic,
+            elastic,
+            potential,
+            contact: contact_owned + contact_whole,
+        },
+        contact_owned,
+        contact_whole,
     }
 }
 

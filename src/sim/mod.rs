@@ -6,6 +6,7 @@
 
 pub mod adaptive;
 pub mod balance;
+pub mod part;
 pub mod potential;
 pub mod scheme;
 
@@ -260,14 +261,15 @@ pub enum SimError {
 }
 
 /// How a simulation is shared among several processes (implemented by `distributed` over
-/// MPI and PETSc). Every process holds the whole mesh and state and takes the same steps;
-/// each evaluates the elastic energy of its own elements, and the linear solves are shared.
+/// MPI and PETSc). Every process holds its part of the mesh and state (see [`part`]) and
+/// takes the same steps; each evaluates the elastic energy of its own elements and the rest
+/// on its owned nodes, and the linear solves are shared.
 pub trait Distribution {
     /// The sums across the processes.
     fn collective(&self) -> &dyn Collective;
-    /// Whether this process owns each dof (all 3n): every dof has one owner.
+    /// Whether this process owns each dof of its part (3 per node): every dof has one owner.
     fn owned_dofs(&self) -> &[bool];
-    /// Whether this process evaluates each element: every element has one.
+    /// Whether this process evaluates each element of its part: every element has one.
     fn owned_elements(&self) -> &[bool];
     /// A linear solver shared by the processes, for `assembly`'s pattern.
     fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError>;
@@ -336,6 +338,13 @@ impl Simulation {
     /// Builds the pattern, slot map, colouring and (for Cholesky) the symbolic factorisation,
     /// starting at t = 0 from rest or from the model's initial displacement and velocity.
     pub fn new(model: Model, settings: StepSettings) -> Result<Self, SimError> {
+        Self::check(&model, &settings)?;
+        Self::for_part(model, settings)
+    }
+
+    /// The checks [`Simulation::new`] makes on a model: every support holds a node, and a
+    /// static analysis has one.
+    pub fn check(model: &Model, settings: &StepSettings) -> Result<(), SimError> {
         for (index, bc) in model.dirichlet.iter().enumerate() {
             if bc.nodes(&model.mesh).next().is_none() {
                 return Err(SimError::EmptyDirichlet {
@@ -344,6 +353,16 @@ impl Simulation {
                 });
             }
         }
+        if settings.analysis == Analysis::Static && !model.constrained_dofs().iter().any(|c| *c) {
+            return Err(SimError::NoDirichlet);
+        }
+        Ok(())
+    }
+
+    /// As [`Simulation::new`], for a process's part of a distributed run
+    /// ([`part::Part::model`]): without the checks that concern the whole model (a support
+    /// region may hold no node of a part), which the caller made on it.
+    pub fn for_part(model: Model, settings: StepSettings) -> Result<Self, SimError> {
         let mut model = model;
         if let Some(f) = &model.freezing {
             // The water's constants, for the elements a freezing schedule leaves unfrozen.
@@ -353,9 +372,6 @@ impl Simulation {
         let mut history = model.elasticity.initial_history();
         model.apply_schedule(0.0, &mut history);
         let constrained = model.constrained_dofs();
-        if settings.analysis == Analysis::Static && !constrained.iter().any(|c| *c) {
-            return Err(SimError::NoDirichlet);
-        }
         // The elastic energy's own couplings (nodal volumetric averaging) are always in the
         // pattern; the terms' are added at the start of each step.
         let couplings = model.elasticity.couplings();
@@ -429,8 +445,9 @@ impl Simulation {
     }
 
     /// Shares the simulation among the processes of `distribution` from its next step on
-    /// (fails only if the distributed solver cannot be made). Rayleigh damping's β Kₙ is
-    /// assembled whole on every process, like the other terms every process evaluates.
+    /// (fails only if the distributed solver cannot be made). Its model is this process's
+    /// part ([`part::Part::model`]). Rayleigh damping's β Kₙ is assembled whole on every
+    /// process, like the other terms every process evaluates whole.
     pub fn distribute(&mut self, distribution: Box<dyn Distribution>) -> Result<(), SimError> {
         self.linear = LinearSolver::External(distribution.solver(&self.assembly)?);
         self.workspace.forget_factor();
@@ -870,11 +887,11 @@ impl Simulation {
         // The energies of the solve's start, which the balance check needs, do not depend on
         // the solution: computed on another thread while Newton runs (a pass over the
         // elements less on the solve's path).
-        let mut before: Option<Energies> = None;
+        let mut before: Option<balance::EnergyParts> = None;
         let mut balance_scratch = std::mem::take(&mut self.balance_scratch);
         balance_scratch.resize(self.model.mesh.num_tets(), 0.0);
-        // In a distributed run each process computes its part of the elastic energy, summed
-        // after the scope (MPI is called from this thread only).
+        // In a distributed run each process computes its part of the energies, summed after
+        // the scope (MPI is called from this thread only).
         let subset = self
             .shared
             .as_ref()
@@ -964,6 +981,11 @@ impl Simulation {
         let t_contact_broad = potential.broad_phase_time();
         element_passes += potential.element_passes;
         drop(potential);
+        // Whole on every process of a distributed run.
+        let mut forces = std::mem::take(&mut self.contact_forces);
+        self.exchange_owned(&mut forces.normal);
+        self.exchange_owned(&mut forces.friction);
+        self.contact_forces = forces;
         let (velocity, acceleration) = if dynamic {
             formula.velocity(&self.state, (&u, &self.predictor), h)
         } else {
@@ -973,14 +995,17 @@ impl Simulation {
         let energies = if let Some(elastic) = quadratic_elastic {
             // The minimiser of a convex quadratic potential meets the balance identically, up
             // to the residual the Newton test already bounds: no check, no passes for it.
-            energies_with(&self.model, elastic, (&u, &velocity), t_new)
+            energies_with(&self.model, elastic, (&u, &velocity), t_new).energies
         } else {
-            let after = energies_with(&self.model, elastic_at_solution, (&u, &velocity), t_new);
+            // The potential's elastic energy at the solution is summed over the processes
+            // already.
+            let after = energies_with(&self.model, 0.0, (&u, &velocity), t_new);
+            let after = Energies {
+                elastic: elastic_at_solution,
+                ..self.energies_over_processes(after)
+            };
             // Computed beside Newton (above) whenever the Hessian is not fixed.
-            let mut before = before.unwrap_or_default();
-            if let Some(shared) = &self.shared {
-                before.elastic = shared.distribution.collective().sum(before.elastic);
-            }
+            let before = self.energies_over_processes(before.unwrap_or_default());
             self.check_balance(before, after, &u, slack)?
         };
         let free = self.assembly.dofs().free_dofs();
@@ -995,7 +1020,9 @@ impl Simulation {
         } else {
             0.0
         };
+        let local_error = self.max_over_processes(local_error);
         let displacement_scale = free.iter().map(|&d| u[d].abs()).fold(0.0, f64::max);
+        let displacement_scale = self.max_over_processes(displacement_scale);
         if dynamic && self.settings.scheme == Scheme::Bdf2 {
             self.state.back = StepBack {
                 u: self.previous.clone(),
@@ -1066,7 +1093,8 @@ impl Simulation {
             .model
             .elasticity
             .offset_force_scale(&self.state.history);
-        dofs.free_dofs()
+        let scale = dofs
+            .free_dofs()
             .iter()
             .map(|&d| {
                 let inertial = if dynamic {
@@ -1076,19 +1104,78 @@ impl Simulation {
                 };
                 self.model.external_force[d].abs().max(inertial)
             })
-            .fold(offsets, f64::max)
+            .fold(offsets, f64::max);
+        self.max_over_processes(scale)
+    }
+
+    /// The largest `x` over the processes of a distributed run (`x` on one).
+    fn max_over_processes(&self, x: f64) -> f64 {
+        match &self.shared {
+            Some(shared) => shared.distribution.collective().max(x),
+            None => x,
+        }
+    }
+
+    /// Σ over the processes of a distributed run of `x` (`x` on one).
+    fn sum_over_processes(&self, x: f64) -> f64 {
+        match &self.shared {
+            Some(shared) => shared.distribution.collective().sum(x),
+            None => x,
+        }
+    }
+
+    /// Whether this process counts dof `d` in sums over the dofs: it owns it (always on one
+    /// process).
+    fn counts(&self, d: usize) -> bool {
+        self.shared
+            .as_ref()
+            .is_none_or(|shared| shared.distribution.owned_dofs()[d])
+    }
+
+    /// Keeps `v` (3 per node) on the dofs this process owns and makes every process's copy
+    /// the sum of those parts (nothing on one process).
+    fn exchange_owned(&self, v: &mut [f64]) {
+        if let Some(shared) = &self.shared {
+            let owned = shared.distribution.owned_dofs();
+            for (x, &o) in v.iter_mut().zip(owned) {
+                if !o {
+                    *x = 0.0;
+                }
+            }
+            shared.distribution.collective().exchange(v);
+        }
+    }
+
+    /// The energies of `parts` (this process's share, see [`balance::EnergyParts`]) summed
+    /// over the processes of a distributed run; on one process, its energies.
+    fn energies_over_processes(&self, parts: balance::EnergyParts) -> Energies {
+        if self.shared.is_none() {
+            return parts.energies;
+        }
+        let e = parts.energies;
+        Energies {
+            kinetic: self.sum_over_processes(e.kinetic),
+            elastic: self.sum_over_processes(e.elastic),
+            potential: self.sum_over_processes(e.potential),
+            contact: self.sum_over_processes(parts.contact_owned) + parts.contact_whole,
+        }
     }
 
     /// Energies of the current state.
     pub fn energies(&mut self) -> Energies {
-        energies_of(
+        let subset = self
+            .shared
+            .as_ref()
+            .map(|s| (&s.elements, s.distribution.owned_dofs()));
+        let parts = energies_of(
             &self.model,
             &self.assembly,
             (&self.state.history, &self.state.history.offsets()),
-            (&mut self.element_energy, None),
+            (&mut self.element_energy, subset),
             (&self.state.u, &self.state.v),
             self.state.time,
-        )
+        );
+        self.energies_over_processes(parts)
     }
 
     /// Element stresses (Pa, Voigt xx yy zz yz xz xy) of the current state.

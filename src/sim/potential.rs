@@ -12,18 +12,21 @@ use std::time::Instant;
 pub trait Collective {
     /// Σ over the processes of `x`, the same on every process.
     fn sum(&self, x: f64) -> f64;
-    /// Σ over the processes of `v`, entry by entry, in place; the same on every process.
-    fn sum_in_place(&self, v: &mut [f64]);
+    /// Σ over the processes of each dof's parts in `v` (3 per node of this process's mesh),
+    /// in place: every process that holds the dof gets the sum, the same bits on each.
+    fn exchange(&self, v: &mut [f64]);
     /// Largest `x` over the processes.
     fn max(&self, x: f64) -> f64;
 }
 
 /// A process's share of a solve distributed over several processes. Each process evaluates
 /// the elastic energy of its own elements (the elastic term's subset) and the other terms
-/// whole, keeping of those only the dofs it owns — the gradient's entries and the Hessian's
-/// columns — so that the processes' parts add up to the potential. Energies and gradients
-/// are then summed across the processes; the Hessian stays in parts, which the distributed
-/// linear solver adds up.
+/// on the nodes it owns (its model's masses, loads and contact nodes are those of its owned
+/// nodes; terms that couple nodes beyond the elements, [`StepTerm::evaluated_whole`], are
+/// evaluated whole on every process), keeping only the owned dofs' gradient entries and
+/// Hessian columns, so that the processes' parts add up to the potential. Energies and
+/// gradients are then summed across the processes (a whole term's energy counted once); the
+/// Hessian stays in parts, which the distributed linear solver adds up.
 #[derive(Clone, Copy)]
 pub struct Share<'a> {
     /// The sums across processes.
@@ -223,23 +226,26 @@ impl<'a> StepPotential<'a> {
         let Some((elastic_term, others)) = self.terms.split_first_mut() else {
             return 0.0;
         };
-        // Every process evaluates these alike: each keeps what it owns.
+        // Each process keeps what it owns.
+        let mut whole = 0.0;
         let rest = add_in_order(
             others,
             &mut self.t_contact,
             u,
             (gradient.as_deref_mut(), hessian.as_deref_mut()),
+            Some(&mut whole),
         );
         share.keep_owned(gradient.as_deref_mut(), hessian.as_deref_mut());
         let mut elastic = 0.0;
         self.element_passes += 1;
         elastic_term.add(u, &mut elastic, gradient.as_deref_mut(), hessian);
         let elastic = share.collective.sum(elastic);
+        let rest = share.collective.sum(rest);
         if let Some(g) = gradient {
-            share.collective.sum_in_place(g);
+            share.collective.exchange(g);
         }
         self.last_elastic = elastic;
-        elastic + rest
+        elastic + rest + whole
     }
 
     /// Potential at `u`, adding the gradient and Hessian into those given.
@@ -274,18 +280,33 @@ impl<'a> StepPotential<'a> {
                 );
             }
         }
-        let rest = add_in_order(others, &mut self.t_contact, u, (gradient, hessian));
+        let rest = add_in_order(others, &mut self.t_contact, u, (gradient, hessian), None);
         self.last_elastic = elastic;
         elastic + rest
     }
 
-    /// Re-lags every term to the solution `u`; returns the largest relative change.
+    /// Re-lags every term to the solution `u`; returns the largest relative change (over
+    /// the processes of a distributed run).
     pub fn relag(&mut self, u: &[f64]) -> f64 {
-        let mut change: f64 = 0.0;
-        for term in &mut self.terms {
-            change = change.max(term.relag(u));
+        let mut relative: f64 = 0.0;
+        for k in 0..self.terms.len() {
+            let mut lag = self.terms[k].relag(u);
+            if let Some(share) = self.share {
+                // Each process has its part of a term's lagged values.
+                lag.change = share.collective.max(lag.change);
+                lag.scale = share.collective.max(lag.scale);
+            }
+            relative = relative.max(lag.relative());
         }
-        change
+        relative
+    }
+
+    /// Whether `b` holds on any process of a distributed run (`b` itself on one): the
+    /// decisions Newton takes from a term's answer are the same on every process.
+    fn any_over_processes(&self, b: bool) -> bool {
+        self.share.map_or(b, |share| {
+            share.collective.max(f64::from(u8::from(b))) > 0.0
+        })
     }
 
     /// Wall time the terms spent choosing contact pairs (s).
@@ -295,22 +316,23 @@ impl<'a> StepPotential<'a> {
 }
 
 /// The energy of `terms` at `u`, summed in order, adding their gradients and Hessians into
-/// those given; contact terms' time is added to `t_contact` (s).
+/// those given; contact terms' time is added to `t_contact` (s). With `whole`, the energies
+/// of the terms evaluated whole on every process go there instead.
 fn add_in_order(
     terms: &mut [Box<dyn StepTerm + '_>],
     t_contact: &mut f64,
     u: &[f64],
     (mut gradient, mut hessian): (Option<&mut [f64]>, Option<&mut [f64]>),
+    mut whole: Option<&mut f64>,
 ) -> f64 {
     let mut energy = 0.0;
     for term in terms {
         let clock = term.is_contact().then(Instant::now);
-        term.add(
-            u,
-            &mut energy,
-            gradient.as_deref_mut(),
-            hessian.as_deref_mut(),
-        );
+        let sum = match whole.as_deref_mut() {
+            Some(w) if term.evaluated_whole() => w,
+            _ => &mut energy,
+        };
+        term.add(u, sum, gradient.as_deref_mut(), hessian.as_deref_mut());
         if let Some(clock) = clock {
             *t_contact += clock.elapsed().as_secs_f64();
         }
@@ -342,12 +364,20 @@ impl Potential for StepPotential<'_> {
         self.share.map_or(x, |share| share.collective.max(x))
     }
 
+    fn sum_over_processes(&self, x: f64) -> f64 {
+        self.share.map_or(x, |share| share.collective.sum(x))
+    }
+
+    fn owned_dofs(&self) -> Option<&[bool]> {
+        self.share.map(|share| share.owned)
+    }
+
     fn project_hessian(&mut self) -> bool {
         let mut changed = false;
         for term in &mut self.terms {
             changed |= term.project_hessian();
         }
-        changed
+        self.any_over_processes(changed)
     }
 
     fn anticipate(&mut self, u: &[f64], trial: &[f64]) -> bool {
@@ -355,7 +385,7 @@ impl Potential for StepPotential<'_> {
         for term in &mut self.terms {
             any |= term.anticipate(u, trial);
         }
-        any
+        self.any_over_processes(any)
     }
 
     fn forget_anticipated(&mut self) {
@@ -366,10 +396,24 @@ impl Potential for StepPotential<'_> {
 
     fn add_anticipated_gradient(&self, u: &[f64], gradient: &mut [f64]) -> bool {
         let mut any = false;
+        let Some(share) = self.share else {
+            for term in &self.terms {
+                any |= term.add_anticipated_gradient(u, gradient);
+            }
+            return any;
+        };
+        // `gradient` holds the sum already: the processes' parts of what is added are summed
+        // on their own.
+        let mut added = vec![0.0; gradient.len()];
         for term in &self.terms {
-            any |= term.add_anticipated_gradient(u, gradient);
+            any |= term.add_anticipated_gradient(u, &mut added);
         }
-        any
+        share.keep_owned(Some(&mut added), None);
+        share.collective.exchange(&mut added);
+        for (g, a) in gradient.iter_mut().zip(&added) {
+            *g += a;
+        }
+        self.any_over_processes(any)
     }
 
     fn refresh_hessian(&mut self, u: &[f64], hessian: &mut [f64]) -> bool {
@@ -381,6 +425,6 @@ impl Potential for StepPotential<'_> {
                 self.t_contact += clock.elapsed().as_secs_f64();
             }
         }
-        changed
+        self.any_over_processes(changed)
     }
 }

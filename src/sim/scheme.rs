@@ -4,7 +4,7 @@
 //! after the solve the scheme turns the solution into the new velocity (and acceleration).
 //! Newmark's start acceleration, from the state's forces, is computed here too.
 
-use super::potential::StepPotential;
+use super::potential::{Share, StepPotential};
 use super::{solve_terms, Simulation, State};
 use crate::physics::term::Solve;
 
@@ -250,15 +250,24 @@ impl Simulation {
             dynamic: true,
             times: (t, t),
         };
+        let subset = self
+            .shared
+            .as_ref()
+            .map(|s| (&s.elements, s.distribution.owned_dofs()));
         let terms = solve_terms(
             model,
             &self.assembly,
             (&self.state.history, &offsets),
-            // The whole mesh on every process of a distributed run: no sums needed.
-            (&mut self.element_energy, None),
+            (&mut self.element_energy, subset),
             &solve,
         );
         let mut potential = StepPotential::new(terms);
+        // Summed over the processes of a distributed run.
+        potential.share = self.shared.as_ref().map(|s| Share {
+            collective: s.distribution.collective(),
+            owned: s.distribution.owned_dofs(),
+            assembly: &self.assembly,
+        });
         let mut gradient = vec![0.0; self.state.u.len()];
         crate::solver::Potential::gradient(&mut potential, &self.state.u, &mut gradient);
         drop(potential);
@@ -280,11 +289,15 @@ impl Simulation {
         }
         let model = &self.model;
         let dofs = self.assembly.dofs();
-        (0..gradient.len())
+        // A process of a distributed run has the masses of its owned nodes (see
+        // `Model::restrict`): the others' accelerations come from their owners.
+        let mut a: Vec<f64> = (0..gradient.len())
             .map(|d| match dofs.free(d) {
-                Some(_) => -gradient[d] / model.mass[d / 3],
-                None => 0.0,
+                Some(_) if model.mass[d / 3] > 0.0 => -gradient[d] / model.mass[d / 3],
+                _ => 0.0,
             })
-            .collect()
+            .collect();
+        self.exchange_owned(&mut a);
+        a
     }
 }

@@ -14,7 +14,7 @@
 //! ([`Potential::refresh_hessian`]), which costs little against a whole assembly.
 
 use super::linear::{LinearError, LinearSolver, LinearStats};
-use crate::assembly::Assembly;
+use crate::assembly::{Assembly, DofMap};
 use std::time::Instant;
 
 /// A smooth potential over all dofs (3 per node) whose free part Newton minimises.
@@ -30,6 +30,16 @@ pub trait Potential {
     /// Newton computes from this process's part of the Hessian must be the same on all.
     fn max_over_processes(&self, x: f64) -> f64 {
         x
+    }
+    /// Σ over the processes of `x` (`x` itself on one), the same on every process.
+    fn sum_over_processes(&self, x: f64) -> f64 {
+        x
+    }
+    /// The dofs this process owns in a distributed run (None: all). A process may hold
+    /// other processes' dofs (ghosts) with the same values; sums over dofs count each dof
+    /// on its owner only.
+    fn owned_dofs(&self) -> Option<&[bool]> {
+        None
     }
     /// Switches to a positive semi-definite approximation of the Hessian from now on; returns
     /// whether anything changed (false if already projected or nothing to project).
@@ -291,7 +301,6 @@ fn iterate(
 ) -> Result<NewtonReport, NewtonError> {
     let dofs = assembly.dofs();
     let mut report = NewtonReport::default();
-    let free_max = |g: &[f64]| free_max(assembly, g);
     linear.start_newton_solve();
     // A kept factor serves as the first iteration's matrix; the chord test below replaces it
     // once it stops contracting.
@@ -311,12 +320,15 @@ fn iterate(
             potential.gradient(u, &mut work.gradient)
         };
         known = None;
-        let residual = free_max(&work.gradient);
+        // Maxima and sums over the dofs are taken over every process of a distributed run,
+        // so that all take the same decisions.
+        let residual = potential.max_over_processes(free_max(assembly, &work.gradient));
         report.t_assembly += start.elapsed().as_secs_f64();
         if !energy.is_finite() || !residual.is_finite() {
             return Err(NewtonError::NonFinite { iteration });
         }
-        report.force_scale = force_scale(assembly, force_floor, &work.gradient);
+        report.force_scale =
+            potential.max_over_processes(force_scale(assembly, force_floor, &work.gradient));
         report.residual = residual;
         report.energy = energy;
         report.roundoff_floor = floor;
@@ -400,14 +412,6 @@ fn iterate(
             stats = solve_or_project(potential, u, assembly, linear, work, &mut report)?;
             report.add_solve(&stats);
         }
-        // Slope of the potential along the direction (J per unit step).
-        let slope_along = |g: &[f64], dir: &[f64]| -> f64 {
-            dofs.free_dofs()
-                .iter()
-                .zip(dir)
-                .map(|(&d, x)| g[d] * x)
-                .sum()
-        };
         // Anticipated constraints: solve again with their force in the right-hand side too, and
         // take that step if it still descends.
         work.trial.copy_from_slice(&work.gradient);
@@ -421,7 +425,7 @@ fn iterate(
             let landing = linear.solve(assembly, &work.hessian, &rhs, &mut work.landing)?;
             report.add_solve(&landing);
             work.rhs = rhs;
-            if slope_along(&work.gradient, &work.landing) < 0.0 {
+            if slope_along(&*potential, dofs, &work.gradient, &work.landing) < 0.0 {
                 std::mem::swap(&mut work.direction, &mut work.landing);
             }
         }
@@ -429,7 +433,7 @@ fn iterate(
         // Backtracking (Armijo) line search on the potential. Near convergence the decrease
         // is below the round-off of the potential itself, so a step that changes the energy
         // by less than that round-off is accepted as it is.
-        let slope = slope_along(&work.gradient, &work.direction);
+        let slope = slope_along(&*potential, dofs, &work.gradient, &work.direction);
         let roundoff = 1e-13 * energy.abs().max(f64::MIN_POSITIVE);
         let mut alpha = 1.0;
         let start = Instant::now();
@@ -466,12 +470,13 @@ fn iterate(
             u[d] += alpha * dx;
             step_max = step_max.max((alpha * dx).abs());
         }
+        let step_max = potential.max_over_processes(step_max);
         if step_max <= params.step_tolerance {
             report.energy = match known {
                 Some(e) => e,
                 None => potential.gradient(u, &mut work.gradient),
             };
-            report.residual = free_max(&work.gradient);
+            report.residual = potential.max_over_processes(free_max(assembly, &work.gradient));
             return Ok(report);
         }
         // A damped step means the model changed enough that the next iteration should see
@@ -480,6 +485,25 @@ fn iterate(
         previous_residual = residual;
     }
     unreachable!("the loop returns at iteration max_iterations")
+}
+
+/// Slope of `potential` along the free-dof direction `direction` (J per unit step) for its
+/// gradient `gradient` (all dofs), each dof counted on the process that owns it.
+fn slope_along(
+    potential: &impl Potential,
+    dofs: &DofMap,
+    gradient: &[f64],
+    direction: &[f64],
+) -> f64 {
+    let owned = potential.owned_dofs();
+    let slope = dofs
+        .free_dofs()
+        .iter()
+        .zip(direction)
+        .filter(|(&d, _)| owned.is_none_or(|o| o[d]))
+        .map(|(&d, x)| gradient[d] * x)
+        .sum();
+    potential.sum_over_processes(slope)
 }
 
 /// Largest |gradient| over the free dofs of `assembly` (N).

@@ -1,0 +1,195 @@
+//! A process's part of a model in a distributed run.
+//!
+//! The elements are split into parts (one per process) and each node is owned by one process,
+//! the lowest-numbered among its elements' (so an owned node is a node of the process's own
+//! elements). A process holds its part's elements, every other element around their nodes,
+//! and those elements' nodes: the nodes it owns and ghost nodes it holds copies of. Every node
+//! of its own elements then has all of its elements on the process — an owned node's lumped
+//! mass, loads and rows of the Hessian are whole there, and so is the nodal volume of every
+//! node of its own elements, which their pressures need — and a process evaluates the
+//! elastic energy of its part's elements only, and everything per node on its owned nodes
+//! only (`Model::restrict`), so that the processes' parts add up to the whole potential.
+//!
+//! Where a term couples nodes beyond their elements (ice–ice contact, Rayleigh's β K), where
+//! the heat equation is solved, or on one process, a part is the whole mesh: every element and
+//! node, each process evaluating its own elements and owned nodes as above.
+
+use crate::mesh::MeshError;
+use crate::physics::history::ElementHistory;
+use crate::physics::term::NodeRestriction;
+use crate::physics::Model;
+
+/// Marks a node that is not in a part's mesh.
+const NONE: usize = usize::MAX;
+
+/// One process's part of a mesh: its elements and nodes, numbered as in the whole mesh's order.
+#[derive(Clone, Debug)]
+pub struct Part {
+    /// The part's elements, as elements of the whole mesh (ascending).
+    pub elements: Vec<usize>,
+    /// The part's nodes, as nodes of the whole mesh (ascending).
+    pub nodes: Vec<usize>,
+    /// Whether the process evaluates each of the part's elements (it is in its partition part).
+    pub own_elements: Vec<bool>,
+    /// Whether the process owns each of the part's nodes.
+    pub owned_nodes: Vec<bool>,
+    /// Each node of the whole mesh in the part (`usize::MAX`: not in it).
+    local_node: Vec<usize>,
+}
+
+impl Part {
+    /// The part of process `rank` when element `e` is in partition part `element_part[e]`
+    /// and node `i` is owned by process `node_owner[i]` (one of its elements' processes): its
+    /// elements, every element around their nodes, and those elements' nodes (`tets`: the
+    /// whole mesh's elements). With `whole`, every element and node.
+    pub fn new(
+        tets: &[[usize; 4]],
+        (element_part, node_owner): (&[u32], &[u32]),
+        rank: u32,
+        whole: bool,
+    ) -> Part {
+        let n = node_owner.len();
+        let mut near = vec![whole; n];
+        for (tet, &p) in tets.iter().zip(element_part) {
+            if p == rank {
+                for &v in tet {
+                    near[v] = true;
+                }
+            }
+        }
+        let elements: Vec<usize> = (0..tets.len())
+            .filter(|&e| tets[e].iter().any(|&v| near[v]))
+            .collect();
+        let mut local_node = vec![NONE; n];
+        for &e in &elements {
+            for &v in &tets[e] {
+                local_node[v] = 0;
+            }
+        }
+        let nodes: Vec<usize> = (0..n).filter(|&i| local_node[i] != NONE).collect();
+        for (k, &i) in nodes.iter().enumerate() {
+            local_node[i] = k;
+        }
+        Part {
+            own_elements: elements.iter().map(|&e| element_part[e] == rank).collect(),
+            owned_nodes: nodes.iter().map(|&i| node_owner[i] == rank).collect(),
+            elements,
+            nodes,
+            local_node,
+        }
+    }
+
+    /// Whether the part is the whole mesh (every node of it).
+    pub fn is_whole(&self) -> bool {
+        self.nodes.len() == self.local_node.len()
+    }
+
+    /// Number of nodes of the whole mesh.
+    pub fn whole_nodes(&self) -> usize {
+        self.local_node.len()
+    }
+
+    /// Whether the process owns each dof of the part (3 per node).
+    pub fn owned_dofs(&self) -> Vec<bool> {
+        self.owned_nodes.iter().flat_map(|&o| [o; 3]).collect()
+    }
+
+    /// The part's model: `whole` on the part's elements (their history, schedule and
+    /// materials inherited), with masses, loads and per-node terms on the owned nodes only
+    /// (see `Model::restrict`), and its initial displacement and velocity.
+    pub fn model(&self, whole: &Model) -> Result<Model, MeshError> {
+        let mut model = if self.is_whole() {
+            whole.clone()
+        } else {
+            let rest: Vec<_> = self.nodes.iter().map(|&i| whole.mesh.rest[i]).collect();
+            let tets = self
+                .elements
+                .iter()
+                .map(|&e| whole.mesh.tets[e].map(|v| self.local_node[v]))
+                .collect();
+            let mut model = whole.remeshed(&rest, tets, &self.elements, &[])?;
+            model.initial_displacement = self.dofs_of(&whole.initial_displacement);
+            model.initial_velocity = self.dofs_of(&whole.initial_velocity);
+            model
+        };
+        let restriction = NodeRestriction {
+            local: self.local_node.clone(),
+            kept: (0..self.whole_nodes())
+                .map(|i| self.local_node[i] != NONE && self.owned_nodes[self.local_node[i]])
+                .collect(),
+            local_nodes: self.nodes.len(),
+        };
+        let terms = std::mem::take(&mut model.terms);
+        let terms = if self.is_whole() {
+            terms
+        } else {
+            whole.terms.clone()
+        };
+        model.restrict(&self.owned_nodes, &terms, &restriction);
+        Ok(model)
+    }
+
+    /// The part's entries of a vector over the whole mesh's dofs (3 per node; empty stays
+    /// empty).
+    pub fn dofs_of(&self, whole: &[f64]) -> Vec<f64> {
+        if whole.is_empty() {
+            return Vec::new();
+        }
+        self.nodes
+            .iter()
+            .flat_map(|&i| [whole[3 * i], whole[3 * i + 1], whole[3 * i + 2]])
+            .collect()
+    }
+
+    /// The part's elements' history, from the whole mesh's.
+    pub fn history_of(&self, whole: &ElementHistory) -> ElementHistory {
+        whole.inherit(&self.elements)
+    }
+
+    /// The whole-mesh dof of each of the part's dofs (3 per node).
+    pub fn whole_dofs(&self) -> impl Iterator<Item = usize> + '_ {
+        self.nodes
+            .iter()
+            .flat_map(|&i| [3 * i, 3 * i + 1, 3 * i + 2])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_part_holds_every_element_around_its_elements_nodes() {
+        // A chain of three tets sharing faces, and a fourth apart.
+        let tets = [[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5], [6, 7, 8, 9]];
+        // Elements 0 | 1, 2, 3; a node belongs to the lowest part among its elements'.
+        let element_part = [0, 1, 1, 1];
+        let owner = [0, 0, 0, 0, 1, 1, 1, 1, 1, 1];
+        let first = Part::new(&tets, (&element_part, &owner), 0, false);
+        // Element 0's nodes 1, 2, 3 are in elements 1 and 2 too; element 3 is apart.
+        assert_eq!(first.elements, vec![0, 1, 2]);
+        assert_eq!(first.own_elements, vec![true, false, false]);
+        assert_eq!(first.nodes, vec![0, 1, 2, 3, 4, 5]);
+        assert_eq!(
+            first.owned_nodes,
+            vec![true, true, true, true, false, false]
+        );
+        assert!(!first.is_whole());
+        let second = Part::new(&tets, (&element_part, &owner), 1, false);
+        assert_eq!(second.elements, vec![0, 1, 2, 3]);
+        assert!(second.is_whole());
+        // Part 1 being element 3 alone: nodes 0 … 5 are not in it.
+        let apart = Part::new(
+            &tets,
+            (&[0, 0, 0, 1], &[0, 0, 0, 0, 0, 0, 1, 1, 1, 1]),
+            1,
+            false,
+        );
+        assert_eq!(apart.elements, vec![3]);
+        assert_eq!(apart.nodes, vec![6, 7, 8, 9]);
+        assert_eq!(apart.owned_dofs(), vec![true; 12]);
+        let whole: Vec<f64> = (0..30).map(f64::from).collect();
+        assert_eq!(apart.dofs_of(&whole)[..3], [18.0, 19.0, 20.0]);
+        assert!(Part::new(&tets, (&element_part, &owner), 0, true).is_whole());
+    }
+}
