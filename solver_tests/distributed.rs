@@ -110,14 +110,40 @@ fn difference(a: &Path, b: &Path) -> f64 {
     diff / scale
 }
 
+/// The scene's node count and the nodes each process held, from a distributed run's report.
+fn held_nodes(stderr: &str) -> (u64, Vec<u64>) {
+    let number_before = |text: &str, unit: &str| -> Option<u64> {
+        let end = text.find(unit)?;
+        text[..end].split_whitespace().last()?.parse().ok()
+    };
+    let total = stderr
+        .lines()
+        .find_map(|l| number_before(l.split_once('—')?.1, " nodes"))
+        .expect("the run names its mesh");
+    let held = stderr
+        .lines()
+        .filter_map(|l| number_before(l.split_once("holds ")?.1, " nodes"))
+        .collect();
+    (total, held)
+}
+
 /// One process against two on `scene` (with `extra` arguments): positions within the
-/// solver's tolerance, the same Newton iterations in every step.
-fn two_processes_match_one(path: &Path, extra: &[&str]) {
+/// solver's tolerance, the same Newton iterations in every step. With `parts`, each process
+/// holds a part of the mesh, else the whole of it.
+fn two_processes_match_one(path: &Path, extra: &[&str], parts: bool) {
     let name = path.file_name().unwrap().to_string_lossy();
     let dir = tempfile::tempdir().unwrap();
     let (one, two) = (dir.path().join("one.h5"), dir.path().join("two.h5"));
     icefem_run(1, path, &one, extra);
-    icefem_run(2, path, &two, extra);
+    let report = icefem_run(2, path, &two, extra);
+    let (total, held) = held_nodes(&report);
+    assert_eq!(held.len(), 2, "{report}");
+    for h in held {
+        assert!(
+            if parts { h < total } else { h == total },
+            "{name}: {h} of {total} nodes"
+        );
+    }
     let diff = difference(&one, &two);
     eprintln!("{name}: max |Δu| / max |u| = {diff:.2e}");
     assert!(diff <= 1e-8, "{name}: {diff:e}");
@@ -142,28 +168,33 @@ fn two_processes_match_one(path: &Path, extra: &[&str]) {
 
 #[test]
 fn the_static_block_on_two_processes_matches_one() {
-    two_processes_match_one(&scene("static_block.toml"), &[]);
+    two_processes_match_one(&scene("static_block.toml"), &[], true);
 }
 
 #[test]
 fn the_cantilever_on_two_processes_matches_one() {
-    two_processes_match_one(&scene("cantilever.toml"), &["--end-time", "1.0"]);
+    two_processes_match_one(&scene("cantilever.toml"), &["--end-time", "1.0"], true);
 }
 
 #[test]
 fn the_freezing_container_on_two_processes_matches_one() {
     // Freezing, the nodal volumetric energy, plasticity and the container's walls; the first
     // 400 of its 2400 steps (the ice front moves in from the walls, the water is squeezed).
-    two_processes_match_one(&scene("freezing_container.toml"), &["--end-time", "13.34"]);
+    two_processes_match_one(
+        &scene("freezing_container.toml"),
+        &["--end-time", "13.34"],
+        true,
+    );
 }
 
 #[test]
 fn a_damped_bar_on_two_processes_matches_one() {
-    // Mass and stiffness (Rayleigh) damping: β Kₙ is assembled whole on every process.
+    // Mass and stiffness (Rayleigh) damping: β Kₙ is assembled whole, on the whole mesh on
+    // every process.
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("sagging_bar.toml");
     std::fs::write(&path, common::SAGGING_BAR).unwrap();
-    two_processes_match_one(&path, &[]);
+    two_processes_match_one(&path, &[], false);
 }
 
 #[test]

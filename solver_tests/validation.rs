@@ -61,7 +61,7 @@ impl Reference {
             vec![clamp_below_x(1e-9)],
         )
         .unwrap();
-        shared(Simulation::new(model, settings(analysis, dt)).unwrap())
+        shared(model, settings(analysis, dt))
     }
 }
 
@@ -118,7 +118,7 @@ fn static_case(name: &str) -> f64 {
         .into();
         let mut model = sim.model.clone();
         model.dirichlet = vec![bc];
-        sim = shared(Simulation::new(model, settings(Analysis::Static, 1.0)).unwrap());
+        sim = shared(model, settings(Analysis::Static, 1.0));
     }
     sim.step().unwrap();
     rel_l2(&sim.state.u, &r.flat("solution/u"))
@@ -250,7 +250,7 @@ fn locking_beam(nu: &str) -> Vec<(f64, f64, f64)> {
                 vec![clamp_below_x(1e-9)],
             )
             .unwrap();
-            let mut sim = shared(Simulation::new(model, settings(Analysis::Static, 1.0)).unwrap());
+            let mut sim = shared(model, settings(Analysis::Static, 1.0));
             sim.step().unwrap();
             sim.state.u
         };
@@ -345,7 +345,7 @@ fn the_dynamics_beam_as_a_plain_scene_matches_scikit_fem() {
         "{:?}",
         scene.notices
     );
-    let mut sim = shared(Simulation::new(scene.model, scene.settings).unwrap());
+    let mut sim = shared(scene.model, scene.settings);
     let worst = tip_history_error(&mut sim, tip, &history, steps);
     eprintln!("plain scene: tip history max rel. diff {worst:.2e}");
     // As for the built-in mesh: solver round-off amplified by the conditioning.

@@ -653,14 +653,12 @@ fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity
             "per Newton iteration ({} iterations), values of 8 bytes exchanged by each process:",
             summary.newton_iterations
         );
-        for (p, ([sums, entries, gathered, halo], memory)) in by_process.iter().enumerate() {
+        for (p, report) in by_process.iter().enumerate() {
+            let [sums, entries, gathered, halo] = report.traffic.map(|x| x as f64 / iterations);
+            let [nodes, elements] = report.held;
             eprintln!(
-                "  process {p}: sums {:.0}, matrix entries {:.0}, gathered {:.0}, CG halo {:.0}; peak memory {:.0} MB",
-                *sums as f64 / iterations,
-                *entries as f64 / iterations,
-                *gathered as f64 / iterations,
-                *halo as f64 / iterations,
-                *memory as f64 / 1e6
+                "  process {p}: sums {sums:.0}, matrix entries {entries:.0}, gathered {gathered:.0}, CG halo {halo:.0}; peak memory {:.0} MB; holds {nodes} nodes, {elements} elements",
+                report.peak_memory as f64 / 1e6
             );
         }
     }

@@ -3,11 +3,15 @@
 use crate::fem;
 use crate::fracture::split::Fracturable;
 use crate::fracture::{Fracture, FractureReport};
+use crate::mesh::TetMesh;
 use crate::output::{Field, Frame, ObstacleMesh, OutputError, OutputWriter, RunHeader, StepStats};
+use crate::output::{ResumeFrame, StoredField};
+use crate::physics::contact::ContactForces;
 use crate::physics::contact::Shape;
 use crate::physics::Model;
 use crate::scene::{Scene, SceneError};
-use crate::sim::{SimError, Simulation, StepBack, StepReport};
+use crate::sim::part::{Part, StateShares};
+use crate::sim::{SimError, Simulation, State, StepBack, StepReport};
 use crate::thermal::{Heat, HeatLink};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -97,9 +101,9 @@ pub fn step_count(end_time: f64, dt: f64) -> u64 {
 /// The processes a run is shared among (see `distributed`): every process runs [`run_on`]
 /// with the same scene and options and takes the same steps; one writes the output.
 pub trait Processes {
-    /// This process's part of `model` (see `sim::part`): the whole mesh if `whole`, else its
-    /// elements and those around its owned nodes.
-    fn part_model(&self, model: &Model, whole: bool) -> Result<Model, SimError>;
+    /// This process's part of `model` and its model (see `sim::part`): the whole mesh if
+    /// `whole`, else its elements and those around their nodes.
+    fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError>;
     /// Shares `sim`, built on [`Processes::part_model`], among the processes before its
     /// first step.
     fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError>;
@@ -111,6 +115,8 @@ pub trait Processes {
     fn any(&self, flag: bool) -> bool;
     /// The bytes the writing process gives, on every process (the others give none).
     fn broadcast_bytes(&self, bytes: Vec<u8>) -> Vec<u8>;
+    /// Every process's `values`, in process order, on the writing process (none elsewhere).
+    fn gather_values(&self, values: Vec<f64>) -> Vec<Vec<f64>>;
 }
 
 /// Runs `scene` with `options`, calling `progress` after every step; stops early (cleanly, with
@@ -169,15 +175,26 @@ pub fn run_on(
         path: scene.path.clone(),
         error,
     };
-    let mut sim = match processes {
-        None => Simulation::new(scene.model.clone(), settings).map_err(setup)?,
+    let (mut sim, part) = match processes {
+        None => (
+            Simulation::new(scene.model.clone(), settings).map_err(setup)?,
+            None,
+        ),
         Some(processes) => {
             Simulation::check(&scene.model, &settings).map_err(setup)?;
-            // Every process holds the whole mesh (the output is written from it).
-            let model = processes.part_model(&scene.model, true).map_err(setup)?;
-            Simulation::for_part(model, settings).map_err(setup)?
+            let (part, model) = processes
+                .part_model(&scene.model, needs_whole_mesh(scene))
+                .map_err(setup)?;
+            (
+                Simulation::for_part(model, settings).map_err(setup)?,
+                Some(part),
+            )
         }
     };
+    // The processes' parts, where they are not the whole mesh.
+    let shared = processes
+        .zip(part.as_ref())
+        .filter(|(_, part)| !part.is_whole());
     let mut fracture = scene.fracture.map(|f| Fracture::new(f, &sim.model.mesh));
     if let Some(setup) = &scene.thermal {
         // On the scene's mesh, before a resumed fractured run rebuilds its split mesh (with
@@ -218,20 +235,34 @@ pub fn run_on(
                 })?;
             (None, frame)
         };
-        restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?;
+        match shared {
+            Some((_, part)) => {
+                let mesh = &scene.model.mesh;
+                if frame.rest_positions != rows(&mesh.rest) || frame.tets != mesh.tets {
+                    return Err(RunError::Resume {
+                        path: output.clone(),
+                        reason: "its mesh differs from the scene's mesh".into(),
+                    });
+                }
+                let frame = part_frame(part, &frame, mesh);
+                restore(&mut sim, None, &output, &frame, &scene.text)?;
+            }
+            None => restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?,
+        }
         writer
     } else if !writes {
         None
     } else {
-        let rest = rows(&sim.model.mesh.rest);
-        let obstacles = obstacle_meshes(&sim);
+        // The scene's mesh, which a process of a distributed run may hold a part of.
+        let rest = rows(&scene.model.mesh.rest);
+        let obstacles = obstacle_meshes(&scene.model);
         let scene_path = absolute(&scene.path);
         let header = RunHeader {
             scene_text: &scene.text,
             scene_path: &scene_path.to_string_lossy(),
             version: env!("CARGO_PKG_VERSION"),
             rest_positions: &rest,
-            tets: &sim.model.mesh.tets,
+            tets: &scene.model.mesh.tets,
             obstacles: &obstacles,
         };
         let mut writer = if options.force {
@@ -240,9 +271,17 @@ pub fn run_on(
             OutputWriter::create(&output, &header)?
         };
         writer.store_tensor_matrices(scene.tensor_matrices);
-        write_frame(&mut writer, &sim, fracture.as_ref(), (true, true))?;
         Some(writer)
     };
+    if !options.resume {
+        let shares = shared.map(|(p, part)| (p, part, &scene.model.mesh));
+        emit_frame(
+            writer.as_mut(),
+            (&sim, fracture.as_ref()),
+            shares,
+            (true, true),
+        )?;
+    }
     // Steps from the state reached (a resumed file's last frame, possibly written with
     // another dt) to the last whole step not past the end time.
     let remaining = end_time - sim.state.time;
@@ -322,9 +361,9 @@ pub fn run_on(
         let stopping = interrupt.load(Ordering::SeqCst);
         let stopping = processes.map_or(stopping, |p| p.any(stopping));
         if frame_due || stopping {
-            if let Some(writer) = &mut writer {
-                write_frame(writer, &sim, fracture.as_ref(), (topology_changed, on_grid))?;
-            }
+            let shares = shared.map(|(p, part)| (p, part, &scene.model.mesh));
+            let flags = (topology_changed, on_grid);
+            emit_frame(writer.as_mut(), (&sim, fracture.as_ref()), shares, flags)?;
             topology_changed = false;
             // A run resumed from this frame starts without solver memory: so does this one.
             if on_grid {
@@ -406,8 +445,8 @@ fn absolute(path: &Path) -> PathBuf {
 
 /// The triangle surfaces of the scene's mesh obstacles at t = 0 (`[[obstacle]]` index, surface),
 /// stored in the file so that pictures of it need not find the surface files.
-fn obstacle_meshes(sim: &Simulation) -> Vec<ObstacleMesh> {
-    let Some(contact) = sim.model.obstacle_contact() else {
+fn obstacle_meshes(model: &Model) -> Vec<ObstacleMesh> {
+    let Some(contact) = model.obstacle_contact() else {
         return Vec::new();
     };
     contact
@@ -437,40 +476,163 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
     rows
 }
 
+/// Whether a distributed run needs the whole mesh on every process: where a term couples
+/// nodes beyond their elements (ice–ice contact, Rayleigh's β K) or the heat equation is
+/// solved (on the whole mesh).
+fn needs_whole_mesh(scene: &Scene) -> bool {
+    let model = &scene.model;
+    scene.thermal.is_some()
+        || model.ice_contact().is_some()
+        || model.damping.is_some_and(|d| d.stiffness > 0.0)
+}
+
+/// Writes the current state of `sim` as a frame on the writing process (`writer`). In a
+/// distributed run whose processes hold parts of the mesh (`shared`: the processes, this
+/// one's part, the whole mesh), every process first gives its part of the state to the
+/// writing one.
+fn emit_frame(
+    writer: Option<&mut OutputWriter>,
+    (sim, fracture): (&Simulation, Option<&Fracture>),
+    shared: Option<(&dyn Processes, &Part, &TetMesh)>,
+    flags: (bool, bool),
+) -> Result<(), RunError> {
+    let Some((processes, part, mesh)) = shared else {
+        if let Some(writer) = writer {
+            write_frame(
+                writer,
+                &FrameSource::of(sim),
+                fracture.map(|f| (f, sim)),
+                flags,
+            )?;
+        }
+        return Ok(());
+    };
+    let contact = sim.contact_forces();
+    let share = part.share_of(
+        &sim.state,
+        &sim.stresses(),
+        contact.unwrap_or(&ContactForces::default()),
+    );
+    let shares = processes.gather_values(share);
+    let Some(writer) = writer else {
+        return Ok(());
+    };
+    let whole =
+        StateShares::whole(&shares, mesh.num_nodes(), mesh.num_tets()).ok_or_else(|| {
+            SimError::Setup("a process's part of the state did not arrive whole".into())
+        })?;
+    let state = State {
+        time: sim.state.time,
+        step: sim.state.step,
+        next_dt: sim.state.next_dt,
+        ..whole.state
+    };
+    let source = FrameSource {
+        mesh,
+        state: &state,
+        stress: whole.stress,
+        contact: contact.map(|_| &whole.contact),
+        temperature: None,
+    };
+    Ok(write_frame(writer, &source, None, flags)?)
+}
+
+/// The part `part` of a frame of the whole mesh `mesh` (checked to be the frame's): its nodes'
+/// and elements' rows, its elements numbered in the part.
+fn part_frame(part: &Part, frame: &ResumeFrame, mesh: &TetMesh) -> ResumeFrame {
+    let pick = |rows: &[[f64; 3]]| part.nodes.iter().map(|&i| rows[i]).collect();
+    let fields = |fields: &[StoredField], count: usize, per_element: bool| {
+        fields
+            .iter()
+            .filter(|f| f.data.len() == f.columns * count)
+            .map(|f| StoredField {
+                name: f.name.clone(),
+                columns: f.columns,
+                data: part.rows_of(&f.data, f.columns, per_element),
+            })
+            .collect()
+    };
+    ResumeFrame {
+        step: frame.step,
+        time: frame.time,
+        scene_text: frame.scene_text.clone(),
+        positions: pick(&frame.positions),
+        velocities: pick(&frame.velocities),
+        rest_positions: pick(&frame.rest_positions),
+        tets: part.tets_of(&mesh.tets),
+        element_fields: fields(&frame.element_fields, mesh.num_tets(), true),
+        node_fields: fields(&frame.node_fields, mesh.num_nodes(), false),
+        attributes: frame.attributes.clone(),
+    }
+}
+
+/// What a frame is written from: a simulation's mesh and state, or the whole state of a
+/// distributed run put together from the processes' parts.
+struct FrameSource<'a> {
+    mesh: &'a TetMesh,
+    state: &'a State,
+    /// Element stresses (Pa, Voigt).
+    stress: Vec<[f64; 6]>,
+    /// Contact forces, if the model has contact.
+    contact: Option<&'a ContactForces>,
+    /// Temperature of every node (°C), with `[thermal]`.
+    temperature: Option<Vec<f64>>,
+}
+
+impl<'a> FrameSource<'a> {
+    /// The simulation's current state.
+    fn of(sim: &'a Simulation) -> Self {
+        FrameSource {
+            mesh: &sim.model.mesh,
+            state: &sim.state,
+            stress: sim.stresses(),
+            contact: sim.contact_forces(),
+            temperature: sim.node_temperatures(),
+        }
+    }
+}
+
 /// Writes the current state as a frame; `restart_point` marks a frame on the output grid,
 /// after which the run forgets its solver memory (see [`Simulation::forget_solver_memory`]):
 /// `--resume` continues from the last such frame.
 fn write_frame(
     writer: &mut OutputWriter,
-    sim: &Simulation,
-    fracture: Option<&Fracture>,
+    source: &FrameSource,
+    fracture: Option<(&Fracture, &Simulation)>,
     (topology_changed, restart_point): (bool, bool),
 ) -> Result<(), OutputError> {
-    let rest = rows(&sim.model.mesh.rest);
-    let positions = sim.positions();
-    let stress = sim.stresses();
-    let history = &sim.state.history;
+    let state = source.state;
+    let rest = rows(&source.mesh.rest);
+    let positions: Vec<[f64; 3]> = source
+        .mesh
+        .rest
+        .iter()
+        .enumerate()
+        .map(|(i, p)| std::array::from_fn(|a| p[a] + state.u[3 * i + a]))
+        .collect();
+    let stress = &source.stress;
+    let history = &state.history;
     let eigenstrain = &history.eigenstrain;
     // The displacement is stored exactly (positions = rest + u are rounded), so that a
     // resumed run continues bit for bit.
     let mut node_fields = vec![Field {
         name: "displacement",
         cols: 3,
-        data: &sim.state.u,
+        data: &state.u,
     }];
     // With the Newmark scheme: the acceleration it carries from step to step (what a resumed
     // run continues from; the initial frame has none: it is computed from the forces).
-    if !sim.state.a.is_empty() {
+    if !state.a.is_empty() {
         node_fields.push(Field {
             name: "acceleration",
             cols: 3,
-            data: &sim.state.a,
+            data: &state.a,
         });
     }
     // With BDF2: the state one step back (what a resumed run continues from).
-    let back = &sim.state.back;
+    let back = &state.back;
     let mut attributes = vec![("restart_point", f64::from(u8::from(restart_point)))];
-    if back.is_for(sim.state.u.len()) {
+    if back.is_for(state.u.len()) {
         node_fields.push(Field {
             name: "back_displacement",
             cols: 3,
@@ -484,11 +646,11 @@ fn write_frame(
         attributes.push(("back_dt", back.dt));
     }
     // With adaptive steps: the length the control proposes for the next step.
-    if sim.state.next_dt > 0.0 {
-        attributes.push(("next_dt", sim.state.next_dt));
+    if state.next_dt > 0.0 {
+        attributes.push(("next_dt", state.next_dt));
     }
     // With [thermal]: the temperature at every node (°C), read where the heat is solved.
-    let temperature = sim.node_temperatures();
+    let temperature = &source.temperature;
     if let Some(t) = &temperature {
         node_fields.push(Field {
             name: "temperature",
@@ -498,9 +660,9 @@ fn write_frame(
     }
     let zeros;
     let active: Vec<f64>;
-    if let Some(forces) = sim.contact_forces() {
+    if let Some(forces) = source.contact {
         let (normal, friction) = if forces.normal.is_empty() {
-            zeros = vec![0.0; sim.state.u.len()];
+            zeros = vec![0.0; state.u.len()];
             (&zeros[..], &zeros[..])
         } else {
             (&forces.normal[..], &forces.friction[..])
@@ -570,8 +732,9 @@ fn write_frame(
         });
     }
     // Which scene element each element lies in: what a resumed fracture run rebuilds from.
-    let origin: Vec<f64> =
-        fracture.map_or(Vec::new(), |f| f.origin.iter().map(|&o| o as f64).collect());
+    let origin: Vec<f64> = fracture.map_or(Vec::new(), |(f, _)| {
+        f.origin.iter().map(|&o| o as f64).collect()
+    });
     if fracture.is_some() {
         element_fields.push(Field {
             name: "origin",
@@ -581,8 +744,9 @@ fn write_frame(
     }
     // Refused splits (reason code and crack normal per node): what a resumed run must not
     // retry either.
-    let refused: Vec<f64> =
-        fracture.map_or(Vec::new(), |f| f.refusals_as_rows(sim.model.num_nodes()));
+    let refused: Vec<f64> = fracture.map_or(Vec::new(), |(f, _)| {
+        f.refusals_as_rows(source.mesh.num_nodes())
+    });
     if fracture.is_some() {
         node_fields.push(Field {
             name: "refused_split",
@@ -590,16 +754,16 @@ fn write_frame(
             data: &refused,
         });
     }
-    let cracks = fracture.map(|f| f.surface(sim));
+    let cracks = fracture.map(|(f, sim)| f.surface(sim));
     writer.write_frame(&Frame {
-        step: sim.state.step,
-        time: sim.state.time,
+        step: state.step,
+        time: state.time,
         positions: &positions,
-        velocities: as_rows(&sim.state.v),
+        velocities: as_rows(&state.v),
         rest_positions: &rest,
-        tets: &sim.model.mesh.tets,
+        tets: &source.mesh.tets,
         topology_changed,
-        stress: &stress,
+        stress,
         element_fields: &element_fields,
         node_fields: &node_fields,
         attributes: &attributes,

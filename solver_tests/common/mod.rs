@@ -205,19 +205,20 @@ pub fn load_scene(dir: &std::path::Path, text: &str) -> Result<icefem::scene::Sc
     icefem::scene::Scene::load(&path).map_err(|e| e.to_string())
 }
 
-/// `sim`, shared among the processes when the test runs under `mpirun` with more than one
-/// (the `mpi` feature; `make test-mpi` runs the scikit-fem validation so), else as it is.
-pub fn shared(sim: Simulation) -> Simulation {
+/// The simulation of `model`, shared among the processes when the test runs under `mpirun`
+/// with more than one (the `mpi` feature; `make test-mpi` runs the scikit-fem validation so),
+/// each holding the whole mesh and state (the tests read them); else on this process.
+pub fn shared(model: icefem::physics::Model, settings: icefem::sim::StepSettings) -> Simulation {
     #[cfg(feature = "mpi")]
-    {
-        let mut sim = sim;
-        if let Some(processes) = mpi_processes::get() {
-            icefem::run::Processes::distribute(processes, &mut sim).unwrap();
-        }
-        sim
+    if let Some(processes) = mpi_processes::get() {
+        use icefem::run::Processes;
+        Simulation::check(&model, &settings).unwrap();
+        let (_, part) = processes.part_model(&model, true).unwrap();
+        let mut sim = Simulation::for_part(part, settings).unwrap();
+        processes.distribute(&mut sim).unwrap();
+        return sim;
     }
-    #[cfg(not(feature = "mpi"))]
-    sim
+    Simulation::new(model, settings).unwrap()
 }
 
 #[cfg(feature = "mpi")]

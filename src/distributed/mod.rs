@@ -13,6 +13,7 @@
 //! message. Memory per process is that of the whole mesh and state plus its share of the
 //! matrix.
 
+pub mod ghosts;
 pub mod partition;
 pub mod petsc;
 pub mod solver;
@@ -23,6 +24,7 @@ use crate::run::Processes;
 use crate::sim::part::Part;
 use crate::sim::{Collective, Distribution, SimError, Simulation};
 use crate::solver::{ExternalSolver, LinearError};
+use ghosts::Ghosts;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -67,6 +69,17 @@ pub enum DistributedError {
     Petsc(#[from] petsc::PetscError),
 }
 
+/// What a process reports after a distributed run.
+#[derive(Clone, Copy, Debug)]
+pub struct ProcessReport {
+    /// Values exchanged: sums, matrix entries, gathered values, halo values (see [`traffic`]).
+    pub traffic: [u64; 4],
+    /// Peak resident memory (bytes).
+    pub peak_memory: u64,
+    /// Nodes and elements of the process's part of the mesh.
+    pub held: [u64; 2],
+}
+
 /// MPI and PETSc, initialised for the life of this value; the processes of `mpirun`.
 pub struct MpiProcesses {
     // Dropped in this order: PETSc before MPI.
@@ -76,6 +89,8 @@ pub struct MpiProcesses {
     /// The partition and this process's part, from [`Processes::part_model`] until
     /// [`Processes::distribute`].
     part: RefCell<Option<(Partition, Part)>>,
+    /// Nodes and elements of this process's part.
+    held: std::cell::Cell<[u64; 2]>,
 }
 
 impl MpiProcesses {
@@ -91,6 +106,7 @@ impl MpiProcesses {
             _universe: universe,
             world,
             part: RefCell::new(None),
+            held: std::cell::Cell::new([0; 2]),
         })
     }
 
@@ -110,17 +126,30 @@ impl MpiProcesses {
         self.world.abort(code)
     }
 
-    /// Each process's exchanged values (see [`traffic`]) and peak resident memory (bytes),
-    /// gathered onto process 0 (empty elsewhere).
-    pub fn traffic_by_process(&self) -> Vec<([u64; 4], u64)> {
+    /// Each process's exchanged values (see [`traffic`]), peak resident memory (bytes) and
+    /// the nodes and elements of its part, gathered onto process 0 (empty elsewhere).
+    pub fn traffic_by_process(&self) -> Vec<ProcessReport> {
         let mine = traffic::read();
-        let local = [mine[0], mine[1], mine[2], mine[3], peak_memory()];
+        let [nodes, elements] = self.held.get();
+        let local = [
+            mine[0],
+            mine[1],
+            mine[2],
+            mine[3],
+            peak_memory(),
+            nodes,
+            elements,
+        ];
         let root = self.world.process_at_rank(0);
         if self.rank() == 0 {
-            let mut all = vec![0u64; 5 * self.size()];
+            let mut all = vec![0u64; 7 * self.size()];
             root.gather_into_root(&local[..], &mut all[..]);
-            all.chunks(5)
-                .map(|c| ([c[0], c[1], c[2], c[3]], c[4]))
+            all.chunks(7)
+                .map(|c| ProcessReport {
+                    traffic: [c[0], c[1], c[2], c[3]],
+                    peak_memory: c[4],
+                    held: [c[5], c[6]],
+                })
                 .collect()
         } else {
             root.gather_into(&local[..]);
@@ -138,7 +167,7 @@ impl MpiProcesses {
 }
 
 impl Processes for MpiProcesses {
-    fn part_model(&self, model: &Model, whole: bool) -> Result<Model, SimError> {
+    fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError> {
         let mesh = &model.mesh;
         let size = self.size();
         // Process 0 partitions; every process uses its partition.
@@ -163,8 +192,10 @@ impl Processes for MpiProcesses {
         let model = part
             .model(model)
             .map_err(|e| SimError::Setup(e.to_string()))?;
-        *self.part.borrow_mut() = Some((partition, part));
-        Ok(model)
+        self.held
+            .set([part.nodes.len() as u64, part.elements.len() as u64]);
+        *self.part.borrow_mut() = Some((partition, part.clone()));
+        Ok((part, model))
     }
 
     fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError> {
@@ -178,12 +209,18 @@ impl Processes for MpiProcesses {
         let share = ProcessShare {
             collective: MpiCollective {
                 world: SimpleCommunicator::world(),
-                scratch: RefCell::new(Vec::new()),
+                ghosts: Ghosts::new(
+                    SimpleCommunicator::world(),
+                    &part.nodes,
+                    &part.owned_nodes,
+                    &partition.node_owner,
+                ),
             },
             owned_dofs: part.owned_dofs(),
             owned_elements: part.own_elements,
             rank: self.rank(),
             partition,
+            nodes: part.nodes.clone(),
             tets: mesh.tets.clone(),
             rest: mesh.rest.clone(),
             solve: (iterative.tolerance, iterative.max_iterations),
@@ -208,6 +245,29 @@ impl Processes for MpiProcesses {
         bytes
     }
 
+    fn gather_values(&self, values: Vec<f64>) -> Vec<Vec<f64>> {
+        let root = self.world.process_at_rank(0);
+        let count = values.len() as mpi::Count;
+        if self.rank() != 0 {
+            root.gather_into(&count);
+            root.gather_varcount_into(&values[..]);
+            return Vec::new();
+        }
+        let mut counts = vec![0 as mpi::Count; self.size()];
+        root.gather_into_root(&count, &mut counts[..]);
+        let starts = ghosts::starts(&counts);
+        let mut all = vec![0.0; counts.iter().sum::<mpi::Count>() as usize];
+        root.gather_varcount_into_root(
+            &values[..],
+            &mut mpi::datatype::PartitionMut::new(&mut all[..], &counts[..], &starts[..]),
+        );
+        counts
+            .iter()
+            .zip(&starts)
+            .map(|(&c, &s)| all[s as usize..(s + c) as usize].to_vec())
+            .collect()
+    }
+
     fn any(&self, flag: bool) -> bool {
         let mut any = 0u8;
         self.world
@@ -230,10 +290,10 @@ fn peak_memory() -> u64 {
 }
 
 /// Sums across the processes over MPI, made the same on every process: scalars gathered and
-/// added in process order, vectors reduced onto process 0 and broadcast from it.
+/// added in process order, vectors through the processes holding each node ([`Ghosts`]).
 struct MpiCollective {
     world: SimpleCommunicator,
-    scratch: RefCell<Vec<f64>>,
+    ghosts: Ghosts,
 }
 
 impl Collective for MpiCollective {
@@ -245,24 +305,7 @@ impl Collective for MpiCollective {
     }
 
     fn exchange(&self, v: &mut [f64]) {
-        let root = self.world.process_at_rank(0);
-        if self.world.rank() == 0 {
-            let mut total = self.scratch.borrow_mut();
-            total.resize(v.len(), 0.0);
-            root.reduce_into_root(v, &mut total[..], SystemOperation::sum());
-            v.copy_from_slice(&total);
-        } else {
-            root.reduce_into(v, SystemOperation::sum());
-        }
-        root.broadcast_into(v);
-        // Process 0 receives and sends every other's vector; the others one each way.
-        let others = self.world.size() as usize - 1;
-        let sent = if self.world.rank() == 0 {
-            2 * others
-        } else {
-            2
-        };
-        traffic::add(&traffic::SUMS, sent * v.len());
+        self.ghosts.exchange(v);
     }
 
     fn max(&self, x: f64) -> f64 {
@@ -280,6 +323,8 @@ struct ProcessShare {
     owned_elements: Vec<bool>,
     rank: u32,
     partition: Partition,
+    /// The whole mesh's node of each node of this process's part.
+    nodes: Vec<usize>,
     tets: Vec<[usize; 4]>,
     rest: Vec<nalgebra::Vector3<f64>>,
     /// CG's relative tolerance and iteration cap.
@@ -302,7 +347,7 @@ impl Distribution for ProcessShare {
     fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError> {
         Ok(Box::new(solver::PetscSolver::new(
             assembly,
-            &self.partition,
+            (&self.partition, &self.nodes),
             (self.rank, &self.owned_elements, &self.tets),
             &self.rest,
             self.solve,

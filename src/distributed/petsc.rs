@@ -138,29 +138,54 @@ impl Drop for Vector {
     }
 }
 
-/// Gathers a distributed vector whole onto every process.
-pub struct GatherToAll {
+/// Copies chosen entries of a distributed vector into a vector of this process alone.
+pub struct Gather {
     scatter: ffi::VecScatter,
-    whole: Vector,
+    local: Vector,
 }
 
-impl GatherToAll {
-    /// For vectors laid out as `like`.
-    pub fn new(like: &Vector) -> Result<Self, PetscError> {
+impl Gather {
+    /// For vectors laid out as `like`: their entries at the global `indices`, in that order.
+    pub fn new(like: &Vector, indices: &[Int]) -> Result<Self, PetscError> {
+        use mpi::raw::AsRaw;
+        // MPI's communicator of this process alone, as PETSc's declarations name its type.
+        let alone = mpi::topology::SimpleCommunicator::self_comm().as_raw().0 as ffi::MPI_Comm;
+        let n = Int::try_from(indices.len()).map_err(|_| PetscError {
+            call: "ISCreateGeneral",
+            code: -1,
+        })?;
+        let mut is: ffi::IS = ptr::null_mut();
+        let mut local: ffi::Vec = ptr::null_mut();
         let mut scatter: ffi::VecScatter = ptr::null_mut();
-        let mut whole: ffi::Vec = ptr::null_mut();
-        // SAFETY: `like` is valid; PETSc creates the scatter and a sequential vector.
-        check(
-            unsafe { ffi::VecScatterCreateToAll(like.0, &mut scatter, &mut whole) },
-            "VecScatterCreateToAll",
-        )?;
-        Ok(GatherToAll {
-            scatter,
-            whole: Vector(whole),
-        })
+        // SAFETY: `indices` has `n` entries, which PETSc copies; `like` is valid; PETSc
+        // creates the index set, a sequential vector of `n` entries and the scatter, and the
+        // index set is destroyed once the scatter holds what it needs.
+        unsafe {
+            check(
+                ffi::ISCreateGeneral(
+                    alone,
+                    n,
+                    indices.as_ptr(),
+                    ffi::PetscCopyMode::PETSC_COPY_VALUES,
+                    &mut is,
+                ),
+                "ISCreateGeneral",
+            )?;
+            let created =
+                check(ffi::VecCreateSeq(alone, n, &mut local), "VecCreateSeq").and_then(|_| {
+                    check(
+                        ffi::VecScatterCreate(like.0, is, local, ptr::null_mut(), &mut scatter),
+                        "VecScatterCreate",
+                    )
+                });
+            ffi::ISDestroy(&mut is);
+            let local = Vector(local);
+            created?;
+            Ok(Gather { scatter, local })
+        }
     }
 
-    /// Gathers `x` and reads it whole with `read`.
+    /// Gathers `x`'s chosen entries and reads them with `read`.
     pub fn gather<T>(
         &mut self,
         x: &Vector,
@@ -173,21 +198,22 @@ impl GatherToAll {
         // SAFETY: the scatter was made for vectors laid out as `x`.
         unsafe {
             check(
-                ffi::VecScatterBegin(self.scatter, x.0, self.whole.0, insert, forward),
+                ffi::VecScatterBegin(self.scatter, x.0, self.local.0, insert, forward),
                 "VecScatterBegin",
             )?;
             check(
-                ffi::VecScatterEnd(self.scatter, x.0, self.whole.0, insert, forward),
+                ffi::VecScatterEnd(self.scatter, x.0, self.local.0, insert, forward),
                 "VecScatterEnd",
             )?;
         }
-        self.whole.read_local(read)
+        self.local.read_local(read)
     }
 }
 
-impl Drop for GatherToAll {
+impl Drop for Gather {
     fn drop(&mut self) {
-        // SAFETY: valid and dropped once.
+        // SAFETY: valid and dropped once (a failed creation leaves it null, which PETSc
+        // accepts).
         unsafe {
             ffi::VecScatterDestroy(&mut self.scatter);
         }
@@ -222,6 +248,17 @@ impl Matrix {
             check(
                 ffi::MatMPIAIJSetPreallocation(a, 0, diagonal.as_ptr(), 0, off.as_ptr()),
                 "MatMPIAIJSetPreallocation",
+            )?;
+            // A process's part of the mesh may not see every entry other processes add to its
+            // rows (the nodal volumetric energy's ring around another part's node): PETSc
+            // makes room for those at the first assembly instead of failing.
+            check(
+                ffi::MatSetOption(
+                    a,
+                    ffi::MatOption::MAT_NEW_NONZERO_ALLOCATION_ERR,
+                    ffi::PetscBool::PETSC_FALSE,
+                ),
+                "MatSetOption",
             )?;
             Ok(matrix)
         }

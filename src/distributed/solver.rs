@@ -1,13 +1,13 @@
 //! The linear solve of a distributed run: each process adds its part of the Hessian (the
-//! columns where its elements and nodes write) into a PETSc matrix over all 3n dofs, whose
-//! rows the processes own by node; PETSc sums the parts, and conjugate gradients with
-//! algebraic multigrid (hypre's BoomerAMG; PETSc's GAMG, with the rigid-body modes as
-//! near-null space, on request) solve. The constrained dofs are rows of the diagonal only
-//! (their update is zero), which keeps every node's 3 × 3 block for the multigrid. The
-//! solution is gathered whole onto every process.
+//! columns where its elements and nodes write, on its part of the mesh) into a PETSc matrix
+//! over all 3n dofs, whose rows the processes own by node; PETSc sums the parts, and
+//! conjugate gradients with algebraic multigrid (hypre's BoomerAMG; PETSc's GAMG, with the
+//! rigid-body modes as near-null space, on request) solve. The constrained dofs are rows of
+//! the diagonal only (their update is zero), which keeps every node's 3 × 3 block for the
+//! multigrid. Each process gathers the solution on its part's dofs.
 
 use super::partition::Partition;
-use super::petsc::{Divergence, GatherToAll, Int, Krylov, Matrix, PetscError, Vector};
+use super::petsc::{Divergence, Gather, Int, Krylov, Matrix, PetscError, Vector};
 use super::traffic;
 use crate::assembly::Assembly;
 use crate::solver::{ExternalSolver, LinearError, LinearStats};
@@ -26,7 +26,7 @@ pub struct PetscSolver {
     krylov: Krylov,
     rhs: Vector,
     solution: Vector,
-    gather: GatherToAll,
+    gather: Gather,
     /// Free columns this process adds (the dofs of its elements' nodes and of the nodes its
     /// own nodes are coupled to), and for each its rows' PETSc indices
     /// (`rows[row_ptr[k]..row_ptr[k + 1]]`).
@@ -49,33 +49,34 @@ pub struct PetscSolver {
 }
 
 impl PetscSolver {
-    /// The solver for `assembly`'s pattern on process `rank` of `partition`, whose elements
-    /// are marked in `owned_elements`, with the nodes' rest positions `rest` (m); CG stops
-    /// at the relative residual `rtol` or after `max_iterations`.
+    /// The solver for `assembly`'s pattern on process `rank` of `partition`, on its part of
+    /// the mesh: the whole mesh's node of each of its nodes `nodes`, its elements `tets`
+    /// (those it evaluates marked in `owned_elements`), the nodes' rest positions `rest` (m);
+    /// CG stops at the relative residual `rtol` or after `max_iterations`.
     pub fn new(
         assembly: &Assembly,
-        partition: &Partition,
+        (partition, nodes): (&Partition, &[usize]),
         (rank, owned_elements, tets): (u32, &[bool], &[[usize; 4]]),
         rest: &[Vector3<f64>],
         (rtol, max_iterations): (f64, usize),
     ) -> Result<Self, LinearError> {
         let n_nodes = rest.len();
-        if 3 * n_nodes > Int::MAX as usize {
+        let global = 3 * partition.petsc_node.len();
+        if global > Int::MAX as usize {
             return Err(LinearError::External(format!(
-                "{} dofs exceed PETSc's 32-bit indices",
-                3 * n_nodes
+                "{global} dofs exceed PETSc's 32-bit indices"
             )));
         }
         let dofs = assembly.dofs();
-        let petsc_dof = |d: usize| (3 * partition.petsc_node[d / 3] + d % 3) as Int;
+        let petsc_dof = |d: usize| (3 * partition.petsc_node[nodes[d / 3]] + d % 3) as Int;
         let petsc_of_free: Vec<Int> = dofs.free_dofs().iter().map(|&d| petsc_dof(d)).collect();
         let r = rank as usize;
         let (start, end) = (partition.node_start[r], partition.node_start[r + 1]);
         let (first_row, local) = (3 * start, 3 * (end - start));
-        let global = 3 * n_nodes;
-        // This process's rows in PETSc order: its nodes' dofs.
+        // This process's rows in PETSc order: its nodes' dofs (all in its part).
         let mut node_of_row = vec![0usize; end - start];
-        for (v, &i) in partition.petsc_node.iter().enumerate() {
+        for (v, &whole) in nodes.iter().enumerate() {
+            let i = partition.petsc_node[whole];
             if (start..end).contains(&i) {
                 node_of_row[i - start] = v;
             }
@@ -159,7 +160,8 @@ impl PetscSolver {
         halo.dedup();
         let rhs = Vector::new(local, global, 3)?;
         let solution = Vector::new(local, global, 3)?;
-        let gather = GatherToAll::new(&solution)?;
+        let gather = Gather::new(&solution, &petsc_of_free)?;
+        let gathered = petsc_of_free.iter().filter(|&&i| !in_range(i)).count();
         Ok(PetscSolver {
             matrix,
             krylov: Krylov::cg_amg(rtol, max_iterations)?,
@@ -175,7 +177,7 @@ impl PetscSolver {
             n_free: dofs.num_free(),
             entries_sent,
             halo: halo.len(),
-            gathered: global - local,
+            gathered,
         })
     }
 }
@@ -245,12 +247,8 @@ impl ExternalSolver for PetscSolver {
         };
         traffic::add(&traffic::HALO, self.halo * iterations);
         traffic::add(&traffic::GATHERED, self.gathered);
-        let petsc_of_free = &self.petsc_of_free;
-        self.gather.gather(&self.solution, |whole| {
-            for (x, &i) in x.iter_mut().zip(petsc_of_free) {
-                *x = whole[i as usize];
-            }
-        })?;
+        self.gather
+            .gather(&self.solution, |mine| x.copy_from_slice(mine))?;
         Ok(LinearStats {
             t_solve: start.elapsed().as_secs_f64(),
             iterations,

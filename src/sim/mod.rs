@@ -92,7 +92,7 @@ impl StepSettings {
 
 /// The time-dependent state: everything a step depends on besides the model. Rolling a step
 /// back is restoring a copy of it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct State {
     /// Nodal displacement from the rest position (m), 3 per node.
     pub u: Vec<f64>,

@@ -14,7 +14,9 @@
 //! the heat equation is solved, or on one process, a part is the whole mesh: every element and
 //! node, each process evaluating its own elements and owned nodes as above.
 
+use super::State;
 use crate::mesh::MeshError;
+use crate::physics::contact::ContactForces;
 use crate::physics::history::ElementHistory;
 use crate::physics::term::NodeRestriction;
 use crate::physics::Model;
@@ -102,11 +104,7 @@ impl Part {
             whole.clone()
         } else {
             let rest: Vec<_> = self.nodes.iter().map(|&i| whole.mesh.rest[i]).collect();
-            let tets = self
-                .elements
-                .iter()
-                .map(|&e| whole.mesh.tets[e].map(|v| self.local_node[v]))
-                .collect();
+            let tets = self.tets_of(&whole.mesh.tets);
             let mut model = whole.remeshed(&rest, tets, &self.elements, &[])?;
             model.initial_displacement = self.dofs_of(&whole.initial_displacement);
             model.initial_velocity = self.dofs_of(&whole.initial_velocity);
@@ -141,6 +139,84 @@ impl Part {
             .collect()
     }
 
+    /// The part's elements, numbered in the part, from the whole mesh's elements `tets`.
+    pub fn tets_of(&self, tets: &[[usize; 4]]) -> Vec<[usize; 4]> {
+        self.elements
+            .iter()
+            .map(|&e| tets[e].map(|v| self.local_node[v]))
+            .collect()
+    }
+
+    /// The part's rows of a field of `columns` values per node (or per element if
+    /// `per_element`) of the whole mesh.
+    pub fn rows_of(&self, whole: &[f64], columns: usize, per_element: bool) -> Vec<f64> {
+        let items = if per_element {
+            &self.elements
+        } else {
+            &self.nodes
+        };
+        items
+            .iter()
+            .flat_map(|&i| &whole[columns * i..columns * (i + 1)])
+            .copied()
+            .collect()
+    }
+
+    /// This process's share of a state for the process that writes it whole
+    /// ([`StateShares::whole`]): its owned nodes' and own elements' numbers and values.
+    pub fn share_of(
+        &self,
+        state: &State,
+        stress: &[[f64; 6]],
+        contact: &ContactForces,
+    ) -> Vec<f64> {
+        let nodes: Vec<usize> = (0..self.nodes.len())
+            .filter(|&k| self.owned_nodes[k])
+            .collect();
+        let elements: Vec<usize> = (0..self.elements.len())
+            .filter(|&k| self.own_elements[k])
+            .collect();
+        let h = &state.history;
+        let flags = [
+            !state.a.is_empty(),
+            state.back.is_for(state.u.len()),
+            !h.plastic_strain.is_empty(),
+            !h.freeze_state.is_empty(),
+            !contact.normal.is_empty(),
+        ];
+        let mut out = vec![nodes.len() as f64, elements.len() as f64, state.back.dt];
+        out.extend(flags.map(|f| f64::from(u8::from(f))));
+        out.extend(nodes.iter().map(|&k| self.nodes[k] as f64));
+        out.extend(elements.iter().map(|&k| self.elements[k] as f64));
+        let mut node_values = |v: &[f64]| {
+            out.extend(nodes.iter().flat_map(|&k| &v[3 * k..3 * k + 3]));
+        };
+        node_values(&state.u);
+        node_values(&state.v);
+        if flags[0] {
+            node_values(&state.a);
+        }
+        if flags[1] {
+            node_values(&state.back.u);
+            node_values(&state.back.v);
+        }
+        if flags[4] {
+            node_values(&contact.normal);
+            node_values(&contact.friction);
+        }
+        for &k in &elements {
+            out.push(h.eigenstrain[k]);
+            if flags[2] {
+                out.extend(h.plastic_strain[k].iter());
+            }
+            if flags[3] {
+                out.push(h.freeze_state[k]);
+            }
+            out.extend(stress[k]);
+        }
+        out
+    }
+
     /// The part's elements' history, from the whole mesh's.
     pub fn history_of(&self, whole: &ElementHistory) -> ElementHistory {
         whole.inherit(&self.elements)
@@ -151,6 +227,92 @@ impl Part {
         self.nodes
             .iter()
             .flat_map(|&i| [3 * i, 3 * i + 1, 3 * i + 2])
+    }
+}
+
+/// A state put together from the processes' shares ([`Part::share_of`]): what the writing
+/// process of a distributed run writes.
+#[derive(Clone, Debug, Default)]
+pub struct StateShares {
+    /// The state on the whole mesh (time, step and proposed step length left as they are).
+    pub state: State,
+    /// Element stresses (Pa, Voigt).
+    pub stress: Vec<[f64; 6]>,
+    /// Contact forces (N, 3 per node; empty without contact).
+    pub contact: ContactForces,
+}
+
+impl StateShares {
+    /// The whole state of a mesh of `nodes` nodes and `elements` elements from every
+    /// process's share; `None` if a share is cut short.
+    pub fn whole(shares: &[Vec<f64>], nodes: usize, elements: usize) -> Option<StateShares> {
+        let mut whole = StateShares::default();
+        let s = &mut whole.state;
+        let flags: Vec<bool> = shares
+            .first()?
+            .get(3..8)?
+            .iter()
+            .map(|&f| f != 0.0)
+            .collect();
+        let dofs = |on: bool| if on { vec![0.0; 3 * nodes] } else { Vec::new() };
+        (s.u, s.v, s.a) = (dofs(true), dofs(true), dofs(flags[0]));
+        (s.back.u, s.back.v) = (dofs(flags[1]), dofs(flags[1]));
+        s.back.dt = shares[0][2];
+        (whole.contact.normal, whole.contact.friction) = (dofs(flags[4]), dofs(flags[4]));
+        s.history.eigenstrain = vec![0.0; elements];
+        if flags[2] {
+            s.history.plastic_strain = vec![nalgebra::Matrix3::zeros(); elements];
+        }
+        if flags[3] {
+            s.history.freeze_state = vec![0.0; elements];
+        }
+        whole.stress = vec![[0.0; 6]; elements];
+        for share in shares {
+            let mut at = share.iter().copied();
+            let (n, e) = (at.next()? as usize, at.next()? as usize);
+            let mut at = at.skip(6);
+            let node_ids: Vec<usize> = at.by_ref().take(n).map(|x| x as usize).collect();
+            let element_ids: Vec<usize> = at.by_ref().take(e).map(|x| x as usize).collect();
+            if node_ids.len() != n || element_ids.len() != e {
+                return None;
+            }
+            let mut place = |v: &mut Vec<f64>| {
+                for &i in &node_ids {
+                    for a in 0..3 {
+                        *v.get_mut(3 * i + a)? = at.next()?;
+                    }
+                }
+                Some(())
+            };
+            place(&mut s.u)?;
+            place(&mut s.v)?;
+            if flags[0] {
+                place(&mut s.a)?;
+            }
+            if flags[1] {
+                place(&mut s.back.u)?;
+                place(&mut s.back.v)?;
+            }
+            if flags[4] {
+                place(&mut whole.contact.normal)?;
+                place(&mut whole.contact.friction)?;
+            }
+            for &k in &element_ids {
+                *s.history.eigenstrain.get_mut(k)? = at.next()?;
+                if flags[2] {
+                    for x in s.history.plastic_strain.get_mut(k)?.iter_mut() {
+                        *x = at.next()?;
+                    }
+                }
+                if flags[3] {
+                    *s.history.freeze_state.get_mut(k)? = at.next()?;
+                }
+                for x in whole.stress.get_mut(k)? {
+                    *x = at.next()?;
+                }
+            }
+        }
+        Some(whole)
     }
 }
 
