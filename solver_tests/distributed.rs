@@ -1,13 +1,16 @@
 //! Runs on two processes (`mpirun -n 2 icefem run`, the `mpi` feature) against the same
 //! scenes on one: the cantilever, the static block, the paper's freezing container without
-//! fracture, a damped bar and ice–ice contact. `make test-mpi` runs these and the scikit-fem validation on 2 processes.
+//! fracture (each process holding its part of the mesh), a damped bar and ice–ice contact (the
+//! whole mesh on each). `make test-mpi` runs these and the scikit-fem validation on 2
+//! processes.
 //!
 //! A distributed run solves each Newton iteration by PETSc's conjugate gradients to the
 //! relative residual `cg_tolerance` (1e-12 by default) where one process factorises exactly:
 //! positions agree to that solve's tolerance, amplified over the steps by the conditioning.
-//! Measured: 1.3e-12 (static block), 4.9e-11 (cantilever, 60 steps), 7.3e-12 (freezing
-//! container, 2400 steps) of the largest displacement. Asserted ≤ 1e-8: two orders above
-//! the worst, far below any physical difference (a missing term or element shows at ≥ 1e-3).
+//! Measured: 1.3e-12 (static block), 1.1e-10 (cantilever, 30 steps), 1.0e-15 (freezing
+//! container, 400 steps), 6.6e-16 (damped bar) of the largest displacement. Asserted ≤ 1e-8:
+//! two orders above the worst, far below any physical difference (a missing term or element
+//! shows at ≥ 1e-3).
 
 mod common;
 
@@ -67,6 +70,11 @@ fn icefem(mpirun: Option<usize>, args: &[&OsStr]) -> Output {
 
 /// Every frame's displacement (m), flattened.
 fn displacements(path: &Path) -> Vec<Vec<f64>> {
+    frame_field(path, "displacement")
+}
+
+/// Every frame's dataset `name`, flattened.
+fn frame_field(path: &Path, name: &str) -> Vec<Vec<f64>> {
     let file = hdf5::File::open(path).unwrap();
     let frames = file.group("frames").unwrap();
     let mut names = frames.member_names().unwrap();
@@ -75,7 +83,7 @@ fn displacements(path: &Path) -> Vec<Vec<f64>> {
         .iter()
         .map(|n| {
             frames
-                .dataset(&format!("{n}/displacement"))
+                .dataset(&format!("{n}/{name}"))
                 .unwrap()
                 .read_raw::<f64>()
                 .unwrap()
@@ -95,7 +103,15 @@ fn stat(path: &Path, name: &str) -> Vec<f64> {
 /// Largest difference of the two runs' displacements over all frames, relative to the
 /// largest displacement.
 fn difference(a: &Path, b: &Path) -> f64 {
-    let (da, db) = (displacements(a), displacements(b));
+    let (diff, scale) = field_difference(a, b, "displacement");
+    assert!(scale > 0.0, "nothing moved");
+    diff / scale
+}
+
+/// Largest difference of the two runs' frame dataset `name` over all frames, and its largest
+/// value.
+fn field_difference(a: &Path, b: &Path, name: &str) -> (f64, f64) {
+    let (da, db) = (frame_field(a, name), frame_field(b, name));
     assert_eq!(da.len(), db.len(), "frame counts");
     let mut scale: f64 = 0.0;
     let mut diff: f64 = 0.0;
@@ -106,8 +122,7 @@ fn difference(a: &Path, b: &Path) -> f64 {
             diff = diff.max((x - y).abs());
         }
     }
-    assert!(scale > 0.0, "nothing moved");
-    diff / scale
+    (diff, scale)
 }
 
 /// The scene's node count and the nodes each process held, from a distributed run's report.
@@ -145,8 +160,27 @@ fn two_processes_match_one(path: &Path, extra: &[&str], parts: bool) {
         );
     }
     let diff = difference(&one, &two);
-    eprintln!("{name}: max |Δu| / max |u| = {diff:.2e}");
+    // The fields process 0 gathers from the processes' parts, node by node and element by
+    // element: velocities and every element's stress, within the positions' bound (measured
+    // ≤ 1.2e-10 of their largest value).
+    let relative = |name| {
+        let (diff, scale) = field_difference(&one, &two, name);
+        if scale > 0.0 {
+            diff / scale
+        } else {
+            diff
+        }
+    };
+    let (velocity, stress) = (relative("velocities"), relative("stress"));
+    eprintln!(
+        "{name}: max |Δu| / max |u| = {diff:.2e}; velocities {velocity:.2e}, stresses {stress:.2e}"
+    );
     assert!(diff <= 1e-8, "{name}: {diff:e}");
+    assert!(
+        velocity <= 1e-8 && stress <= 1e-8,
+        "{name}: {velocity:e}, {stress:e}"
+    );
+    assert_eq!(stat(&one, "elements"), stat(&two, "elements"));
     // The same steps and Newton iterations as one process — except where a step starts at
     // equilibrium to round-off (a settled cantilever): whether its residual is over the
     // round-off floor, one iteration or none, is then decided by the last bits.

@@ -1,9 +1,11 @@
 //! A simulation shared among processes, without MPI: two threads play two processes, each
-//! with its own `Simulation` sharing the work as a distributed run does (`Simulation::
-//! distribute`), their sums exchanged through memory and the Hessian's two parts added and
+//! with its own `Simulation` on its part of the mesh (`sim::part`; or the whole mesh) sharing
+//! the work as a distributed run does (`Simulation::distribute`), their sums exchanged
+//! through memory and the Hessian's two parts added on the whole mesh's pattern and
 //! factorised by Cholesky on both. This checks the split of the potential — elements per
-//! process, the other terms kept on owned dofs, the nodal volumetric energy by owned node —
-//! in the default build; `distributed.rs` (feature `mpi`) checks MPI and PETSc on top.
+//! process, masses, loads and contact on owned nodes, the nodal volumetric energy by owned
+//! node, the ring of elements a part needs — in the default build; `distributed.rs` (feature
+//! `mpi`) checks MPI and PETSc on top.
 
 use icefem::assembly::{Assembly, DofMap};
 use icefem::physics::Model;

@@ -616,6 +616,11 @@ fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity
         exit_if_interrupted(&summary);
         return Ok(());
     }
+    // ICEFEM_WHOLE_MESH=1 makes every process hold the whole mesh where parts would do: the
+    // comparison row of the scaling measurements.
+    if std::env::var_os("ICEFEM_WHOLE_MESH").is_some_and(|v| v == "1") {
+        processes.hold_whole_mesh();
+    }
     // One process per core by default: each process's threads share the node's cores.
     if std::env::var_os("RAYON_NUM_THREADS").is_none() {
         let on_node = std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")

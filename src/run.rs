@@ -355,7 +355,13 @@ pub fn run_on(
         summary.newton_iterations += report.newton.iterations as u64;
         summary.max_residual = summary.max_residual.max(report.newton.residual);
         if let Some(writer) = &mut writer {
-            writer.append_stats(&stats_row(&sim, &report, &cracked, fracture.as_ref()))?;
+            // A process's part of a distributed run holds only some of the elements.
+            let elements = match shared {
+                Some(_) => scene.model.mesh.num_tets(),
+                None => sim.model.mesh.num_tets(),
+            };
+            let row = stats_row((&sim, elements), &report, &cracked, fracture.as_ref());
+            writer.append_stats(&row)?;
         }
         // Alike on every process: an interrupt on one stops them all after this step.
         let stopping = interrupt.load(Ordering::SeqCst);
@@ -388,7 +394,7 @@ pub fn run_on(
 }
 
 fn stats_row(
-    sim: &Simulation,
+    (sim, elements): (&Simulation, usize),
     report: &StepReport,
     cracked: &FractureReport,
     fracture: Option<&Fracture>,
@@ -413,7 +419,7 @@ fn stats_row(
         t_factorization: n.t_factorization,
         t_solve: n.t_solve,
         t_step: report.t_step,
-        elements: sim.model.mesh.num_tets() as u64,
+        elements: elements as u64,
         crack_faces: fracture.map_or(0, |f| f.faces.len() as u64),
         fracture_events: cracked.events.len() as u32,
         separation_stress: cracked.largest_stress,

@@ -1,17 +1,19 @@
 //! Runs on several processes (the `mpi` feature): `mpirun -n N icefem run SCENE.toml`.
 //!
-//! Every process reads the scene, builds the whole mesh and state and takes the same steps,
-//! with the same decisions: Newton's iterates, residuals and line searches are the same
-//! numbers on every process. What is shared out is the work of an iteration — METIS splits
-//! the elements ([`partition`]); each process evaluates the elastic energy, gradient and
-//! Hessian of its own elements and the other terms on the dofs it owns; energies and
-//! gradients are summed across the processes (`sim::Collective`, over MPI), and the Hessian's
-//! parts go into one PETSc matrix, solved by conjugate gradients with algebraic multigrid
-//! ([`solver`]). Process 0 writes the output, the same file a run on one process writes.
+//! METIS splits the elements ([`partition`]); every process reads the scene and builds its
+//! part of the mesh and state (`sim::part`: its elements and the ring of elements around their
+//! nodes, or the whole mesh where a term needs it) and takes the same steps, with the same
+//! decisions: Newton's residuals, line searches and step lengths are the same numbers on
+//! every process. Each process evaluates the elastic energy, gradient and Hessian of its own
+//! elements and the other terms on the nodes it owns; energies and dof sums are added across
+//! the processes, gradients at the nodes several processes hold exchanged between them
+//! ([`ghosts`]), and the Hessian's parts go into one PETSc matrix, solved by conjugate
+//! gradients with algebraic multigrid ([`solver`]). Process 0 gathers the processes' parts of
+//! each frame and writes the same file a run on one process writes.
 //!
 //! Not distributed: fracture (its remeshing) — a run that needs it is refused with a
-//! message. Memory per process is that of the whole mesh and state plus its share of the
-//! matrix.
+//! message. Every process also keeps the scene's whole model (mesh, element data, loads),
+//! from which it builds its part.
 
 pub mod ghosts;
 pub mod partition;
@@ -91,6 +93,8 @@ pub struct MpiProcesses {
     part: RefCell<Option<(Partition, Part)>>,
     /// Nodes and elements of this process's part.
     held: std::cell::Cell<[u64; 2]>,
+    /// Whether every process holds the whole mesh even where parts would do.
+    whole_mesh: std::cell::Cell<bool>,
 }
 
 impl MpiProcesses {
@@ -107,7 +111,14 @@ impl MpiProcesses {
             world,
             part: RefCell::new(None),
             held: std::cell::Cell::new([0; 2]),
+            whole_mesh: std::cell::Cell::new(false),
         })
+    }
+
+    /// Makes every process hold the whole mesh, as a scene whose terms need it does (to
+    /// measure what the parts save).
+    pub fn hold_whole_mesh(&self) {
+        self.whole_mesh.set(true);
     }
 
     /// This process's number, from 0.
@@ -187,7 +198,7 @@ impl Processes for MpiProcesses {
             &mesh.tets,
             (&partition.element_part, &partition.node_owner),
             self.rank(),
-            whole,
+            whole || self.whole_mesh.get(),
         );
         let model = part
             .model(model)

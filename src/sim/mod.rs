@@ -9,6 +9,7 @@ pub mod balance;
 pub mod part;
 pub mod potential;
 pub mod scheme;
+mod shared;
 
 use crate::assembly::{Assembly, DofMap, ElementSubset};
 use crate::fem::StrainOffset;
@@ -24,7 +25,6 @@ use crate::solver::{
     minimize, minimize_quadratic, FillOrdering, LinearSolver, LinearSolverKind, NewtonError,
     NewtonParams, NewtonReport, NewtonWorkspace,
 };
-use crate::solver::{ExternalSolver, LinearError};
 use crate::thermal::HeatLink;
 pub use adaptive::Adaptive;
 use balance::{energies_of, energies_with, EnergyRise};
@@ -32,6 +32,8 @@ pub use potential::Collective;
 use potential::{ElasticQuadratic, Share, StepPotential};
 use scheme::StepFormula;
 pub use scheme::{Scheme, StepBack};
+pub use shared::Distribution;
+use shared::Shared;
 use std::time::Instant;
 
 /// Static equilibrium per step, or dynamics (integrated by the [`Scheme`]).
@@ -260,28 +262,6 @@ pub enum SimError {
     Heat(#[from] crate::thermal::ThermalError),
 }
 
-/// How a simulation is shared among several processes (implemented by `distributed` over
-/// MPI and PETSc). Every process holds its part of the mesh and state (see [`part`]) and
-/// takes the same steps; each evaluates the elastic energy of its own elements and the rest
-/// on its owned nodes, and the linear solves are shared.
-pub trait Distribution {
-    /// The sums across the processes.
-    fn collective(&self) -> &dyn Collective;
-    /// Whether this process owns each dof of its part (3 per node): every dof has one owner.
-    fn owned_dofs(&self) -> &[bool];
-    /// Whether this process evaluates each element of its part: every element has one.
-    fn owned_elements(&self) -> &[bool];
-    /// A linear solver shared by the processes, for `assembly`'s pattern.
-    fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError>;
-}
-
-/// A simulation's share of a distributed run: the distribution and this process's elements
-/// on the current pattern's colouring.
-struct Shared {
-    distribution: Box<dyn Distribution>,
-    elements: ElementSubset,
-}
-
 /// A model, its state, and the solver data built for its mesh.
 pub struct Simulation {
     /// The mechanics.
@@ -442,28 +422,6 @@ impl Simulation {
             linear,
             workspace,
         })
-    }
-
-    /// Shares the simulation among the processes of `distribution` from its next step on
-    /// (fails only if the distributed solver cannot be made). Its model is this process's
-    /// part ([`part::Part::model`]). Rayleigh damping's β Kₙ is assembled whole on every
-    /// process, like the other terms every process evaluates whole.
-    pub fn distribute(&mut self, distribution: Box<dyn Distribution>) -> Result<(), SimError> {
-        self.linear = LinearSolver::External(distribution.solver(&self.assembly)?);
-        self.workspace.forget_factor();
-        self.fixed_hessian = None;
-        self.fixed_factored = false;
-        self.elastic_quadratic = None;
-        self.shared = Some(Shared {
-            elements: self.assembly.subset(distribution.owned_elements()),
-            distribution,
-        });
-        Ok(())
-    }
-
-    /// Whether the simulation is shared among several processes.
-    pub fn is_distributed(&self) -> bool {
-        self.shared.is_some()
     }
 
     /// Continues with `model` on a new mesh after a topology change (fracture; see
@@ -1106,59 +1064,6 @@ impl Simulation {
             })
             .fold(offsets, f64::max);
         self.max_over_processes(scale)
-    }
-
-    /// The largest `x` over the processes of a distributed run (`x` on one).
-    fn max_over_processes(&self, x: f64) -> f64 {
-        match &self.shared {
-            Some(shared) => shared.distribution.collective().max(x),
-            None => x,
-        }
-    }
-
-    /// Σ over the processes of a distributed run of `x` (`x` on one).
-    fn sum_over_processes(&self, x: f64) -> f64 {
-        match &self.shared {
-            Some(shared) => shared.distribution.collective().sum(x),
-            None => x,
-        }
-    }
-
-    /// Whether this process counts dof `d` in sums over the dofs: it owns it (always on one
-    /// process).
-    fn counts(&self, d: usize) -> bool {
-        self.shared
-            .as_ref()
-            .is_none_or(|shared| shared.distribution.owned_dofs()[d])
-    }
-
-    /// Keeps `v` (3 per node) on the dofs this process owns and makes every process's copy
-    /// the sum of those parts (nothing on one process).
-    fn exchange_owned(&self, v: &mut [f64]) {
-        if let Some(shared) = &self.shared {
-            let owned = shared.distribution.owned_dofs();
-            for (x, &o) in v.iter_mut().zip(owned) {
-                if !o {
-                    *x = 0.0;
-                }
-            }
-            shared.distribution.collective().exchange(v);
-        }
-    }
-
-    /// The energies of `parts` (this process's share, see [`balance::EnergyParts`]) summed
-    /// over the processes of a distributed run; on one process, its energies.
-    fn energies_over_processes(&self, parts: balance::EnergyParts) -> Energies {
-        if self.shared.is_none() {
-            return parts.energies;
-        }
-        let e = parts.energies;
-        Energies {
-            kinetic: self.sum_over_processes(e.kinetic),
-            elastic: self.sum_over_processes(e.elastic),
-            potential: self.sum_over_processes(e.potential),
-            contact: self.sum_over_processes(parts.contact_owned) + parts.contact_whole,
-        }
     }
 
     /// Energies of the current state.

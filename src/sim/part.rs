@@ -354,4 +354,69 @@ mod tests {
         assert_eq!(apart.dofs_of(&whole)[..3], [18.0, 19.0, 20.0]);
         assert!(Part::new(&tets, (&element_part, &owner), 0, true).is_whole());
     }
+
+    #[test]
+    fn the_parts_shares_put_the_whole_state_back_together() {
+        let tets = [[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5], [6, 7, 8, 9]];
+        let (element_part, owner) = ([0, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1, 1, 1]);
+        let value = |k: usize| (k as f64).sin();
+        let dofs = |offset: usize| (0..30).map(|d| value(d + offset)).collect::<Vec<f64>>();
+        let mut whole = State {
+            u: dofs(0),
+            v: dofs(100),
+            a: dofs(200),
+            back: super::super::StepBack {
+                u: dofs(300),
+                v: dofs(400),
+                dt: 0.5,
+            },
+            ..State::default()
+        };
+        whole.history = ElementHistory {
+            eigenstrain: (0..4).map(|e| value(500 + e)).collect(),
+            plastic_strain: (0..4)
+                .map(|e| nalgebra::Matrix3::from_fn(|i, j| value(600 + 9 * e + 3 * i + j)))
+                .collect(),
+            freeze_state: (0..4).map(|e| value(700 + e)).collect(),
+        };
+        let stress: Vec<[f64; 6]> = (0..4)
+            .map(|e| std::array::from_fn(|k| value(800 + 6 * e + k)))
+            .collect();
+        let contact = ContactForces {
+            normal: dofs(900),
+            friction: dofs(1000),
+        };
+        let shares: Vec<Vec<f64>> = (0..2)
+            .map(|rank| {
+                let part = Part::new(&tets, (&element_part, &owner), rank, false);
+                let state = State {
+                    u: part.dofs_of(&whole.u),
+                    v: part.dofs_of(&whole.v),
+                    a: part.dofs_of(&whole.a),
+                    back: super::super::StepBack {
+                        u: part.dofs_of(&whole.back.u),
+                        v: part.dofs_of(&whole.back.v),
+                        dt: 0.5,
+                    },
+                    history: part.history_of(&whole.history),
+                    ..State::default()
+                };
+                let stress: Vec<_> = part.elements.iter().map(|&e| stress[e]).collect();
+                let contact = ContactForces {
+                    normal: part.dofs_of(&contact.normal),
+                    friction: part.dofs_of(&contact.friction),
+                };
+                part.share_of(&state, &stress, &contact)
+            })
+            .collect();
+        let together = StateShares::whole(&shares, 10, 4).unwrap();
+        assert_eq!(together.state, whole);
+        assert_eq!(together.stress, stress);
+        assert_eq!(together.contact.normal, contact.normal);
+        assert_eq!(together.contact.friction, contact.friction);
+        // A share cut short is refused, not read past its end.
+        let mut cut = shares.clone();
+        cut[1].pop();
+        assert!(StateShares::whole(&cut, 10, 4).is_none());
+    }
 }

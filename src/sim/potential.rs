@@ -289,9 +289,10 @@ impl<'a> StepPotential<'a> {
     /// the processes of a distributed run).
     pub fn relag(&mut self, u: &[f64]) -> f64 {
         let mut relative: f64 = 0.0;
-        for k in 0..self.terms.len() {
-            let mut lag = self.terms[k].relag(u);
-            if let Some(share) = self.share {
+        let share = self.share;
+        for term in &mut self.terms {
+            let mut lag = term.relag(u);
+            if let Some(share) = share {
                 // Each process has its part of a term's lagged values.
                 lag.change = share.collective.max(lag.change);
                 lag.scale = share.collective.max(lag.scale);

@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # The scaling table of docs/distributed.md: the ice cubes of this folder (1e5 and 1e6 dofs,
 # 3 backward-Euler steps) on one process with icefem's shared-memory multigrid (2 threads),
-# on one process through PETSc (ICEFEM_DISTRIBUTE_ONE=1) and on two processes through
-# PETSc. Prints, per run: seconds per Newton iteration (assembly, preconditioner set-up,
-# solve), CG iterations per solve, peak memory per process, and the values each process
-# exchanged per Newton iteration. Needs `make mpi` (binary with the `mpi` feature) and the
-# validation venv (validation/setup_venv.sh) for h5py.
+# on one process through PETSc (ICEFEM_DISTRIBUTE_ONE=1), on two processes through PETSc
+# each holding its part of the mesh, and on two holding the whole mesh (ICEFEM_WHOLE_MESH=1,
+# as scenes with ice–ice contact, Rayleigh's β or heat conduction do). Prints, per run:
+# seconds per Newton iteration (assembly, preconditioner set-up, solve), CG iterations per
+# solve, peak memory and nodes held per process, and the values each process exchanged per
+# Newton iteration. Needs `make mpi` (binary with the `mpi` feature) and the validation venv
+# (validation/setup_venv.sh) for h5py.
 #   validation/distributed/scaling.sh [SIZES]     SIZES: 1e5 (default) and/or 1e6
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -30,12 +32,13 @@ maxrss = re.findall(r"maxrss (\d+)", text)
 memory = "/".join(mem) if mem else f"{int(maxrss[-1]) // 1000}"
 traffic = re.findall(r"sums (\d+), matrix entries (\d+), gathered (\d+), CG halo (\d+)", text)
 t = "; ".join("/".join(x) for x in traffic) if traffic else "-"
+held = "/".join(re.findall(r"holds (\d+) nodes", text)) or "all"
 print(f"| {label} | {n} | {per('t_assembly'):.3f} | {s['t_factorization'][()].sum():.2f} ({solves}) | "
-      f"{per('t_solve'):.3f} | {cg:.0f} | {s['t_step'][()].sum():.1f} | {memory} | {t} |")
+      f"{per('t_solve'):.3f} | {cg:.0f} | {s['t_step'][()].sum():.1f} | {memory} | {held} | {t} |")
 PY
 }
-echo "| run | Newton it. | assembly s/it | set-up s (count) | solve s/it | CG it./it | total s | peak MB per process | exchanged per it.: sums/entries/gathered/halo |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| run | Newton it. | assembly s/it | set-up s (count) | solve s/it | CG it./it | total s | peak MB per process | nodes held per process | exchanged per it.: sums/entries/gathered/halo |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
 for size in $sizes; do
     scene=validation/distributed/cube_$size.toml
     /usr/bin/time -f "maxrss %M" "$BIN" -q run "$scene" -o "$OUT/s.h5" --force 2> "$OUT/s.log"
@@ -43,5 +46,7 @@ for size in $sizes; do
     ICEFEM_DISTRIBUTE_ONE=1 $MPIRUN -n 1 -x ICEFEM_DISTRIBUTE_ONE "$BIN" run "$scene" -o "$OUT/p1.h5" --force 2> "$OUT/p1.log"
     summarise "$size PETSc, 1 process" "$OUT/p1.h5" "$OUT/p1.log"
     $MPIRUN -n 2 "$BIN" run "$scene" -o "$OUT/p2.h5" --force 2> "$OUT/p2.log"
-    summarise "$size PETSc, 2 processes" "$OUT/p2.h5" "$OUT/p2.log"
+    summarise "$size PETSc, 2 processes, parts" "$OUT/p2.h5" "$OUT/p2.log"
+    ICEFEM_WHOLE_MESH=1 $MPIRUN -n 2 -x ICEFEM_WHOLE_MESH "$BIN" run "$scene" -o "$OUT/w2.h5" --force 2> "$OUT/w2.log"
+    summarise "$size PETSc, 2 processes, whole mesh" "$OUT/w2.h5" "$OUT/w2.log"
 done

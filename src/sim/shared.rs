@@ -1,0 +1,108 @@
+//! A simulation's share of a run distributed over several processes: the distribution it is
+//! given (see `distributed`), and the sums and maxima over the processes that keep every
+//! process's decisions the same.
+
+use super::balance::EnergyParts;
+use super::potential::Collective;
+use super::{Energies, SimError, Simulation};
+use crate::assembly::{Assembly, ElementSubset};
+use crate::solver::{ExternalSolver, LinearError, LinearSolver};
+
+/// How a simulation is shared among several processes (implemented by `distributed` over
+/// MPI and PETSc). Every process holds its part of the mesh and state (see [`super::part`]) and
+/// takes the same steps; each evaluates the elastic energy of its own elements and the rest
+/// on its owned nodes, and the linear solves are shared.
+pub trait Distribution {
+    /// The sums across the processes.
+    fn collective(&self) -> &dyn Collective;
+    /// Whether this process owns each dof of its part (3 per node): every dof has one owner.
+    fn owned_dofs(&self) -> &[bool];
+    /// Whether this process evaluates each element of its part: every element has one.
+    fn owned_elements(&self) -> &[bool];
+    /// A linear solver shared by the processes, for `assembly`'s pattern.
+    fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError>;
+}
+
+/// A simulation's share of a distributed run: the distribution and this process's elements
+/// on the current pattern's colouring.
+pub(super) struct Shared {
+    pub(super) distribution: Box<dyn Distribution>,
+    pub(super) elements: ElementSubset,
+}
+
+impl Simulation {
+    /// Shares the simulation among the processes of `distribution` from its next step on
+    /// (fails only if the distributed solver cannot be made). Its model is this process's
+    /// part ([`super::part::Part::model`]). Rayleigh damping's β Kₙ is assembled whole on every
+    /// process, like the other terms every process evaluates whole.
+    pub fn distribute(&mut self, distribution: Box<dyn Distribution>) -> Result<(), SimError> {
+        self.linear = LinearSolver::External(distribution.solver(&self.assembly)?);
+        self.workspace.forget_factor();
+        self.fixed_hessian = None;
+        self.fixed_factored = false;
+        self.elastic_quadratic = None;
+        self.shared = Some(Shared {
+            elements: self.assembly.subset(distribution.owned_elements()),
+            distribution,
+        });
+        Ok(())
+    }
+
+    /// Whether the simulation is shared among several processes.
+    pub fn is_distributed(&self) -> bool {
+        self.shared.is_some()
+    }
+
+    /// The largest `x` over the processes of a distributed run (`x` on one).
+    pub(super) fn max_over_processes(&self, x: f64) -> f64 {
+        match &self.shared {
+            Some(shared) => shared.distribution.collective().max(x),
+            None => x,
+        }
+    }
+
+    /// Σ over the processes of a distributed run of `x` (`x` on one).
+    pub(super) fn sum_over_processes(&self, x: f64) -> f64 {
+        match &self.shared {
+            Some(shared) => shared.distribution.collective().sum(x),
+            None => x,
+        }
+    }
+
+    /// Whether this process counts dof `d` in sums over the dofs: it owns it (always on one
+    /// process).
+    pub(super) fn counts(&self, d: usize) -> bool {
+        self.shared
+            .as_ref()
+            .is_none_or(|shared| shared.distribution.owned_dofs()[d])
+    }
+
+    /// Keeps `v` (3 per node) on the dofs this process owns and makes every process's copy
+    /// the sum of those parts (nothing on one process).
+    pub(super) fn exchange_owned(&self, v: &mut [f64]) {
+        if let Some(shared) = &self.shared {
+            let owned = shared.distribution.owned_dofs();
+            for (x, &o) in v.iter_mut().zip(owned) {
+                if !o {
+                    *x = 0.0;
+                }
+            }
+            shared.distribution.collective().exchange(v);
+        }
+    }
+
+    /// The energies of `parts` (this process's share, see [`EnergyParts`]) summed
+    /// over the processes of a distributed run; on one process, its energies.
+    pub(super) fn energies_over_processes(&self, parts: EnergyParts) -> Energies {
+        if self.shared.is_none() {
+            return parts.energies;
+        }
+        let e = parts.energies;
+        Energies {
+            kinetic: self.sum_over_processes(e.kinetic),
+            elastic: self.sum_over_processes(e.elastic),
+            potential: self.sum_over_processes(e.potential),
+            contact: self.sum_over_processes(parts.contact_owned) + parts.contact_whole,
+        }
+    }
+}
