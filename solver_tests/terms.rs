@@ -670,6 +670,7 @@ fn with_step_terms<R>(
         rest: &mesh.rest,
         previous: &start.previous,
         velocity: &start.velocity,
+        max_speed: start.velocity.iter().fold(0.0, |m: f64, v| m.max(v.abs())),
         earlier: &earlier,
         h: start.h,
         dynamic: start.dynamic,

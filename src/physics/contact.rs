@@ -826,7 +826,7 @@ impl Term for ObstacleContact {
         let selection = Instant::now();
         let h = solve.h;
         // Mesh obstacles look for nodes as far as the step can carry them, and an edge.
-        let vmax = solve.velocity.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let vmax = solve.max_speed;
         let reach = self.contact.edge
             + 2.0 * h * vmax * 3f64.sqrt()
             + 2.0 * h * self.contact.obstacle_speed;

@@ -129,6 +129,9 @@ pub struct Solve<'a> {
     pub previous: &'a [f64],
     /// Velocity at the start of the solve (m/s), 3 per node.
     pub velocity: &'a [f64],
+    /// The largest velocity component at the start of the solve over the whole mesh (m/s):
+    /// on a process's part of a distributed run, over every process's.
+    pub max_speed: f64,
     /// Displacement one step before the start, uₙ − h vₙ (m), for extrapolating lagged
     /// quantities; empty in a static solve.
     pub earlier: &'a [f64],

@@ -742,11 +742,13 @@ impl Simulation {
         } else {
             h
         };
+        let max_speed = self.max_speed();
         let model = &self.model;
         let solve = Solve {
             rest: &model.mesh.rest,
             previous: &self.previous,
             velocity: &self.state.v,
+            max_speed,
             earlier: &earlier,
             h,
             dynamic,

@@ -240,11 +240,13 @@ impl Simulation {
         let t = self.state.time;
         self.model.apply_schedule(t, &mut self.state.history);
         let offsets = self.state.history.offsets();
+        let max_speed = self.max_speed();
         let model = &self.model;
         let solve = Solve {
             rest: &model.mesh.rest,
             previous: &self.state.u,
             velocity: &self.state.v,
+            max_speed,
             earlier: &self.state.u,
             h: self.settings.dt,
             dynamic: true,

@@ -61,6 +61,13 @@ impl Simulation {
         }
     }
 
+    /// The largest velocity component of the state (m/s), over every process of a
+    /// distributed run.
+    pub(super) fn max_speed(&self) -> f64 {
+        let v = self.state.v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        self.max_over_processes(v)
+    }
+
     /// Σ over the processes of a distributed run of `x` (`x` on one).
     pub(super) fn sum_over_processes(&self, x: f64) -> f64 {
         match &self.shared {
