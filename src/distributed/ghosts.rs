@@ -10,19 +10,36 @@ use mpi::traits::*;
 use mpi::Count;
 use std::cell::RefCell;
 
+/// Nodes of a part grouped by the process they go to or come from, in process order.
+struct Groups {
+    /// The nodes (the part's numbering).
+    nodes: Vec<usize>,
+    /// Values (3 per node) to or from each process, and where each process's values start.
+    counts: Vec<Count>,
+    starts: Vec<Count>,
+}
+
+impl Groups {
+    /// `nodes`, of which the first `sizes[0]` go with process 0, the next `sizes[1]` with
+    /// process 1, and so on.
+    fn new(nodes: Vec<usize>, sizes: &[Count]) -> Self {
+        let counts: Vec<Count> = sizes.iter().map(|n| 3 * n).collect();
+        Groups {
+            nodes,
+            starts: starts(&counts),
+            counts,
+        }
+    }
+}
+
 /// One process's ghosts and the processes holding copies of its nodes.
 pub struct Ghosts {
     world: SimpleCommunicator,
-    /// This process's ghost nodes (its part's numbering), grouped by owner in process order.
-    ghosts: Vec<usize>,
-    /// Values (3 per node) to and from each process for the ghosts, and where they start.
-    ghost_counts: Vec<Count>,
-    ghost_starts: Vec<Count>,
-    /// This process's nodes other processes hold, grouped by holder in process order, each
-    /// group in the order the holder lists them.
-    held: Vec<usize>,
-    held_counts: Vec<Count>,
-    held_starts: Vec<Count>,
+    /// This process's ghost nodes, grouped by owner.
+    ghosts: Groups,
+    /// This process's nodes other processes hold, grouped by holder, each group in the order
+    /// the holder lists them.
+    held: Groups,
     /// Send and receive buffers.
     scratch: RefCell<(Vec<f64>, Vec<f64>)>,
 }
@@ -75,16 +92,10 @@ impl Ghosts {
                     .expect("a process holds only nodes of its owner's part")
             })
             .collect();
-        let values = |c: &[Count]| c.iter().map(|n| 3 * n).collect::<Vec<Count>>();
-        let (ghost_counts, held_counts) = (values(&wanted), values(&asked));
         Ghosts {
             world,
-            ghosts,
-            ghost_starts: starts(&ghost_counts),
-            ghost_counts,
-            held,
-            held_starts: starts(&held_counts),
-            held_counts,
+            ghosts: Groups::new(ghosts, &wanted),
+            held: Groups::new(held, &asked),
             scratch: RefCell::new((Vec::new(), Vec::new())),
         }
     }
@@ -98,39 +109,38 @@ impl Ghosts {
         }
         let mut scratch = self.scratch.borrow_mut();
         let (send, receive) = &mut *scratch;
-        let node = |v: &[f64], k: usize| [v[3 * k], v[3 * k + 1], v[3 * k + 2]];
         // The ghosts' parts to their owners, added to the owners' in process order.
-        send.clear();
-        send.extend(self.ghosts.iter().flat_map(|&k| node(v, k)));
-        receive.resize(self.held.len() * 3, 0.0);
-        self.world.all_to_all_varcount_into(
-            &Partition::new(&send[..], &self.ghost_counts[..], &self.ghost_starts[..]),
-            &mut PartitionMut::new(
-                &mut receive[..],
-                &self.held_counts[..],
-                &self.held_starts[..],
-            ),
-        );
-        for (j, &k) in self.held.iter().enumerate() {
+        self.send(v, (&self.ghosts, &self.held), (send, receive));
+        for (j, &k) in self.held.nodes.iter().enumerate() {
             for a in 0..3 {
                 v[3 * k + a] += receive[3 * j + a];
             }
         }
         // The sums back to every holder.
-        send.clear();
-        send.extend(self.held.iter().flat_map(|&k| node(v, k)));
-        receive.resize(self.ghosts.len() * 3, 0.0);
-        self.world.all_to_all_varcount_into(
-            &Partition::new(&send[..], &self.held_counts[..], &self.held_starts[..]),
-            &mut PartitionMut::new(
-                &mut receive[..],
-                &self.ghost_counts[..],
-                &self.ghost_starts[..],
-            ),
-        );
-        for (j, &k) in self.ghosts.iter().enumerate() {
+        self.send(v, (&self.held, &self.ghosts), (send, receive));
+        for (j, &k) in self.ghosts.nodes.iter().enumerate() {
             v[3 * k..3 * k + 3].copy_from_slice(&receive[3 * j..3 * j + 3]);
         }
-        traffic::add(&traffic::SUMS, 3 * (self.ghosts.len() + self.held.len()));
+        traffic::add(
+            &traffic::SUMS,
+            3 * (self.ghosts.nodes.len() + self.held.nodes.len()),
+        );
+    }
+
+    /// Sends the values of `v` at the nodes of `from` to the processes they go to, receiving
+    /// theirs for the nodes of `to` into `receive`, in `to`'s order.
+    fn send(
+        &self,
+        v: &[f64],
+        (from, to): (&Groups, &Groups),
+        (send, receive): (&mut Vec<f64>, &mut Vec<f64>),
+    ) {
+        send.clear();
+        send.extend(from.nodes.iter().flat_map(|&k| &v[3 * k..3 * k + 3]));
+        receive.resize(3 * to.nodes.len(), 0.0);
+        self.world.all_to_all_varcount_into(
+            &Partition::new(&send[..], &from.counts[..], &from.starts[..]),
+            &mut PartitionMut::new(&mut receive[..], &to.counts[..], &to.starts[..]),
+        );
     }
 }

@@ -17,7 +17,6 @@
 use super::State;
 use crate::mesh::MeshError;
 use crate::physics::contact::ContactForces;
-use crate::physics::history::ElementHistory;
 use crate::physics::term::NodeRestriction;
 use crate::physics::Model;
 
@@ -217,11 +216,6 @@ impl Part {
         out
     }
 
-    /// The part's elements' history, from the whole mesh's.
-    pub fn history_of(&self, whole: &ElementHistory) -> ElementHistory {
-        whole.inherit(&self.elements)
-    }
-
     /// The whole-mesh dof of each of the part's dofs (3 per node).
     pub fn whole_dofs(&self) -> impl Iterator<Item = usize> + '_ {
         self.nodes
@@ -319,6 +313,7 @@ impl StateShares {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::physics::history::ElementHistory;
 
     #[test]
     fn a_part_holds_every_element_around_its_elements_nodes() {
@@ -398,7 +393,7 @@ mod tests {
                         v: part.dofs_of(&whole.back.v),
                         dt: 0.5,
                     },
-                    history: part.history_of(&whole.history),
+                    history: whole.history.inherit(&part.elements),
                     ..State::default()
                 };
                 let stress: Vec<_> = part.elements.iter().map(|&e| stress[e]).collect();
