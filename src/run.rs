@@ -11,7 +11,7 @@ use crate::physics::contact::Shape;
 use crate::physics::Model;
 use crate::scene::{Scene, SceneError};
 use crate::sim::part::{Part, StateShares};
-use crate::sim::{SimError, Simulation, State, StepBack, StepReport};
+use crate::sim::{SchemeState, SimError, Simulation, State, StepReport};
 use crate::thermal::{Heat, HeatLink};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -523,10 +523,16 @@ fn emit_frame(
     let Some(writer) = writer else {
         return Ok(());
     };
-    let whole =
-        StateShares::whole(&shares, mesh.num_nodes(), mesh.num_tets()).ok_or_else(|| {
-            SimError::Setup("a process's part of the state did not arrive whole".into())
-        })?;
+    let whole = StateShares::whole(
+        &shares,
+        mesh.num_nodes(),
+        mesh.num_tets(),
+        (
+            sim.integrator().carried_fields(),
+            sim.integrator().carried_scalars(),
+        ),
+    )
+    .ok_or_else(|| SimError::Setup("a process's part of the state did not arrive whole".into()))?;
     let state = State {
         time: sim.state.time,
         step: sim.state.step,
@@ -626,31 +632,17 @@ fn write_frame(
         cols: 3,
         data: &state.u,
     }];
-    // With the Newmark scheme: the acceleration it carries from step to step (what a resumed
-    // run continues from; the initial frame has none: it is computed from the forces).
-    if !state.a.is_empty() {
+    // What the time scheme carries from step to step (Newmark's acceleration, BDF2's step
+    // back): what a resumed run continues from. The initial frame has none.
+    for (name, data) in &state.carried.fields {
         node_fields.push(Field {
-            name: "acceleration",
+            name,
             cols: 3,
-            data: &state.a,
+            data,
         });
     }
-    // With BDF2: the state one step back (what a resumed run continues from).
-    let back = &state.back;
     let mut attributes = vec![("restart_point", f64::from(u8::from(restart_point)))];
-    if back.is_for(state.u.len()) {
-        node_fields.push(Field {
-            name: "back_displacement",
-            cols: 3,
-            data: &back.u,
-        });
-        node_fields.push(Field {
-            name: "back_velocity",
-            cols: 3,
-            data: &back.v,
-        });
-        attributes.push(("back_dt", back.dt));
-    }
+    attributes.extend(state.carried.scalars.iter().copied());
     // With adaptive steps: the length the control proposes for the next step.
     if state.next_dt > 0.0 {
         attributes.push(("next_dt", state.next_dt));
@@ -844,18 +836,9 @@ fn restore(
     }
     sim.state.u = u;
     sim.state.v = frame.velocities.iter().flatten().copied().collect();
-    // Newmark's acceleration (absent in a frame written before the first step: then it is
-    // computed from the forces, as at the start).
-    sim.state.a = field("acceleration").unwrap_or_default();
-    // BDF2's step back (absent: the next step is a backward-Euler step, as after a split).
-    sim.state.back = match (
-        field("back_displacement"),
-        field("back_velocity"),
-        frame.attribute("back_dt"),
-    ) {
-        (Some(u), Some(v), Some(dt)) => StepBack { u, v, dt },
-        _ => Default::default(),
-    };
+    // What the time scheme carries (absent in a frame written before the first step or after
+    // a split: then the next step starts as the first does).
+    sim.state.carried = SchemeState::read(sim.integrator(), field, |name| frame.attribute(name));
     sim.state.next_dt = frame.attribute("next_dt").unwrap_or(0.0);
     sim.state.time = frame.time;
     sim.state.step = frame.step;

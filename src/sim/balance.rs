@@ -18,7 +18,8 @@
 //! potential it adds disagree. Non-convex elasticity and contact make D_Ψ slightly negative,
 //! which [`EXCESS_TOLERANCE`] allows.
 
-use super::{elastic_term, Energies, Simulation};
+use super::step::elastic_term;
+use super::{Energies, Simulation};
 use crate::assembly::{Assembly, ElementSubset};
 use crate::fem::StrainOffset;
 use crate::physics::history::ElementHistory;

@@ -4,37 +4,34 @@
 //! the elastic energy, the dead loads, the terms the scene enables (obstacle contact, ice–ice
 //! contact) and, in a dynamic step, inertia and damping.
 
+mod acceleration;
 pub mod adaptive;
 pub mod balance;
+mod hessians;
+pub mod integrator;
 pub mod part;
 pub mod potential;
-pub mod scheme;
 mod shared;
+mod step;
 
-use crate::assembly::{Assembly, DofMap, ElementSubset};
+use crate::assembly::{Assembly, DofMap};
 use crate::fem::StrainOffset;
 use crate::physics::contact::ContactForces;
-use crate::physics::elasticity::ElasticStep;
 use crate::physics::freezing::Schedule;
 use crate::physics::history::ElementHistory;
-use crate::physics::inertia::{Inertia, StiffnessDamping};
-use crate::physics::loads::DeadLoads;
-use crate::physics::term::{Solve, StepStartView, StepTerm};
 use crate::physics::Model;
 use crate::solver::{
-    minimize, minimize_quadratic, FillOrdering, LinearSolver, LinearSolverKind, NewtonError,
-    NewtonParams, NewtonReport, NewtonWorkspace,
+    FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams, NewtonReport,
+    NewtonWorkspace,
 };
 use crate::thermal::HeatLink;
 pub use adaptive::Adaptive;
-use balance::{energies_of, energies_with, EnergyRise};
+use balance::{energies_of, EnergyRise};
+use hessians::KeptHessians;
+pub use integrator::{Scheme, SchemeState, TimeIntegrator};
 pub use potential::Collective;
-use potential::{ElasticQuadratic, Share, StepPotential};
-use scheme::StepFormula;
-pub use scheme::{Scheme, StepBack};
 pub use shared::Distribution;
 use shared::Shared;
-use std::time::Instant;
 
 /// Static equilibrium per step, or dynamics (integrated by the [`Scheme`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
@@ -109,10 +106,9 @@ pub struct State {
     /// Temperature of each node of the scene's mesh (°C), where the heat model is solved;
     /// empty without `[thermal]`.
     pub temperature: Vec<f64>,
-    /// Nodal acceleration (m/s², 3 per node) of the Newmark scheme; empty otherwise.
-    pub a: Vec<f64>,
-    /// The state one step back (BDF2; empty before the first step and after a remesh).
-    pub back: StepBack,
+    /// What the time scheme carries from step to step (Newmark's acceleration, BDF2's step
+    /// back; empty before the first step and after a remesh).
+    pub carried: SchemeState,
     /// The step length the adaptive control proposes for the next step (s; 0 without
     /// adaptive steps, or before the first step: then the scene's `dt`).
     pub next_dt: f64,
@@ -299,14 +295,10 @@ pub struct Simulation {
     balance_scratch: Vec<f64>,
     /// The heat model that drives the freezing (with `[thermal]`).
     heat: Option<HeatLink>,
-    /// The step's Hessian for an inertia step length (s), kept while it cannot change (see
-    /// `StepTerm::hessian_is_fixed`): later solves use it instead of assembling.
-    fixed_hessian: Option<(f64, Vec<f64>)>,
-    /// Whether the linear solver holds the factorisation of `fixed_hessian`.
-    fixed_factored: bool,
-    /// The elastic energy while it is a fixed quadratic, for the constrained values it was
-    /// built with (see [`ElasticQuadratic`]).
-    elastic_quadratic: Option<ElasticQuadratic>,
+    /// The Hessians kept between solves while they cannot change.
+    hessians: KeptHessians,
+    /// The time scheme of a dynamic analysis.
+    integrator: Box<dyn TimeIntegrator>,
     /// The supports hold every part of the mesh against rigid motion
     /// (`physics::dirichlet::hold_every_part`).
     parts_held: bool,
@@ -386,8 +378,7 @@ impl Simulation {
             step: 0,
             history,
             temperature: Vec::new(),
-            a: Vec::new(),
-            back: Default::default(),
+            carried: SchemeState::default(),
             next_dt: 0.0,
         };
         let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
@@ -405,9 +396,8 @@ impl Simulation {
             offsets: Vec::new(),
             balance_scratch: Vec::new(),
             heat: None,
-            fixed_hessian: None,
-            fixed_factored: false,
-            elastic_quadratic: None,
+            hessians: KeptHessians::default(),
+            integrator: settings.scheme.integrator(),
             parts_held: crate::physics::dirichlet::hold_every_part(&model.mesh, &constrained),
             shared: None,
             damping_stiffness: if with_beta {
@@ -457,8 +447,7 @@ impl Simulation {
             step,
             history,
             temperature: std::mem::take(&mut self.state.temperature),
-            a: Vec::new(),
-            back: Default::default(),
+            carried: SchemeState::default(),
             next_dt: self.state.next_dt,
         };
         *self = next;
@@ -556,6 +545,31 @@ impl Simulation {
         self.workspace.forget_factor();
     }
 
+    /// The linear solver of the settings for the current pattern; in a distributed run the
+    /// processes' shared one, with this process's elements on the pattern updated.
+    fn linear_solver_for_pattern(&mut self) -> Result<LinearSolver, SimError> {
+        let s = &self.settings;
+        Ok(match &mut self.shared {
+            Some(shared) => {
+                let owned = shared.distribution.owned_elements();
+                shared.elements = self.assembly.subset(owned);
+                LinearSolver::External(shared.distribution.solver(&self.assembly)?)
+            }
+            None => LinearSolver::new(
+                s.linear,
+                s.ordering,
+                &self.assembly,
+                &self.model.mesh.rest,
+                &s.iterative(),
+            )?,
+        })
+    }
+
+    /// The time scheme of a dynamic analysis.
+    pub fn integrator(&self) -> &dyn TimeIntegrator {
+        &*self.integrator
+    }
+
     /// The assembled pattern (for statistics).
     pub fn assembly(&self) -> &Assembly {
         &self.assembly
@@ -569,503 +583,6 @@ impl Simulation {
     /// The linear solver (for statistics).
     pub fn linear_solver(&self) -> &LinearSolver {
         &self.linear
-    }
-
-    /// Advances one step of `settings.dt`. If Newton fails, the step is retried as two half
-    /// steps, recursively, down to `dt / 2^MAX_HALVINGS`; the step then reports how many
-    /// substeps it took. On failure the state is left unchanged.
-    pub fn step(&mut self) -> Result<StepReport, SimError> {
-        let start = Instant::now();
-        let t0 = self.state.time;
-        // Kept for fracture's retake, and to roll back a failed step.
-        self.start = Some(self.state.clone());
-        let t_end = t0 + self.settings.dt;
-        // Heat first (staggered): the mechanics of the step sees the freeze states move from
-        // the start's to those of the new temperatures.
-        let heat = match &mut self.heat {
-            Some(link) => {
-                link.heat.set_temperature(&self.state.temperature);
-                let report = link.heat.step(self.settings.dt, t_end)?;
-                self.state.temperature = link.heat.temperature().to_vec();
-                self.set_thermal_schedule(t0, t_end);
-                Some(report)
-            }
-            None => None,
-        };
-        self.start_terms()?;
-        let t_contact_broad = start.elapsed().as_secs_f64();
-        let result = self.advance(self.settings.dt, t_end, 0);
-        if result.is_err() {
-            self.undo_step();
-        }
-        let mut report = result.map_err(|(source, time)| SimError::Step {
-            step: self.state.step + 1,
-            time,
-            cause: source,
-        })?;
-        self.state.step += 1;
-        report.t_step = start.elapsed().as_secs_f64();
-        report.heat = heat;
-        report.t_contact_broad += t_contact_broad;
-        // The energies the balance check measured at the solution hold unless the plastic
-        // strain was updated after it.
-        if self.model.elasticity.plasticity.is_some() {
-            report.energies = self.energies();
-        }
-        Ok(report)
-    }
-
-    /// Lets every term prepare the coming step, and makes the sparsity pattern couple exactly
-    /// the node pairs they ask for: the pattern, slot map, colouring and symbolic
-    /// factorisation are rebuilt when that set changes (and only then).
-    fn start_terms(&mut self) -> Result<(), SimError> {
-        let view = StepStartView {
-            rest: &self.model.mesh.rest,
-            u: &self.state.u,
-            v: &self.state.v,
-            dt: self.settings.dt,
-        };
-        let mut asked: Option<Vec<(usize, usize)>> = None;
-        for term in &mut self.model.terms {
-            if let Some(pairs) = term.start_step(&view) {
-                asked.get_or_insert_with(Vec::new).extend(pairs);
-            }
-        }
-        let Some(mut couplings) = asked else {
-            return Ok(());
-        };
-        couplings.sort_unstable();
-        couplings.dedup();
-        let changed = couplings != self.couplings;
-        if changed {
-            let dofs = self.assembly.dofs().clone();
-            // The elastic energy's pairs are fixed for the mesh: added here, not compared.
-            let all = [&couplings[..], &self.elastic_couplings[..]].concat();
-            self.assembly = Assembly::with_couplings(&self.model.mesh, dofs, &all);
-            let s = &self.settings;
-            self.linear = match &mut self.shared {
-                Some(shared) => {
-                    let owned = shared.distribution.owned_elements();
-                    shared.elements = self.assembly.subset(owned);
-                    LinearSolver::External(shared.distribution.solver(&self.assembly)?)
-                }
-                None => LinearSolver::new(
-                    s.linear,
-                    s.ordering,
-                    &self.assembly,
-                    &self.model.mesh.rest,
-                    &s.iterative(),
-                )?,
-            };
-            self.workspace = NewtonWorkspace::new(&self.assembly);
-            self.fixed_factored = false;
-            self.elastic_quadratic = None;
-            self.model.elasticity.pattern_ready(&self.assembly);
-            if !self.damping_stiffness.is_empty() {
-                self.damping_stiffness = vec![0.0; self.assembly.nnz()];
-            }
-            self.couplings = couplings;
-        }
-        for term in &mut self.model.terms {
-            term.pattern_ready(&self.assembly, changed);
-        }
-        Ok(())
-    }
-
-    /// Advances by `h` to `t_end` (passed so that halves land exactly on the full step's end
-    /// time), halving on failure up to `MAX_HALVINGS` times.
-    fn advance(
-        &mut self,
-        h: f64,
-        t_end: f64,
-        depth: u32,
-    ) -> Result<StepReport, (SolveFailure, f64)> {
-        match self.try_step(h, t_end) {
-            Ok(report) => Ok(report),
-            Err(_) if depth < MAX_HALVINGS => {
-                let first = self.advance(0.5 * h, t_end - 0.5 * h, depth + 1)?;
-                let second = self.advance(0.5 * h, t_end, depth + 1)?;
-                Ok(first.merge(&second))
-            }
-            Err(e) => Err((e, t_end)),
-        }
-    }
-
-    /// One solve of length `h` ending at `t_new`: a step of the scheme (a backward-Euler step
-    /// where BDF2 has no step before it), or a static one.
-    fn try_step(&mut self, h: f64, t_new: f64) -> Result<StepReport, SolveFailure> {
-        let dynamic = self.settings.analysis == Analysis::Dynamic;
-        let newmark = dynamic && self.settings.scheme == Scheme::Newmark;
-        if newmark && self.state.a.len() != self.state.u.len() {
-            // The first step (or the first after a remesh): the acceleration of the state.
-            self.state.a = self.acceleration_at_start();
-        }
-        self.model.apply_schedule(t_new, &mut self.state.history);
-        self.previous.copy_from_slice(&self.state.u);
-        // Fixed for the solve: computed once for the elastic term and the energy balance.
-        let mut offsets = std::mem::take(&mut self.offsets);
-        self.state.history.update_offsets(&mut offsets);
-        let mut u = self.state.u.clone();
-        let formula = StepFormula::of(self.settings.scheme, &self.state, h);
-        if dynamic {
-            formula.predict(&self.state, h, &mut self.predictor);
-            u.copy_from_slice(&self.predictor);
-        }
-        // A retaken step starts from its earlier solution (only for the full step: a halved
-        // one starts from the predictor).
-        if let Some(guess) = self.initial_guess.take() {
-            if h == self.settings.dt && guess.len() == u.len() {
-                u = guess;
-            }
-        }
-        self.model.apply_dirichlet(t_new, &mut u);
-        let damping = self.model.damping.unwrap_or_default();
-        if dynamic && damping.stiffness > 0.0 {
-            self.stiffness_at_previous(damping.stiffness);
-        }
-        let force_floor = self.force_scale(h, dynamic);
-        // Lagged quantities (friction's normal force) start extrapolated from the step
-        // before, uₙ − h vₙ.
-        let earlier: Vec<f64> = if dynamic {
-            let v = &self.state.v;
-            self.previous
-                .iter()
-                .zip(v)
-                .map(|(u0, v)| u0 - h * v)
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let inertia_step = formula.inertia_step(h);
-        let damping_step = if dynamic && (damping.mass > 0.0 || damping.stiffness > 0.0) {
-            formula.velocity_form(&self.state, (h, &self.predictor), &mut self.damping_origin)
-        } else {
-            h
-        };
-        let max_speed = self.max_speed();
-        let model = &self.model;
-        let solve = Solve {
-            rest: &model.mesh.rest,
-            previous: &self.previous,
-            velocity: &self.state.v,
-            max_speed,
-            earlier: &earlier,
-            h,
-            dynamic,
-            times: (self.state.time, t_new),
-        };
-        let mut terms = solve_terms(
-            model,
-            &self.assembly,
-            (&self.state.history, &offsets),
-            (
-                &mut self.element_energy,
-                self.shared
-                    .as_ref()
-                    .map(|s| (&s.elements, s.distribution.owned_dofs())),
-            ),
-            &solve,
-        );
-        if dynamic {
-            terms.push(Box::new(Inertia {
-                dt: inertia_step,
-                mass: &model.mass,
-                predictor: &self.predictor,
-                velocity_form: (damping_step, &self.damping_origin),
-                alpha: damping.mass,
-                assembly: &self.assembly,
-            }));
-            if damping.stiffness > 0.0 {
-                terms.push(Box::new(StiffnessDamping {
-                    velocity_form: (damping_step, &self.damping_origin),
-                    beta_stiffness: &self.damping_stiffness,
-                    assembly: &self.assembly,
-                    scratch: &mut self.scratch,
-                }));
-            }
-        }
-        // A Hessian that cannot change is assembled once per step length and then copied
-        // (not in a distributed run, whose processes hold parts of it).
-        let fixed = self.shared.is_none() && terms.iter().all(|t| t.hessian_is_fixed());
-        // Keyed by the inertia term's step: the Hessian's only dependence on the step.
-        if !fixed
-            || self
-                .fixed_hessian
-                .as_ref()
-                .is_some_and(|(k, _)| *k != inertia_step)
-        {
-            self.fixed_hessian = None;
-        }
-        if self.fixed_hessian.is_none() {
-            self.fixed_factored = false;
-        }
-        // While the elastic energy is a fixed quadratic, its Hessian is kept and its gradient
-        // found by a sparse product instead of a pass over the elements: where the supports
-        // hold every part (a rigid motion of any size would enter the product's round-off,
-        // while a pass's strains cancel it), and not where the force scale comes from the
-        // reactions, which the product does not update.
-        let mut element_passes = 0;
-        let mut t_fixed_assembly = 0.0;
-        if !fixed || force_floor <= 0.0 || !self.parts_held {
-            self.elastic_quadratic = None;
-        } else {
-            let start = Instant::now();
-            let elastic = terms[0].as_mut();
-            match &mut self.elastic_quadratic {
-                Some(q) if q.holds_at(&u, &self.assembly) => {}
-                Some(q) => {
-                    q.rereference(elastic, &u, &self.assembly);
-                    element_passes += 1;
-                }
-                None => {
-                    let q = ElasticQuadratic::new(elastic, &u, &self.assembly);
-                    self.elastic_quadratic = Some(q);
-                    element_passes += 1;
-                }
-            }
-            t_fixed_assembly += start.elapsed().as_secs_f64();
-        }
-        let mut potential = StepPotential::new(terms);
-        potential.elastic_quadratic = self.elastic_quadratic.as_ref().map(|q| (q, &self.assembly));
-        potential.share = self.shared.as_ref().map(|s| Share {
-            collective: s.distribution.collective(),
-            owned: s.distribution.owned_dofs(),
-            assembly: &self.assembly,
-        });
-        if fixed && self.fixed_hessian.is_none() {
-            let start = Instant::now();
-            let mut gradient = vec![0.0; u.len()];
-            let mut hessian = vec![0.0; self.assembly.nnz()];
-            crate::solver::Potential::evaluate(&mut potential, &u, &mut gradient, &mut hessian);
-            self.fixed_hessian = Some((inertia_step, hessian));
-            t_fixed_assembly += start.elapsed().as_secs_f64();
-        }
-        potential.fixed_hessian = self.fixed_hessian.as_ref().map(|(_, k)| &k[..]);
-        // Lagged quantities (friction's normal force, mesh obstacles' planes) are those of the
-        // start of the solve; after each solve they are re-lagged to its solution and the step
-        // is re-solved (warm-started) until they settle to FRICTION_RELAG_TOLERANCE.
-        // The energies of the solve's start, which the balance check needs, do not depend on
-        // the solution: computed on another thread while Newton runs (a pass over the
-        // elements less on the solve's path).
-        let mut before: Option<balance::EnergyParts> = None;
-        let mut balance_scratch = std::mem::take(&mut self.balance_scratch);
-        balance_scratch.resize(self.model.mesh.num_tets(), 0.0);
-        // In a distributed run each process computes its part of the energies, summed after
-        // the scope (MPI is called from this thread only).
-        let subset = self
-            .shared
-            .as_ref()
-            .map(|s| (&s.elements, s.distribution.owned_dofs()));
-        let solved = rayon::in_place_scope(|scope| {
-            if !fixed {
-                let (model, assembly) = (&self.model, &self.assembly);
-                let (history, previous, v) = (&self.state.history, &self.previous, &self.state.v);
-                let (offsets, scratch, before) = (&offsets, &mut balance_scratch, &mut before);
-                scope.spawn(move |_| {
-                    *before = Some(energies_of(
-                        model,
-                        assembly,
-                        (history, offsets),
-                        (scratch, subset),
-                        (previous, v),
-                        t_new,
-                    ));
-                });
-            }
-            let mut newton: Option<NewtonReport> = None;
-            let mut newton_solves = 0;
-            for _ in 0..=MAX_FRICTION_UPDATES {
-                if newton.is_some() && potential.relag(&u) <= FRICTION_RELAG_TOLERANCE {
-                    break;
-                }
-                let report = match &self.fixed_hessian {
-                    Some((_, hessian)) if fixed => minimize_quadratic(
-                        &mut potential,
-                        (hessian, &mut self.fixed_factored),
-                        &mut u,
-                        &self.assembly,
-                        &mut self.linear,
-                        (&self.settings.newton, force_floor),
-                        &mut self.workspace,
-                    )?,
-                    _ => {
-                        // Newton factorises other matrices.
-                        self.fixed_factored = false;
-                        minimize(
-                            &mut potential,
-                            &mut u,
-                            &self.assembly,
-                            &mut self.linear,
-                            &self.settings.newton,
-                            force_floor,
-                            &mut self.workspace,
-                        )?
-                    }
-                };
-                newton = Some(newton.map_or(report, |n| n.then(&report)));
-                newton_solves += 1;
-            }
-            Ok::<_, SolveFailure>((newton, newton_solves))
-        });
-        self.balance_scratch = balance_scratch;
-        let (newton, newton_solves) = solved?;
-        let mut newton = newton.unwrap_or_default();
-        newton.t_assembly += t_fixed_assembly;
-        // A quadratic solve knows the potential at its solution: the elastic energy is that
-        // less the other terms' (cheap, per dof), with no pass over the elements.
-        // Otherwise Newton's last evaluation was at its solution.
-        let quadratic_elastic = fixed.then(|| {
-            let mut others = 0.0;
-            for term in potential.terms.iter_mut().skip(1) {
-                term.add(&u, &mut others, None, None);
-            }
-            newton.energy - others
-        });
-        let elastic_at_solution = potential.last_elastic;
-        if potential.terms.iter().any(|t| t.is_contact()) {
-            let n = u.len();
-            let mut forces = ContactForces {
-                normal: vec![0.0; n],
-                friction: vec![0.0; n],
-            };
-            for term in &potential.terms {
-                term.add_contact_forces(&u, &mut forces);
-            }
-            self.contact_forces = forces;
-        } else {
-            // No contact term in this solve: no contact force (and no friction work).
-            self.contact_forces.normal.fill(0.0);
-            self.contact_forces.friction.fill(0.0);
-        }
-        let t_contact_narrow = potential.t_contact;
-        let t_contact_broad = potential.broad_phase_time();
-        element_passes += potential.element_passes;
-        drop(potential);
-        // Whole on every process of a distributed run.
-        let mut forces = std::mem::take(&mut self.contact_forces);
-        self.exchange_owned(&mut forces.normal);
-        self.exchange_owned(&mut forces.friction);
-        self.contact_forces = forces;
-        let (velocity, acceleration) = if dynamic {
-            formula.velocity(&self.state, (&u, &self.predictor), h)
-        } else {
-            (self.state.v.clone(), Vec::new())
-        };
-        let slack = self.settings.newton.tolerance * newton.force_scale;
-        let energies = if let Some(elastic) = quadratic_elastic {
-            // The minimiser of a convex quadratic potential meets the balance identically, up
-            // to the residual the Newton test already bounds: no check, no passes for it.
-            energies_with(&self.model, elastic, (&u, &velocity), t_new).energies
-        } else {
-            // The potential's elastic energy at the solution is summed over the processes
-            // already.
-            let after = energies_with(&self.model, 0.0, (&u, &velocity), t_new);
-            let after = Energies {
-                elastic: elastic_at_solution,
-                ..self.energies_over_processes(after)
-            };
-            // Computed beside Newton (above) whenever the Hessian is not fixed.
-            let before = self.energies_over_processes(before.unwrap_or_default());
-            self.check_balance(before, after, &u, slack)?
-        };
-        let free = self.assembly.dofs().free_dofs();
-        let local_error = if dynamic {
-            free.iter()
-                .map(|&d| {
-                    formula
-                        .local_error(&self.state, (&u, &velocity, &acceleration), h, d)
-                        .abs()
-                })
-                .fold(0.0, f64::max)
-        } else {
-            0.0
-        };
-        let local_error = self.max_over_processes(local_error);
-        let displacement_scale = free.iter().map(|&d| u[d].abs()).fold(0.0, f64::max);
-        let displacement_scale = self.max_over_processes(displacement_scale);
-        if dynamic && self.settings.scheme == Scheme::Bdf2 {
-            self.state.back = StepBack {
-                u: self.previous.clone(),
-                v: std::mem::take(&mut self.state.v),
-                dt: h,
-            };
-        }
-        self.state.v = velocity;
-        if newmark {
-            self.state.a = acceleration;
-        }
-        self.model
-            .update_plastic_strain(&mut self.state.history, &offsets, &u);
-        self.offsets = offsets;
-        self.state.u = u;
-        self.state.time = t_new;
-        Ok(StepReport {
-            newton,
-            energies,
-            local_error,
-            displacement_scale,
-            order: formula.order(),
-            substeps: 1,
-            newton_solves,
-            t_contact_narrow,
-            t_contact_broad,
-            element_passes,
-            ..Default::default()
-        })
-    }
-
-    /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.
-    fn stiffness_at_previous(&mut self, beta: f64) {
-        if let Some(quadratic) = &self.elastic_quadratic {
-            // A fixed quadratic's Hessian is Kₙ at every step: no pass over the elements.
-            let k = quadratic.hessian();
-            for (damping, k) in self.damping_stiffness.iter_mut().zip(k) {
-                *damping = beta * k;
-            }
-            return;
-        }
-        let offsets = self.state.history.offsets();
-        let mut elastic = ElasticStep::new(
-            &self.model.elasticity,
-            (&self.model.mesh.tets, &self.state.history, &offsets),
-            &self.assembly,
-            &mut self.element_energy,
-            // β K must be positive semi-definite to damp.
-            true,
-        );
-        let mut gradient = vec![0.0; self.previous.len()];
-        self.damping_stiffness.fill(0.0);
-        elastic.add(
-            &self.previous,
-            &mut 0.0,
-            Some(&mut gradient),
-            Some(&mut self.damping_stiffness),
-        );
-        self.damping_stiffness.iter_mut().for_each(|k| *k *= beta);
-    }
-
-    /// A force scale of the step (N): the largest dead load, momentum change M v / h on a free
-    /// dof, or load of the strain offsets (expansion, plastic strain). Newton's residual is
-    /// judged relative to it.
-    fn force_scale(&self, h: f64, dynamic: bool) -> f64 {
-        let dofs = self.assembly.dofs();
-        let offsets = self
-            .model
-            .elasticity
-            .offset_force_scale(&self.state.history);
-        let scale = dofs
-            .free_dofs()
-            .iter()
-            .map(|&d| {
-                let inertial = if dynamic {
-                    self.model.mass[d / 3] * self.state.v[d].abs() / h
-                } else {
-                    0.0
-                };
-                self.model.external_force[d].abs().max(inertial)
-            })
-            .fold(offsets, f64::max);
-        self.max_over_processes(scale)
     }
 
     /// Energies of the current state.
@@ -1123,47 +640,4 @@ impl Simulation {
     pub fn displacement(&self, i: usize) -> [f64; 3] {
         std::array::from_fn(|a| self.state.u[3 * i + a])
     }
-}
-
-/// The elastic energy of `model` as a term (exact tangents), on a process's elements and
-/// owned dofs if `subset` is given; `element_energy` is scratch, one per element.
-fn elastic_term<'a>(
-    model: &'a Model,
-    assembly: &'a Assembly,
-    (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
-    (element_energy, subset): (&'a mut [f64], Option<(&'a ElementSubset, &'a [bool])>),
-) -> ElasticStep<'a> {
-    let mut elastic = ElasticStep::new(
-        &model.elasticity,
-        (&model.mesh.tets, history, offsets),
-        assembly,
-        element_energy,
-        false,
-    );
-    elastic.subset = subset;
-    elastic
-}
-
-/// The terms every solve sums — elasticity, dead loads and the model's terms that act in
-/// `solve` (contact) — without inertia and damping, which a dynamic step adds.
-fn solve_terms<'a>(
-    model: &'a Model,
-    assembly: &'a Assembly,
-    (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
-    (element_energy, subset): (&'a mut [f64], Option<(&'a ElementSubset, &'a [bool])>),
-    solve: &Solve<'a>,
-) -> Vec<Box<dyn StepTerm + 'a>> {
-    let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![
-        Box::new(elastic_term(
-            model,
-            assembly,
-            (history, offsets),
-            (element_energy, subset),
-        )),
-        Box::new(DeadLoads {
-            force: &model.external_force,
-        }),
-    ];
-    terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(solve)));
-    terms
 }

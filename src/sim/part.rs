@@ -176,15 +176,16 @@ impl Part {
             .filter(|&k| self.own_elements[k])
             .collect();
         let h = &state.history;
+        let carried = &state.carried;
         let flags = [
-            !state.a.is_empty(),
-            state.back.is_for(state.u.len()),
+            !(carried.fields.is_empty() && carried.scalars.is_empty()),
             !h.plastic_strain.is_empty(),
             !h.freeze_state.is_empty(),
             !contact.normal.is_empty(),
         ];
-        let mut out = vec![nodes.len() as f64, elements.len() as f64, state.back.dt];
+        let mut out = vec![nodes.len() as f64, elements.len() as f64];
         out.extend(flags.map(|f| f64::from(u8::from(f))));
+        out.extend(carried.scalars.iter().map(|(_, x)| *x));
         out.extend(nodes.iter().map(|&k| self.nodes[k] as f64));
         out.extend(elements.iter().map(|&k| self.elements[k] as f64));
         let mut node_values = |v: &[f64]| {
@@ -192,23 +193,19 @@ impl Part {
         };
         node_values(&state.u);
         node_values(&state.v);
-        if flags[0] {
-            node_values(&state.a);
+        for (_, field) in &carried.fields {
+            node_values(field);
         }
-        if flags[1] {
-            node_values(&state.back.u);
-            node_values(&state.back.v);
-        }
-        if flags[4] {
+        if flags[3] {
             node_values(&contact.normal);
             node_values(&contact.friction);
         }
         for &k in &elements {
             out.push(h.eigenstrain[k]);
-            if flags[2] {
+            if flags[1] {
                 out.extend(h.plastic_strain[k].iter());
             }
-            if flags[3] {
+            if flags[2] {
                 out.push(h.freeze_state[k]);
             }
             out.extend(stress[k]);
@@ -238,33 +235,49 @@ pub struct StateShares {
 
 impl StateShares {
     /// The whole state of a mesh of `nodes` nodes and `elements` elements from every
-    /// process's share; `None` if a share is cut short.
-    pub fn whole(shares: &[Vec<f64>], nodes: usize, elements: usize) -> Option<StateShares> {
+    /// process's share, the time scheme carrying the node fields and scalars `carried` names
+    /// ([`crate::sim::TimeIntegrator::carried_fields`] and `carried_scalars`); `None` if a
+    /// share is cut short.
+    pub fn whole(
+        shares: &[Vec<f64>],
+        nodes: usize,
+        elements: usize,
+        carried: (&[&'static str], &[&'static str]),
+    ) -> Option<StateShares> {
         let mut whole = StateShares::default();
         let s = &mut whole.state;
-        let flags: Vec<bool> = shares
-            .first()?
-            .get(3..8)?
-            .iter()
-            .map(|&f| f != 0.0)
-            .collect();
+        let first = shares.first()?;
+        let flags: Vec<bool> = first.get(2..6)?.iter().map(|&f| f != 0.0).collect();
         let dofs = |on: bool| if on { vec![0.0; 3 * nodes] } else { Vec::new() };
-        (s.u, s.v, s.a) = (dofs(true), dofs(true), dofs(flags[0]));
-        (s.back.u, s.back.v) = (dofs(flags[1]), dofs(flags[1]));
-        s.back.dt = shares[0][2];
-        (whole.contact.normal, whole.contact.friction) = (dofs(flags[4]), dofs(flags[4]));
+        let (carried_fields, carried_scalars) = if flags[0] {
+            carried
+        } else {
+            (&[][..], &[][..])
+        };
+        let scalars = first.get(6..6 + carried_scalars.len())?;
+        s.carried.scalars = carried_scalars
+            .iter()
+            .copied()
+            .zip(scalars.iter().copied())
+            .collect();
+        s.carried.fields = carried_fields
+            .iter()
+            .map(|&name| (name, dofs(true)))
+            .collect();
+        (s.u, s.v) = (dofs(true), dofs(true));
+        (whole.contact.normal, whole.contact.friction) = (dofs(flags[3]), dofs(flags[3]));
         s.history.eigenstrain = vec![0.0; elements];
-        if flags[2] {
+        if flags[1] {
             s.history.plastic_strain = vec![nalgebra::Matrix3::zeros(); elements];
         }
-        if flags[3] {
+        if flags[2] {
             s.history.freeze_state = vec![0.0; elements];
         }
         whole.stress = vec![[0.0; 6]; elements];
         for share in shares {
             let mut at = share.iter().copied();
             let (n, e) = (at.next()? as usize, at.next()? as usize);
-            let mut at = at.skip(6);
+            let mut at = at.skip(4 + carried_scalars.len());
             let node_ids: Vec<usize> = at.by_ref().take(n).map(|x| x as usize).collect();
             let element_ids: Vec<usize> = at.by_ref().take(e).map(|x| x as usize).collect();
             if node_ids.len() != n || element_ids.len() != e {
@@ -280,25 +293,21 @@ impl StateShares {
             };
             place(&mut s.u)?;
             place(&mut s.v)?;
-            if flags[0] {
-                place(&mut s.a)?;
+            for (_, field) in &mut s.carried.fields {
+                place(field)?;
             }
-            if flags[1] {
-                place(&mut s.back.u)?;
-                place(&mut s.back.v)?;
-            }
-            if flags[4] {
+            if flags[3] {
                 place(&mut whole.contact.normal)?;
                 place(&mut whole.contact.friction)?;
             }
             for &k in &element_ids {
                 *s.history.eigenstrain.get_mut(k)? = at.next()?;
-                if flags[2] {
+                if flags[1] {
                     for x in s.history.plastic_strain.get_mut(k)?.iter_mut() {
                         *x = at.next()?;
                     }
                 }
-                if flags[3] {
+                if flags[2] {
                     *s.history.freeze_state.get_mut(k)? = at.next()?;
                 }
                 for x in whole.stress.get_mut(k)? {
@@ -314,6 +323,13 @@ impl StateShares {
 mod tests {
     use super::*;
     use crate::physics::history::ElementHistory;
+    use crate::sim::SchemeState;
+
+    /// Node fields and a scalar a time scheme carries.
+    const CARRIED: (&[&str], &[&str]) = (
+        &["acceleration", "back_displacement", "back_velocity"],
+        &["back_dt"],
+    );
 
     #[test]
     fn a_part_holds_every_element_around_its_elements_nodes() {
@@ -359,11 +375,13 @@ mod tests {
         let mut whole = State {
             u: dofs(0),
             v: dofs(100),
-            a: dofs(200),
-            back: super::super::StepBack {
-                u: dofs(300),
-                v: dofs(400),
-                dt: 0.5,
+            carried: SchemeState {
+                fields: vec![
+                    (CARRIED.0[0], dofs(200)),
+                    (CARRIED.0[1], dofs(300)),
+                    (CARRIED.0[2], dofs(400)),
+                ],
+                scalars: vec![(CARRIED.1[0], 0.5)],
             },
             ..State::default()
         };
@@ -387,11 +405,11 @@ mod tests {
                 let state = State {
                     u: part.dofs_of(&whole.u),
                     v: part.dofs_of(&whole.v),
-                    a: part.dofs_of(&whole.a),
-                    back: super::super::StepBack {
-                        u: part.dofs_of(&whole.back.u),
-                        v: part.dofs_of(&whole.back.v),
-                        dt: 0.5,
+                    carried: SchemeState {
+                        fields: (whole.carried.fields.iter())
+                            .map(|(name, v)| (*name, part.dofs_of(v)))
+                            .collect(),
+                        scalars: whole.carried.scalars.clone(),
                     },
                     history: whole.history.inherit(&part.elements),
                     ..State::default()
@@ -404,7 +422,7 @@ mod tests {
                 part.share_of(&state, &stress, &contact)
             })
             .collect();
-        let together = StateShares::whole(&shares, 10, 4).unwrap();
+        let together = StateShares::whole(&shares, 10, 4, CARRIED).unwrap();
         assert_eq!(together.state, whole);
         assert_eq!(together.stress, stress);
         assert_eq!(together.contact.normal, contact.normal);
@@ -412,6 +430,6 @@ mod tests {
         // A share cut short is refused, not read past its end.
         let mut cut = shares.clone();
         cut[1].pop();
-        assert!(StateShares::whole(&cut, 10, 4).is_none());
+        assert!(StateShares::whole(&cut, 10, 4, CARRIED).is_none());
     }
 }

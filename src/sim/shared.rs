@@ -38,9 +38,7 @@ impl Simulation {
     pub fn distribute(&mut self, distribution: Box<dyn Distribution>) -> Result<(), SimError> {
         self.linear = LinearSolver::External(distribution.solver(&self.assembly)?);
         self.workspace.forget_factor();
-        self.fixed_hessian = None;
-        self.fixed_factored = false;
-        self.elastic_quadratic = None;
+        self.hessians.forget();
         self.shared = Some(Shared {
             elements: self.assembly.subset(distribution.owned_elements()),
             distribution,
