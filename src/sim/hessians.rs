@@ -1,8 +1,9 @@
 //! The Hessians a simulation keeps between solves while they cannot change.
 
-use super::potential::ElasticQuadratic;
+use super::potential::{ElasticQuadratic, StepPotential};
 use crate::assembly::Assembly;
 use crate::physics::term::StepTerm;
+use crate::solver::Potential;
 use std::time::Instant;
 
 /// The Hessians kept between solves.
@@ -74,4 +75,48 @@ impl KeptHessians {
         };
         (passes, start.elapsed().as_secs_f64())
     }
+
+    /// Lends the kept Hessians to `potential` for a solve, first assembling the fixed
+    /// Hessian if the solve's is fixed for the inertia step `fixed_step` (s) and none is
+    /// kept.
+    pub(super) fn lend<'a>(
+        &'a mut self,
+        potential: &mut StepPotential<'a>,
+        fixed_step: Option<f64>,
+        u: &[f64],
+        assembly: &'a Assembly,
+    ) -> Lent<'a> {
+        let KeptHessians {
+            fixed,
+            factored,
+            elastic_quadratic,
+        } = self;
+        potential.elastic_quadratic = elastic_quadratic.as_ref().map(|q| (q, assembly));
+        let mut t_assembly = 0.0;
+        if let (Some(step), None) = (fixed_step, &fixed) {
+            let start = Instant::now();
+            let mut gradient = vec![0.0; u.len()];
+            let mut hessian = vec![0.0; assembly.nnz()];
+            Potential::evaluate(potential, u, &mut gradient, &mut hessian);
+            *fixed = Some((step, hessian));
+            t_assembly = start.elapsed().as_secs_f64();
+        }
+        let fixed = fixed.as_ref().map(|(_, k)| &k[..]);
+        potential.fixed_hessian = fixed;
+        Lent {
+            fixed: fixed.filter(|_| fixed_step.is_some()),
+            factored,
+            t_assembly,
+        }
+    }
+}
+
+/// The kept Hessians as a solve uses them.
+pub(super) struct Lent<'a> {
+    /// The fixed Hessian, if the solve's is fixed (N/m, CSC values of the free system).
+    pub(super) fixed: Option<&'a [f64]>,
+    /// Whether the linear solver holds the factorisation of the fixed Hessian.
+    pub(super) factored: &'a mut bool,
+    /// Time spent assembling the fixed Hessian (s).
+    pub(super) t_assembly: f64,
 }

@@ -3,7 +3,6 @@
 //! potential (with re-lagging) → finish (velocity, energy balance, local error) → commit.
 
 use super::balance::{energies_of, energies_with, EnergyParts};
-use super::hessians::KeptHessians;
 use super::integrator::StepEnd;
 use super::potential::{Share, StepPotential};
 use super::{
@@ -19,7 +18,9 @@ use crate::physics::inertia::{Inertia, StiffnessDamping};
 use crate::physics::loads::DeadLoads;
 use crate::physics::term::{Solve, StepStartView, StepTerm};
 use crate::physics::{Model, Rayleigh};
-use crate::solver::{minimize, minimize_quadratic, NewtonReport, Potential};
+use crate::solver::{
+    minimize, minimize_quadratic, LinearSolver, NewtonParams, NewtonReport, NewtonWorkspace,
+};
 use std::time::Instant;
 
 /// What a solve is set up with: fixed while it runs.
@@ -319,23 +320,13 @@ impl Simulation {
             &solve,
         );
         if setup.dynamic {
-            let velocity_form = (setup.damping_step, &damping_origin[..]);
-            terms.push(Box::new(Inertia {
-                dt: setup.inertia_step,
+            let inertia = InertiaParts {
                 mass: &model.mass,
                 predictor,
-                velocity_form,
-                alpha: setup.damping.mass,
-                assembly,
-            }));
-            if setup.damping.stiffness > 0.0 {
-                terms.push(Box::new(StiffnessDamping {
-                    velocity_form,
-                    beta_stiffness: damping_stiffness,
-                    assembly,
-                    scratch,
-                }));
-            }
+                velocity_origin: damping_origin,
+                beta_stiffness: damping_stiffness,
+            };
+            terms.extend(inertia_terms(setup, inertia, assembly, scratch));
         }
         // A Hessian that cannot change is assembled once per step length and then copied
         // (not in a distributed run, whose processes hold parts of it).
@@ -345,29 +336,17 @@ impl Simulation {
         // where the supports hold every part, and not where the force scale comes from the
         // reactions, which its product does not update.
         let quadratic_elastic = fixed && setup.force_floor > 0.0 && *parts_held;
-        let (mut element_passes, mut t_fixed_assembly) =
+        let (element_passes, mut t_fixed_assembly) =
             hessians.update_elastic_quadratic(quadratic_elastic, terms[0].as_mut(), u, assembly);
         let mut potential = StepPotential::new(terms);
-        let KeptHessians {
-            fixed: fixed_hessian,
-            factored,
-            elastic_quadratic,
-        } = hessians;
-        potential.elastic_quadratic = elastic_quadratic.as_ref().map(|q| (q, assembly));
         potential.share = shared.as_ref().map(|s| Share {
             collective: s.distribution.collective(),
             owned: s.distribution.owned_dofs(),
             assembly,
         });
-        if fixed && fixed_hessian.is_none() {
-            let start = Instant::now();
-            let mut gradient = vec![0.0; u.len()];
-            let mut hessian = vec![0.0; assembly.nnz()];
-            Potential::evaluate(&mut potential, u, &mut gradient, &mut hessian);
-            *fixed_hessian = Some((setup.inertia_step, hessian));
-            t_fixed_assembly += start.elapsed().as_secs_f64();
-        }
-        potential.fixed_hessian = fixed_hessian.as_ref().map(|(_, k)| &k[..]);
+        let fixed_step = fixed.then_some(setup.inertia_step);
+        let lent = hessians.lend(&mut potential, fixed_step, u, assembly);
+        t_fixed_assembly += lent.t_assembly;
         // The energies of the solve's start, which the balance check needs, do not depend on
         // the solution: computed on another thread while Newton runs (a pass over the
         // elements less on the solve's path). In a distributed run each process computes its
@@ -391,74 +370,26 @@ impl Simulation {
                     ));
                 });
             }
-            let mut newton: Option<NewtonReport> = None;
-            let mut newton_solves = 0;
-            for _ in 0..=MAX_FRICTION_UPDATES {
-                if newton.is_some() && potential.relag(u) <= FRICTION_RELAG_TOLERANCE {
-                    break;
-                }
-                let report = match &*fixed_hessian {
-                    Some((_, hessian)) if fixed => minimize_quadratic(
-                        &mut potential,
-                        (hessian, &mut *factored),
-                        u,
-                        assembly,
-                        linear,
-                        (&settings.newton, setup.force_floor),
-                        workspace,
-                    )?,
-                    _ => {
-                        // Newton factorises other matrices.
-                        *factored = false;
-                        minimize(
-                            &mut potential,
-                            u,
-                            assembly,
-                            linear,
-                            &settings.newton,
-                            setup.force_floor,
-                            workspace,
-                        )?
-                    }
-                };
-                newton = Some(newton.map_or(report, |n| n.then(&report)));
-                newton_solves += 1;
-            }
-            Ok::<_, SolveFailure>((newton, newton_solves))
+            let newton = NewtonSolver {
+                assembly,
+                linear,
+                workspace,
+                params: &settings.newton,
+                force_floor: setup.force_floor,
+            };
+            minimize_relagged(&mut potential, u, newton, (lent.fixed, lent.factored))
         });
         self.balance_scratch = balance_scratch;
         let (newton, newton_solves) = solved?;
-        let mut newton = newton.unwrap_or_default();
-        newton.t_assembly += t_fixed_assembly;
-        let elastic = if fixed {
-            // A quadratic solve knows the potential at its solution: the elastic energy is
-            // that less the other terms' (cheap, per dof), with no pass over the elements.
-            let mut others = 0.0;
-            for term in potential.terms.iter_mut().skip(1) {
-                term.add(u, &mut others, None, None);
-            }
-            ElasticAtSolution::Quadratic(newton.energy - others)
-        } else {
-            // Newton's last evaluation was at its solution.
-            ElasticAtSolution::Evaluated {
-                elastic: potential.last_elastic,
-                before: before.unwrap_or_default(),
-            }
-        };
+        let before = (!fixed).then(|| before.unwrap_or_default());
+        let mut solved = solved_at(&mut potential, u, newton, before);
+        solved.newton_solves = newton_solves;
+        solved.newton.t_assembly += t_fixed_assembly;
+        solved.element_passes += element_passes;
         let forces = contact_forces_at(&potential.terms, u);
-        let (t_contact_narrow, t_contact_broad) =
-            (potential.t_contact, potential.broad_phase_time());
-        element_passes += potential.element_passes;
         drop(potential);
         self.set_contact_forces(forces);
-        Ok(Solved {
-            newton,
-            newton_solves,
-            elastic,
-            t_contact_narrow,
-            t_contact_broad,
-            element_passes,
-        })
+        Ok(solved)
     }
 
     /// Keeps the contact forces of a solve (`None`: it had no contact term, so no contact
@@ -621,6 +552,147 @@ impl Simulation {
             .fold(offsets, f64::max);
         self.max_over_processes(scale)
     }
+}
+
+/// What the solve of `potential` found at its solution `u`, with Newton's `report` (none if
+/// no solve ran); `before`: the energies of the solve's start where its Hessian is not fixed
+/// (none: a quadratic solve, whose elastic energy at the solution the potential gives).
+fn solved_at(
+    potential: &mut StepPotential,
+    u: &[f64],
+    report: Option<NewtonReport>,
+    before: Option<EnergyParts>,
+) -> Solved {
+    let newton = report.unwrap_or_default();
+    let elastic = match before {
+        // Newton's last evaluation was at its solution.
+        Some(before) => ElasticAtSolution::Evaluated {
+            elastic: potential.last_elastic,
+            before,
+        },
+        None => {
+            // A quadratic solve knows the potential at its solution: the elastic energy is
+            // that less the other terms' (cheap, per dof), with no pass over the elements.
+            let mut others = 0.0;
+            for term in potential.terms.iter_mut().skip(1) {
+                term.add(u, &mut others, None, None);
+            }
+            ElasticAtSolution::Quadratic(newton.energy - others)
+        }
+    };
+    Solved {
+        newton,
+        newton_solves: 0,
+        elastic,
+        t_contact_narrow: potential.t_contact,
+        t_contact_broad: potential.broad_phase_time(),
+        element_passes: potential.element_passes,
+    }
+}
+
+/// What Newton solves on: the pattern, the linear solver and its workspace, the tolerances.
+struct NewtonSolver<'a> {
+    assembly: &'a Assembly,
+    linear: &'a mut LinearSolver,
+    workspace: &'a mut NewtonWorkspace,
+    params: &'a NewtonParams,
+    /// The step's force scale (N; see `Simulation::force_scale`).
+    force_floor: f64,
+}
+
+/// Minimises `potential` from `u` (the solution left in it) and re-lags what its terms hold
+/// fixed to the solution, re-solving warm-started until that changes by no more than
+/// [`FRICTION_RELAG_TOLERANCE`] or [`MAX_FRICTION_UPDATES`] re-solves were made. With
+/// `fixed` Hessian (N/m, CSC values of the free system; `factored`: whether the linear
+/// solver holds its factorisation) each solve is a quadratic one. Returns Newton's report of
+/// the solves and their number.
+fn minimize_relagged(
+    potential: &mut StepPotential,
+    u: &mut [f64],
+    newton: NewtonSolver,
+    (fixed, factored): (Option<&[f64]>, &mut bool),
+) -> Result<(Option<NewtonReport>, u32), SolveFailure> {
+    let NewtonSolver {
+        assembly,
+        linear,
+        workspace,
+        params,
+        force_floor,
+    } = newton;
+    let mut report: Option<NewtonReport> = None;
+    let mut solves = 0;
+    for _ in 0..=MAX_FRICTION_UPDATES {
+        if report.is_some() && potential.relag(u) <= FRICTION_RELAG_TOLERANCE {
+            break;
+        }
+        let this = match fixed {
+            Some(hessian) => minimize_quadratic(
+                potential,
+                (hessian, &mut *factored),
+                u,
+                assembly,
+                linear,
+                (params, force_floor),
+                workspace,
+            )?,
+            None => {
+                // Newton factorises other matrices.
+                *factored = false;
+                minimize(
+                    potential,
+                    u,
+                    assembly,
+                    linear,
+                    params,
+                    force_floor,
+                    workspace,
+                )?
+            }
+        };
+        report = Some(report.map_or(this, |n| n.then(&this)));
+        solves += 1;
+    }
+    Ok((report, solves))
+}
+
+/// What the inertia and damping terms of a dynamic solve read.
+struct InertiaParts<'a> {
+    /// Lumped nodal masses (kg).
+    mass: &'a [f64],
+    /// The scheme's predictor ũ (m, all dofs).
+    predictor: &'a [f64],
+    /// The origin p of the velocity vₙ₊₁ = (u − p)/h_d (m, all dofs).
+    velocity_origin: &'a [f64],
+    /// β Kₙ (CSC values of the free system, N s/m; empty without stiffness damping).
+    beta_stiffness: &'a [f64],
+}
+
+/// The inertia term of a dynamic solve, and Rayleigh stiffness damping if the model has it;
+/// `scratch` is the damping term's (two free-system vectors).
+fn inertia_terms<'a>(
+    setup: &SolveSetup,
+    parts: InertiaParts<'a>,
+    assembly: &'a Assembly,
+    scratch: &'a mut [f64],
+) -> Vec<Box<dyn StepTerm + 'a>> {
+    let velocity_form = (setup.damping_step, parts.velocity_origin);
+    let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![Box::new(Inertia {
+        dt: setup.inertia_step,
+        mass: parts.mass,
+        predictor: parts.predictor,
+        velocity_form,
+        alpha: setup.damping.mass,
+        assembly,
+    })];
+    if setup.damping.stiffness > 0.0 {
+        terms.push(Box::new(StiffnessDamping {
+            velocity_form,
+            beta_stiffness: parts.beta_stiffness,
+            assembly,
+            scratch,
+        }));
+    }
+    terms
 }
 
 /// The contact forces on the ice at `u` of a solve's `terms` (N, 3 per node); `None` if none
