@@ -1,0 +1,607 @@
+//! A whole run: scene → simulation → HDF5 frames, with resume and clean interruption.
+
+mod frame;
+mod restore;
+
+use crate::fracture::{Fracture, FractureReport};
+use crate::mesh::TetMesh;
+use crate::output::{ObstacleMesh, OutputError, OutputWriter, ResumeFrame, RunHeader, StepStats};
+use crate::physics::contact::Shape;
+use crate::physics::Model;
+use crate::scene::{Scene, SceneError};
+use crate::sim::part::Part;
+use crate::sim::{SimError, Simulation, StepReport, StepSettings};
+use crate::thermal::{Heat, HeatLink};
+use frame::{emit_frame, FrameFlags};
+use restore::{part_frame, restore};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Errors of a run.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The scene is invalid.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// Set-up or a step failed.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// Output failed.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    /// The scene's problem cannot be set up (e.g. a Dirichlet region that holds no node).
+    #[error("{}: {error}", path.display())]
+    Setup {
+        /// The scene file.
+        path: PathBuf,
+        /// What is wrong.
+        error: SimError,
+    },
+    /// The file to resume does not belong to this scene or mesh.
+    #[error("cannot resume {path}: {reason}")]
+    Resume { path: PathBuf, reason: String },
+}
+
+/// Options of a run besides the scene.
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    /// Output file; default from the scene.
+    pub output: Option<PathBuf>,
+    /// Override of the end time (s).
+    pub end_time: Option<f64>,
+    /// Override of the time step (s).
+    pub dt: Option<f64>,
+    /// Continue this file from its last complete frame instead of starting anew.
+    pub resume: bool,
+    /// Replace an existing icefem output file (never another kind of file, nor a file another
+    /// run is writing); without it an existing output is an error.
+    pub force: bool,
+}
+
+/// What a finished (or interrupted) run did.
+#[derive(Clone, Debug, Default)]
+pub struct RunSummary {
+    /// The output file.
+    pub output: PathBuf,
+    /// Steps taken in this invocation.
+    pub steps: u64,
+    /// Step reached (counting resumed steps).
+    pub final_step: u64,
+    /// Time reached (s).
+    pub final_time: f64,
+    /// Frames in the file.
+    pub frames: usize,
+    /// Newton iterations in this invocation.
+    pub newton_iterations: u64,
+    /// Largest final Newton residual of any step (N).
+    pub max_residual: f64,
+    /// Whether the run stopped early because it was interrupted.
+    pub interrupted: bool,
+}
+
+/// Progress reported after every step.
+pub struct Progress<'a> {
+    /// Step just completed.
+    pub step: u64,
+    /// Total steps of the run.
+    pub total_steps: u64,
+    /// Time reached (s).
+    pub time: f64,
+    /// Time the run ends at (s).
+    pub end_time: f64,
+    /// The step's report.
+    pub report: &'a StepReport,
+}
+
+/// Number of steps to reach `end_time` with steps of `dt` (a last partial step is not taken;
+/// a hair's round-off below a whole number counts as whole).
+pub fn step_count(end_time: f64, dt: f64) -> u64 {
+    (end_time / dt + 1e-9).floor() as u64
+}
+
+/// The processes a run is shared among (see `distributed`): every process runs [`run_on`]
+/// with the same scene and options and takes the same steps; one writes the output.
+pub trait Processes {
+    /// This process's part of `model` and its model (see `sim::part`): the whole mesh if
+    /// `whole`, else its elements and those around their nodes.
+    fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError>;
+    /// Shares `sim`, built on [`Processes::part_model`], among the processes before its
+    /// first step.
+    fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError>;
+    /// Number of processes.
+    fn count(&self) -> usize;
+    /// Whether this process writes the output file.
+    fn writes(&self) -> bool;
+    /// Whether `flag` is set on any process (every process must stop at the same step).
+    fn any(&self, flag: bool) -> bool;
+    /// The bytes the writing process gives, on every process (the others give none).
+    fn broadcast_bytes(&self, bytes: Vec<u8>) -> Vec<u8>;
+    /// Every process's `values`, in process order, on the writing process (none elsewhere).
+    fn gather_values(&self, values: Vec<f64>) -> Vec<Vec<f64>>;
+}
+
+/// Runs `scene` with `options`, calling `progress` after every step; stops early (cleanly, with
+/// the last state written) once `interrupt` is set.
+pub fn run(
+    scene: &Scene,
+    options: &RunOptions,
+    interrupt: &AtomicBool,
+    progress: impl FnMut(&Progress),
+) -> Result<RunSummary, RunError> {
+    run_on(scene, options, None, interrupt, progress)
+}
+
+/// [`run`], shared among `processes` if given. A shared run refuses fracture (its remeshing
+/// is not distributed); resuming, the writing process reads the frame and gives it to the
+/// others.
+pub fn run_on(
+    scene: &Scene,
+    options: &RunOptions,
+    processes: Option<&dyn Processes>,
+    interrupt: &AtomicBool,
+    progress: impl FnMut(&Progress),
+) -> Result<RunSummary, RunError> {
+    if processes.is_some() && scene.fracture.is_some() {
+        return Err(RunError::Setup {
+            path: scene.path.clone(),
+            error: SimError::NotDistributed(
+                "fracture ([fracture]: its remeshing is not distributed)",
+            ),
+        });
+    }
+    let (settings, end_time) = checked_times(scene, options)?;
+    let output = options
+        .output
+        .clone()
+        .unwrap_or_else(|| scene.output.clone());
+    let (mut sim, part) = simulation_for(scene, settings, processes)?;
+    // The processes' parts, where they are not the whole mesh.
+    let shared = processes
+        .zip(part.as_ref())
+        .filter(|(_, part)| !part.is_whole());
+    let mut fracture = scene.fracture.map(|f| Fracture::new(f, &sim.model.mesh));
+    let writes = processes.is_none_or(|p| p.writes());
+    let writer = if options.resume {
+        let (writer, frame) = resume_frame(scene, &output, end_time, processes, writes)?;
+        match shared {
+            Some((_, part)) => {
+                let mesh = &scene.model.mesh;
+                if frame.rest_positions != rows(&mesh.rest) || frame.tets != mesh.tets {
+                    return Err(RunError::Resume {
+                        path: output.clone(),
+                        reason: "its mesh differs from the scene's mesh".into(),
+                    });
+                }
+                let frame = part_frame(part, &frame, mesh);
+                restore(&mut sim, None, &output, &frame, &scene.text)?;
+            }
+            None => restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?,
+        }
+        writer
+    } else if !writes {
+        None
+    } else {
+        Some(new_writer(scene, options, &output)?)
+    };
+    let mut run = Run {
+        scene,
+        settings,
+        end_time,
+        processes,
+        shared: shared.map(|(p, part)| (p, part, &scene.model.mesh)),
+        sim,
+        fracture,
+        writer,
+        output,
+    };
+    if !options.resume {
+        run.emit_frame(FrameFlags {
+            topology_changed: true,
+            restart_point: true,
+        })?;
+    }
+    run.steps(interrupt, progress)
+}
+
+/// The scene's step settings with `--dt`, and the end time (s) with `--end-time`, checked.
+fn checked_times(scene: &Scene, options: &RunOptions) -> Result<(StepSettings, f64), RunError> {
+    let invalid = |field: &str, value: f64| {
+        RunError::Scene(SceneError::Invalid {
+            path: scene.path.clone(),
+            field: field.into(),
+            message: format!("must be finite and > 0, got {value}"),
+        })
+    };
+    let mut settings = scene.settings;
+    if let Some(dt) = options.dt {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(invalid("--dt", dt));
+        }
+        settings.dt = dt;
+    }
+    let end_time = options.end_time.unwrap_or(scene.end_time);
+    if !(end_time.is_finite() && end_time > 0.0) {
+        return Err(invalid("--end-time", end_time));
+    }
+    Ok((settings, end_time))
+}
+
+/// The simulation of `scene` (this process's part of it, shared among `processes` if given)
+/// with the heat model of `[thermal]` attached; the process's part, in a shared run.
+fn simulation_for(
+    scene: &Scene,
+    settings: StepSettings,
+    processes: Option<&dyn Processes>,
+) -> Result<(Simulation, Option<Part>), RunError> {
+    let setup = |error| RunError::Setup {
+        path: scene.path.clone(),
+        error,
+    };
+    let (mut sim, part) = match processes {
+        None => (
+            Simulation::new(scene.model.clone(), settings).map_err(setup)?,
+            None,
+        ),
+        Some(processes) => {
+            Simulation::check(&scene.model, &settings).map_err(setup)?;
+            let (part, model) = processes
+                .part_model(&scene.model, needs_whole_mesh(scene))
+                .map_err(setup)?;
+            (
+                Simulation::for_part(model, settings).map_err(setup)?,
+                Some(part),
+            )
+        }
+    };
+    if let Some(thermal) = &scene.thermal {
+        // On the scene's mesh, before a resumed fractured run rebuilds its split mesh (with
+        // the whole masses: a process's part of a distributed run has those of its nodes).
+        let mesh = &sim.model.mesh;
+        let heat = Heat::new(
+            mesh,
+            scene.model.mass.clone(),
+            thermal.phases,
+            &thermal.boundary,
+            thermal.initial.clone(),
+        )
+        .map_err(|e| setup(e.into()))?;
+        let link = HeatLink::new(heat, mesh);
+        sim.attach_heat(link);
+    }
+    if let Some(processes) = processes {
+        processes.distribute(&mut sim).map_err(setup)?;
+    }
+    Ok((sim, part))
+}
+
+/// The last complete frame of the file `output` a run resumes (read by the writing process
+/// and given to the others), and the file's writer on the writing process (`writes`).
+fn resume_frame(
+    scene: &Scene,
+    output: &Path,
+    end_time: f64,
+    processes: Option<&dyn Processes>,
+    writes: bool,
+) -> Result<(Option<OutputWriter>, ResumeFrame), RunError> {
+    if writes {
+        let (mut writer, frame) = OutputWriter::resume_until(output, end_time)?;
+        writer.store_tensor_matrices(scene.tensor_matrices);
+        if let Some(processes) = processes {
+            processes.broadcast_bytes(frame.to_bytes());
+        }
+        return Ok((Some(writer), frame));
+    }
+    let bytes = processes.map_or(Vec::new(), |p| p.broadcast_bytes(Vec::new()));
+    let frame = ResumeFrame::from_bytes(&bytes).ok_or_else(|| RunError::Resume {
+        path: output.into(),
+        reason: "the frame process 0 read did not arrive whole".into(),
+    })?;
+    Ok((None, frame))
+}
+
+/// A new output file `output` for `scene` (replacing an icefem file with `--force`), its
+/// header written: the scene's mesh, which a process of a distributed run may hold a part of.
+fn new_writer(
+    scene: &Scene,
+    options: &RunOptions,
+    output: &Path,
+) -> Result<OutputWriter, RunError> {
+    let rest = rows(&scene.model.mesh.rest);
+    let obstacles = obstacle_meshes(&scene.model);
+    let scene_path = absolute(&scene.path);
+    let header = RunHeader {
+        scene_text: &scene.text,
+        scene_path: &scene_path.to_string_lossy(),
+        version: env!("CARGO_PKG_VERSION"),
+        rest_positions: &rest,
+        tets: &scene.model.mesh.tets,
+        obstacles: &obstacles,
+    };
+    let mut writer = if options.force {
+        OutputWriter::replace(output, &header)?
+    } else {
+        OutputWriter::create(output, &header)?
+    };
+    writer.store_tensor_matrices(scene.tensor_matrices);
+    Ok(writer)
+}
+
+/// A run set up: its simulation, fracture and output, stepped to the end time.
+struct Run<'a> {
+    scene: &'a Scene,
+    settings: StepSettings,
+    /// End time (s).
+    end_time: f64,
+    processes: Option<&'a dyn Processes>,
+    /// The processes, this one's part and the whole mesh, where the parts are not the whole
+    /// mesh.
+    shared: Option<(&'a dyn Processes, &'a Part, &'a TetMesh)>,
+    sim: Simulation,
+    fracture: Option<Fracture>,
+    /// The output (on the writing process).
+    writer: Option<OutputWriter>,
+    output: PathBuf,
+}
+
+impl Run<'_> {
+    /// Writes the current state as a frame (gathered onto the writing process).
+    fn emit_frame(&mut self, flags: FrameFlags) -> Result<(), RunError> {
+        let sim_and_fracture = (&self.sim, self.fracture.as_ref());
+        emit_frame(self.writer.as_mut(), sim_and_fracture, self.shared, flags)
+    }
+
+    /// Whether an interrupt is set on any process (every process stops at the same step).
+    fn interrupted(&self, interrupt: &AtomicBool) -> bool {
+        let interrupted = interrupt.load(Ordering::SeqCst);
+        self.processes.map_or(interrupted, |p| p.any(interrupted))
+    }
+
+    /// Steps from the state reached (a resumed file's last frame, possibly written with
+    /// another dt) to the last whole step not past the end time, writing the frames due;
+    /// stops after a step once `interrupt` is set.
+    fn steps(
+        mut self,
+        interrupt: &AtomicBool,
+        mut progress: impl FnMut(&Progress),
+    ) -> Result<RunSummary, RunError> {
+        let (end_time, dt) = (self.end_time, self.settings.dt);
+        let remaining = end_time - self.sim.state.time;
+        if remaining < -1e-9 * end_time {
+            return Err(RunError::Resume {
+                path: self.output.clone(),
+                reason: format!(
+                    "it already reaches t = {} s (step {}), past the end time {end_time} s; give a later --end-time",
+                    self.sim.state.time, self.sim.state.step
+                ),
+            });
+        }
+        let mut total_steps = self.sim.state.step + step_count(remaining.max(0.0), dt);
+        let mut summary = RunSummary {
+            output: self.output.clone(),
+            ..Default::default()
+        };
+        // Whether the mesh changed since the last frame written.
+        let mut topology_changed = false;
+        while self.time_left(total_steps) {
+            if self.interrupted(interrupt) {
+                summary.interrupted = true;
+                break;
+            }
+            let (report, cracked, due) = self.step(&mut total_steps)?;
+            topology_changed |= !cracked.events.is_empty();
+            summary.steps += 1;
+            summary.newton_iterations += report.newton.iterations as u64;
+            summary.max_residual = summary.max_residual.max(report.newton.residual);
+            if let Some(writer) = &mut self.writer {
+                // A process's part of a distributed run holds only some of the elements.
+                let elements = match self.shared {
+                    Some(_) => self.scene.model.mesh.num_tets(),
+                    None => self.sim.model.mesh.num_tets(),
+                };
+                let fracture = self.fracture.as_ref();
+                let row = stats_row((&self.sim, elements), &report, &cracked, fracture);
+                writer.append_stats(&row)?;
+            }
+            // Alike on every process: an interrupt on one stops them all after this step.
+            let stopping = self.interrupted(interrupt);
+            if due.frame || stopping {
+                self.emit_frame(FrameFlags {
+                    topology_changed,
+                    restart_point: due.on_grid,
+                })?;
+                topology_changed = false;
+                // A run resumed from this frame starts without solver memory: so does this
+                // one.
+                if due.on_grid {
+                    self.sim.forget_solver_memory();
+                }
+            }
+            progress(&Progress {
+                step: self.sim.state.step,
+                total_steps,
+                time: self.sim.state.time,
+                end_time,
+                report: &report,
+            });
+        }
+        summary.final_step = self.sim.state.step;
+        summary.final_time = self.sim.state.time;
+        if let Some(writer) = self.writer {
+            summary.frames = writer.frame_count();
+            writer.finish()?;
+        }
+        Ok(summary)
+    }
+
+    /// Whether a step is left before the end: by time with adaptive steps, else by count.
+    fn time_left(&self, total_steps: u64) -> bool {
+        match self.settings.adaptive {
+            Some(_) => self.end_time - self.sim.state.time > 1e-9 * self.end_time,
+            None => self.sim.state.step < total_steps,
+        }
+    }
+
+    /// The length of the interval between frames (s): `output_every` steps of the scene's
+    /// dt. Adaptive steps end on the frame times.
+    fn frame_interval(&self) -> f64 {
+        self.scene.output_every as f64 * self.settings.dt
+    }
+
+    /// One step and fracture's splits after it; whether a frame is due after it. With
+    /// adaptive steps, `total_steps` is updated to the time left as steps of the current
+    /// length (for progress).
+    fn step(
+        &mut self,
+        total_steps: &mut u64,
+    ) -> Result<(StepReport, FractureReport, FrameDue), RunError> {
+        let frame_interval = self.frame_interval();
+        let frame_index = |t: f64| (t / frame_interval + 1e-9).floor();
+        // Adaptive steps end on the next frame time (or the end).
+        let next_frame = (frame_index(self.sim.state.time) + 1.0) * frame_interval;
+        let limit = next_frame.min(self.end_time);
+        let sim = &mut self.sim;
+        let report = match self.settings.adaptive {
+            Some(_) => sim.step_adaptive(limit)?,
+            None => sim.step()?,
+        };
+        let cracked = match &mut self.fracture {
+            Some(f) => f.after_step(sim)?,
+            None => FractureReport::default(),
+        };
+        // A frame on the output grid is one every run through this time writes, wherever it
+        // ends: a restart point.
+        let due = match self.settings.adaptive {
+            Some(_) => {
+                // The step (or fracture's retake of it) ended on `limit` to round-off: it is
+                // `limit`.
+                if (sim.state.time - limit).abs() <= 1e-9 * frame_interval {
+                    sim.state.time = limit;
+                }
+                // The time left as steps of the current length (for progress).
+                let steps_left = (self.end_time - sim.state.time) / sim.state.next_dt.max(1e-300);
+                *total_steps = sim.state.step + steps_left.max(0.0).ceil() as u64;
+                let on_grid = sim.state.time == next_frame;
+                let end = self.end_time - sim.state.time <= 1e-9 * self.end_time;
+                FrameDue {
+                    on_grid,
+                    frame: on_grid || end,
+                }
+            }
+            None => {
+                let on_grid = sim.state.step % self.scene.output_every == 0;
+                FrameDue {
+                    on_grid,
+                    frame: on_grid || sim.state.step == *total_steps,
+                }
+            }
+        };
+        Ok((report, cracked, due))
+    }
+}
+
+/// Whether a frame is due after a step.
+struct FrameDue {
+    /// The step ended on the output grid (a restart point).
+    on_grid: bool,
+    /// A frame is written: on the grid, or at the end.
+    frame: bool,
+}
+
+fn stats_row(
+    (sim, elements): (&Simulation, usize),
+    report: &StepReport,
+    cracked: &FractureReport,
+    fracture: Option<&Fracture>,
+) -> StepStats {
+    let n = &report.newton;
+    StepStats {
+        step: sim.state.step,
+        time: sim.state.time,
+        dt: sim.settings.dt,
+        newton_iterations: n.iterations as u32,
+        newton_solves: report.newton_solves,
+        linear_iterations: n.linear_iterations as u32,
+        factorizations: n.factorizations as u32,
+        substeps: report.substeps,
+        residual: n.residual,
+        energy: report.energies.total(),
+        kinetic_energy: report.energies.kinetic,
+        elastic_energy: report.energies.elastic,
+        potential_energy: report.energies.potential,
+        contact_energy: report.energies.contact,
+        t_assembly: n.t_assembly,
+        t_factorization: n.t_factorization,
+        t_solve: n.t_solve,
+        t_step: report.t_step,
+        elements: elements as u64,
+        crack_faces: fracture.map_or(0, |f| f.faces.len() as u64),
+        fracture_events: cracked.events.len() as u32,
+        separation_stress: cracked.largest_stress,
+        eligible_nodes: cracked.eligible_nodes as u64,
+        nodes_above_toughness: cracked.nodes_above as u64,
+        refused_nodes: cracked.refused_above as u64,
+        refused_splits: cracked.refused as u32,
+        crack_area: fracture.map_or(0.0, |f| f.crack_area(&sim.model.mesh.rest)),
+        crack_polygons: fracture.map_or(0, |f| f.crack_polygons(&sim.model.mesh.rest) as u64),
+        t_fracture: cracked.t_check + cracked.t_split,
+        t_remesh: cracked.t_remesh,
+        t_resolve: cracked.t_resolve,
+        heat_newton_iterations: report.heat.map_or(0, |h| h.newton_iterations as u32),
+        heat_imbalance: report.heat.map_or(0.0, |h| h.imbalance()),
+        t_heat: report.heat.map_or(0.0, |h| h.t_step),
+        local_error: report.local_error,
+        error_ratio: report.error_ratio,
+        rejected_steps: report.rejected,
+    }
+}
+
+/// `path` made absolute (symbolic links and `..` resolved where the file exists), so that the
+/// file's `scene_path` names the scene from any folder.
+fn absolute(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path)
+        .or_else(|_| std::path::absolute(path))
+        .unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// The triangle surfaces of the scene's mesh obstacles at t = 0 (`[[obstacle]]` index, surface),
+/// stored in the file so that pictures of it need not find the surface files.
+fn obstacle_meshes(model: &Model) -> Vec<ObstacleMesh> {
+    let Some(contact) = model.obstacle_contact() else {
+        return Vec::new();
+    };
+    contact
+        .obstacles
+        .iter()
+        .enumerate()
+        .filter_map(|(index, o)| match &o.shape {
+            Shape::Mesh { surface } => Some(ObstacleMesh {
+                index,
+                vertices: rows(&surface.vertices),
+                triangles: surface.triangles.clone(),
+            }),
+            _ => None,
+        })
+        .collect()
+}
+
+fn rows(v: &[nalgebra::Vector3<f64>]) -> Vec<[f64; 3]> {
+    v.iter().map(|p| [p.x, p.y, p.z]).collect()
+}
+
+fn as_rows(v: &[f64]) -> &[[f64; 3]] {
+    // Plain reinterpretation of a flat 3n vector as n rows; lengths are multiples of 3 by
+    // construction.
+    let (rows, rest) = v.as_chunks::<3>();
+    debug_assert!(rest.is_empty());
+    rows
+}
+
+/// Whether a distributed run needs the whole mesh on every process: where a term couples
+/// nodes beyond their elements (ice–ice contact, Rayleigh's β K) or the heat equation is
+/// solved (on the whole mesh).
+fn needs_whole_mesh(scene: &Scene) -> bool {
+    let model = &scene.model;
+    scene.thermal.is_some()
+        || model.ice_contact().is_some()
+        || model.damping.is_some_and(|d| d.stiffness > 0.0)
+}
