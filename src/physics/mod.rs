@@ -1,7 +1,9 @@
 //! The physical model of a scene: elasticity, mass, loads, damping, boundary conditions and
-//! the terms the scene enables (see [`term`]); a term that is off costs nothing. The model is
-//! fixed between remeshes; what changes from step to step is in the simulation state
-//! ([`history`]).
+//! the terms the scene enables (see [`term`]); a term that is off costs nothing. Between
+//! remeshes the model changes only where time does: [`Model::apply_schedule`] sets the dead
+//! loads of time-varying amplitude and the freezing schedule's state to a time (and with
+//! `[thermal]` the simulation replaces the freezing schedule each step); everything else that
+//! changes from step to step is in the simulation state ([`history`]).
 
 pub mod amplitude;
 pub mod contact;

@@ -1,4 +1,4 @@
-//! Adaptive time steps: each step's local error estimate (see `StepFormula::local_error`)
+//! Adaptive time steps: each step's local error estimate (see `TimeIntegrator::local_error`)
 //! against a tolerance chooses the next step's length, between limits; a step whose error is
 //! above the tolerance is taken again, shorter. Steps end exactly at the limits the caller
 //! sets (frame times).
@@ -23,7 +23,7 @@ pub struct Adaptive {
 pub const SAFETY: f64 = 0.9;
 
 /// The most a step may grow from one step to the next: a longer step than the last by more
-/// than this would leave BDF2's step ratio (see `scheme::BDF2_MAX_STEP_RATIO`) and outrun
+/// than this would leave BDF2's step ratio (see `integrator::BDF2_MAX_STEP_RATIO`) and outrun
 /// the estimate's validity.
 pub const MAX_GROWTH: f64 = 2.0;
 

@@ -158,7 +158,7 @@ pub struct StepReport {
     /// The heat step that preceded the mechanics (with `[thermal]`).
     pub heat: Option<crate::thermal::HeatStep>,
     /// Estimated local displacement error of the step (m, largest over the free dofs; the
-    /// largest of its substeps'; 0 in a static analysis): see `StepFormula::local_error`.
+    /// largest of its substeps'; 0 in a static analysis): see `TimeIntegrator::local_error`.
     pub local_error: f64,
     /// Largest |displacement| of a free dof after the step (m): the adaptive control's
     /// scale for the relative error.
