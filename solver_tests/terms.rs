@@ -750,7 +750,8 @@ fn contact_forces(term: &dyn StepTerm, u: &[f64]) -> ContactForces {
         normal: vec![0.0; u.len()],
         friction: vec![0.0; u.len()],
     };
-    term.add_contact_forces(u, &mut forces);
+    let contact = term.as_contact().expect("a contact term");
+    contact.add_contact_forces(u, &mut forces);
     forces
 }
 

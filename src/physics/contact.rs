@@ -22,6 +22,8 @@
 //! λ settles (a few rounds at most), so friction acts with the normal force of the end of the
 //! step while each solve stays a minimisation.
 
+pub use super::contact_forces::ContactForces;
+use super::contact_forces::{SceneContact, SolveContact};
 use super::motion::Motion;
 use super::obstacle_mesh::ObstacleSurface;
 use super::term::{LagChange, NodeRestriction, Remesh, Solve, StepTerm, Term};
@@ -437,15 +439,6 @@ pub struct ContactStep<'a> {
     pub anticipated: Vec<bool>,
 }
 
-/// Per-node contact forces on the ice (N), for output.
-#[derive(Clone, Debug, Default)]
-pub struct ContactForces {
-    /// Normal (penalty) force per node, 3 per node.
-    pub normal: Vec<f64>,
-    /// Friction force per node, 3 per node.
-    pub friction: Vec<f64>,
-}
-
 impl<'a> ContactStep<'a> {
     /// The contact of a step from `t_start` to `t_end` (s) starting at displacement `previous`
     /// (m), with the friction normal force taken there; `dt` is `None` for a static step (no
@@ -851,11 +844,8 @@ impl Term for ObstacleContact {
         let c = &self.contact;
         ContactStep::new(c, rest, u, (t, t), None, c.edge).evaluate(u, None, None, None)
     }
-    fn has_contact_forces(&self) -> bool {
-        true
-    }
-    fn bookkeeping_len(&self) -> usize {
-        self.block_slots.len()
+    fn as_contact(&self) -> Option<&dyn SceneContact> {
+        Some(self)
     }
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term> {
         let c = &self.contact;
@@ -877,6 +867,15 @@ struct ObstacleStep<'a> {
     blocks: Vec<(usize, Matrix3<f64>)>,
     /// Time spent choosing mesh-obstacle planes (s).
     t_broad: f64,
+}
+
+impl SceneContact for ObstacleContact {
+    fn exerts_forces(&self) -> bool {
+        true
+    }
+    fn bookkeeping_len(&self) -> usize {
+        self.block_slots.len()
+    }
 }
 
 impl StepTerm for ObstacleStep<'_> {
@@ -940,11 +939,14 @@ impl StepTerm for ObstacleStep<'_> {
             change
         }
     }
+    fn as_contact(&self) -> Option<&dyn SolveContact> {
+        Some(self)
+    }
+}
+
+impl SolveContact for ObstacleStep<'_> {
     fn add_contact_forces(&self, u: &[f64], forces: &mut ContactForces) {
         self.step.evaluate(u, None, None, Some(forces));
-    }
-    fn is_contact(&self) -> bool {
-        true
     }
     fn broad_phase_time(&self) -> f64 {
         self.t_broad

@@ -42,7 +42,8 @@
 //! motion, go into a uniform grid, and each boundary node of another part is looked up in it.
 //! The candidate (node, triangle) pairs are fixed for the step.
 
-use super::contact::{default_stiffness, friction_terms, ContactForces};
+use super::contact::{default_stiffness, friction_terms};
+use super::contact_forces::{ContactForces, SceneContact, SolveContact};
 use super::grid::BoxGrid;
 use super::term::{LagChange, NodeRestriction, Remesh, Solve, StepStartView, StepTerm, Term};
 use crate::assembly::Assembly;
@@ -700,11 +701,14 @@ impl StepTerm for IceStep<'_> {
     fn relag(&mut self, u: &[f64]) -> LagChange {
         self.relag_friction(u)
     }
+    fn as_contact(&self) -> Option<&dyn SolveContact> {
+        Some(self)
+    }
+}
+
+impl SolveContact for IceStep<'_> {
     fn add_contact_forces(&self, u: &[f64], forces: &mut ContactForces) {
         self.evaluate(u, None, None, Some(forces));
-    }
-    fn is_contact(&self) -> bool {
-        true
     }
 }
 
@@ -783,6 +787,15 @@ impl IceContactTerm {
     }
 }
 
+impl SceneContact for IceContactTerm {
+    fn exerts_forces(&self) -> bool {
+        self.active.is_some()
+    }
+    fn bookkeeping_len(&self) -> usize {
+        self.candidate_slots.len()
+    }
+}
+
 impl Term for IceContactTerm {
     fn name(&self) -> &'static str {
         "ice contact"
@@ -849,11 +862,8 @@ impl Term for IceContactTerm {
         self.step(rest, &[])
             .map_or(0.0, |ice| ice.evaluate(u, None, None, None))
     }
-    fn has_contact_forces(&self) -> bool {
-        self.active.is_some()
-    }
-    fn bookkeeping_len(&self) -> usize {
-        self.candidate_slots.len()
+    fn as_contact(&self) -> Option<&dyn SceneContact> {
+        Some(self)
     }
     fn evaluated_whole(&self) -> bool {
         true

@@ -18,7 +18,7 @@
 //! the simulation makes their [`StepTerm`]s from the model's fields. Adding a term means one
 //! file implementing [`Term`] and [`StepTerm`], and its scene table.
 
-use super::contact::ContactForces;
+use super::contact_forces::{SceneContact, SolveContact};
 use crate::assembly::Assembly;
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
@@ -64,21 +64,16 @@ pub trait StepTerm {
     fn relag(&mut self, _u: &[f64]) -> LagChange {
         LagChange::default()
     }
-    /// Adds the term's contact forces on the ice at `u` (N, 3 per node), if it is a contact.
-    fn add_contact_forces(&self, _u: &[f64], _forces: &mut ContactForces) {}
     /// Whether the term's Hessian is the same at every u of this solve and of every later
     /// solve with the same inertia step (a quadratic with fixed coefficients): a solve whose
     /// terms all say so assembles its Hessian once and copies it after that.
     fn hessian_is_fixed(&self) -> bool {
         false
     }
-    /// Whether this is a contact term (its evaluation counts as contact narrow-phase time).
-    fn is_contact(&self) -> bool {
-        false
-    }
-    /// Wall time this term spent choosing its contact pairs during the solve (s).
-    fn broad_phase_time(&self) -> f64 {
-        0.0
+    /// The term as a contact (its evaluation counts as contact narrow-phase time), if it is
+    /// one.
+    fn as_contact(&self) -> Option<&dyn SolveContact> {
+        None
     }
     /// Whether the term couples nodes beyond the elements' (see [`Term::evaluated_whole`]).
     fn evaluated_whole(&self) -> bool {
@@ -177,13 +172,9 @@ pub trait Term: Send + Sync + std::fmt::Debug {
     fn stored_energy(&self, _rest: &[Vector3<f64>], _u: &[f64], _t: f64) -> f64 {
         0.0
     }
-    /// Whether the term exerts contact forces on the ice (they are then written per frame).
-    fn has_contact_forces(&self) -> bool {
-        false
-    }
-    /// Entries held for the term's bookkeeping (to show a term that is off costs nothing).
-    fn bookkeeping_len(&self) -> usize {
-        0
+    /// The term as a contact, if it is one.
+    fn as_contact(&self) -> Option<&dyn SceneContact> {
+        None
     }
     /// The term on a mesh made by splitting elements of this one's.
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term>;

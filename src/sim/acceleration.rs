@@ -2,7 +2,7 @@
 //! (Newmark) starts.
 
 use super::potential::{Share, StepPotential};
-use super::step::solve_terms;
+use super::terms::solve_terms;
 use super::Simulation;
 use crate::physics::term::Solve;
 

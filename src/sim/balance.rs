@@ -18,7 +18,7 @@
 //! potential it adds disagree. Non-convex elasticity and contact make D_Ψ slightly negative,
 //! which [`EXCESS_TOLERANCE`] allows.
 
-use super::step::elastic_term;
+use super::terms::elastic_term;
 use super::{Energies, Simulation};
 use crate::assembly::{Assembly, ElementSubset};
 use crate::fem::StrainOffset;

@@ -13,6 +13,7 @@ pub mod part;
 pub mod potential;
 mod shared;
 mod step;
+mod terms;
 
 use crate::assembly::{Assembly, DofMap};
 use crate::fem::StrainOffset;
@@ -612,7 +613,10 @@ impl Simulation {
     /// Number of entries held by contact bookkeeping (block slots, output
     /// forces); zero for a model without obstacles.
     pub fn contact_structures_len(&self) -> usize {
-        let terms: usize = self.model.terms.iter().map(|t| t.bookkeeping_len()).sum();
+        let terms: usize = (self.model.terms.iter())
+            .filter_map(|t| t.as_contact())
+            .map(|c| c.bookkeeping_len())
+            .sum();
         terms + self.contact_forces.normal.len()
     }
 
@@ -621,7 +625,7 @@ impl Simulation {
         self.model
             .terms
             .iter()
-            .any(|t| t.has_contact_forces())
+            .any(|t| t.as_contact().is_some_and(|c| c.exerts_forces()))
             .then_some(&self.contact_forces)
     }
 

@@ -312,7 +312,11 @@ impl<'a> StepPotential<'a> {
 
     /// Wall time the terms spent choosing contact pairs (s).
     pub fn broad_phase_time(&self) -> f64 {
-        self.terms.iter().map(|t| t.broad_phase_time()).sum()
+        self.terms
+            .iter()
+            .filter_map(|t| t.as_contact())
+            .map(|c| c.broad_phase_time())
+            .sum()
     }
 }
 
@@ -328,7 +332,7 @@ fn add_in_order(
 ) -> f64 {
     let mut energy = 0.0;
     for term in terms {
-        let clock = term.is_contact().then(Instant::now);
+        let clock = term.as_contact().is_some().then(Instant::now);
         let sum = match whole.as_deref_mut() {
             Some(w) if term.evaluated_whole() => w,
             _ => &mut energy,
@@ -420,7 +424,7 @@ impl Potential for StepPotential<'_> {
     fn refresh_hessian(&mut self, u: &[f64], hessian: &mut [f64]) -> bool {
         let mut changed = false;
         for term in &mut self.terms {
-            let clock = term.is_contact().then(Instant::now);
+            let clock = term.as_contact().is_some().then(Instant::now);
             changed |= term.refresh_hessian(u, hessian);
             if let Some(clock) = clock {
                 self.t_contact += clock.elapsed().as_secs_f64();

@@ -3,19 +3,18 @@
 //! potential (with re-lagging) → finish (velocity, energy balance, local error) → commit.
 
 use super::balance::{energies_of, energies_with, EnergyParts};
+use super::terms::solve_terms;
 use super::integrator::StepEnd;
 use super::potential::{Share, StepPotential};
 use super::{
     Analysis, Energies, SimError, Simulation, SolveFailure, StepReport, FRICTION_RELAG_TOLERANCE,
     MAX_FRICTION_UPDATES, MAX_HALVINGS,
 };
-use crate::assembly::{Assembly, ElementSubset};
+use crate::assembly::Assembly;
 use crate::fem::StrainOffset;
 use crate::physics::contact::ContactForces;
 use crate::physics::elasticity::ElasticStep;
-use crate::physics::history::ElementHistory;
 use crate::physics::inertia::{Inertia, StiffnessDamping};
-use crate::physics::loads::DeadLoads;
 use crate::physics::term::{Solve, StepStartView, StepTerm};
 use crate::physics::{Model, Rayleigh};
 use crate::solver::{
@@ -698,7 +697,7 @@ fn inertia_terms<'a>(
 /// The contact forces on the ice at `u` of a solve's `terms` (N, 3 per node); `None` if none
 /// of them is a contact.
 fn contact_forces_at(terms: &[Box<dyn StepTerm + '_>], u: &[f64]) -> Option<ContactForces> {
-    if !terms.iter().any(|t| t.is_contact()) {
+    if !terms.iter().any(|t| t.as_contact().is_some()) {
         return None;
     }
     let n = u.len();
@@ -706,51 +705,9 @@ fn contact_forces_at(terms: &[Box<dyn StepTerm + '_>], u: &[f64]) -> Option<Cont
         normal: vec![0.0; n],
         friction: vec![0.0; n],
     };
-    for term in terms {
-        term.add_contact_forces(u, &mut forces);
+    for contact in terms.iter().filter_map(|t| t.as_contact()) {
+        contact.add_contact_forces(u, &mut forces);
     }
     Some(forces)
 }
 
-/// The elastic energy of `model` as a term (exact tangents), on a process's elements and
-/// owned dofs if `subset` is given; `element_energy` is scratch, one per element.
-pub(super) fn elastic_term<'a>(
-    model: &'a Model,
-    assembly: &'a Assembly,
-    (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
-    (element_energy, subset): (&'a mut [f64], Option<(&'a ElementSubset, &'a [bool])>),
-) -> ElasticStep<'a> {
-    let mut elastic = ElasticStep::new(
-        &model.elasticity,
-        (&model.mesh.tets, history, offsets),
-        assembly,
-        element_energy,
-        false,
-    );
-    elastic.subset = subset;
-    elastic
-}
-
-/// The terms every solve sums — elasticity, dead loads and the model's terms that act in
-/// `solve` (contact) — without inertia and damping, which a dynamic step adds.
-pub(super) fn solve_terms<'a>(
-    model: &'a Model,
-    assembly: &'a Assembly,
-    (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
-    (element_energy, subset): (&'a mut [f64], Option<(&'a ElementSubset, &'a [bool])>),
-    solve: &Solve<'a>,
-) -> Vec<Box<dyn StepTerm + 'a>> {
-    let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![
-        Box::new(elastic_term(
-            model,
-            assembly,
-            (history, offsets),
-            (element_energy, subset),
-        )),
-        Box::new(DeadLoads {
-            force: &model.external_force,
-        }),
-    ];
-    terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(solve)));
-    terms
-}
