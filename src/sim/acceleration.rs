@@ -2,7 +2,7 @@
 //! (Newmark) starts.
 
 use super::potential::{Share, StepPotential};
-use super::terms::solve_terms;
+use super::terms::{solve_terms, ElasticInputs};
 use super::Simulation;
 use crate::physics::term::Solve;
 
@@ -31,14 +31,14 @@ impl Simulation {
             .shared
             .as_ref()
             .map(|s| (&s.elements, s.distribution.owned_dofs()));
-        let terms = solve_terms(
-            model,
-            &self.assembly,
-            (&self.state.history, &offsets),
-            (&mut self.element_energy, subset),
-            &solve,
-        );
-        let mut potential = StepPotential::new(terms);
+        let elastic = ElasticInputs {
+            history: &self.state.history,
+            offsets: &offsets,
+            element_energy: &mut self.element_energy,
+            subset,
+        };
+        let (elastic, terms) = solve_terms(model, &self.assembly, elastic, &solve);
+        let mut potential = StepPotential::new(elastic, terms);
         // Summed over the processes of a distributed run.
         potential.share = self.shared.as_ref().map(|s| Share {
             collective: s.distribution.collective(),

@@ -18,11 +18,9 @@
 //! potential it adds disagree. Non-convex elasticity and contact make D_Ψ slightly negative,
 //! which [`EXCESS_TOLERANCE`] allows.
 
-use super::terms::elastic_term;
+use super::terms::{elastic_term, ElasticInputs};
 use super::{Energies, Simulation};
-use crate::assembly::{Assembly, ElementSubset};
-use crate::fem::StrainOffset;
-use crate::physics::history::ElementHistory;
+use crate::assembly::Assembly;
 use crate::physics::term::StepTerm;
 use crate::physics::Model;
 
@@ -155,27 +153,19 @@ impl Simulation {
 }
 
 /// Energies of `model` at displacement and velocity `(u, v)` (m, m/s; 3 per node) and time
-/// `t` (s), with the elements' `history` and its strain `offsets`; `element_energy` is
-/// scratch, one per element.
+/// `t` (s), the elastic energy from `elastic` (the elements' history and strain offsets).
 ///
-/// With `subset` (a process's elements and owned dofs in a distributed run) the elastic
+/// With a subset (a process's elements and owned dofs in a distributed run) the elastic
 /// energy is that process's part of it, to be summed across the processes.
 pub(super) fn energies_of(
     model: &Model,
     assembly: &Assembly,
-    (history, offsets): (&ElementHistory, &[StrainOffset]),
-    (element_energy, subset): (&mut [f64], Option<(&ElementSubset, &[bool])>),
+    elastic: ElasticInputs,
     (u, v): (&[f64], &[f64]),
     t: f64,
 ) -> EnergyParts {
     let mut energy = 0.0;
-    elastic_term(
-        model,
-        assembly,
-        (history, offsets),
-        (element_energy, subset),
-    )
-    .add(u, &mut energy, None, None);
+    elastic_term(model, assembly, elastic).add(u, &mut energy, None, None);
     energies_with(model, energy, (u, v), t)
 }
 

@@ -33,6 +33,7 @@ pub use integrator::{Scheme, SchemeState, TimeIntegrator};
 pub use potential::Collective;
 pub use shared::Distribution;
 use shared::Shared;
+use terms::ElasticInputs;
 
 /// Static equilibrium per step, or dynamics (integrated by the [`Scheme`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
@@ -592,13 +593,20 @@ impl Simulation {
             .shared
             .as_ref()
             .map(|s| (&s.elements, s.distribution.owned_dofs()));
+        let offsets = self.state.history.offsets();
+        let elastic = ElasticInputs {
+            history: &self.state.history,
+            offsets: &offsets,
+            element_energy: &mut self.element_energy,
+            subset,
+        };
+        let state = &self.state;
         let parts = energies_of(
             &self.model,
             &self.assembly,
-            (&self.state.history, &self.state.history.offsets()),
-            (&mut self.element_energy, subset),
-            (&self.state.u, &self.state.v),
-            self.state.time,
+            elastic,
+            (&state.u, &state.v),
+            state.time,
         );
         self.energies_over_processes(parts)
     }

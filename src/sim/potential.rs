@@ -60,12 +60,15 @@ impl Share<'_> {
 
 /// The sum of a solve's terms.
 ///
-/// The first term is the elastic energy, assembled element by element in parallel and summed
-/// over the elements in order; the others accumulate their energies in order into a second
-/// sum, and the potential is the elastic sum plus that one. The order is fixed, so a run is
-/// reproducible bit for bit.
+/// The elastic energy is assembled element by element in parallel and summed over the
+/// elements in order; the other terms accumulate their energies in order into a second sum,
+/// and the potential is the elastic sum plus that one. The order is fixed, so a run is
+/// reproducible bit for bit. Hooks beyond evaluation (anticipation, projection, refresh,
+/// re-lagging) go to the elastic term first, then to the others in order.
 pub struct StepPotential<'a> {
-    /// The terms, the elastic energy first.
+    /// The elastic energy of the elements.
+    pub elastic: Box<dyn StepTerm + 'a>,
+    /// The other terms, in the order their energies are summed.
     pub terms: Vec<Box<dyn StepTerm + 'a>>,
     /// Wall time spent evaluating contact terms (s).
     pub t_contact: f64,
@@ -200,9 +203,10 @@ impl ElasticQuadratic {
 }
 
 impl<'a> StepPotential<'a> {
-    /// The potential of `terms` (the elastic energy first).
-    pub fn new(terms: Vec<Box<dyn StepTerm + 'a>>) -> Self {
+    /// The potential of the `elastic` energy and the other `terms`.
+    pub fn new(elastic: Box<dyn StepTerm + 'a>, terms: Vec<Box<dyn StepTerm + 'a>>) -> Self {
         StepPotential {
+            elastic,
             terms,
             t_contact: 0.0,
             last_elastic: 0.0,
@@ -223,9 +227,7 @@ impl<'a> StepPotential<'a> {
         mut gradient: Option<&mut [f64]>,
         mut hessian: Option<&mut [f64]>,
     ) -> f64 {
-        let Some((elastic_term, others)) = self.terms.split_first_mut() else {
-            return 0.0;
-        };
+        let (elastic_term, others) = (&mut self.elastic, &mut self.terms);
         // Each process keeps what it owns.
         let mut whole = 0.0;
         let rest = add_in_order(
@@ -258,9 +260,7 @@ impl<'a> StepPotential<'a> {
         if let Some(share) = self.share {
             return self.sum_shared(share, u, gradient, hessian);
         }
-        let Some((elastic_term, others)) = self.terms.split_first_mut() else {
-            return 0.0;
-        };
+        let (elastic_term, others) = (&mut self.elastic, &mut self.terms);
         let mut elastic = 0.0;
         match self
             .elastic_quadratic
@@ -290,7 +290,7 @@ impl<'a> StepPotential<'a> {
     pub fn relag(&mut self, u: &[f64]) -> f64 {
         let mut relative: f64 = 0.0;
         let share = self.share;
-        for term in &mut self.terms {
+        for term in std::iter::once(&mut self.elastic).chain(&mut self.terms) {
             let mut lag = term.relag(u);
             if let Some(share) = share {
                 // Each process has its part of a term's lagged values.
@@ -308,6 +308,16 @@ impl<'a> StepPotential<'a> {
         self.share.map_or(b, |share| {
             share.collective.max(f64::from(u8::from(b))) > 0.0
         })
+    }
+
+    /// Every term, the elastic energy first.
+    fn all_terms(&self) -> impl Iterator<Item = &Box<dyn StepTerm + 'a>> {
+        std::iter::once(&self.elastic).chain(&self.terms)
+    }
+
+    /// Every term, the elastic energy first.
+    fn all_terms_mut(&mut self) -> impl Iterator<Item = &mut Box<dyn StepTerm + 'a>> {
+        std::iter::once(&mut self.elastic).chain(&mut self.terms)
     }
 
     /// Wall time the terms spent choosing contact pairs (s).
@@ -379,7 +389,7 @@ impl Potential for StepPotential<'_> {
 
     fn project_hessian(&mut self) -> bool {
         let mut changed = false;
-        for term in &mut self.terms {
+        for term in self.all_terms_mut() {
             changed |= term.project_hessian();
         }
         self.any_over_processes(changed)
@@ -387,14 +397,14 @@ impl Potential for StepPotential<'_> {
 
     fn anticipate(&mut self, u: &[f64], trial: &[f64]) -> bool {
         let mut any = false;
-        for term in &mut self.terms {
+        for term in self.all_terms_mut() {
             any |= term.anticipate(u, trial);
         }
         self.any_over_processes(any)
     }
 
     fn forget_anticipated(&mut self) {
-        for term in &mut self.terms {
+        for term in self.all_terms_mut() {
             term.forget_anticipated();
         }
     }
@@ -402,7 +412,7 @@ impl Potential for StepPotential<'_> {
     fn add_anticipated_gradient(&self, u: &[f64], gradient: &mut [f64]) -> bool {
         let mut any = false;
         let Some(share) = self.share else {
-            for term in &self.terms {
+            for term in self.all_terms() {
                 any |= term.add_anticipated_gradient(u, gradient);
             }
             return any;
@@ -410,7 +420,7 @@ impl Potential for StepPotential<'_> {
         // `gradient` holds the sum already: the processes' parts of what is added are summed
         // on their own.
         let mut added = vec![0.0; gradient.len()];
-        for term in &self.terms {
+        for term in self.all_terms() {
             any |= term.add_anticipated_gradient(u, &mut added);
         }
         share.keep_owned(Some(&mut added), None);
@@ -423,7 +433,7 @@ impl Potential for StepPotential<'_> {
 
     fn refresh_hessian(&mut self, u: &[f64], hessian: &mut [f64]) -> bool {
         let mut changed = false;
-        for term in &mut self.terms {
+        for term in std::iter::once(&mut self.elastic).chain(&mut self.terms) {
             let clock = term.as_contact().is_some().then(Instant::now);
             changed |= term.refresh_hessian(u, hessian);
             if let Some(clock) = clock {

@@ -3,9 +3,9 @@
 //! potential (with re-lagging) → finish (velocity, energy balance, local error) → commit.
 
 use super::balance::{energies_of, energies_with, EnergyParts};
-use super::terms::solve_terms;
 use super::integrator::StepEnd;
 use super::potential::{Share, StepPotential};
+use super::terms::{solve_terms, ElasticInputs};
 use super::{
     Analysis, Energies, SimError, Simulation, SolveFailure, StepReport, FRICTION_RELAG_TOLERANCE,
     MAX_FRICTION_UPDATES, MAX_HALVINGS,
@@ -311,13 +311,13 @@ impl Simulation {
             dynamic: setup.dynamic,
             times: (state.time, setup.t_new),
         };
-        let mut terms = solve_terms(
-            model,
-            assembly,
-            (&state.history, &setup.offsets),
-            (element_energy, subset),
-            &solve,
-        );
+        let elastic = ElasticInputs {
+            history: &state.history,
+            offsets: &setup.offsets,
+            element_energy,
+            subset,
+        };
+        let (mut elastic, mut terms) = solve_terms(model, assembly, elastic, &solve);
         if setup.dynamic {
             let inertia = InertiaParts {
                 mass: &model.mass,
@@ -329,15 +329,17 @@ impl Simulation {
         }
         // A Hessian that cannot change is assembled once per step length and then copied
         // (not in a distributed run, whose processes hold parts of it).
-        let fixed = shared.is_none() && terms.iter().all(|t| t.hessian_is_fixed());
+        let fixed = shared.is_none()
+            && elastic.hessian_is_fixed()
+            && terms.iter().all(|t| t.hessian_is_fixed());
         hessians.keep_fixed_if(fixed, setup.inertia_step);
         // The elastic energy is a fixed quadratic (see `KeptHessians::elastic_quadratic`)
         // where the supports hold every part, and not where the force scale comes from the
         // reactions, which its product does not update.
         let quadratic_elastic = fixed && setup.force_floor > 0.0 && *parts_held;
         let (element_passes, mut t_fixed_assembly) =
-            hessians.update_elastic_quadratic(quadratic_elastic, terms[0].as_mut(), u, assembly);
-        let mut potential = StepPotential::new(terms);
+            hessians.update_elastic_quadratic(quadratic_elastic, elastic.as_mut(), u, assembly);
+        let mut potential = StepPotential::new(elastic, terms);
         potential.share = shared.as_ref().map(|s| Share {
             collective: s.distribution.collective(),
             owned: s.distribution.owned_dofs(),
@@ -359,14 +361,13 @@ impl Simulation {
                     (&setup.offsets, &mut balance_scratch, &mut before);
                 let t_new = setup.t_new;
                 scope.spawn(move |_| {
-                    *before = Some(energies_of(
-                        model,
-                        assembly,
-                        (history, offsets),
-                        (scratch, subset),
-                        (previous, v),
-                        t_new,
-                    ));
+                    let elastic = ElasticInputs {
+                        history,
+                        offsets,
+                        element_energy: scratch,
+                        subset,
+                    };
+                    *before = Some(energies_of(model, assembly, elastic, (previous, v), t_new));
                 });
             }
             let newton = NewtonSolver {
@@ -573,7 +574,7 @@ fn solved_at(
             // A quadratic solve knows the potential at its solution: the elastic energy is
             // that less the other terms' (cheap, per dof), with no pass over the elements.
             let mut others = 0.0;
-            for term in potential.terms.iter_mut().skip(1) {
+            for term in potential.terms.iter_mut() {
                 term.add(u, &mut others, None, None);
             }
             ElasticAtSolution::Quadratic(newton.energy - others)
@@ -710,4 +711,3 @@ fn contact_forces_at(terms: &[Box<dyn StepTerm + '_>], u: &[f64]) -> Option<Cont
     }
     Some(forces)
 }
-

@@ -9,45 +9,48 @@ use crate::physics::loads::DeadLoads;
 use crate::physics::term::{Solve, StepTerm};
 use crate::physics::Model;
 
+/// What the elastic term of a solve reads and writes besides the model.
+pub(super) struct ElasticInputs<'a> {
+    /// The elements' history.
+    pub history: &'a ElementHistory,
+    /// Its strain offsets, fixed for the solve.
+    pub offsets: &'a [StrainOffset],
+    /// Element energies (J, scratch, one per element).
+    pub element_energy: &'a mut [f64],
+    /// A process's elements and owned dofs, in a distributed run.
+    pub subset: Option<(&'a ElementSubset, &'a [bool])>,
+}
+
 /// The elastic energy of `model` as a term (exact tangents), on a process's elements and
-/// owned dofs if `subset` is given; `element_energy` is scratch, one per element.
+/// owned dofs if `inputs` name them.
 pub(super) fn elastic_term<'a>(
     model: &'a Model,
     assembly: &'a Assembly,
-    (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
-    (element_energy, subset): (&'a mut [f64], Option<(&'a ElementSubset, &'a [bool])>),
+    inputs: ElasticInputs<'a>,
 ) -> ElasticStep<'a> {
     let mut elastic = ElasticStep::new(
         &model.elasticity,
-        (&model.mesh.tets, history, offsets),
+        (&model.mesh.tets, inputs.history, inputs.offsets),
         assembly,
-        element_energy,
+        inputs.element_energy,
         false,
     );
-    elastic.subset = subset;
+    elastic.subset = inputs.subset;
     elastic
 }
 
-/// The terms every solve sums — elasticity, dead loads and the model's terms that act in
-/// `solve` (contact) — without inertia and damping, which a dynamic step adds.
+/// The terms every solve sums — the elastic energy, and the dead loads and the model's terms
+/// that act in `solve` (contact) — without inertia and damping, which a dynamic step adds.
 pub(super) fn solve_terms<'a>(
     model: &'a Model,
     assembly: &'a Assembly,
-    (history, offsets): (&'a ElementHistory, &'a [StrainOffset]),
-    (element_energy, subset): (&'a mut [f64], Option<(&'a ElementSubset, &'a [bool])>),
+    inputs: ElasticInputs<'a>,
     solve: &Solve<'a>,
-) -> Vec<Box<dyn StepTerm + 'a>> {
-    let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![
-        Box::new(elastic_term(
-            model,
-            assembly,
-            (history, offsets),
-            (element_energy, subset),
-        )),
-        Box::new(DeadLoads {
-            force: &model.external_force,
-        }),
-    ];
+) -> (Box<dyn StepTerm + 'a>, Vec<Box<dyn StepTerm + 'a>>) {
+    let elastic = Box::new(elastic_term(model, assembly, inputs));
+    let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![Box::new(DeadLoads {
+        force: &model.external_force,
+    })];
     terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(solve)));
-    terms
+    (elastic, terms)
 }
