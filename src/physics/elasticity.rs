@@ -307,6 +307,37 @@ impl Elasticity {
             .fold(0.0, f64::max)
     }
 
+    /// Return mapping of the plastic strain in `history` of every element that yields (see
+    /// [`Elasticity::law_of`]) for the converged displacements `u` (m) of the elements
+    /// `tets`, with the strain `offsets` of `history`; returns the largest ‖ε_p‖ afterwards
+    /// (0 without plasticity).
+    pub fn update_plastic_strain(
+        &self,
+        (history, offsets): (&mut ElementHistory, &[StrainOffset]),
+        tets: &[[usize; 4]],
+        u: &[f64],
+    ) -> f64 {
+        let Some(plasticity) = &self.plasticity else {
+            return 0.0;
+        };
+        let n = tets.len();
+        if history.plastic_strain.len() != n {
+            history.plastic_strain = vec![Matrix3::zeros(); n];
+        }
+        let h = &*history;
+        let updated: Vec<Matrix3<f64>> = crate::parallel::map_range(n, |e| {
+            if self.law_of(h, e).yield_limit.is_some() {
+                let elastic = self.elastic_strain(tets, u, e, &offsets[e]);
+                plasticity.return_map(&elastic, &h.plastic_strain[e])
+            } else {
+                h.plastic_strain[e]
+            }
+        });
+        let largest = updated.iter().map(|p| p.norm()).fold(0.0, f64::max);
+        history.plastic_strain = updated;
+        largest
+    }
+
     /// Elastic strain of element `e` in its own frame with its strain `offset` (see
     /// `fem::elastic_strain`).
     pub fn elastic_strain(

@@ -297,10 +297,8 @@ impl Model {
         offsets: &[crate::fem::StrainOffset],
         u: &[f64],
     ) -> f64 {
-        match &self.elasticity.plasticity {
-            Some(p) => p.update(&self.elasticity, (history, offsets), &self.mesh.tets, u),
-            None => 0.0,
-        }
+        self.elasticity
+            .update_plastic_strain((history, offsets), &self.mesh.tets, u)
     }
 
     /// Number of nodes.

@@ -24,9 +24,7 @@
 //! found in the element's frame: exact to first order in the increment, so the next step's
 //! trial stress at the same displacements is the returned stress to that order.
 
-use super::elasticity::Elasticity;
-use super::history::ElementHistory;
-use crate::fem::{StrainOffset, YIELD_SMOOTHING};
+use crate::fem::YIELD_SMOOTHING;
 use nalgebra::Matrix3;
 
 /// Plasticity parameters.
@@ -61,35 +59,6 @@ impl Plasticity {
             }
         }
         updated
-    }
-
-    /// Updates the plastic strain in `history` of every element that yields (see
-    /// `Elasticity::law_of`) for the converged displacements `u` (m), with the strain
-    /// `offsets` of `history`; returns the largest
-    /// ‖ε_p‖ afterwards.
-    pub fn update(
-        &self,
-        elasticity: &Elasticity,
-        (history, offsets): (&mut ElementHistory, &[StrainOffset]),
-        tets: &[[usize; 4]],
-        u: &[f64],
-    ) -> f64 {
-        let n = tets.len();
-        if history.plastic_strain.len() != n {
-            history.plastic_strain = vec![Matrix3::zeros(); n];
-        }
-        let h = &*history;
-        let updated: Vec<Matrix3<f64>> = crate::parallel::map_range(n, |e| {
-            if elasticity.law_of(h, e).yield_limit.is_some() {
-                let elastic = elasticity.elastic_strain(tets, u, e, &offsets[e]);
-                self.return_map(&elastic, &h.plastic_strain[e])
-            } else {
-                h.plastic_strain[e]
-            }
-        });
-        let largest = updated.iter().map(|p| p.norm()).fold(0.0, f64::max);
-        history.plastic_strain = updated;
-        largest
     }
 }
 
