@@ -192,7 +192,7 @@ fn main() {
                 resume: resume.is_some(),
                 force,
             };
-            run_distributed(&scene, &options, verbosity)
+            run_scene(&scene, &options, verbosity)
         }
         Command::Bench {
             tets,
@@ -595,9 +595,9 @@ impl From<OrderingArg> for FillOrdering {
     }
 }
 
-/// `icefem run` on one process.
+/// `icefem run` (a build without the `mpi` feature runs on one process).
 #[cfg(not(feature = "mpi"))]
-fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
+fn run_scene(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
     exit_if_interrupted(&run_command(scene_path, options, None, verbosity)?);
     Ok(())
 }
@@ -605,7 +605,7 @@ fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity
 /// `icefem run`, shared among the processes `mpirun` started (on one process, the serial
 /// run). Only process 0 reports; an error on any process ends them all.
 #[cfg(feature = "mpi")]
-fn run_distributed(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
+fn run_scene(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
     let processes = icefem::distributed::MpiProcesses::init()?;
     // ICEFEM_DISTRIBUTE_ONE=1 takes the distributed path (PETSc) on one process too: the
     // one-process column of the scaling measurements.

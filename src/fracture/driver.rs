@@ -522,7 +522,7 @@ impl Fracture {
         }
         let time = end.time;
         sim.state = end;
-        sim.model.apply_schedule(time, &mut sim.state.history);
+        sim.set_time(time);
         false
     }
 }

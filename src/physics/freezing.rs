@@ -93,6 +93,66 @@ pub enum Schedule {
     },
 }
 
+impl Schedule {
+    /// Freeze state of element `e` at time `t` (s), 0 … 1: for a front, the mean of its sample
+    /// points'; from a heat solve, its ice fraction interpolated over the step.
+    pub fn state(&self, e: usize, t: f64) -> f64 {
+        match self {
+            Schedule::Front {
+                arrival,
+                transition,
+            } => {
+                let local = |arrival: f64| {
+                    let since = t - arrival;
+                    if *transition > 0.0 {
+                        (since / transition).clamp(0.0, 1.0)
+                    } else if since >= 0.0 {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                };
+                let frozen = arrival[e].iter().map(|&a| local(a)).sum::<f64>();
+                // Exactly 1 once every sample has frozen (the sum of ones is exact).
+                frozen / SAMPLES as f64
+            }
+            Schedule::Thermal {
+                start: (t0, f0),
+                end: (t1, f1),
+            } => {
+                if t >= *t1 || t1 <= t0 {
+                    f1[e]
+                } else {
+                    let w = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+                    f0[e] + w * (f1[e] - f0[e])
+                }
+            }
+        }
+    }
+
+    /// The schedule on a split mesh whose element `e` came from element `parent[e]`.
+    pub fn inherit(&self, parent: &[usize]) -> Self {
+        match self {
+            Schedule::Front {
+                arrival,
+                transition,
+            } => Schedule::Front {
+                arrival: take(arrival, parent),
+                transition: *transition,
+            },
+            Schedule::Thermal { start, end } => Schedule::Thermal {
+                start: (start.0, take(&start.1, parent)),
+                end: (end.0, take(&end.1, parent)),
+            },
+        }
+    }
+}
+
+/// The values of `v` per element of a split mesh whose element `e` came from `parent[e]`.
+fn take<T: Copy>(v: &[T], parent: &[usize]) -> Vec<T> {
+    parent.iter().map(|&p| v[p]).collect()
+}
+
 /// The freezing schedule of every element.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Freezing {
@@ -228,37 +288,7 @@ impl Freezing {
     /// Freeze state of element `e` at time `t` (s), 0 … 1: for a front, the mean of its sample
     /// points'; from a heat solve, its ice fraction interpolated over the step.
     pub fn state(&self, e: usize, t: f64) -> f64 {
-        match &self.schedule {
-            Schedule::Front {
-                arrival,
-                transition,
-            } => {
-                let local = |arrival: f64| {
-                    let since = t - arrival;
-                    if *transition > 0.0 {
-                        (since / transition).clamp(0.0, 1.0)
-                    } else if since >= 0.0 {
-                        1.0
-                    } else {
-                        0.0
-                    }
-                };
-                let frozen = arrival[e].iter().map(|&a| local(a)).sum::<f64>();
-                // Exactly 1 once every sample has frozen (the sum of ones is exact).
-                frozen / SAMPLES as f64
-            }
-            Schedule::Thermal {
-                start: (t0, f0),
-                end: (t1, f1),
-            } => {
-                if t >= *t1 || t1 <= t0 {
-                    f1[e]
-                } else {
-                    let w = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
-                    f0[e] + w * (f1[e] - f0[e])
-                }
-            }
-        }
+        self.schedule.state(e, t)
     }
 
     /// The front's arrival times per element and sample (s), for a prescribed front.
@@ -271,24 +301,8 @@ impl Freezing {
 
     /// The schedule on a split mesh whose element `e` came from element `parent[e]`.
     pub fn inherit(&self, parent: &[usize]) -> Self {
-        fn take<T: Copy>(v: &[T], parent: &[usize]) -> Vec<T> {
-            parent.iter().map(|&p| v[p]).collect()
-        }
-        let schedule = match &self.schedule {
-            Schedule::Front {
-                arrival,
-                transition,
-            } => Schedule::Front {
-                arrival: take(arrival, parent),
-                transition: *transition,
-            },
-            Schedule::Thermal { start, end } => Schedule::Thermal {
-                start: (start.0, take(&start.1, parent)),
-                end: (end.0, take(&end.1, parent)),
-            },
-        };
         Freezing {
-            schedule,
+            schedule: self.schedule.inherit(parent),
             base_eigenstrain: take(&self.base_eigenstrain, parent),
             ..self.clone()
         }
@@ -302,12 +316,14 @@ impl Freezing {
         }
     }
 
-    /// Sets every element's freeze state and eigenstrain in `history` for time `t` (s).
-    pub fn apply(&self, t: f64, history: &mut ElementHistory) {
+    /// Sets every element's freeze state and eigenstrain in `history` for time `t` (s), the
+    /// freeze states those of `schedule` (this freezing's own, or a heat solve's over the
+    /// current step).
+    pub fn apply(&self, schedule: &Schedule, t: f64, history: &mut ElementHistory) {
         let n = self.base_eigenstrain.len();
         history.freeze_state.resize(n, 0.0);
         for e in 0..n {
-            let s = self.state(e, t);
+            let s = schedule.state(e, t);
             history.freeze_state[e] = s;
             history.eigenstrain[e] = self.base_eigenstrain[e] + s * self.expansion;
         }

@@ -1,9 +1,8 @@
 //! The physical model of a scene: elasticity, mass, loads, damping, boundary conditions and
-//! the terms the scene enables (see [`term`]); a term that is off costs nothing. Between
-//! remeshes the model changes only where time does: [`Model::apply_schedule`] sets the dead
-//! loads of time-varying amplitude and the freezing schedule's state to a time (and with
-//! `[thermal]` the simulation replaces the freezing schedule each step); everything else that
-//! changes from step to step is in the simulation state ([`history`]).
+//! the terms the scene enables (see [`term`]); a term that is off costs nothing. The model is
+//! fixed between remeshes: what depends on time (the dead loads of a time-varying amplitude,
+//! the freeze states) it gives at a time, and what changes from step to step is in the
+//! simulation's state ([`history`]) and step data.
 
 pub mod amplitude;
 pub mod contact;
@@ -72,9 +71,6 @@ pub struct Model {
     pub elasticity: Elasticity,
     /// Lumped nodal mass (kg), one per node.
     pub mass: Vec<f64>,
-    /// Dead loads (gravity and surface tractions) on every dof (N), length 3 × nodes, at the
-    /// time last given to [`Model::apply_schedule`].
-    pub external_force: Vec<f64>,
     /// The dead loads whose amplitude is 1 throughout (N, 3 per node).
     constant_force: Vec<f64>,
     /// The dead loads that vary in time: amplitude and nodal forces at amplitude 1 (N).
@@ -119,7 +115,6 @@ impl Model {
         let mut model = Model {
             mesh,
             elasticity,
-            external_force: Vec::new(),
             constant_force: Vec::new(),
             varying_forces: Vec::new(),
             mass,
@@ -146,7 +141,7 @@ impl Model {
     }
 
     /// Builds the nodal dead loads from gravity and the tractions: those of amplitude 1 summed
-    /// once (gravity first), the others kept apart; the current ones are those at t = 0.
+    /// once (gravity first), the others kept apart.
     fn build_loads(&mut self) {
         let n = 3 * self.mesh.num_nodes();
         let mut constant = vec![0.0; n];
@@ -171,23 +166,28 @@ impl Model {
         }
         self.constant_force = constant;
         self.varying_forces = varying;
-        self.external_force.clear();
-        self.apply_loads(0.0);
     }
 
-    /// Sets [`Model::external_force`] to the dead loads at time `t` (s).
-    fn apply_loads(&mut self, t: f64) {
-        if self.varying_forces.is_empty() && self.external_force.len() == self.constant_force.len()
-        {
+    /// Writes the dead loads (gravity and surface tractions) at time `t` (s) into `loads` (N,
+    /// 3 per node); leaves `loads` as it is where they do not vary in time and it holds them.
+    pub fn dead_loads_into(&self, t: f64, loads: &mut Vec<f64>) {
+        if self.varying_forces.is_empty() && loads.len() == self.constant_force.len() {
             return;
         }
-        self.external_force.clone_from(&self.constant_force);
+        loads.clone_from(&self.constant_force);
         for (amplitude, force) in &self.varying_forces {
             let a = amplitude.at(t);
-            for (f, g) in self.external_force.iter_mut().zip(force) {
+            for (f, g) in loads.iter_mut().zip(force) {
                 *f += a * g;
             }
         }
+    }
+
+    /// The dead loads at time `t` (s) on every dof (N, 3 per node).
+    pub fn dead_loads_at(&self, t: f64) -> Vec<f64> {
+        let mut loads = Vec::new();
+        self.dead_loads_into(t, &mut loads);
+        loads
     }
 
     /// The model on a new mesh made from this one by splitting elements (fracture): `parent[e]`
@@ -237,8 +237,7 @@ impl Model {
         for (i, _) in owned.iter().enumerate().filter(|(_, &o)| !o) {
             self.mass[i] = 0.0;
             let forces = std::iter::once(&mut self.constant_force)
-                .chain(self.varying_forces.iter_mut().map(|(_, f)| f))
-                .chain(std::iter::once(&mut self.external_force));
+                .chain(self.varying_forces.iter_mut().map(|(_, f)| f));
             for f in forces {
                 f[3 * i..3 * i + 3].fill(0.0);
             }
@@ -278,14 +277,18 @@ impl Model {
             .and_then(|t| t.active.as_ref())
     }
 
-    /// Sets what depends on time to its value at `t` (s): the element history of the
-    /// freezing schedule (freeze states, expansion) and the dead loads of time-varying
-    /// amplitude.
-    pub fn apply_schedule(&mut self, t: f64, history: &mut ElementHistory) {
+    /// Sets the freeze states and expansion in `history` to those of the freezing schedule at
+    /// time `t` (s) — of `schedule` where given (a heat solve's over the current step), else
+    /// of the scene's. Nothing without freezing.
+    pub fn apply_freezing(
+        &self,
+        t: f64,
+        history: &mut ElementHistory,
+        schedule: Option<&freezing::Schedule>,
+    ) {
         if let Some(f) = &self.freezing {
-            f.apply(t, history);
+            f.apply(schedule.unwrap_or(&f.schedule), t, history);
         }
-        self.apply_loads(t);
     }
 
     /// Return mapping of the plastic strains in `history` for converged displacements `u`

@@ -118,7 +118,7 @@ pub(super) fn restore(
             sim.state.history.eigenstrain = e.data.clone();
         }
     }
-    sim.model.apply_schedule(frame.time, &mut sim.state.history);
+    sim.set_time(frame.time);
     if sim.model.elasticity.plasticity.is_some() {
         let p = frame
             .element_fields

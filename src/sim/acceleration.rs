@@ -13,7 +13,7 @@ impl Simulation {
     /// from.
     pub(super) fn acceleration_at_start(&mut self) -> Vec<f64> {
         let t = self.state.time;
-        self.model.apply_schedule(t, &mut self.state.history);
+        self.set_time(t);
         let offsets = self.state.history.offsets();
         let max_speed = self.max_speed();
         let model = &self.model;
@@ -37,7 +37,7 @@ impl Simulation {
             element_energy: &mut self.element_energy,
             subset,
         };
-        let (elastic, terms) = solve_terms(model, &self.assembly, elastic, &solve);
+        let (elastic, terms) = solve_terms(model, &self.assembly, elastic, &self.loads, &solve);
         let mut potential = StepPotential::new(elastic, terms);
         // Summed over the processes of a distributed run.
         potential.share = self.shared.as_ref().map(|s| Share {

@@ -153,7 +153,8 @@ impl Simulation {
 }
 
 /// Energies of `model` at displacement and velocity `(u, v)` (m, m/s; 3 per node) and time
-/// `t` (s), the elastic energy from `elastic` (the elements' history and strain offsets).
+/// `t` (s) with the dead `loads` (N, 3 per node), the elastic energy from `elastic` (the
+/// elements' history and strain offsets).
 ///
 /// With a subset (a process's elements and owned dofs in a distributed run) the elastic
 /// energy is that process's part of it, to be summed across the processes.
@@ -162,11 +163,11 @@ pub(super) fn energies_of(
     assembly: &Assembly,
     elastic: ElasticInputs,
     (u, v): (&[f64], &[f64]),
-    t: f64,
+    (t, loads): (f64, &[f64]),
 ) -> EnergyParts {
     let mut energy = 0.0;
     elastic_term(model, assembly, elastic).add(u, &mut energy, None, None);
-    energies_with(model, energy, (u, v), t)
+    energies_with(model, energy, (u, v), (t, loads))
 }
 
 /// The energies of a state, with the contact energy in its two parts: that of the terms
@@ -182,24 +183,20 @@ pub(super) struct EnergyParts {
     pub contact_whole: f64,
 }
 
-/// Energies of `model` at `(u, v)` and time `t` with the elastic energy `elastic` (J) known.
+/// Energies of `model` at `(u, v)`, time `t` and dead `loads` (N, 3 per node) with the elastic
+/// energy `elastic` (J) known.
 pub(super) fn energies_with(
     model: &Model,
     elastic: f64,
     (u, v): (&[f64], &[f64]),
-    t: f64,
+    (t, loads): (f64, &[f64]),
 ) -> EnergyParts {
     let kinetic = v
         .iter()
         .enumerate()
         .map(|(d, v)| 0.5 * model.mass[d / 3] * v * v)
         .sum();
-    let potential = -model
-        .external_force
-        .iter()
-        .zip(u)
-        .map(|(f, u)| f * u)
-        .sum::<f64>();
+    let potential = -loads.iter().zip(u).map(|(f, u)| f * u).sum::<f64>();
     let contact_of = |whole: bool| -> f64 {
         model
             .terms

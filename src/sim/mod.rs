@@ -297,6 +297,12 @@ pub struct Simulation {
     balance_scratch: Vec<f64>,
     /// The heat model that drives the freezing (with `[thermal]`).
     heat: Option<HeatLink>,
+    /// The freeze states over the current step that the heat model gave (with `[thermal]`):
+    /// step data, in place of the scene's freezing schedule.
+    thermal_schedule: Option<Schedule>,
+    /// The dead loads (N, 3 per node) at the time last set ([`Simulation::set_time`]): step
+    /// data.
+    loads: Vec<f64>,
     /// The Hessians kept between solves while they cannot change.
     hessians: KeptHessians,
     /// The time scheme of a dynamic analysis.
@@ -344,7 +350,8 @@ impl Simulation {
             model.elasticity.water_shear = f.water_shear;
         }
         let mut history = model.elasticity.initial_history();
-        model.apply_schedule(0.0, &mut history);
+        model.apply_freezing(0.0, &mut history, None);
+        let loads = model.dead_loads_at(0.0);
         let constrained = model.constrained_dofs();
         // The elastic energy's own couplings (nodal volumetric averaging) are always in the
         // pattern; the terms' are added at the start of each step.
@@ -398,6 +405,8 @@ impl Simulation {
             offsets: Vec::new(),
             balance_scratch: Vec::new(),
             heat: None,
+            thermal_schedule: None,
+            loads,
             hessians: KeptHessians::default(),
             integrator: settings.scheme.integrator(),
             parts_held: crate::physics::dirichlet::hold_every_part(&model.mesh, &constrained),
@@ -434,9 +443,9 @@ impl Simulation {
             ));
         }
         let (time, step) = (self.state.time, self.state.step);
-        let mut history = self.state.history.inherit(parent);
+        let history = self.state.history.inherit(parent);
         let mut next = Simulation::new(model, self.settings)?;
-        next.model.apply_schedule(time, &mut history);
+        next.thermal_schedule = (self.thermal_schedule.take()).map(|s| s.inherit(parent));
         let mesh = &next.model.mesh;
         next.heat = self
             .heat
@@ -452,6 +461,7 @@ impl Simulation {
             carried: SchemeState::default(),
             next_dt: self.state.next_dt,
         };
+        next.set_time(time);
         *self = next;
         Ok(())
     }
@@ -498,13 +508,21 @@ impl Simulation {
         } else {
             end.clone()
         };
-        if let Some(f) = &mut self.model.freezing {
-            f.schedule = Schedule::Thermal {
+        if self.model.freezing.is_some() {
+            self.thermal_schedule = Some(Schedule::Thermal {
                 start: (t0, start),
                 end: (t1, end),
-            };
+            });
         }
-        self.model.apply_schedule(t0, &mut self.state.history);
+        self.set_time(t0);
+    }
+
+    /// Sets what depends on time to its value at `t` (s): the elements' freeze states and
+    /// expansion in the state's history, and the dead loads.
+    pub fn set_time(&mut self, t: f64) {
+        let schedule = self.thermal_schedule.as_ref();
+        (self.model).apply_freezing(t, &mut self.state.history, schedule);
+        self.model.dead_loads_into(t, &mut self.loads);
     }
 
     /// Puts the state back where the last step started (a failed step, or one the adaptive
@@ -512,8 +530,7 @@ impl Simulation {
     fn undo_step(&mut self) {
         if let Some(s) = &self.start {
             self.state.clone_from(s);
-            self.model
-                .apply_schedule(self.state.time, &mut self.state.history);
+            self.set_time(self.state.time);
         }
     }
 
@@ -533,8 +550,7 @@ impl Simulation {
     pub fn retake_step(&mut self, start: State) -> Result<StepReport, SimError> {
         let guess = std::mem::replace(&mut self.state, start).u;
         self.initial_guess = Some(guess);
-        self.model
-            .apply_schedule(self.state.time, &mut self.state.history);
+        self.set_time(self.state.time);
         self.step()
     }
 
@@ -606,7 +622,7 @@ impl Simulation {
             &self.assembly,
             elastic,
             (&state.u, &state.v),
-            state.time,
+            (state.time, &self.loads),
         );
         self.energies_over_processes(parts)
     }

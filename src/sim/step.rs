@@ -210,7 +210,7 @@ impl Simulation {
             self.integrator
                 .start_from_acceleration(&mut self.state.carried, a);
         }
-        self.model.apply_schedule(t_new, &mut self.state.history);
+        self.set_time(t_new);
         self.previous.copy_from_slice(&self.state.u);
         let mut offsets = std::mem::take(&mut self.offsets);
         self.state.history.update_offsets(&mut offsets);
@@ -290,13 +290,14 @@ impl Simulation {
             shared,
             settings,
             parts_held,
+            loads,
             ..
         } = self;
         // Nothing but the kept Hessians, the linear solver and its workspace and the scratch
         // the terms write changes during the solve.
         let (model, state, assembly, settings): (&Model, &super::State, &Assembly, _) =
             (model, state, assembly, &*settings);
-        let (previous, predictor) = (&previous[..], &predictor[..]);
+        let (previous, predictor, loads) = (&previous[..], &predictor[..], &loads[..]);
         let (damping_origin, damping_stiffness) = (&damping_origin[..], &damping_stiffness[..]);
         let subset = shared
             .as_ref()
@@ -317,7 +318,7 @@ impl Simulation {
             element_energy,
             subset,
         };
-        let (mut elastic, mut terms) = solve_terms(model, assembly, elastic, &solve);
+        let (mut elastic, mut terms) = solve_terms(model, assembly, elastic, loads, &solve);
         if setup.dynamic {
             let inertia = InertiaParts {
                 mass: &model.mass,
@@ -367,7 +368,13 @@ impl Simulation {
                         element_energy: scratch,
                         subset,
                     };
-                    *before = Some(energies_of(model, assembly, elastic, (previous, v), t_new));
+                    *before = Some(energies_of(
+                        model,
+                        assembly,
+                        elastic,
+                        (previous, v),
+                        (t_new, loads),
+                    ));
                 });
             }
             let newton = NewtonSolver {
@@ -431,12 +438,19 @@ impl Simulation {
             // The minimiser of a convex quadratic potential meets the balance identically, up
             // to the residual the Newton test already bounds: no check, no passes for it.
             ElasticAtSolution::Quadratic(elastic) => {
-                energies_with(&self.model, elastic, (u, &end.velocity), t_new).energies
+                energies_with(
+                    &self.model,
+                    elastic,
+                    (u, &end.velocity),
+                    (t_new, &self.loads),
+                )
+                .energies
             }
             ElasticAtSolution::Evaluated { elastic, before } => {
                 // The potential's elastic energy at the solution is summed over the
                 // processes already.
-                let after = energies_with(&self.model, 0.0, (u, &end.velocity), t_new);
+                let time = (t_new, &self.loads[..]);
+                let after = energies_with(&self.model, 0.0, (u, &end.velocity), time);
                 let after = Energies {
                     elastic,
                     ..self.energies_over_processes(after)
@@ -547,7 +561,7 @@ impl Simulation {
                 } else {
                     0.0
                 };
-                self.model.external_force[d].abs().max(inertial)
+                self.loads[d].abs().max(inertial)
             })
             .fold(offsets, f64::max);
         self.max_over_processes(scale)

@@ -39,18 +39,18 @@ pub(super) fn elastic_term<'a>(
     elastic
 }
 
-/// The terms every solve sums — the elastic energy, and the dead loads and the model's terms
-/// that act in `solve` (contact) — without inertia and damping, which a dynamic step adds.
+/// The terms every solve sums — the elastic energy, and the dead `loads` (N, 3 per node) and
+/// the model's terms that act in `solve` (contact) — without inertia and damping, which a
+/// dynamic step adds.
 pub(super) fn solve_terms<'a>(
     model: &'a Model,
     assembly: &'a Assembly,
     inputs: ElasticInputs<'a>,
+    loads: &'a [f64],
     solve: &Solve<'a>,
 ) -> (Box<dyn StepTerm + 'a>, Vec<Box<dyn StepTerm + 'a>>) {
     let elastic = Box::new(elastic_term(model, assembly, inputs));
-    let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![Box::new(DeadLoads {
-        force: &model.external_force,
-    })];
+    let mut terms: Vec<Box<dyn StepTerm + 'a>> = vec![Box::new(DeadLoads { force: loads })];
     terms.extend(model.terms.iter().filter_map(|t| t.begin_solve(solve)));
     (elastic, terms)
 }
