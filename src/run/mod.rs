@@ -488,7 +488,7 @@ impl Run<'_> {
                 }
             }
             None => {
-                let on_grid = sim.state.step % self.scene.output_every == 0;
+                let on_grid = sim.state.step.is_multiple_of(self.scene.output_every);
                 FrameDue {
                     on_grid,
                     frame: on_grid || sim.state.step == *total_steps,

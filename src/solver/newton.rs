@@ -319,7 +319,6 @@ fn iterate(
         } else {
             potential.gradient(u, &mut work.gradient)
         };
-        known = None;
         // Maxima and sums over the dofs are taken over every process of a distributed run,
         // so that all take the same decisions.
         let residual = potential.max_over_processes(free_max(assembly, &work.gradient));
@@ -380,90 +379,24 @@ fn iterate(
             *r = -work.gradient[d];
         }
         linear.set_forcing(forcing(residual, previous_residual, target));
-        let mut stats = solve_or_project(potential, u, assembly, linear, work, &mut report)?;
+        let stats = solve_or_project(potential, u, assembly, linear, work, &mut report)?;
         report.add_solve(&stats);
-        // Contacts the step would create: put their stiffness into the Hessian and solve again
-        // (a few rounds at most; each marks pairs for good within this solve).
-        let rounds = if iteration < ANTICIPATION_ITERATIONS {
-            3
-        } else {
-            0
-        };
-        for _ in 0..rounds {
-            work.trial.copy_from_slice(u);
-            for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
-                work.trial[d] += dx;
-            }
-            if !potential.anticipate(u, &work.trial) {
-                break;
-            }
-            let start = Instant::now();
-            energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
-            report.t_assembly += start.elapsed().as_secs_f64();
-            factorize_or_project(
-                potential,
-                u,
+        if iteration < ANTICIPATION_ITERATIONS {
+            let solver = NewtonSystem {
                 assembly,
-                linear,
-                work,
-                &mut report,
-                &mut energy,
-            )?;
-            stats = solve_or_project(potential, u, assembly, linear, work, &mut report)?;
-            report.add_solve(&stats);
-        }
-        // Anticipated constraints: solve again with their force in the right-hand side too, and
-        // take that step if it still descends.
-        work.trial.copy_from_slice(&work.gradient);
-        if iteration < ANTICIPATION_ITERATIONS
-            && potential.add_anticipated_gradient(u, &mut work.trial)
-        {
-            let mut rhs = std::mem::take(&mut work.rhs);
-            for (r, &d) in rhs.iter_mut().zip(dofs.free_dofs()) {
-                *r = -work.trial[d];
-            }
-            let landing = linear.solve(assembly, &work.hessian, &rhs, &mut work.landing)?;
-            report.add_solve(&landing);
-            work.rhs = rhs;
-            if slope_along(&*potential, dofs, &work.gradient, &work.landing) < 0.0 {
-                std::mem::swap(&mut work.direction, &mut work.landing);
-            }
+                linear: &mut *linear,
+                work: &mut *work,
+            };
+            anticipate(potential, u, solver, &mut report, &mut energy)?;
         }
         report.iterations += 1;
-        // Backtracking (Armijo) line search on the potential. Near convergence the decrease
-        // is below the round-off of the potential itself, so a step that changes the energy
-        // by less than that round-off is accepted as it is.
-        let slope = slope_along(&*potential, dofs, &work.gradient, &work.direction);
-        let roundoff = 1e-13 * energy.abs().max(f64::MIN_POSITIVE);
-        let mut alpha = 1.0;
         let start = Instant::now();
-        loop {
-            work.trial.copy_from_slice(u);
-            for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
-                work.trial[d] += alpha * dx;
-            }
-            // The full step is nearly always taken, and the next iteration then needs the
-            // gradient there: computed with the energy (one pass over the elements for both).
-            let e = if alpha == 1.0 {
-                potential.gradient(&work.trial, &mut work.trial_gradient)
-            } else {
-                potential.energy(&work.trial)
-            };
-            if e.is_finite() && (e <= energy + 1e-4 * alpha * slope || e <= energy + roundoff) {
-                if alpha == 1.0 {
-                    std::mem::swap(&mut work.gradient, &mut work.trial_gradient);
-                    known = Some(e);
-                }
-                break;
-            }
-            alpha *= 0.5;
-            if alpha < 1e-6 {
-                return Err(NewtonError::LineSearch {
-                    iteration,
-                    residual,
-                });
-            }
-        }
+        let (alpha, accepted) =
+            line_search(potential, u, dofs, work, energy).ok_or(NewtonError::LineSearch {
+                iteration,
+                residual,
+            })?;
+        known = accepted;
         report.t_assembly += start.elapsed().as_secs_f64();
         let mut step_max: f64 = 0.0;
         for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
@@ -485,6 +418,104 @@ fn iterate(
         previous_residual = residual;
     }
     unreachable!("the loop returns at iteration max_iterations")
+}
+
+/// What a Newton iteration solves with: the pattern, the linear solver and the workspace.
+struct NewtonSystem<'a> {
+    assembly: &'a Assembly,
+    linear: &'a mut LinearSolver,
+    work: &'a mut NewtonWorkspace,
+}
+
+/// Contacts the Newton step in `work.direction` would create: puts their stiffness into the
+/// Hessian and solves again (a few rounds at most; each marks pairs for good within this
+/// solve), then solves with the anticipated constraints' force in the right-hand side too
+/// and takes that step if it still descends. `energy` is the potential at `u`, re-evaluated
+/// with the Hessian.
+fn anticipate(
+    potential: &mut impl Potential,
+    u: &[f64],
+    system: NewtonSystem,
+    report: &mut NewtonReport,
+    energy: &mut f64,
+) -> Result<(), NewtonError> {
+    let NewtonSystem {
+        assembly,
+        linear,
+        work,
+    } = system;
+    let dofs = assembly.dofs();
+    for _ in 0..3 {
+        work.trial.copy_from_slice(u);
+        for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
+            work.trial[d] += dx;
+        }
+        if !potential.anticipate(u, &work.trial) {
+            break;
+        }
+        let start = Instant::now();
+        *energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
+        report.t_assembly += start.elapsed().as_secs_f64();
+        factorize_or_project(potential, u, assembly, linear, work, report, energy)?;
+        let stats = solve_or_project(potential, u, assembly, linear, work, report)?;
+        report.add_solve(&stats);
+    }
+    work.trial.copy_from_slice(&work.gradient);
+    if potential.add_anticipated_gradient(u, &mut work.trial) {
+        let mut rhs = std::mem::take(&mut work.rhs);
+        for (r, &d) in rhs.iter_mut().zip(dofs.free_dofs()) {
+            *r = -work.trial[d];
+        }
+        let landing = linear.solve(assembly, &work.hessian, &rhs, &mut work.landing)?;
+        report.add_solve(&landing);
+        work.rhs = rhs;
+        if slope_along(&*potential, dofs, &work.gradient, &work.landing) < 0.0 {
+            std::mem::swap(&mut work.direction, &mut work.landing);
+        }
+    }
+    Ok(())
+}
+
+/// Backtracking (Armijo) line search on the potential along `work.direction` from `u`, where
+/// the potential is `energy`: the step length taken, and the potential there if it is the
+/// full step (whose gradient is then in `work.gradient`); `None` if no step down to 1e-6
+/// decreases the potential. Near convergence the decrease is below the round-off of the
+/// potential itself, so a step that changes the energy by less than that round-off is
+/// accepted as it is.
+fn line_search(
+    potential: &mut impl Potential,
+    u: &[f64],
+    dofs: &DofMap,
+    work: &mut NewtonWorkspace,
+    energy: f64,
+) -> Option<(f64, Option<f64>)> {
+    let slope = slope_along(&*potential, dofs, &work.gradient, &work.direction);
+    let roundoff = 1e-13 * energy.abs().max(f64::MIN_POSITIVE);
+    let mut alpha = 1.0;
+    loop {
+        work.trial.copy_from_slice(u);
+        for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
+            work.trial[d] += alpha * dx;
+        }
+        // The full step is nearly always taken, and the next iteration then needs the
+        // gradient there: computed with the energy (one pass over the elements for both).
+        let e = if alpha == 1.0 {
+            potential.gradient(&work.trial, &mut work.trial_gradient)
+        } else {
+            potential.energy(&work.trial)
+        };
+        if e.is_finite() && (e <= energy + 1e-4 * alpha * slope || e <= energy + roundoff) {
+            if alpha == 1.0 {
+                std::mem::swap(&mut work.gradient, &mut work.trial_gradient);
+                return Some((alpha, Some(e)));
+            }
+            return Some((alpha, None));
+        }
+        alpha *= 0.5;
+        if alpha < 1e-6 {
+            return None;
+        }
+    }
 }
 
 /// Slope of `potential` along the free-dof direction `direction` (J per unit step) for its
