@@ -91,19 +91,37 @@ impl Sink for UsdSink {
 impl UsdSink {
     /// The whole stage.
     fn stage(&self) -> String {
+        let mut text = self.layer_header();
+        text += "def Xform \"World\"\n{\n";
+        for ((name, colour), prim) in PRIMS.iter().zip(&self.prims) {
+            write_mesh_prim(&mut text, name, *colour, prim);
+        }
+        text += "}\n";
+        text
+    }
+
+    /// The exported frames per simulated second: (N − 1) / (t_last − t_first), rounded to
+    /// 1e-6; 24 for a single frame.
+    fn frames_per_second(&self) -> f64 {
         let n = self.frames.len();
-        let fps = match (self.frames.first(), self.frames.last()) {
+        match (self.frames.first(), self.frames.last()) {
             (Some((_, t0)), Some((_, t1))) if n > 1 && t1 > t0 => {
                 // Round off the last bits of the times' sums (30.000000000000004).
                 let fps = (n - 1) as f64 / (t1 - t0);
                 (fps * 1e6).round() / 1e6
             }
             _ => 24.0,
-        };
+        }
+    }
+
+    /// The layer's header: its metadata, the run's frames and the time codes.
+    fn layer_header(&self) -> String {
+        let n = self.frames.len();
+        let fps = self.frames_per_second();
         let list = |values: Vec<String>| values.join(", ");
         let indices = list(self.frames.iter().map(|(i, _)| i.to_string()).collect());
         let times = list(self.frames.iter().map(|(_, t)| t.to_string()).collect());
-        let mut text = format!(
+        format!(
             r#"#usda 1.0
 (
     customLayerData = {{
@@ -121,31 +139,28 @@ impl UsdSink {
     upAxis = "Z"
 )
 
-def Xform "World"
-{{
 "#,
             run = escape(&self.run),
             end = n.saturating_sub(1),
-        );
-        for ((name, [r, g, b]), prim) in PRIMS.iter().zip(&self.prims) {
-            let double_sided = (*name == "Cracks") as u8;
-            let _ = write!(
-                text,
-                r#"    def Mesh "{name}"
-    {{
-        uniform bool doubleSided = {double_sided}
+        )
+    }
+}
+
+/// Appends the `Mesh` prim `name` of display colour `[r, g, b]` with the samples of `prim`.
+fn write_mesh_prim(text: &mut String, name: &str, [r, g, b]: [f32; 3], prim: &PrimSamples) {
+    let double_sided = (name == "Cracks") as u8;
+    let _ = write!(text, "    def Mesh \"{name}\"\n    {{\n");
+    let _ = write!(
+        text,
+        r#"        uniform bool doubleSided = {double_sided}
         uniform token subdivisionScheme = "none"
         color3f[] primvars:displayColor = [({r}, {g}, {b})] (
             interpolation = "constant"
         )
 "#
-            );
-            prim.write(&mut text);
-            text += "    }\n";
-        }
-        text += "}\n";
-        text
-    }
+    );
+    prim.write(text);
+    *text += "    }\n";
 }
 
 impl PrimSamples {

@@ -1,4 +1,4 @@
-//! Plasticity by return mapping (SPEC eq. 3–5, O'Brien et al. 2002).
+//! Plasticity by return mapping (O'Brien et al. 2002; docs/numerics.md#plasticity).
 //!
 //! With the elastic strain ε_e = ε − ε_p − ε_exp of an element and its deviatoric part
 //! ε' = ε_e − tr(ε_e)/3 I, an element whose ‖ε'‖ (Frobenius) exceeds the elastic limit γ moves

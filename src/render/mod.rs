@@ -12,6 +12,7 @@
 //! transparent) and GIF encoders.
 
 pub mod camera;
+mod draw;
 mod encode;
 mod figure;
 pub mod overlay;
@@ -38,7 +39,6 @@ use crate::scene::{ObstacleSection, SceneFile};
 use nalgebra::Vector3;
 use overlay::Overlay;
 use raster::{Canvas, Rgb};
-use shading::Light;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
@@ -529,144 +529,6 @@ impl Renderer {
             [x as f64, (top + height / 6) as f64, (height * 2 / 3) as f64],
             |v| colormap(v, range),
         );
-    }
-
-    /// Only the 3-D scene of `frame`, in the scene area of the picture (the full width when
-    /// no colour bar is drawn).
-    pub fn draw_scene(
-        &self,
-        reader: &FrameReader,
-        frame: &StoredFrame,
-    ) -> Result<Picture, RenderError> {
-        let state = &frame.state;
-        let mesh = self.surfaces.mesh(reader.path(), frame)?;
-        let values = match self.options.color_by {
-            Some(field) => Some(field.values(frame, reader)?),
-            None => None,
-        };
-        let freeze = frame.element_field("freeze_state").map(|(_, s)| s);
-        let positions: Vec<Vector3<f64>> =
-            state.positions.iter().map(|p| Vector3::from(*p)).collect();
-
-        let surface = self.surface(&mesh);
-        let crack_triangles: Vec<[Vector3<f64>; 3]> = frame
-            .crack_triangles
-            .iter()
-            .map(|(x, _)| x.map(Vector3::from))
-            .filter(|x| !self.is_cut_away(&((x[0] + x[1] + x[2]) / 3.0)))
-            .collect();
-
-        let camera = self.camera.scaled(SUPERSAMPLE as f64);
-        let scene_width = self.options.scene_width();
-        let (w, h) = (scene_width * SUPERSAMPLE, self.options.height * SUPERSAMPLE);
-        let mut canvas = Canvas::new(w, h, self.options.background.gradient());
-        let (right, up) = camera.right_up();
-        let to_light = -camera.forward() + 0.5 * up - 0.3 * right;
-        let smooth = self.options.shading == Shading::Smooth;
-        let light = Light::new(
-            to_light,
-            -camera.forward(),
-            if smooth { SPECULAR } else { 0.0 },
-        );
-        let face_normal = |x: [Vector3<f64>; 3]| -> Vector3<f32> {
-            let n = (x[1] - x[0]).cross(&(x[2] - x[0]));
-            n.try_normalize(0.0).unwrap_or_default().cast()
-        };
-        let project = |x: Vector3<f64>| camera.project(x);
-
-        // Cracks: opaque, flat (each is a plane within its element), first, so that glass
-        // blends over them.
-        let crack_light = Light::new(to_light, -camera.forward(), 0.0);
-        for &x in &crack_triangles {
-            canvas.fill(x.map(project), crack_light.shade(CRACK, face_normal(x)));
-        }
-
-        // The colour of the ice: a field through the colour map, else water → ice by the
-        // freeze state; per element (flat) or averaged to the nodes (smooth).
-        let element_values: Option<&[f64]> = values.as_deref().or(freeze);
-        let paint = |v: Option<f64>| -> Rgb {
-            match (&values, v) {
-                (Some(_), Some(v)) => colormap(v, self.range),
-                (_, v) => {
-                    let s = v.map_or(1.0, |s| s.clamp(0.0, 1.0)) as f32;
-                    std::array::from_fn(|k| WATER[k] + (ICE[k] - WATER[k]) * s)
-                }
-            }
-        };
-        let nodal = element_values
-            .filter(|_| smooth)
-            .map(|v| shading::nodal_values(v, &state.tets, &positions));
-        let normals = if smooth {
-            shading::corner_normals(&surface, &positions, FEATURE_ANGLE_DEG)
-        } else {
-            surface
-                .iter()
-                .map(|(n, _)| [face_normal(n.map(|i| positions[i])).cast(); 3])
-                .collect()
-        };
-        // Per triangle: its corners' colours and normals.
-        let corners: Vec<[(Rgb, Vector3<f32>); 3]> = surface
-            .iter()
-            .zip(&normals)
-            .map(|((nodes, element), n)| {
-                std::array::from_fn(|k| {
-                    let v = match &nodal {
-                        Some(nodal) => Some(nodal[nodes[k]]),
-                        None => element_values.map(|v| v[*element]),
-                    };
-                    (paint(v), n[k].cast::<f32>())
-                })
-            })
-            .collect();
-        let shade_at = |c: [(Rgb, Vector3<f32>); 3]| {
-            move |w: [f32; 3]| -> Rgb {
-                let color =
-                    std::array::from_fn(|k| w[0] * c[0].0[k] + w[1] * c[1].0[k] + w[2] * c[2].0[k]);
-                let n = c[0].1 * w[0] + c[1].1 * w[1] + c[2].1 * w[2];
-                light.shade(color, n.try_normalize(0.0).unwrap_or(c[0].1))
-            }
-        };
-        match self.options.style {
-            Style::Solid => {
-                for ((nodes, _), c) in surface.iter().zip(&corners) {
-                    let x = nodes.map(|i| project(positions[i]));
-                    canvas.fill_with(x, shade_at(*c));
-                }
-            }
-            Style::Glass => {
-                // Back to front, so that each blend lands on what lies behind it.
-                let mut order: Vec<(f64, usize)> = surface
-                    .iter()
-                    .enumerate()
-                    .map(|(k, (nodes, _))| {
-                        let c = nodes.iter().map(|&i| positions[i]).sum::<Vector3<f64>>() / 3.0;
-                        (project(c)[2], k)
-                    })
-                    .collect();
-                order.sort_by(|a, b| b.0.total_cmp(&a.0));
-                for (_, k) in order {
-                    let x = surface[k].0.map(|i| project(positions[i]));
-                    canvas.blend_with(x, GLASS_ALPHA, shade_at(corners[k]));
-                }
-            }
-        }
-        let line_width = self.options.overlay().line_width() * SUPERSAMPLE as f64;
-        for [a, b] in feature_edges(&surface, &positions) {
-            canvas.line(project(a), project(b), EDGE, line_width, true);
-        }
-        for outline in &self.outlines {
-            let place = |x: &Vector3<f64>| outline.motion.position(state.time, x);
-            for [a, b] in &outline.segments {
-                canvas.line(
-                    project(place(a)),
-                    project(place(b)),
-                    OBSTACLE,
-                    1.5 * line_width,
-                    true,
-                );
-            }
-        }
-        Ok(canvas.downsample(SUPERSAMPLE))
     }
 }
 

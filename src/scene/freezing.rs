@@ -4,10 +4,11 @@
 
 use serde::Deserialize;
 
+use super::regions::SelectionKeys;
 use super::{SceneError, Validator};
 use crate::mesh::TetMesh;
 use crate::physics::freezing::{Freezing, Water};
-use crate::physics::{Obstacle, Region};
+use crate::physics::{Model, Region};
 
 /// `[freezing]`: a front from the cooling faces of a box (default: the mesh's bounding box).
 #[derive(Debug, Deserialize)]
@@ -78,7 +79,12 @@ impl Validator<'_> {
                     format!("unknown face {name:?}: use \"surface\", \"obstacles\", box faces {}, or a physical surface of the mesh file", BOX_FACES.map(|f| format!("{f:?}")).join(", ")),
                 ));
             }
-            selections.push(self.selection(field, (None, None, Some(name)), Some(2))?);
+            let keys = SelectionKeys {
+                min: None,
+                max: None,
+                region: Some(name),
+            };
+            selections.push(self.selection(field, keys, Some(2))?);
         }
         let faces: Vec<[usize; 3]> = mesh
             .boundary_faces()
@@ -140,13 +146,19 @@ impl Validator<'_> {
         Ok((ratio, water, shear))
     }
 
+    /// The prescribed front of `f` on `model` (its mesh, eigenstrains and obstacles), the ice
+    /// of material `ice`.
     pub(super) fn freezing(
         &self,
         f: &FreezingSection,
-        mesh: &TetMesh,
-        eigenstrain: &[f64],
-        (ice, obstacles): (&crate::fem::Material, &[Obstacle]),
+        model: &Model,
+        ice: &crate::fem::Material,
     ) -> Result<Freezing, SceneError> {
+        let mesh = &model.mesh;
+        let eigenstrain = &model.elasticity.eigenstrain;
+        let obstacles = model
+            .obstacle_contact()
+            .map_or(&[][..], |c| &c.obstacles[..]);
         let required = |field: &str| {
             self.invalid(
                 field,

@@ -1,6 +1,7 @@
 //! `[material]` and `[materials.NAME]`: the elastic constants, and which elements (by body or
 //! region) are of which material.
 
+use super::regions::SelectionKeys;
 use super::{SceneError, SceneFile, Validator};
 use crate::fem::{ElasticModel, Material};
 use crate::mesh::TetMesh;
@@ -164,7 +165,12 @@ impl Validator<'_> {
                 }
                 continue;
             }
-            let region = self.selection(&field, (m.min, m.max, m.region.as_ref()), Some(3))?;
+            let keys = SelectionKeys {
+                min: m.min,
+                max: m.max,
+                region: m.region.as_ref(),
+            };
+            let region = self.selection(&field, keys, Some(3))?;
             for t in self.selected_elements(&field, mesh, &region)? {
                 index[t] = k as u16 + 1;
             }

@@ -20,17 +20,22 @@
 //! end_time = 1.0
 //! ```
 
+use crate::fem::{ElasticModel, Material};
 use crate::fracture::FractureSettings;
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
+use crate::physics::freezing::Freezing;
 use crate::physics::ice_contact::IceContactTerm;
 use crate::physics::plasticity::Plasticity;
 use crate::physics::{
     Amplitude, Contact, Dirichlet, Elasticity, Group, Model, Rayleigh, Region, Traction,
 };
 use crate::sim::{Analysis, StepSettings};
-use crate::solver::{FactorPrecision, FillOrdering, LinearSolverKind, NewtonParams};
+use crate::solver::{FactorPrecision, FillOrdering, LinearSolverKind};
+use bodies::Bodies;
 use nalgebra::Vector3;
+use regions::SelectionKeys;
 use serde::Deserialize;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -40,6 +45,7 @@ mod freezing;
 mod materials;
 mod obstacles;
 mod regions;
+mod stepping;
 mod thermal;
 
 pub use bodies::{BodySection, InitialSection, RotateSection};
@@ -456,48 +462,6 @@ impl Validator<'_> {
         }
     }
 
-    /// The adaptive step control of `[time.adaptive]`, for first step `dt` (s), frames every
-    /// `output_every` steps and a body of size `size` (m).
-    fn adaptive(
-        &self,
-        a: &AdaptiveSection,
-        dt: f64,
-        output_every: u64,
-        size: f64,
-    ) -> Result<crate::sim::Adaptive, SceneError> {
-        let relative = a.relative_tolerance.unwrap_or(1e-3);
-        if !(relative > 0.0 && relative < 1.0) {
-            return Err(self.invalid(
-                "time.adaptive.relative_tolerance",
-                format!("must be in (0, 1), got {relative}"),
-            ));
-        }
-        let absolute = match a.absolute_tolerance {
-            Some(v) => self.positive("time.adaptive.absolute_tolerance", v)?,
-            None => relative * 1e-6 * size,
-        };
-        let dt_min = match a.dt_min {
-            Some(v) => self.positive("time.adaptive.dt_min", v)?,
-            None => 1e-3 * dt,
-        };
-        let dt_max = match a.dt_max {
-            Some(v) => self.positive("time.adaptive.dt_max", v)?,
-            None => output_every as f64 * dt,
-        };
-        if !(dt_min <= dt && dt <= dt_max) {
-            return Err(self.invalid(
-                "time.dt",
-                format!("the first step of adaptive steps must lie in [dt_min, dt_max] = [{dt_min}, {dt_max}] s, got {dt}"),
-            ));
-        }
-        Ok(crate::sim::Adaptive {
-            relative_tolerance: relative,
-            absolute_tolerance: absolute,
-            dt_min,
-            dt_max,
-        })
-    }
-
     fn positive(&self, field: &str, v: f64) -> Result<f64, SceneError> {
         if v.is_finite() && v > 0.0 {
             Ok(v)
@@ -535,133 +499,24 @@ impl Validator<'_> {
         Ok(region)
     }
 
+    /// The scene of `raw` (read from `text`), checked section by section in the order the
+    /// model is built.
     fn scene(&self, raw: SceneFile, text: &str) -> Result<Scene, SceneError> {
-        let (mesh, initial_velocity, body_elements) = match (&raw.mesh, raw.body.is_empty()) {
-            (Some(m), true) => (self.mesh(m)?, Vec::new(), Vec::new()),
-            (None, false) => {
-                let b = self.bodies(&raw.body)?;
-                (b.mesh, b.velocity, b.elements)
-            }
-            (Some(_), false) => {
-                return Err(self.invalid("body", "give `[mesh]` or `[[body]]` entries, not both"))
-            }
-            (None, true) => {
-                return Err(self.invalid("mesh", "missing: give `[mesh]` or `[[body]]` entries"))
-            }
-        };
-        let (material, model) = self.material(&raw.material)?;
+        let bodies = self.mesh_or_bodies(&raw)?;
+        let mesh = bodies.mesh;
+        let (material, elastic_model) = self.material(&raw.material)?;
         let gravity = self.vector("physics.gravity", raw.physics.gravity.unwrap_or_default())?;
-        let damping = match &raw.physics.damping {
-            Some(d) => Some(Rayleigh {
-                mass: self.non_negative("physics.damping.mass", d.mass)?,
-                stiffness: self.non_negative("physics.damping.stiffness", d.stiffness)?,
-            }),
-            None => None,
-        };
+        let damping = self.damping(&raw.physics)?;
         let dirichlet = raw
             .dirichlet
             .iter()
             .enumerate()
             .map(|(i, d)| self.dirichlet(i, d))
             .collect::<Result<Vec<_>, _>>()?;
-        let mut tractions = Vec::new();
-        for (i, t) in raw.traction.iter().enumerate() {
-            let field = format!("traction[{i}]");
-            let region = self.selection(&field, (t.min, t.max, t.region.as_ref()), Some(2))?;
-            let traction = Traction {
-                region: region.clone(),
-                traction: self.vector(&format!("{field}.traction"), t.traction)?,
-                amplitude: self.amplitude(&format!("{field}.amplitude"), &t.amplitude)?,
-            };
-            if crate::physics::loads::traction_faces(&mesh, &region).0 == 0 {
-                return Err(self.invalid(
-                    &field,
-                    format!(
-                        "the {} contains no boundary-face centroid of the mesh",
-                        region.describe()
-                    ),
-                ));
-            }
-            tractions.push(traction);
-        }
-        let time = &raw.time;
-        let dt = self.positive("time.dt", time.dt)?;
-        let end_time = self.positive("time.end_time", time.end_time)?;
-        let output_every = time.output_every.unwrap_or(1);
-        if output_every == 0 {
-            return Err(self.invalid("time.output_every", "must be ≥ 1"));
-        }
-        let solver = &raw.solver;
-        let tolerance = solver.tolerance.unwrap_or(1e-9);
-        if !(tolerance > 0.0 && tolerance < 1.0) {
-            return Err(self.invalid(
-                "solver.tolerance",
-                format!("must be in (0, 1), got {tolerance}"),
-            ));
-        }
-        let cg_tolerance = solver.cg_tolerance.unwrap_or(1e-12);
-        if !(cg_tolerance > 0.0 && cg_tolerance < 1.0) {
-            return Err(self.invalid(
-                "solver.cg_tolerance",
-                format!("must be in (0, 1), got {cg_tolerance}"),
-            ));
-        }
-        let max_iterations = solver.max_iterations.unwrap_or(50);
-        if max_iterations == 0 {
-            return Err(self.invalid("solver.max_iterations", "must be ≥ 1"));
-        }
-        let cg_max_iterations = solver.cg_max_iterations.unwrap_or(20_000);
-        if cg_max_iterations == 0 {
-            return Err(self.invalid("solver.cg_max_iterations", "must be ≥ 1"));
-        }
-        let (lo, hi) = mesh.bounding_box();
-        let adaptive = time
-            .adaptive
-            .as_ref()
-            .map(|a| self.adaptive(a, dt, output_every, (hi - lo).norm()))
-            .transpose()?;
-        let settings = StepSettings {
-            adaptive,
-            analysis: time.analysis.unwrap_or(Analysis::Dynamic),
-            scheme: time.scheme.unwrap_or_default(),
-            dt,
-            newton: NewtonParams {
-                tolerance,
-                // An update of 1e-15 of the body size is at the round-off of the positions.
-                step_tolerance: 1e-15 * (hi - lo).norm(),
-                max_iterations,
-            },
-            linear: solver.linear.unwrap_or(LinearSolverKind::Auto),
-            ordering: solver.ordering.unwrap_or(FillOrdering::Auto),
-            cg_tolerance,
-            cg_max_iterations,
-            amg_reuse: solver.amg_reuse.unwrap_or(true),
-            factor_reuse: solver.reuse_factorization.unwrap_or(false),
-            factor_precision: solver.factor_precision.unwrap_or(FactorPrecision::Single),
-        };
-        let mut elasticity = Elasticity::new(&mesh, material, model);
-        self.other_materials(&raw, &mesh, &body_elements, &mut elasticity)?;
-        elasticity.set_volumetric(&mesh, raw.material.volumetric.unwrap_or_default());
-        for (i, section) in raw.eigenstrain.iter().enumerate() {
-            let field = format!("eigenstrain[{i}]");
-            let region = self.selection(
-                &field,
-                (section.min, section.max, section.region.as_ref()),
-                Some(3),
-            )?;
-            let e = section.value;
-            // Physical eigenstrains are a few percent; beyond ±0.5 the small-strain reading of
-            // σ = C:(ε − e I) and the multiplicative corotated form part ways.
-            if !(e.is_finite() && e.abs() < 0.5) {
-                return Err(self.invalid(
-                    &format!("{field}.value"),
-                    format!("must be in (−0.5, 0.5), got {e}"),
-                ));
-            }
-            for t in self.selected_elements(&field, &mesh, &region)? {
-                elasticity.eigenstrain[t] = e;
-            }
-        }
+        let tractions = self.tractions(&raw.traction, &mesh)?;
+        let stepping = self.stepping(&raw.time, &raw.solver, &mesh)?;
+        let settings = stepping.settings;
+        let elasticity = self.elasticity(&raw, &mesh, &bodies.elements, material, elastic_model)?;
         let obstacles = raw
             .obstacle
             .iter()
@@ -679,9 +534,167 @@ impl Validator<'_> {
                 path: self.path.into(),
                 source,
             })?;
+        self.set_initial_state(&raw, &mut model, bodies.velocity, settings.analysis)?;
+        let gravity_amplitude =
+            self.amplitude("physics.gravity_amplitude", &raw.physics.gravity_amplitude)?;
+        if !gravity_amplitude.is_one() {
+            model.set_gravity(gravity, gravity_amplitude);
+        }
+        if let Some(contact) = contact {
+            model.add_obstacles(contact);
+        }
+        let thermal = raw
+            .thermal
+            .as_ref()
+            .map(|t| self.thermal(t, &model.mesh))
+            .transpose()?;
+        if let Some(freezing) = self.model_freezing(&raw, thermal.as_ref(), &model, &material)? {
+            model.freezing = Some(freezing);
+        }
+        if let Some(p) = &raw.plasticity {
+            model.elasticity.plasticity = Some(self.plasticity(p)?);
+        }
+        let fracture = raw
+            .fracture
+            .as_ref()
+            .map(|f| self.fracture(f, &model.mesh))
+            .transpose()?;
+        self.check_scheme(&settings, fracture.is_some())?;
+        let ice_contact = self.ice_contact(&raw.physics, &model.mesh, &material, smoothing)?;
+        model.set_ice_contact(ice_contact);
+        let output = match &raw.output.file {
+            Some(f) => PathBuf::from(f),
+            None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),
+        };
+        Ok(Scene {
+            path: self.path.into(),
+            text: text.into(),
+            model,
+            settings,
+            end_time: stepping.end_time,
+            output_every: stepping.output_every,
+            output,
+            tensor_matrices: raw.output.tensor_matrices.unwrap_or(true),
+            fracture,
+            thermal,
+            notices: self.notices.take(),
+        })
+    }
+
+    /// The mesh of `[mesh]` (everything at rest, one body), or of the `[[body]]` entries.
+    fn mesh_or_bodies(&self, raw: &SceneFile) -> Result<Bodies, SceneError> {
+        match (&raw.mesh, raw.body.is_empty()) {
+            (Some(m), true) => Ok(Bodies {
+                mesh: self.mesh(m)?,
+                velocity: Vec::new(),
+                elements: Vec::new(),
+            }),
+            (None, false) => self.bodies(&raw.body),
+            (Some(_), false) => {
+                Err(self.invalid("body", "give `[mesh]` or `[[body]]` entries, not both"))
+            }
+            (None, true) => {
+                Err(self.invalid("mesh", "missing: give `[mesh]` or `[[body]]` entries"))
+            }
+        }
+    }
+
+    /// Rayleigh damping of `[physics.damping]`, if given.
+    fn damping(&self, physics: &PhysicsSection) -> Result<Option<Rayleigh>, SceneError> {
+        match &physics.damping {
+            Some(d) => Ok(Some(Rayleigh {
+                mass: self.non_negative("physics.damping.mass", d.mass)?,
+                stiffness: self.non_negative("physics.damping.stiffness", d.stiffness)?,
+            })),
+            None => Ok(None),
+        }
+    }
+
+    /// The `[[traction]]` entries, each on at least one boundary face of `mesh`.
+    fn tractions(
+        &self,
+        sections: &[TractionSection],
+        mesh: &TetMesh,
+    ) -> Result<Vec<Traction>, SceneError> {
+        let mut tractions = Vec::new();
+        for (i, t) in sections.iter().enumerate() {
+            let field = format!("traction[{i}]");
+            let keys = SelectionKeys {
+                min: t.min,
+                max: t.max,
+                region: t.region.as_ref(),
+            };
+            let region = self.selection(&field, keys, Some(2))?;
+            let traction = Traction {
+                region: region.clone(),
+                traction: self.vector(&format!("{field}.traction"), t.traction)?,
+                amplitude: self.amplitude(&format!("{field}.amplitude"), &t.amplitude)?,
+            };
+            if crate::physics::loads::traction_faces(mesh, &region).0 == 0 {
+                return Err(self.invalid(
+                    &field,
+                    format!(
+                        "the {} contains no boundary-face centroid of the mesh",
+                        region.describe()
+                    ),
+                ));
+            }
+            tractions.push(traction);
+        }
+        Ok(tractions)
+    }
+
+    /// The elasticity of `mesh`: `[material]` of strain measure `model`, the
+    /// `[materials.NAME]` of the bodies (`bodies`: each one's elements) and regions, the
+    /// volumetric discretisation and the `[[eigenstrain]]` entries.
+    fn elasticity(
+        &self,
+        raw: &SceneFile,
+        mesh: &TetMesh,
+        bodies: &[Range<usize>],
+        material: Material,
+        model: ElasticModel,
+    ) -> Result<Elasticity, SceneError> {
+        let mut elasticity = Elasticity::new(mesh, material, model);
+        self.other_materials(raw, mesh, bodies, &mut elasticity)?;
+        elasticity.set_volumetric(mesh, raw.material.volumetric.unwrap_or_default());
+        for (i, section) in raw.eigenstrain.iter().enumerate() {
+            let field = format!("eigenstrain[{i}]");
+            let keys = SelectionKeys {
+                min: section.min,
+                max: section.max,
+                region: section.region.as_ref(),
+            };
+            let region = self.selection(&field, keys, Some(3))?;
+            let e = section.value;
+            // Physical eigenstrains are a few percent; beyond ±0.5 the small-strain reading of
+            // σ = C:(ε − e I) and the multiplicative corotated form part ways.
+            if !(e.is_finite() && e.abs() < 0.5) {
+                return Err(self.invalid(
+                    &format!("{field}.value"),
+                    format!("must be in (−0.5, 0.5), got {e}"),
+                ));
+            }
+            for t in self.selected_elements(&field, mesh, &region)? {
+                elasticity.eigenstrain[t] = e;
+            }
+        }
+        Ok(elasticity)
+    }
+
+    /// The initial displacement of `[initial]` and the initial velocity of `[initial]` or of
+    /// the bodies (`body_velocity`, empty: at rest) into `model`; a velocity needs a dynamic
+    /// `analysis`.
+    fn set_initial_state(
+        &self,
+        raw: &SceneFile,
+        model: &mut Model,
+        body_velocity: Vec<f64>,
+        analysis: Analysis,
+    ) -> Result<(), SceneError> {
         let (initial_displacement, initial_velocity) = match &raw.initial {
-            None => (Vec::new(), initial_velocity),
-            Some(_) if !initial_velocity.is_empty() => {
+            None => (Vec::new(), body_velocity),
+            Some(_) if !body_velocity.is_empty() => {
                 return Err(self.invalid(
                     "initial",
                     "give initial velocities by `[[body]]` entries or by `[initial]`, not both",
@@ -702,7 +715,7 @@ impl Validator<'_> {
         };
         model.initial_displacement = initial_displacement;
         if !initial_velocity.is_empty() {
-            if settings.analysis == Analysis::Static {
+            if analysis == Analysis::Static {
                 return Err(self.invalid(
                     "body",
                     "an initial velocity (a body's `velocity` or `angular_velocity`, or `[initial]`) needs time.analysis = \"dynamic\"",
@@ -710,33 +723,32 @@ impl Validator<'_> {
             }
             model.initial_velocity = initial_velocity;
         }
-        let gravity_amplitude =
-            self.amplitude("physics.gravity_amplitude", &raw.physics.gravity_amplitude)?;
-        if !gravity_amplitude.is_one() {
-            model.set_gravity(gravity, gravity_amplitude);
-        }
-        if let Some(contact) = contact {
-            model.add_obstacles(contact);
-        }
-        let thermal = raw
-            .thermal
-            .as_ref()
-            .map(|t| self.thermal(t, &model.mesh))
-            .transpose()?;
-        if let Some(setup) = &thermal {
+        Ok(())
+    }
+
+    /// The freezing of `model`'s `[material]` water (of ice `ice`): driven by the heat model
+    /// `thermal`, or by `[freezing]`'s prescribed front; none without either.
+    fn model_freezing(
+        &self,
+        raw: &SceneFile,
+        thermal: Option<&HeatSetup>,
+        model: &Model,
+        ice: &Material,
+    ) -> Result<Option<Freezing>, SceneError> {
+        if let Some(setup) = thermal {
             if !raw.materials.is_empty() {
                 return Err(self.invalid(
                     "thermal",
                     "[thermal] freezes the `[material]` water; it is not defined for scenes with [materials.NAME] entries",
                 ));
             }
-            model.freezing = Some(self.thermal_freezing(
+            Ok(Some(self.thermal_freezing(
                 raw.freezing.as_ref(),
                 setup,
                 &model.mesh,
                 &model.elasticity.eigenstrain,
-                &material,
-            )?);
+                ice,
+            )?))
         } else if let Some(f) = &raw.freezing {
             if !raw.materials.is_empty() {
                 return Err(self.invalid(
@@ -744,78 +756,47 @@ impl Validator<'_> {
                     "freezing turns the `[material]` water to ice; it is not defined for scenes with [materials.NAME] entries (remove one or the other)",
                 ));
             }
-            let obstacles = model
-                .obstacle_contact()
-                .map_or(&[][..], |c| &c.obstacles[..]);
-            let freezing = self.freezing(
-                f,
-                &model.mesh,
-                &model.elasticity.eigenstrain,
-                (&material, obstacles),
-            )?;
-            model.freezing = Some(freezing);
+            Ok(Some(self.freezing(f, model, ice)?))
+        } else {
+            Ok(None)
         }
-        if let Some(p) = &raw.plasticity {
-            let elastic_limit = self.positive("plasticity.elastic_limit", p.elastic_limit)?;
-            let cap = p
-                .max_plastic_strain
-                .map(|c| self.positive("plasticity.max_plastic_strain", c))
-                .transpose()?;
-            model.elasticity.plasticity = Some(Plasticity { elastic_limit, cap });
-        }
-        let fracture = raw
-            .fracture
-            .as_ref()
-            .map(|f| self.fracture(f, &model.mesh))
+    }
+
+    /// The plasticity of `[plasticity]`.
+    fn plasticity(&self, p: &PlasticitySection) -> Result<Plasticity, SceneError> {
+        let elastic_limit = self.positive("plasticity.elastic_limit", p.elastic_limit)?;
+        let cap = p
+            .max_plastic_strain
+            .map(|c| self.positive("plasticity.max_plastic_strain", c))
             .transpose()?;
-        if settings.adaptive.is_some() && settings.analysis == Analysis::Static {
-            return Err(self.invalid("time.adaptive", "adaptive steps control the time-integration error of a dynamic analysis; a static one has none (remove [time.adaptive] or set analysis = \"dynamic\")".to_string()));
-        }
-        if settings.scheme != crate::sim::Scheme::BackwardEuler {
-            let refuse = |field: &str, why: &str| Err(self.invalid(field, why.to_string()));
-            if settings.analysis == Analysis::Static {
-                return refuse("time.scheme", "\"newmark\" and \"bdf2\" integrate a dynamic analysis; a static one has no scheme (remove it or set analysis = \"dynamic\")");
-            }
-            if fracture.is_some() && settings.scheme == crate::sim::Scheme::Newmark {
-                return refuse("time.scheme", "\"newmark\" has no numerical dissipation, and the stress a node split releases would ring undamped (the paper's fracture scene failed the step after its first split): use \"bdf2\" (second order, damps the fastest modes) or \"backward_euler\" with [fracture]");
-            }
-        }
-        // Separate parts touch each other: ice–ice contact.
-        let ice_friction = self.non_negative(
-            "physics.ice_friction",
-            raw.physics.ice_friction.unwrap_or(0.0),
-        )?;
+        Ok(Plasticity { elastic_limit, cap })
+    }
+
+    /// Ice–ice contact between the separate parts of `mesh` (of `material`), friction
+    /// smoothed over `smoothing` (m/s) as with the obstacles.
+    fn ice_contact(
+        &self,
+        physics: &PhysicsSection,
+        mesh: &TetMesh,
+        material: &Material,
+        smoothing: f64,
+    ) -> Result<IceContactTerm, SceneError> {
+        let ice_friction =
+            self.non_negative("physics.ice_friction", physics.ice_friction.unwrap_or(0.0))?;
         let ice_stiffness = self.penalty(
             "physics.ice_stiffness",
-            raw.physics.ice_stiffness,
-            &model.mesh,
-            &material,
+            physics.ice_stiffness,
+            mesh,
+            material,
         )?;
-        model.set_ice_contact(IceContactTerm::new(
-            &model.mesh,
+        Ok(IceContactTerm::new(
+            mesh,
             ice_stiffness,
             ice_friction,
             smoothing,
             &[],
             material.young(),
-        ));
-        let output = match &raw.output.file {
-            Some(f) => PathBuf::from(f),
-            None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),
-        };
-        Ok(Scene {
-            path: self.path.into(),
-            text: text.into(),
-            model,
-            settings,
-            end_time,
-            output_every,
-            output,
-            tensor_matrices: raw.output.tensor_matrices.unwrap_or(true),
-            fracture,
-            thermal,
-            notices: self.notices.take(),
-        })
+        ))
     }
 
     fn fracture(
@@ -902,7 +883,12 @@ impl Validator<'_> {
 
     fn dirichlet(&self, i: usize, d: &DirichletSection) -> Result<Dirichlet, SceneError> {
         let field = format!("dirichlet[{i}]");
-        let region = self.selection(&field, (d.min, d.max, d.region.as_ref()), None)?;
+        let keys = SelectionKeys {
+            min: d.min,
+            max: d.max,
+            region: d.region.as_ref(),
+        };
+        let region = self.selection(&field, keys, None)?;
         let axes_text = d.axes.as_deref().unwrap_or("xyz");
         let mut axes = [false; 3];
         for c in axes_text.chars() {

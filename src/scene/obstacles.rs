@@ -51,6 +51,8 @@ pub struct ObstacleSection {
 }
 
 impl Validator<'_> {
+    /// The obstacle of the `[[obstacle]]` entry number `i`, its penalty scaled to `mesh` of
+    /// `material` unless given.
     pub(super) fn obstacle(
         &self,
         i: usize,
@@ -59,7 +61,30 @@ impl Validator<'_> {
         material: &Material,
     ) -> Result<Obstacle, SceneError> {
         let field = format!("obstacle[{i}]");
-        let f = |name: &str| format!("{field}.{name}");
+        self.check_obstacle_keys(&field, o)?;
+        let shape = match o.kind.as_str() {
+            "halfspace" => self.half_space(&field, o)?,
+            "container" => self.container(&field, o)?,
+            "mesh" => self.mesh_obstacle(&field, o)?,
+            other => {
+                return Err(self.invalid(
+                    &format!("{field}.type"),
+                    format!("must be \"halfspace\", \"container\" or \"mesh\", got {other:?}"),
+                ))
+            }
+        };
+        let stiffness = self.penalty(&format!("{field}.stiffness"), o.stiffness, mesh, material)?;
+        let motion = self.obstacle_motion(&field, o)?;
+        Ok(Obstacle {
+            shape,
+            motion,
+            stiffness,
+            friction: self.non_negative(&format!("{field}.friction"), o.friction.unwrap_or(0.0))?,
+        })
+    }
+
+    /// Refuses the keys of another type of obstacle than `o.kind`.
+    fn check_obstacle_keys(&self, field: &str, o: &ObstacleSection) -> Result<(), SceneError> {
         let misplaced = [
             ("point", o.point.is_some(), "halfspace"),
             ("normal", o.normal.is_some(), "halfspace"),
@@ -74,77 +99,86 @@ impl Validator<'_> {
             .find(|(_, given, owner)| *given && *owner != o.kind)
         {
             return Err(self.invalid(
-                &f(name),
+                &format!("{field}.{name}"),
                 format!(
                     "belongs to type = \"{owner}\" obstacles, not \"{}\"",
                     o.kind
                 ),
             ));
         }
-        let shape = match o.kind.as_str() {
-            "halfspace" => {
-                let point = o.point.ok_or_else(|| {
-                    self.invalid(&f("point"), "missing (a point on the surface, m)")
-                })?;
-                let normal = o
-                    .normal
-                    .ok_or_else(|| self.invalid(&f("normal"), "missing (outward normal)"))?;
-                let normal = self.vector(&f("normal"), normal)?;
-                if normal.norm() == 0.0 {
-                    return Err(self.invalid(&f("normal"), "must not be zero"));
-                }
-                Shape::HalfSpace {
-                    point: self.vector(&f("point"), point)?,
-                    normal: normal.normalize(),
-                }
-            }
-            "container" => {
-                let min = o
-                    .min
-                    .ok_or_else(|| self.invalid(&f("min"), "missing (inner lower corner, m)"))?;
-                let max = o
-                    .max
-                    .ok_or_else(|| self.invalid(&f("max"), "missing (inner upper corner, m)"))?;
-                let inner = self.region(&field, min, max)?;
-                if (0..3).any(|a| inner.max[a] <= inner.min[a]) {
-                    return Err(self.invalid(&f("max"), "must exceed `min` on every axis"));
-                }
-                Shape::Container { inner }
-            }
-            "mesh" => {
-                let file = o.file.as_ref().ok_or_else(|| {
-                    self.invalid(&f("file"), "missing (surface mesh, .obj or .msh)")
-                })?;
-                let scale = self.positive(&f("scale"), o.scale.unwrap_or(1.0))?;
-                let shift = self.vector(&f("translate"), o.translate.unwrap_or_default())?;
-                let file = self.path.parent().unwrap_or(Path::new("")).join(file);
-                let mut surface =
-                    TriSurface::read(&file, scale).map_err(|source| SceneError::SurfaceFile {
-                        path: self.path.into(),
-                        field: f("file"),
-                        source,
-                    })?;
-                for v in &mut surface.vertices {
-                    *v += shift;
-                }
-                if surface.is_closed() && surface.enclosed_volume() < 0.0 {
-                    return Err(self.invalid(
-                        &f("file"),
-                        format!("{}: the surface is closed but its triangles face inward (negative enclosed volume {:e} m³); reverse their order so normals point out of the obstacle", file.display(), surface.enclosed_volume()),
-                    ));
-                }
-                Shape::Mesh {
-                    surface: Arc::new(ObstacleSurface::new(&surface)),
-                }
-            }
-            other => {
-                return Err(self.invalid(
-                    &f("type"),
-                    format!("must be \"halfspace\", \"container\" or \"mesh\", got {other:?}"),
-                ))
-            }
-        };
-        let stiffness = self.penalty(&f("stiffness"), o.stiffness, mesh, material)?;
+        Ok(())
+    }
+
+    /// `type = "halfspace"`: the surface through `point` with outward `normal` (normalised).
+    fn half_space(&self, field: &str, o: &ObstacleSection) -> Result<Shape, SceneError> {
+        let f = |name: &str| format!("{field}.{name}");
+        let point = o
+            .point
+            .ok_or_else(|| self.invalid(&f("point"), "missing (a point on the surface, m)"))?;
+        let normal = o
+            .normal
+            .ok_or_else(|| self.invalid(&f("normal"), "missing (outward normal)"))?;
+        let normal = self.vector(&f("normal"), normal)?;
+        if normal.norm() == 0.0 {
+            return Err(self.invalid(&f("normal"), "must not be zero"));
+        }
+        Ok(Shape::HalfSpace {
+            point: self.vector(&f("point"), point)?,
+            normal: normal.normalize(),
+        })
+    }
+
+    /// `type = "container"`: the open-top box with inner corners `min`, `max`.
+    fn container(&self, field: &str, o: &ObstacleSection) -> Result<Shape, SceneError> {
+        let f = |name: &str| format!("{field}.{name}");
+        let min = o
+            .min
+            .ok_or_else(|| self.invalid(&f("min"), "missing (inner lower corner, m)"))?;
+        let max = o
+            .max
+            .ok_or_else(|| self.invalid(&f("max"), "missing (inner upper corner, m)"))?;
+        let inner = self.region(field, min, max)?;
+        if (0..3).any(|a| inner.max[a] <= inner.min[a]) {
+            return Err(self.invalid(&f("max"), "must exceed `min` on every axis"));
+        }
+        Ok(Shape::Container { inner })
+    }
+
+    /// `type = "mesh"`: the triangle surface of `file` (relative to the scene file), times
+    /// `scale`, moved by `translate`; a closed one must face outward.
+    fn mesh_obstacle(&self, field: &str, o: &ObstacleSection) -> Result<Shape, SceneError> {
+        let f = |name: &str| format!("{field}.{name}");
+        let file = o
+            .file
+            .as_ref()
+            .ok_or_else(|| self.invalid(&f("file"), "missing (surface mesh, .obj or .msh)"))?;
+        let scale = self.positive(&f("scale"), o.scale.unwrap_or(1.0))?;
+        let shift = self.vector(&f("translate"), o.translate.unwrap_or_default())?;
+        let file = self.path.parent().unwrap_or(Path::new("")).join(file);
+        let mut surface =
+            TriSurface::read(&file, scale).map_err(|source| SceneError::SurfaceFile {
+                path: self.path.into(),
+                field: f("file"),
+                source,
+            })?;
+        for v in &mut surface.vertices {
+            *v += shift;
+        }
+        if surface.is_closed() && surface.enclosed_volume() < 0.0 {
+            return Err(self.invalid(
+                &f("file"),
+                format!("{}: the surface is closed but its triangles face inward (negative enclosed volume {:e} m³); reverse their order so normals point out of the obstacle", file.display(), surface.enclosed_volume()),
+            ));
+        }
+        Ok(Shape::Mesh {
+            surface: Arc::new(ObstacleSurface::new(&surface)),
+        })
+    }
+
+    /// How the obstacle moves: `velocity`, and `angular_velocity` about `centre`, scaled in
+    /// time by `amplitude`.
+    fn obstacle_motion(&self, field: &str, o: &ObstacleSection) -> Result<Motion, SceneError> {
+        let f = |name: &str| format!("{field}.{name}");
         if o.centre.is_some() && o.angular_velocity.is_none() {
             return Err(self.invalid(
                 &f("centre"),
@@ -157,19 +191,14 @@ impl Validator<'_> {
                 "scales the obstacle's `velocity` and `angular_velocity`: give one of them",
             ));
         }
-        Ok(Obstacle {
-            shape,
-            motion: Motion {
-                velocity: self.vector(&f("velocity"), o.velocity.unwrap_or_default())?,
-                angular_velocity: self.vector(
-                    &f("angular_velocity"),
-                    o.angular_velocity.unwrap_or_default(),
-                )?,
-                centre: self.vector(&f("centre"), o.centre.unwrap_or_default())?,
-                amplitude: self.amplitude(&f("amplitude"), &o.amplitude)?,
-            },
-            stiffness,
-            friction: self.non_negative(&f("friction"), o.friction.unwrap_or(0.0))?,
+        Ok(Motion {
+            velocity: self.vector(&f("velocity"), o.velocity.unwrap_or_default())?,
+            angular_velocity: self.vector(
+                &f("angular_velocity"),
+                o.angular_velocity.unwrap_or_default(),
+            )?,
+            centre: self.vector(&f("centre"), o.centre.unwrap_or_default())?,
+            amplitude: self.amplitude(&f("amplitude"), &o.amplitude)?,
         })
     }
 }

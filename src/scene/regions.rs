@@ -5,16 +5,25 @@ use super::{SceneError, Validator};
 use crate::mesh::TetMesh;
 use crate::physics::Selection;
 
+/// An entry's keys that say where it applies, as written: a box `min`–`max` (m) or the name
+/// of a physical group, `region`.
+#[derive(Clone, Copy)]
+pub(super) struct SelectionKeys<'a> {
+    pub min: Option<[f64; 3]>,
+    pub max: Option<[f64; 3]>,
+    pub region: Option<&'a String>,
+}
+
 impl Validator<'_> {
     /// Where an entry applies: the box `min`–`max` or the named group `region` (of dimension
     /// `dim`: 2 surfaces, 3 volumes; `None`: either).
     pub(super) fn selection(
         &self,
         field: &str,
-        (min, max, region): (Option<[f64; 3]>, Option<[f64; 3]>, Option<&String>),
+        keys: SelectionKeys,
         dim: Option<u8>,
     ) -> Result<Selection, SceneError> {
-        match (min, max, region) {
+        match (keys.min, keys.max, keys.region) {
             (Some(min), Some(max), None) => Ok(Selection::Box(self.region(field, min, max)?)),
             (None, None, Some(name)) => {
                 let groups = self.groups.borrow();

@@ -5,6 +5,7 @@
 use serde::Deserialize;
 
 use super::freezing::{box_face_indices, FreezingSection, BOX_FACES};
+use super::regions::SelectionKeys;
 use super::{SceneError, Validator};
 use crate::mesh::TetMesh;
 use crate::physics::freezing::Freezing;
@@ -194,11 +195,12 @@ impl Validator<'_> {
         for (k, entry) in t.initial.iter().enumerate() {
             let field = format!("thermal.initial[{k}]");
             let value = self.temperature(&format!("{field}.temperature"), entry.temperature)?;
-            let selection = self.selection(
-                &field,
-                (entry.min, entry.max, entry.region.as_ref()),
-                Some(3),
-            )?;
+            let keys = SelectionKeys {
+                min: entry.min,
+                max: entry.max,
+                region: entry.region.as_ref(),
+            };
+            let selection = self.selection(&field, keys, Some(3))?;
             let mut any = false;
             for (i, x) in mesh.rest.iter().enumerate() {
                 if selection.contains_node(x) {

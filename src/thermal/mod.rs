@@ -281,37 +281,50 @@ impl Heat {
         let h0: Vec<f64> = self.temperature.iter().map(|&t| p.enthalpy(t)).collect();
         let frozen0 = self.frozen_mass();
         let k = self.conductivities();
-        let mut t = self.temperature.clone();
-        let n_free = self.free.iter().flatten().count();
-        let (mut iterations, mut factorizations) = (0, 0);
-        let residual = |heat: &Heat, t: &[f64]| -> Vec<f64> {
-            let kt = heat.conduction(&k, t);
-            let mut r = vec![0.0; n_free];
-            for (i, free) in heat.free.iter().enumerate() {
-                if let Some(j) = free {
-                    let (hc, hct) = heat.convection[i];
-                    r[*j] =
-                        heat.mass[i] / dt * (p.enthalpy(t[i]) - h0[i]) + kt[i] + hc * t[i] - hct;
-                }
-            }
-            r
+        let residual = StepResidual {
+            k: &k,
+            h0: &h0,
+            dt,
+            n_free: self.free.iter().flatten().count(),
         };
-        let mut r = residual(self, &t);
+        let solve = self.solve_step(&residual, time)?;
+        let t = solve.temperature;
+        let heat_in = self.heat_in(&k, &t, dt);
+        let enthalpy_change = self
+            .mass
+            .iter()
+            .zip(&t)
+            .zip(&h0)
+            .map(|((m, &ti), h)| m * (p.enthalpy(ti) - h))
+            .sum();
+        self.temperature = t;
+        let latent_change = -p.latent_heat * (self.frozen_mass() - frozen0);
+        Ok(HeatStep {
+            newton_iterations: solve.iterations,
+            factorizations: solve.factorizations,
+            heat_in,
+            enthalpy_change,
+            latent_change,
+            t_step: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Newton on the step's `residual` from the current temperatures, with an exact line
+    /// search; `time` (s) is for messages.
+    fn solve_step(
+        &mut self,
+        residual: &StepResidual,
+        time: f64,
+    ) -> Result<HeatSolve, ThermalError> {
+        let mut t = self.temperature.clone();
+        let (mut iterations, mut factorizations) = (0, 0);
+        let mut r = residual.of(self, &t);
         loop {
             // The Jacobian, its scale and the convergence test.
-            self.system.clear();
-            for (e, g) in self.geometry.iter().enumerate() {
-                self.system.add_element(e, &g.map(|v| k[e] * v));
-            }
-            for (i, free) in self.free.iter().enumerate() {
-                if let Some(j) = free {
-                    let d = self.mass[i] / dt * p.capacity(t[i]) + self.convection[i].0;
-                    self.system.add_diagonal(*j, d);
-                }
-            }
+            self.assemble_jacobian(residual, &t);
             let largest_diagonal = self.system.largest_diagonal();
             let worst = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            if worst <= RELATIVE_TOLERANCE * largest_diagonal || n_free == 0 {
+            if worst <= RELATIVE_TOLERANCE * largest_diagonal || residual.n_free == 0 {
                 break;
             }
             if iterations == MAX_ITERATIONS {
@@ -330,85 +343,138 @@ impl Heat {
             );
             let mut step: Vec<f64> = r.iter().map(|v| -v).collect();
             self.system.solve_in_place(&mut step);
-            // Exact line search: the potential is convex and piecewise quadratic along the
-            // step, so its slope φ'(α) = r(T + α δ) · δ increases; find where it crosses 0 in
-            // (0, 1] (α = 1 when it is still negative there). Backtracking alone stalls when
-            // nodes keep stepping across the steep mushy range and back.
-            let trial = |alpha: f64| -> Vec<f64> {
-                let mut x = t.clone();
-                for (i, free) in self.free.iter().enumerate() {
-                    if let Some(j) = free {
-                        x[i] += alpha * step[*j];
-                    }
-                }
-                x
-            };
-            let slope = |x: &[f64]| -> f64 {
-                residual(self, x)
-                    .iter()
-                    .zip(&step)
-                    .map(|(a, b)| a * b)
-                    .sum()
-            };
-            let mut alpha = 1.0;
-            let mut next = trial(alpha);
-            let slope_at_one = slope(&next);
-            if slope_at_one > 0.0 {
-                // Regula falsi with the Illinois modification on [0, 1].
-                let (mut a, mut fa) = (0.0, r.iter().zip(&step).map(|(a, b)| a * b).sum::<f64>());
-                let (mut b, mut fb) = (1.0, slope_at_one);
-                let mut side = 0;
-                for _ in 0..60 {
-                    alpha = (a * fb - b * fa) / (fb - fa);
-                    let x = trial(alpha);
-                    let f = slope(&x);
-                    if f > 0.0 {
-                        (b, fb) = (alpha, f);
-                        if side == -1 {
-                            fa *= 0.5;
-                        }
-                        side = -1;
-                    } else {
-                        (a, fa) = (alpha, f);
-                        if side == 1 {
-                            fb *= 0.5;
-                        }
-                        side = 1;
-                    }
-                    next = x;
-                    if f.abs() <= 1e-12 * fa.abs().max(fb.abs()) || b - a <= 1e-12 {
-                        break;
-                    }
-                }
-            }
-            t = next;
-            r = residual(self, &t);
+            t = self.line_search(residual, &t, &r, &step);
+            r = residual.of(self, &t);
         }
-        // The step's energy account.
-        let kt = self.conduction(&k, &t);
-        let heat_in = dt
-            * (0..t.len())
-                .map(|i| match self.free[i] {
-                    Some(_) => self.convection[i].1 - self.convection[i].0 * t[i],
-                    None => kt[i],
-                })
-                .sum::<f64>();
-        let enthalpy_change = self
-            .mass
-            .iter()
-            .zip(&t)
-            .zip(&h0)
-            .map(|((m, &ti), h)| m * (p.enthalpy(ti) - h))
-            .sum();
-        self.temperature = t;
-        let latent_change = -p.latent_heat * (self.frozen_mass() - frozen0);
-        Ok(HeatStep {
-            newton_iterations: iterations,
+        Ok(HeatSolve {
+            temperature: t,
+            iterations,
             factorizations,
-            heat_in,
-            enthalpy_change,
-            latent_change,
-            t_step: start.elapsed().as_secs_f64(),
         })
     }
+
+    /// The Jacobian diag(m_i h'(T_i)/Δt + H_i) + K of the step's residual at temperatures `t`
+    /// into the system.
+    fn assemble_jacobian(&mut self, residual: &StepResidual, t: &[f64]) {
+        let (k, dt) = (residual.k, residual.dt);
+        self.system.clear();
+        for (e, g) in self.geometry.iter().enumerate() {
+            self.system.add_element(e, &g.map(|v| k[e] * v));
+        }
+        for (i, free) in self.free.iter().enumerate() {
+            if let Some(j) = free {
+                let d = self.mass[i] / dt * self.phases.capacity(t[i]) + self.convection[i].0;
+                self.system.add_diagonal(*j, d);
+            }
+        }
+    }
+
+    /// The temperatures `t` + α `step` (`step` over the free nodes) where the potential is
+    /// least along `step`, α in (0, 1], for the residual `r` at `t`.
+    fn line_search(&self, residual: &StepResidual, t: &[f64], r: &[f64], step: &[f64]) -> Vec<f64> {
+        // Exact line search: the potential is convex and piecewise quadratic along the
+        // step, so its slope φ'(α) = r(T + α δ) · δ increases; find where it crosses 0 in
+        // (0, 1] (α = 1 when it is still negative there). Backtracking alone stalls when
+        // nodes keep stepping across the steep mushy range and back.
+        let trial = |alpha: f64| -> Vec<f64> {
+            let mut x = t.to_vec();
+            for (i, free) in self.free.iter().enumerate() {
+                if let Some(j) = free {
+                    x[i] += alpha * step[*j];
+                }
+            }
+            x
+        };
+        let slope = |x: &[f64]| -> f64 {
+            residual
+                .of(self, x)
+                .iter()
+                .zip(step)
+                .map(|(a, b)| a * b)
+                .sum()
+        };
+        let mut alpha = 1.0;
+        let mut next = trial(alpha);
+        let slope_at_one = slope(&next);
+        if slope_at_one > 0.0 {
+            // Regula falsi with the Illinois modification on [0, 1].
+            let (mut a, mut fa) = (0.0, r.iter().zip(step).map(|(a, b)| a * b).sum::<f64>());
+            let (mut b, mut fb) = (1.0, slope_at_one);
+            let mut side = 0;
+            for _ in 0..60 {
+                alpha = (a * fb - b * fa) / (fb - fa);
+                let x = trial(alpha);
+                let f = slope(&x);
+                if f > 0.0 {
+                    (b, fb) = (alpha, f);
+                    if side == -1 {
+                        fa *= 0.5;
+                    }
+                    side = -1;
+                } else {
+                    (a, fa) = (alpha, f);
+                    if side == 1 {
+                        fb *= 0.5;
+                    }
+                    side = 1;
+                }
+                next = x;
+                if f.abs() <= 1e-12 * fa.abs().max(fb.abs()) || b - a <= 1e-12 {
+                    break;
+                }
+            }
+        }
+        next
+    }
+
+    /// Heat that came in over a step of `dt` (s) ending at temperatures `t` (J), element
+    /// conductivities `k`: convection at the free nodes, (K T) at the fixed ones.
+    fn heat_in(&self, k: &[f64], t: &[f64], dt: f64) -> f64 {
+        let kt = self.conduction(k, t);
+        dt * (0..t.len())
+            .map(|i| match self.free[i] {
+                Some(_) => self.convection[i].1 - self.convection[i].0 * t[i],
+                None => kt[i],
+            })
+            .sum::<f64>()
+    }
+}
+
+/// The residual of one heat step, r_i = m_i (h(T_i) − h(T_iⁿ)) / Δt + (K T)_i + H_i (T_i −
+/// T_air,i) over the free nodes, with what it holds fixed over the step.
+struct StepResidual<'a> {
+    /// Element conductivities at the step's start (W/(m K)).
+    k: &'a [f64],
+    /// Each node's specific enthalpy at the step's start, h(T_iⁿ) (J/kg).
+    h0: &'a [f64],
+    /// Step (s).
+    dt: f64,
+    /// Number of free nodes.
+    n_free: usize,
+}
+
+impl StepResidual<'_> {
+    /// r (W) of `heat`'s nodes at temperatures `t`, by free number.
+    fn of(&self, heat: &Heat, t: &[f64]) -> Vec<f64> {
+        let (p, dt, h0) = (heat.phases, self.dt, self.h0);
+        let kt = heat.conduction(self.k, t);
+        let mut r = vec![0.0; self.n_free];
+        for (i, free) in heat.free.iter().enumerate() {
+            if let Some(j) = free {
+                let (hc, hct) = heat.convection[i];
+                r[*j] = heat.mass[i] / dt * (p.enthalpy(t[i]) - h0[i]) + kt[i] + hc * t[i] - hct;
+            }
+        }
+        r
+    }
+}
+
+/// What a step's Newton solve reached.
+struct HeatSolve {
+    /// Nodal temperatures at the step's end (°C).
+    temperature: Vec<f64>,
+    /// Newton iterations.
+    iterations: usize,
+    /// Numeric factorisations.
+    factorizations: usize,
 }

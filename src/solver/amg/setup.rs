@@ -5,6 +5,7 @@ use super::block_csr::{block_diagonal_apply, BlockCsr, Transpose, MIN_ROWS, NONE
 use super::fine::MODES;
 use crate::solver::vector::dot;
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Strength threshold θ of the block strength of connection. 0 keeps every coupling (pyamg's
 /// default for smoothed aggregation): on ice meshes all couplings are of one order, and with
@@ -405,10 +406,8 @@ pub(super) fn galerkin(a: &BlockCsr, p: &BlockCsr, pt: &Transpose) -> BlockCsr {
 }
 
 fn galerkin_fixed<const R: usize>(a: &BlockCsr, p: &BlockCsr, pt: &Transpose) -> BlockCsr {
-    const K: usize = MODES;
     let nc = p.ncols;
-    type Chunk = (Vec<usize>, Vec<u32>, Vec<f64>);
-    let chunks: Vec<Chunk> = (0..nc.div_ceil(RAP_CHUNK))
+    let chunks: Vec<CoarseRows> = (0..nc.div_ceil(RAP_CHUNK))
         .into_par_iter()
         .map_init(
             || GalerkinScratch {
@@ -417,111 +416,168 @@ fn galerkin_fixed<const R: usize>(a: &BlockCsr, p: &BlockCsr, pt: &Transpose) ->
             },
             |s, chunk| {
                 let rows = chunk * RAP_CHUNK..((chunk + 1) * RAP_CHUNK).min(nc);
-                let mut fine_rows: Vec<u32> = Vec::new();
-                for c in rows.clone() {
-                    for &(i, _) in pt.of(c) {
-                        if s.local[i as usize] == NONE {
-                            s.local[i as usize] = fine_rows.len() as u32;
-                            fine_rows.push(i);
-                        }
-                    }
-                }
-                // A P for the fine rows of this chunk.
-                let mut ap_ptr = Vec::with_capacity(fine_rows.len() + 1);
-                let mut ap_col: Vec<u32> = Vec::new();
-                let mut ap_val: Vec<f64> = Vec::new();
-                ap_ptr.push(0);
-                for &i in &fine_rows {
-                    let start = ap_col.len();
-                    for k in a.ptr[i as usize]..a.ptr[i as usize + 1] {
-                        let m = a.col[k] as usize;
-                        let ablock = &a.val[k * R * R..(k + 1) * R * R];
-                        for kp in p.ptr[m]..p.ptr[m + 1] {
-                            let j = p.col[kp] as usize;
-                            let pos = if s.mark[j] == NONE {
-                                s.mark[j] = (ap_col.len() - start) as u32;
-                                ap_col.push(j as u32);
-                                ap_val.extend(std::iter::repeat_n(0.0, R * K));
-                                ap_col.len() - 1
-                            } else {
-                                start + s.mark[j] as usize
-                            };
-                            let pblock = &p.val[kp * R * K..(kp + 1) * R * K];
-                            let out = &mut ap_val[pos * R * K..(pos + 1) * R * K];
-                            for r in 0..R {
-                                for q in 0..R {
-                                    let av = ablock[r * R + q];
-                                    for c in 0..K {
-                                        out[r * K + c] += av * pblock[q * K + c];
-                                    }
-                                }
-                            }
-                        }
-                    }
-                    for &j in &ap_col[start..] {
-                        s.mark[j as usize] = NONE;
-                    }
-                    ap_ptr.push(ap_col.len());
-                }
-                // Coarse rows: Σ_i P_iIᵀ (A P)_i.
-                let mut counts = Vec::with_capacity(rows.len());
-                let mut cols: Vec<u32> = Vec::new();
-                let mut vals: Vec<f64> = Vec::new();
-                for c in rows {
-                    let start = cols.len();
-                    for &(i, kp) in pt.of(c) {
-                        let pblock = &p.val[kp as usize * R * K..(kp as usize + 1) * R * K];
-                        let li = s.local[i as usize] as usize;
-                        for q in ap_ptr[li]..ap_ptr[li + 1] {
-                            let j = ap_col[q] as usize;
-                            let pos = if s.mark[j] == NONE {
-                                s.mark[j] = (cols.len() - start) as u32;
-                                cols.push(j as u32);
-                                vals.extend(std::iter::repeat_n(0.0, K * K));
-                                cols.len() - 1
-                            } else {
-                                start + s.mark[j] as usize
-                            };
-                            let apb = &ap_val[q * R * K..(q + 1) * R * K];
-                            let out = &mut vals[pos * K * K..(pos + 1) * K * K];
-                            for r in 0..R {
-                                for x in 0..K {
-                                    let pv = pblock[r * K + x];
-                                    if pv != 0.0 {
-                                        for y in 0..K {
-                                            out[x * K + y] += pv * apb[r * K + y];
-                                        }
-                                    }
-                                }
-                            }
-                        }
-                    }
-                    for (off, &j) in cols[start..].iter().enumerate() {
-                        s.mark[j as usize] = NONE;
-                        if j as usize == c {
-                            let block = &mut vals[(start + off) * K * K..(start + off + 1) * K * K];
-                            for d in 0..K {
-                                if block[d * K + d] == 0.0 {
-                                    block[d * K + d] = 1.0;
-                                }
-                            }
-                        }
-                    }
-                    counts.push(cols.len() - start);
-                }
+                let fine_rows = chunk_fine_rows(pt, rows.clone(), s);
+                let ap = ap_rows::<R>(a, p, &fine_rows, s);
+                let coarse = coarse_rows::<R>(p, pt, rows, &ap, s);
                 for &i in &fine_rows {
                     s.local[i as usize] = NONE;
                 }
-                (counts, cols, vals)
+                coarse
             },
         )
         .collect();
-    let nnzb: usize = chunks.iter().map(|c| c.1.len()).sum();
+    join_coarse_rows(chunks, nc)
+}
+
+/// Rows of A P (`R × MODES` blocks) for some fine rows, in CSR form.
+struct ApRows {
+    ptr: Vec<usize>,
+    col: Vec<u32>,
+    val: Vec<f64>,
+}
+
+/// Consecutive rows of A_c (`MODES × MODES` blocks): the entries of each row, their columns
+/// and blocks.
+struct CoarseRows {
+    counts: Vec<usize>,
+    cols: Vec<u32>,
+    vals: Vec<f64>,
+}
+
+/// The fine rows the coarse `rows` gather from through Pᵀ, each numbered in `s.local` by its
+/// position in the returned list.
+fn chunk_fine_rows(pt: &Transpose, rows: Range<usize>, s: &mut GalerkinScratch) -> Vec<u32> {
+    let mut fine_rows: Vec<u32> = Vec::new();
+    for c in rows {
+        for &(i, _) in pt.of(c) {
+            if s.local[i as usize] == NONE {
+                s.local[i as usize] = fine_rows.len() as u32;
+                fine_rows.push(i);
+            }
+        }
+    }
+    fine_rows
+}
+
+/// A P for `fine_rows` (`s.mark` is left clear).
+fn ap_rows<const R: usize>(
+    a: &BlockCsr,
+    p: &BlockCsr,
+    fine_rows: &[u32],
+    s: &mut GalerkinScratch,
+) -> ApRows {
+    const K: usize = MODES;
+    let mut ap_ptr = Vec::with_capacity(fine_rows.len() + 1);
+    let mut ap_col: Vec<u32> = Vec::new();
+    let mut ap_val: Vec<f64> = Vec::new();
+    ap_ptr.push(0);
+    for &i in fine_rows {
+        let start = ap_col.len();
+        for k in a.ptr[i as usize]..a.ptr[i as usize + 1] {
+            let m = a.col[k] as usize;
+            let ablock = &a.val[k * R * R..(k + 1) * R * R];
+            for kp in p.ptr[m]..p.ptr[m + 1] {
+                let j = p.col[kp] as usize;
+                let pos = if s.mark[j] == NONE {
+                    s.mark[j] = (ap_col.len() - start) as u32;
+                    ap_col.push(j as u32);
+                    ap_val.extend(std::iter::repeat_n(0.0, R * K));
+                    ap_col.len() - 1
+                } else {
+                    start + s.mark[j] as usize
+                };
+                let pblock = &p.val[kp * R * K..(kp + 1) * R * K];
+                let out = &mut ap_val[pos * R * K..(pos + 1) * R * K];
+                for r in 0..R {
+                    for q in 0..R {
+                        let av = ablock[r * R + q];
+                        for c in 0..K {
+                            out[r * K + c] += av * pblock[q * K + c];
+                        }
+                    }
+                }
+            }
+        }
+        for &j in &ap_col[start..] {
+            s.mark[j as usize] = NONE;
+        }
+        ap_ptr.push(ap_col.len());
+    }
+    ApRows {
+        ptr: ap_ptr,
+        col: ap_col,
+        val: ap_val,
+    }
+}
+
+/// The coarse `rows` Σ_i P_iIᵀ (A P)_i, from the rows `ap` of A P numbered by `s.local`; a
+/// zero on a diagonal block's diagonal becomes 1 (`s.mark` is left clear).
+fn coarse_rows<const R: usize>(
+    p: &BlockCsr,
+    pt: &Transpose,
+    rows: Range<usize>,
+    ap: &ApRows,
+    s: &mut GalerkinScratch,
+) -> CoarseRows {
+    const K: usize = MODES;
+    let (ap_ptr, ap_col, ap_val) = (&ap.ptr, &ap.col, &ap.val);
+    let mut counts = Vec::with_capacity(rows.len());
+    let mut cols: Vec<u32> = Vec::new();
+    let mut vals: Vec<f64> = Vec::new();
+    for c in rows {
+        let start = cols.len();
+        for &(i, kp) in pt.of(c) {
+            let pblock = &p.val[kp as usize * R * K..(kp as usize + 1) * R * K];
+            let li = s.local[i as usize] as usize;
+            for q in ap_ptr[li]..ap_ptr[li + 1] {
+                let j = ap_col[q] as usize;
+                let pos = if s.mark[j] == NONE {
+                    s.mark[j] = (cols.len() - start) as u32;
+                    cols.push(j as u32);
+                    vals.extend(std::iter::repeat_n(0.0, K * K));
+                    cols.len() - 1
+                } else {
+                    start + s.mark[j] as usize
+                };
+                let apb = &ap_val[q * R * K..(q + 1) * R * K];
+                let out = &mut vals[pos * K * K..(pos + 1) * K * K];
+                for r in 0..R {
+                    for x in 0..K {
+                        let pv = pblock[r * K + x];
+                        if pv != 0.0 {
+                            for y in 0..K {
+                                out[x * K + y] += pv * apb[r * K + y];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for (off, &j) in cols[start..].iter().enumerate() {
+            s.mark[j as usize] = NONE;
+            if j as usize == c {
+                let block = &mut vals[(start + off) * K * K..(start + off + 1) * K * K];
+                for d in 0..K {
+                    if block[d * K + d] == 0.0 {
+                        block[d * K + d] = 1.0;
+                    }
+                }
+            }
+        }
+        counts.push(cols.len() - start);
+    }
+    CoarseRows { counts, cols, vals }
+}
+
+/// A_c (`nc` block rows) from its chunks of rows, in order.
+fn join_coarse_rows(chunks: Vec<CoarseRows>, nc: usize) -> BlockCsr {
+    const K: usize = MODES;
+    let nnzb: usize = chunks.iter().map(|c| c.cols.len()).sum();
     let mut ptr = Vec::with_capacity(nc + 1);
     let mut col = Vec::with_capacity(nnzb);
     let mut val = Vec::with_capacity(nnzb * K * K);
     ptr.push(0);
-    for (counts, cols, vals) in chunks {
+    for CoarseRows { counts, cols, vals } in chunks {
         for n in counts {
             ptr.push(ptr.last().copied().unwrap_or(0) + n);
         }
