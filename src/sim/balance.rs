@@ -162,8 +162,7 @@ pub(super) fn energies_of(
     model: &Model,
     assembly: &Assembly,
     elastic: ElasticInputs,
-    (u, v): (&[f64], &[f64]),
-    (t, loads): (f64, &[f64]),
+    (u, v, t, loads): (&[f64], &[f64], f64, &[f64]),
 ) -> EnergyParts {
     let mut energy = 0.0;
     elastic_term(model, assembly, elastic).add(u, &mut energy, None, None);

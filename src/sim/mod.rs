@@ -621,8 +621,7 @@ impl Simulation {
             &self.model,
             &self.assembly,
             elastic,
-            (&state.u, &state.v),
-            (state.time, &self.loads),
+            (&state.u, &state.v, state.time, &self.loads),
         );
         self.energies_over_processes(parts)
     }

@@ -356,26 +356,14 @@ impl Simulation {
         let mut before: Option<EnergyParts> = None;
         let solved = rayon::in_place_scope(|scope| {
             if !fixed {
-                let (model, assembly) = (&*model, &*assembly);
-                let (history, previous, v) = (&state.history, &*previous, &state.v);
-                let (offsets, scratch, before) =
-                    (&setup.offsets, &mut balance_scratch, &mut before);
-                let t_new = setup.t_new;
-                scope.spawn(move |_| {
-                    let elastic = ElasticInputs {
-                        history,
-                        offsets,
-                        element_energy: scratch,
-                        subset,
-                    };
-                    *before = Some(energies_of(
-                        model,
-                        assembly,
-                        elastic,
-                        (previous, v),
-                        (t_new, loads),
-                    ));
-                });
+                let elastic = ElasticInputs {
+                    history: &state.history,
+                    offsets: &setup.offsets,
+                    element_energy: &mut balance_scratch,
+                    subset,
+                };
+                let (at, before) = ((previous, &state.v[..], setup.t_new, loads), &mut before);
+                scope.spawn(move |_| *before = Some(energies_of(model, assembly, elastic, at)));
             }
             let newton = NewtonSolver {
                 assembly,
