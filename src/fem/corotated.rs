@@ -1,11 +1,161 @@
-//! The corotated law.
+//! The corotated law (`model = "corotated"`, the default): F = R S, ε = S − I, P = R σ(ε),
+//! with the strain offset entering multiplicatively, Fe = F F*⁻¹.
 #![allow(non_snake_case)]
 
-use super::kinematics::{polar_rotation_newton, signed_svd, svd_rotation};
+use super::kinematics::{
+    add_det_hessian, cofactor, det_minus_one, polar_rotation, polar_rotation_newton, signed_svd,
+    svd_rotation,
+};
+use super::law::ElasticLaw;
 use super::material::Material;
+use super::offset::{offset_elastic_gradient, StrainOffset};
 use super::response::{solid_response, SolidResponse};
 use super::tensor::Tangent;
+use super::volume::VolumeChange;
 use nalgebra::{Matrix3, SMatrix, Vector3};
+
+/// Corotated linear elasticity: F = R S (polar decomposition), ε = S − I, energy
+/// ½ ε:C:ε and first Piola–Kirchhoff stress P = R σ(ε). Rotation invariant.
+///
+/// The strain offset ε* enters multiplicatively, Fe = F F*⁻¹ with the natural shape F* of
+/// [`StrainOffset`] (see [`offset_elastic_gradient`]): the same as σ = C:(ε − ε*) to first
+/// order, but exact for a free body: an isotropic ε* = e I gives a stress-free state scaled by
+/// exactly (1 + e).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Corotated;
+
+impl ElasticLaw for Corotated {
+    /// He = H A + (A − I) with A = F*⁻¹ ([`offset_elastic_gradient`]); He = H without an
+    /// offset.
+    fn elastic_gradient(
+        &self,
+        H: &Matrix3<f64>,
+        offset: &StrainOffset,
+    ) -> (Matrix3<f64>, Option<Matrix3<f64>>) {
+        if offset.is_zero() {
+            (*H, None)
+        } else {
+            let (A, He) = offset_elastic_gradient(offset, H);
+            (He, Some(A))
+        }
+    }
+
+    /// Corotated energy Ψ = μ Σ(sᵢ − 1)² + λ/2 (Σsᵢ − 3)² in the signed singular values sᵢ of F,
+    /// i.e. ½ ε:C:ε with ε = S − I. Its tangent is exact; with `project` the rotational (twist)
+    /// eigenvalues (ψᵢ + ψⱼ)/(sᵢ + sⱼ) that compression makes negative are replaced by their
+    /// absolute value, which keeps every element stiffness positive semi-definite. Clamping them
+    /// at zero instead (Teran et al. 2005) leaves the twist modes without curvature: Newton then
+    /// over-steps along them, and the freezing container with fracture stalled at step 1030 that
+    /// way; with |·| (the absolute-eigenvalue projection) it runs its 2400 steps.
+    fn solid(
+        &self,
+        mat: &Material,
+        yield_limit: Option<f64>,
+        He: &Matrix3<f64>,
+        tangent: Option<&mut Tangent>,
+        project: bool,
+    ) -> (f64, Matrix3<f64>) {
+        let F = Matrix3::identity() + He;
+        let newton_rotation = polar_rotation_newton(&F);
+        let R = newton_rotation.unwrap_or_else(|| svd_rotation(&F));
+        let strain = corotated_strain(&R, He);
+        let response = solid_response(mat, yield_limit, &strain);
+        // For this energy P = 2μ(F − R) + λ tr(S − I) R = R σ(S − I).
+        let P = R * response.sigma;
+        if let Some(t) = tangent {
+            // Away from inversion (Newton's polar factor applied) the unprojected tangent needs
+            // no singular vectors; projecting needs the twist eigenvalues one by one.
+            if project || newton_rotation.is_none() || !corotated_tangent(&R, &strain, &response, t)
+            {
+                corotated_tangent_svd(&F, &response, project, t);
+            }
+        }
+        (response.psi, P)
+    }
+
+    /// Ψ = K/2 (J − 1)², P = K (J − 1) cof(Fe), with J = det Fe the exact volume ratio — a
+    /// shear-free corotated law, K/2 (Σsᵢ − 3)², would let an element collapse to zero volume
+    /// at zero energy. With `project` the indefinite (J − 1) ∂²J term is left out.
+    fn water(
+        &self,
+        bulk: f64,
+        He: &Matrix3<f64>,
+        tangent: Option<&mut Tangent>,
+        project: bool,
+    ) -> (f64, Matrix3<f64>) {
+        let F = Matrix3::identity() + He;
+        let cof = cofactor(&F);
+        let j1 = det_minus_one(He);
+        let P = cof * (bulk * j1);
+        if let Some(t) = tangent {
+            let g = SMatrix::<f64, 9, 1>::from_column_slice(cof.as_slice());
+            *t += bulk * g * g.transpose();
+            if !project {
+                add_det_hessian(&F, bulk * j1, t);
+            }
+        }
+        (0.5 * bulk * j1 * j1, P)
+    }
+
+    /// θ = J − 1 of Fe = F A (the exact volume ratio, as for water), formed without
+    /// cancellation; ∂θ/∂F = cof(Fe) Aᵀ.
+    fn volume_change(
+        &self,
+        H: &Matrix3<f64>,
+        offset: &StrainOffset,
+        with_hessian: bool,
+    ) -> VolumeChange {
+        let (A, He) = offset_elastic_gradient(offset, H);
+        let Fe = Matrix3::identity() + He;
+        VolumeChange {
+            theta: det_minus_one(&He),
+            gradient: cofactor(&Fe) * A.transpose(),
+            deformation: with_hessian.then_some(Fe),
+            offset_factor: A,
+        }
+    }
+
+    /// S − I of Fe = F (I + ε*)⁻¹ = R S, in the element's frame, and R.
+    fn elastic_strain(
+        &self,
+        H: &Matrix3<f64>,
+        offset: &StrainOffset,
+    ) -> (Matrix3<f64>, Matrix3<f64>) {
+        let (_, He) = offset_elastic_gradient(offset, H);
+        let R = polar_rotation(&(Matrix3::identity() + He));
+        (corotated_strain(&R, &He), R)
+    }
+
+    /// det Fe − 1.
+    fn water_volume_change(
+        &self,
+        H: &Matrix3<f64>,
+        offset: &StrainOffset,
+        _strain: &Matrix3<f64>,
+    ) -> f64 {
+        let (_, He) = offset_elastic_gradient(offset, H);
+        det_minus_one(&He)
+    }
+
+    /// G = R F*⁻ᵀ = R Aᵀ: fᵢ = −V R σ Aᵀ∇Nᵢ, the gradient V Pe Aᵀ∇Nᵢ with Pe = R σ.
+    fn force_frame(&self, rotation: &Matrix3<f64>, offset: &StrainOffset) -> Matrix3<f64> {
+        rotation
+            * offset_elastic_gradient(offset, &Matrix3::zeros())
+                .0
+                .transpose()
+    }
+
+    /// p J S⁻¹ for θ = det Fe − 1 with Fe = R S: ∂J/∂Fe = J Fe⁻ᵀ = R J S⁻¹, with S = I + ε.
+    fn pressure_stress(&self, strain: &Matrix3<f64>, p: f64) -> Matrix3<f64> {
+        let s = Matrix3::identity() + strain;
+        s.try_inverse().unwrap_or_else(Matrix3::identity) * (p * s.determinant())
+    }
+
+    /// The tangent rotates with the element.
+    fn constant_tangent(&self) -> bool {
+        false
+    }
+}
 
 /// Corotated strain S − I = sym(Rᵀ F) − I for F = I + H, computed without cancellation:
 /// sym(Rᵀ) − I + sym(Rᵀ H), where sym(R) − I = −(|w|² I − w wᵀ)/(1 + cos θ) with w the axial
@@ -26,38 +176,6 @@ pub(super) fn corotated_strain(R: &Matrix3<f64>, H: &Matrix3<f64>) -> Matrix3<f6
     };
     let rh = R.transpose() * H;
     sym_r + 0.5 * (rh + rh.transpose())
-}
-
-/// Corotated energy Ψ = μ Σ(sᵢ − 1)² + λ/2 (Σsᵢ − 3)² in the signed singular values sᵢ of F,
-/// i.e. ½ ε:C:ε with ε = S − I. Its tangent is exact; with `project` the rotational (twist)
-/// eigenvalues (ψᵢ + ψⱼ)/(sᵢ + sⱼ) that compression makes negative are replaced by their
-/// absolute value, which keeps every element stiffness positive semi-definite. Clamping them
-/// at zero instead (Teran et al. 2005) leaves the twist modes without curvature: Newton then
-/// over-steps along them, and the freezing container with fracture stalled at step 1030 that
-/// way; with |·| (the absolute-eigenvalue projection) it runs its 2400 steps.
-pub(super) fn corotated(
-    mat: &Material,
-    yield_limit: Option<f64>,
-    He: &Matrix3<f64>,
-    tangent: Option<&mut Tangent>,
-
-    project: bool,
-) -> (f64, Matrix3<f64>) {
-    let F = Matrix3::identity() + He;
-    let newton_rotation = polar_rotation_newton(&F);
-    let R = newton_rotation.unwrap_or_else(|| svd_rotation(&F));
-    let strain = corotated_strain(&R, He);
-    let response = solid_response(mat, yield_limit, &strain);
-    // For this energy P = 2μ(F − R) + λ tr(S − I) R = R σ(S − I).
-    let P = R * response.sigma;
-    if let Some(t) = tangent {
-        // Away from inversion (Newton's polar factor applied) the unprojected tangent needs
-        // no singular vectors; projecting needs the twist eigenvalues one by one.
-        if project || newton_rotation.is_none() || !corotated_tangent(&R, &strain, &response, t) {
-            corotated_tangent_svd(&F, &response, project, t);
-        }
-    }
-    (response.psi, P)
 }
 
 /// The corotated tangent dP/dF in the singular basis F = U diag(s) Vᵀ, written into `t`:

@@ -52,7 +52,7 @@ impl StrainOffset {
 
 /// The corotated model's offset factor A = F*⁻¹ of `offset` and the elastic displacement
 /// gradient He = (I + H) A − I for the displacement gradient H, formed as H A + (A − I).
-pub(crate) fn offset_elastic_gradient(
+pub(super) fn offset_elastic_gradient(
     offset: &StrainOffset,
     H: &Matrix3<f64>,
 ) -> (Matrix3<f64>, Matrix3<f64>) {

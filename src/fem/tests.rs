@@ -54,7 +54,7 @@ fn check_law_derivatives(
     let R = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.9).into_inner();
     let x = x0.map(|p| R * (p + G * p) - p);
     let law = Law {
-        model,
+        model: model.law(),
         material: *mat,
         water_bulk: water,
         yield_limit,
@@ -211,7 +211,7 @@ fn corotated_free_expansion_is_stress_free() {
     let x = x0.map(|p| p * e);
     let offset = StrainOffset::new(Matrix3::identity() * e);
     let mut out = ElementEval::default();
-    let law = Law::elastic(ElasticModel::Corotated, ICE);
+    let law = Law::elastic(&Corotated, ICE);
     element_eval(&law, &rest, &x, &offset, false, false, &mut out);
     let gmax = out.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
     // Forces of a 2 % strain would be ~1e7 N here; round-off leaves ~1e-16 of that.

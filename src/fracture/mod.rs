@@ -41,7 +41,7 @@ pub mod split;
 pub use driver::{Fracture, FractureEvent, FractureReport, FractureSettings};
 pub use nonlocal::Averaging;
 
-use crate::fem::{elastic_strain, offset_elastic_gradient, solid_response, ElasticModel};
+use crate::fem::stress_forces;
 use crate::physics::elasticity::Elasticity;
 use crate::physics::history::ElementHistory;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
@@ -164,39 +164,21 @@ pub fn separation(
         }
         let rest = &elasticity.rest[e];
         let local = Elasticity::local(u, tet);
-        let offset = &offsets[e];
-        let (strain, r) = elastic_strain(elasticity.model, rest, &local, offset);
-        // The simulation's nodal force of a stress σ (in the element's frame) is −V R σ G ∇Nᵢ,
-        // with G = I (linear) or F*⁻ᵀ (the corotated model's multiplicative offset).
-        let frame = match elasticity.model {
-            ElasticModel::Linear => Matrix3::identity(),
-            ElasticModel::Corotated => {
-                r * offset_elastic_gradient(offset, &Matrix3::zeros())
-                    .0
-                    .transpose()
-            }
-        };
-        // The solid's stress as the solve balanced it: returned onto the yield surface.
+        // The stress as the solve balanced it (returned onto the yield surface, with the
+        // element pressure of the nodal volumetric energy) and the simulation's nodal force
+        // formula for a stress in the element's frame.
         let law = elasticity.law_of(history, e);
-        let mut sigma = solid_response(&law.material, law.yield_limit, &strain).sigma;
-        if let Some(p) = &pressure {
-            // The force p̄ ∂θ/∂x in the frame's form −V R σ G ∇N: σ = p̄ I (linear), or
-            // p̄ J S⁻¹ for θ = det Fe − 1 with Fe = R S (∂J/∂Fe = J Fe⁻ᵀ = R J S⁻¹).
-            sigma += match elasticity.model {
-                ElasticModel::Linear => Matrix3::identity() * p[e],
-                ElasticModel::Corotated => {
-                    let s = Matrix3::identity() + strain;
-                    s.try_inverse().unwrap_or_else(Matrix3::identity) * (p[e] * s.determinant())
-                }
-            };
-        }
-        let (plus, minus) = split(&sigma);
+        let element = stress_forces(
+            &law,
+            rest,
+            &local,
+            &offsets[e],
+            pressure.as_ref().map(|p| p[e]),
+        );
+        let (plus, minus) = split(&element.stress);
+        let (f_p, f_m) = (element.forces(&plus), element.forces(&minus));
         for (k, &i) in tet.iter().enumerate() {
-            let g = frame * rest.grads[k] * rest.volume;
-            let (fp, fm) = (
-                -(r * plus * r.transpose()) * g,
-                -(r * minus * r.transpose()) * g,
-            );
+            let (fp, fm, g) = (f_p[k], f_m[k], element.weighted_grads[k]);
             f_plus[i] += fp;
             f_minus[i] += fm;
             s_plus[i] += m(&fp);
@@ -268,6 +250,7 @@ fn largest_eigen(tensor: &Matrix3<f64>) -> (f64, Vector3<f64>) {
 mod tests {
     use super::*;
     use crate::fem::tests::ICE;
+    use crate::fem::ElasticModel;
     use crate::mesh::box_mesh;
     use crate::physics::elasticity::Volumetric;
 
