@@ -50,11 +50,12 @@ pub fn deviatoric_stress_norm(r: f64, gamma: f64) -> (f64, f64) {
     }
 }
 
-/// The solid's response to the elastic strain `eps` (SPEC eq. 3–5 as an incremental
-/// potential). Elastic: σ = C:ε, Ψ = ½ σ:ε. With an elastic limit γ and a deviator ε' whose
-/// norm r = ‖ε'‖ exceeds it, the return mapping Δε_p = (r − γ)/r ε' leaves the deviator at
-/// γ ε'/r; that is the minimiser over Δε_p of the elastic energy plus the plastic dissipation
-/// 2μγ ‖Δε_p‖, and the minimum is the convex
+/// The solid's response to the elastic strain `eps` (the return mapping of O'Brien et al.
+/// 2002, the paper's eqs. (3)–(5), as an incremental potential; see
+/// docs/numerics.md#plasticity). Elastic: σ = C:ε, Ψ = ½ σ:ε. With an elastic limit γ and a
+/// deviator ε' whose norm r = ‖ε'‖ exceeds it, the return mapping Δε_p = (r − γ)/r ε' leaves
+/// the deviator at γ ε'/r; that is the minimiser over Δε_p of the elastic energy plus the
+/// plastic dissipation 2μγ ‖Δε_p‖, and the minimum is the convex
 ///
 /// ```text
 /// Ψ = K/2 tr(ε)² + μ γ (2r − γ),   σ = K tr(ε) I + 2μγ ε'/r,
