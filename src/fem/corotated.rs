@@ -18,14 +18,14 @@ use nalgebra::{Matrix3, SMatrix, Vector3};
 /// ½ ε:C:ε and first Piola–Kirchhoff stress P = R σ(ε). Rotation invariant.
 ///
 /// The strain offset ε* enters multiplicatively, Fe = F F*⁻¹ with the natural shape F* of
-/// [`StrainOffset`] (see [`offset_elastic_gradient`]): the same as σ = C:(ε − ε*) to first
+/// [`StrainOffset`] (see `offset_elastic_gradient`): the same as σ = C:(ε − ε*) to first
 /// order, but exact for a free body: an isotropic ε* = e I gives a stress-free state scaled by
 /// exactly (1 + e).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Corotated;
 
 impl ElasticLaw for Corotated {
-    /// He = H A + (A − I) with A = F*⁻¹ ([`offset_elastic_gradient`]); He = H without an
+    /// He = H A + (A − I) with A = F*⁻¹ (`offset_elastic_gradient`); He = H without an
     /// offset.
     fn elastic_gradient(
         &self,

@@ -5,7 +5,7 @@
 use super::tensor::Tangent;
 use nalgebra::{Matrix3, Vector3};
 
-/// Signed SVD F = U diag(s) Vᵀ with det U = det V = +1; an inverted F gets a negative s[2].
+/// Signed SVD F = U diag(s) Vᵀ with det U = det V = +1; an inverted F gets a negative `s[2]`.
 pub fn signed_svd(F: &Matrix3<f64>) -> (Matrix3<f64>, Vector3<f64>, Matrix3<f64>) {
     let svd = F.svd(true, true);
     // Both factors were requested, so they are present.

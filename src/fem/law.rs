@@ -16,9 +16,9 @@ use nalgebra::{Matrix3, Vector3};
 /// An elastic model of a linear tetrahedron: its strain measure, how a strain offset ε* enters
 /// it, and the energy density, stress and tangent of its solid and of its water.
 ///
-/// In the manner of fenris's hyperelastic material (energy density, stress, stress
-/// contraction), but per element: a linear tet has a single quadrature point, so each method
-/// evaluates one element. The required methods are the model's kernels, written in terms of the
+/// In the manner of fenris's `HyperelasticMaterial` (`compute_energy_density`,
+/// `compute_stress_tensor`, `contract_stress_tensor_with`), but per element: a linear tet has a
+/// single quadrature point, so each method evaluates one element. The required methods are the model's kernels, written in terms of the
 /// displacement gradient H = F − I (so a small strain keeps the precision of the strain, not of
 /// the positions); the provided methods build the element evaluations on them. The scene's
 /// [`ElasticModel`](super::ElasticModel) resolves once to a `&'static dyn ElasticLaw`: each

@@ -2,7 +2,7 @@
 
 use nalgebra::{Matrix3, SMatrix};
 
-/// 9 × 9 matrix: derivative of `vec(P)` with respect to `vec(F)`.
+/// 9 × 9 matrix: derivative of `vec(P)` with respect to `vec(F)` (Pa), `vec` column major.
 pub type Tangent = SMatrix<f64, 9, 9>;
 
 /// Symmetric tensor to Voigt order xx yy zz yz xz xy.

@@ -221,6 +221,47 @@ fn corotated_free_expansion_is_stress_free() {
 }
 
 #[test]
+fn stress_forces_are_the_element_forces() {
+    // The forces of the balanced stress (the fracture criterion's) are the negative element
+    // gradient: of a yielding solid with an expansion and plastic offset, plus a pressure
+    // acting through the volume change, in both models.
+    let (rest, x0) = tet();
+    let G = Matrix3::new(0.3, -0.7, 0.2, 0.5, 0.1, -0.4, -0.2, 0.6, 0.25) * 0.01;
+    let R = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.9).into_inner();
+    let u = x0.map(|p| R * (p + G * p) - p);
+    let plastic = Matrix3::new(0.01, 0.002, 0.0, 0.002, -0.004, 0.001, 0.0, 0.001, -0.006);
+    let offset = StrainOffset::new(plastic + Matrix3::identity() * 0.0145);
+    let p = 2e6;
+    for model in [ElasticModel::Linear, ElasticModel::Corotated] {
+        let law = Law {
+            model: model.law(),
+            material: ICE,
+            water_bulk: 0.0,
+            yield_limit: Some(1e-4),
+        };
+        let mut e = ElementEval::default();
+        element_eval(&law, &rest, &u, &offset, false, false, &mut e);
+        let change = law
+            .model
+            .volume_change(&rest.displacement_gradient(&u), &offset, false);
+        change.add_pressure(&rest, p, &mut e, false);
+        let element = stress_forces(&law, &rest, &u, &offset, Some(p));
+        let forces = element.forces(&element.stress);
+        let scale = e.gradient.iter().map(|g| g.abs()).fold(0.0, f64::max);
+        for (i, f) in forces.iter().enumerate() {
+            for a in 0..3 {
+                let g = e.gradient[3 * i + a];
+                assert!(
+                    (f[a] + g).abs() <= 1e-12 * scale,
+                    "{model:?} vertex {i}, {a}: {} vs {g}",
+                    f[a]
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn yielding_derivatives_match_finite_differences() {
     // The strains below are 10–100 × the elastic limit: every case yields. Half-frozen
     // ice with water and an expansion offset, and ice with a plastic strain offset.

@@ -16,7 +16,8 @@ pub struct VolumeChange {
     pub gradient: Matrix3<f64>,
     /// The elastic deformation Fe = F A if the second derivative ∂²θ/∂Fe² = ∂² det Fe/∂Fe²
     /// was asked for (formed where it is used, from Fe: a 9 × 9 matrix per element would be
-    /// 650 bytes to move); `None` also for the linear model, whose θ is linear.
+    /// 650 bytes to move); `None` also where θ is linear in the displacements (the linear
+    /// model).
     pub deformation: Option<Matrix3<f64>>,
     /// The offset factor A of Fe = F A (identity without an offset or in the linear model).
     pub offset_factor: Matrix3<f64>,
@@ -34,7 +35,7 @@ impl VolumeChange {
     }
 
     /// Adds the forces and stiffness of a pressure `p` (Pa) acting through θ on an element
-    /// of rest volume V: gradient V p ∂θ/∂x and, if `out_hessian`, V p ∂²θ/∂x² (an indefinite
+    /// of rest volume V: gradient V p ∂θ/∂x and, if `hessian`, V p ∂²θ/∂x² (an indefinite
     /// matrix, left out by callers that need a positive semi-definite stiffness).
     pub fn add_pressure(&self, rest: &ElementRest, p: f64, out: &mut ElementEval, hessian: bool) {
         let v = rest.volume;
