@@ -61,10 +61,11 @@ pub(super) fn offset_elastic_gradient(
 }
 
 /// exp(X) − I of a symmetric 3 × 3 matrix without cancellation, by scaling and squaring: X is
-/// halved s times until ‖X/2ˢ‖_F ≤ 1/8, exp − I of that by its Taylor series to the degree m
-/// whose truncation ‖Y‖ᵐ/(m + 1)! relative to ‖Y‖ is below 1e-17 (10 at 1/8, 4 at the 1e-4
-/// strains of ice), then squared back as E ← 2E + E² (the identity for exp(2Y) − I). A twentieth of the cost of an eigendecomposition, which the corotated
-/// model's plastic offset needs for every element at every solve; equal to it to round-off.
+/// halved s times until ‖X/2ˢ‖_F ≤ 1/8, exp − I of that by its Taylor series to the degree m whose
+/// truncation ‖Y‖ᵐ/(m + 1)! relative to ‖Y‖ is below 1e-17 (10 at 1/8, 4 at the 1e-4 strains of
+/// ice), then squared back as E ← 2E + E² (the identity for exp(2Y) − I). A twentieth of the cost
+/// of an eigendecomposition, which the corotated model's plastic offset needs for every element at
+/// every solve; equal to it to round-off.
 pub(super) fn expm1_symmetric(x: &Matrix3<f64>) -> Matrix3<f64> {
     let norm = x.norm();
     let halvings = if norm > 0.125 {
