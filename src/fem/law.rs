@@ -21,10 +21,10 @@ use nalgebra::{Matrix3, Vector3};
 /// single quadrature point, so each method evaluates one element. The required methods are the
 /// model's kernels, written in terms of the displacement gradient H = F − I (so a small strain
 /// keeps the precision of the strain, not of the positions); the provided methods build the element
-/// evaluations on them. The scene's [`ElasticModel`](super::ElasticModel) resolves once to a
-/// `&'static dyn ElasticLaw`: each provided method is then one virtual call per element, inside
-/// which every kernel call is static (each implementing type has its own copy of the provided
-/// methods).
+/// evaluations on them. The scene's [`ElasticModel`](super::ElasticModel) resolves to a
+/// `&'static dyn ElasticLaw` ([`Law::model`]): each provided method is one virtual call per
+/// element, inside which every kernel call is static (each implementing type has its own copy of
+/// the provided methods).
 ///
 /// Conventions: `vec(P)` column major (entry `P[a][k]` at `a + 3k`); energy densities in J/m³,
 /// stresses and moduli in Pa, strains dimensionless.

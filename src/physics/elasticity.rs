@@ -43,9 +43,8 @@ pub struct Elasticity {
     pub other_materials: Vec<Material>,
     /// Per element: 0 for `material`, k for `other_materials[k − 1]`; empty: all `material`.
     pub material_index: Vec<u16>,
-    /// Elastic model (strain measure and response), resolved from the scene's
-    /// [`ElasticModel`].
-    pub model: &'static dyn ElasticLaw,
+    /// Strain measure: the scene's elastic model, whose law [`Elasticity::law`] gives.
+    pub model: ElasticModel,
     /// Rest data per element.
     pub rest: Vec<ElementRest>,
     /// Prescribed isotropic eigenstrain per element (dimensionless), the scene's
@@ -71,7 +70,7 @@ impl Elasticity {
             material,
             other_materials: Vec::new(),
             material_index: Vec::new(),
-            model: model.law(),
+            model,
             rest: ElementRest::of_mesh(mesh),
             eigenstrain: vec![0.0; mesh.num_tets()],
             water_bulk: 0.0,
@@ -141,6 +140,12 @@ impl Elasticity {
         ElementHistory::initial(&self.eigenstrain, self.plasticity.is_some())
     }
 
+    /// The law of the elastic model (strain measure and response), resolved from
+    /// [`Elasticity::model`].
+    pub fn law(&self) -> &'static dyn ElasticLaw {
+        self.model.law()
+    }
+
     /// Displacements of the four vertices of `tet` from the global dof vector `u` (m).
     pub fn local(u: &[f64], tet: &[usize; 4]) -> [Vector3<f64>; 4] {
         tet.map(|v| Vector3::new(u[3 * v], u[3 * v + 1], u[3 * v + 2]))
@@ -194,7 +199,7 @@ impl Elasticity {
             (ice && below_cap).then_some(p.elastic_limit)
         });
         Law {
-            model: self.model,
+            model: self.law(),
             material,
             water_bulk,
             yield_limit,
@@ -220,7 +225,7 @@ impl Elasticity {
         crate::parallel::map_range(tets.len(), |e| {
             let rest = &self.rest[e];
             let grad_u = rest.displacement_gradient(&Self::local(u, &tets[e]));
-            let change = self.model.volume_change(&grad_u, &offsets[e], with_hessian);
+            let change = self.law().volume_change(&grad_u, &offsets[e], with_hessian);
             (change, self.bulk_of(history, e))
         })
         .into_iter()
@@ -314,7 +319,7 @@ impl Elasticity {
         offset: &StrainOffset,
     ) -> Matrix3<f64> {
         let grad_u = self.rest[e].displacement_gradient(&Self::local(u, &tets[e]));
-        self.model.elastic_strain(&grad_u, offset).0
+        self.law().elastic_strain(&grad_u, offset).0
     }
 
     /// Cauchy stress (Pa, Voigt xx yy zz yz xz xy) of every element.
@@ -506,7 +511,7 @@ impl StepTerm for ElasticStep<'_> {
     /// u and the eigenstrain.
     fn hessian_is_fixed(&self) -> bool {
         let e = self.elasticity;
-        e.model.constant_tangent()
+        e.law().constant_tangent()
             && e.plasticity.is_none()
             && e.volumetric() == Volumetric::Element
             && self.history.freeze_state.is_empty()
