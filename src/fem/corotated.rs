@@ -27,6 +27,7 @@ pub struct Corotated;
 impl ElasticLaw for Corotated {
     /// He = H A + (A − I) with A = F*⁻¹ (`offset_elastic_gradient`); He = H without an
     /// offset.
+    #[inline]
     fn elastic_gradient(
         &self,
         H: &Matrix3<f64>,
@@ -47,6 +48,7 @@ impl ElasticLaw for Corotated {
     /// at zero instead (Teran et al. 2005) leaves the twist modes without curvature: Newton then
     /// over-steps along them, and the freezing container with fracture stalled at step 1030 that
     /// way; with |·| (the absolute-eigenvalue projection) it runs its 2400 steps.
+    #[inline]
     fn solid(
         &self,
         mat: &Material,
@@ -76,6 +78,7 @@ impl ElasticLaw for Corotated {
     /// Ψ = K/2 (J − 1)², P = K (J − 1) cof(Fe), with J = det Fe the exact volume ratio — a
     /// shear-free corotated law, K/2 (Σsᵢ − 3)², would let an element collapse to zero volume
     /// at zero energy. With `project` the indefinite (J − 1) ∂²J term is left out.
+    #[inline]
     fn water(
         &self,
         bulk: f64,
@@ -99,6 +102,7 @@ impl ElasticLaw for Corotated {
 
     /// θ = J − 1 of Fe = F A (the exact volume ratio, as for water), formed without
     /// cancellation; ∂θ/∂F = cof(Fe) Aᵀ.
+    #[inline]
     fn volume_change(
         &self,
         H: &Matrix3<f64>,
@@ -116,6 +120,7 @@ impl ElasticLaw for Corotated {
     }
 
     /// S − I of Fe = F (I + ε*)⁻¹ = R S, in the element's frame, and R.
+    #[inline]
     fn elastic_strain(
         &self,
         H: &Matrix3<f64>,
@@ -127,6 +132,7 @@ impl ElasticLaw for Corotated {
     }
 
     /// det Fe − 1.
+    #[inline]
     fn water_volume_change(
         &self,
         H: &Matrix3<f64>,
@@ -138,6 +144,7 @@ impl ElasticLaw for Corotated {
     }
 
     /// G = R F*⁻ᵀ = R Aᵀ: fᵢ = −V R σ Aᵀ∇Nᵢ, the gradient V Pe Aᵀ∇Nᵢ with Pe = R σ.
+    #[inline]
     fn force_frame(&self, rotation: &Matrix3<f64>, offset: &StrainOffset) -> Matrix3<f64> {
         rotation
             * offset_elastic_gradient(offset, &Matrix3::zeros())
@@ -146,12 +153,14 @@ impl ElasticLaw for Corotated {
     }
 
     /// p J S⁻¹ for θ = det Fe − 1 with Fe = R S: ∂J/∂Fe = J Fe⁻ᵀ = R J S⁻¹, with S = I + ε.
+    #[inline]
     fn pressure_stress(&self, strain: &Matrix3<f64>, p: f64) -> Matrix3<f64> {
         let s = Matrix3::identity() + strain;
         s.try_inverse().unwrap_or_else(Matrix3::identity) * (p * s.determinant())
     }
 
     /// The tangent rotates with the element.
+    #[inline]
     fn constant_tangent(&self) -> bool {
         false
     }
@@ -162,6 +171,7 @@ impl ElasticLaw for Corotated {
 /// vector of skew(R) (|w| = sin θ). Forming S from the singular values instead would leave an
 /// absolute error of ~1e-16 in the strain, i.e. 1e-9 relative at the 1e-7 strains of ice under
 /// gravity, and Newton could not reduce the residual below that.
+#[inline]
 pub(super) fn corotated_strain(R: &Matrix3<f64>, H: &Matrix3<f64>) -> Matrix3<f64> {
     let cos_theta = 0.5 * (R.trace() - 1.0);
     let sym_r = if cos_theta > 0.0 {

@@ -37,6 +37,7 @@ impl ElementRest {
     /// Displacement gradient H = ∇u = Σᵢ uᵢ ⊗ ∇Nᵢ = F − I for the element's vertex
     /// displacements (m). Working with H rather than F keeps small strains accurate to round-off
     /// of the strain itself instead of round-off of the positions.
+    #[inline]
     pub fn displacement_gradient(&self, u: &[Vector3<f64>; 4]) -> Matrix3<f64> {
         u.iter()
             .zip(&self.grads)
@@ -67,6 +68,7 @@ impl Default for ElementEval {
 }
 
 /// The gradients Aᵀ∇Nᵢ through which the vertex displacements move He = H A + (A − I).
+#[inline]
 pub(super) fn offset_grads(A: &Matrix3<f64>, rest: &ElementRest) -> [Vector3<f64>; 4] {
     rest.grads.map(|g| A.tr_mul(&g))
 }
@@ -74,6 +76,7 @@ pub(super) fn offset_grads(A: &Matrix3<f64>, rest: &ElementRest) -> [Vector3<f64
 /// Adds the element stiffness `v Bᵀ T B` (row-major 12 × 12) of the tangent `T` = dP/dF,
 /// B mapping the 12 vertex displacements to vec(H) through the shape-function gradients
 /// `grads` (B[a+3k, 3j+b] = δ_ab ∇N_j[k]): T B first (9 × 12), then Bᵀ (T B).
+#[inline]
 pub(super) fn add_stiffness(
     grads: &[Vector3<f64>; 4],
     v: f64,

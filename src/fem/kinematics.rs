@@ -35,6 +35,7 @@ pub fn signed_svd(F: &Matrix3<f64>) -> (Matrix3<f64>, Vector3<f64>, Matrix3<f64>
 /// Rotation R of the polar decomposition F = R S (the inversion-safe one: det R = +1): by
 /// Newton's iteration R ← ½ (R + R⁻ᵀ) where it applies (det F ≥ 0.1), else from the signed
 /// SVD.
+#[inline]
 pub fn polar_rotation(F: &Matrix3<f64>) -> Matrix3<f64> {
     polar_rotation_newton(F).unwrap_or_else(|| svd_rotation(F))
 }
@@ -84,6 +85,7 @@ pub(super) fn polar_rotation_newton(F: &Matrix3<f64>) -> Option<Matrix3<f64>> {
 }
 
 /// The cofactor matrix ∂ det F / ∂F: column k is f_{k+1} × f_{k+2} (columns cyclic).
+#[inline]
 pub(super) fn cofactor(F: &Matrix3<f64>) -> Matrix3<f64> {
     let f = [F.column(0), F.column(1), F.column(2)];
     Matrix3::from_columns(&[f[1].cross(&f[2]), f[2].cross(&f[0]), f[0].cross(&f[1])])
@@ -91,6 +93,7 @@ pub(super) fn cofactor(F: &Matrix3<f64>) -> Matrix3<f64> {
 
 /// Adds `scale` × ∂² det F / ∂F² to `t`: ∂²J/∂fₖ∂f_{k+1} = −[f_{k+2}]ₓ and its transpose for
 /// the reverse pair.
+#[inline]
 pub(super) fn add_det_hessian(F: &Matrix3<f64>, scale: f64, t: &mut Tangent) {
     for k in 0..3 {
         let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
@@ -107,6 +110,7 @@ pub(super) fn add_det_hessian(F: &Matrix3<f64>, scale: f64, t: &mut Tangent) {
 /// det(I + H) − 1 = tr H + ½((tr H)² − tr H²) + det H, without the cancellation of forming
 /// the determinant first: at the 1e-7 strains of water under gravity, det − 1 would keep only
 /// 9 digits, and its force error would stall Newton above the tolerance.
+#[inline]
 pub(super) fn det_minus_one(H: &Matrix3<f64>) -> f64 {
     let tr = H.trace();
     tr + 0.5 * (tr * tr - (H * H).trace()) + H.determinant()

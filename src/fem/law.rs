@@ -246,6 +246,7 @@ impl Law {
 /// Evaluates one element with its law: [`ElasticLaw::element_eval`] of `law.model`.
 // The arguments are the element's independent inputs; bundling them would only add a type.
 #[allow(clippy::too_many_arguments)]
+#[inline]
 pub fn element_eval(
     law: &Law,
     rest: &ElementRest,
@@ -261,6 +262,7 @@ pub fn element_eval(
 
 /// Cauchy stress of an element (Pa, Voigt xx yy zz yz xz xy) with its law:
 /// [`ElasticLaw::element_stress`] of `law.model`.
+#[inline]
 pub fn element_stress(
     law: &Law,
     rest: &ElementRest,
@@ -272,6 +274,7 @@ pub fn element_stress(
 
 /// The stress an element's nodal forces balance and its map to those forces, with its law:
 /// [`ElasticLaw::stress_forces`] of `law.model`.
+#[inline]
 pub fn stress_forces(
     law: &Law,
     rest: &ElementRest,

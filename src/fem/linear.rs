@@ -17,6 +17,7 @@ pub struct Linear;
 
 impl ElasticLaw for Linear {
     /// He = H − ε*, A = I.
+    #[inline]
     fn elastic_gradient(
         &self,
         H: &Matrix3<f64>,
@@ -28,6 +29,7 @@ impl ElasticLaw for Linear {
 
     /// Ψ and σ of [`solid_response`] for ε = sym(He) (P = σ); the tangent is C acting on
     /// sym(dF), less flow_drop n⊗n while yielding.
+    #[inline]
     fn solid(
         &self,
         mat: &Material,
@@ -51,6 +53,7 @@ impl ElasticLaw for Linear {
     }
 
     /// Ψ = K/2 tr(He)², P = K tr(He) I; the tangent K 1⊗1 is constant.
+    #[inline]
     fn water(
         &self,
         bulk: f64,
@@ -70,6 +73,7 @@ impl ElasticLaw for Linear {
     }
 
     /// θ = tr(H) − tr(ε*), linear in the displacements (no second derivative).
+    #[inline]
     fn volume_change(
         &self,
         H: &Matrix3<f64>,
@@ -85,6 +89,7 @@ impl ElasticLaw for Linear {
     }
 
     /// ε = sym(H) − ε* in the world frame (R = I).
+    #[inline]
     fn elastic_strain(
         &self,
         H: &Matrix3<f64>,
@@ -97,6 +102,7 @@ impl ElasticLaw for Linear {
     }
 
     /// tr(ε).
+    #[inline]
     fn water_volume_change(
         &self,
         _H: &Matrix3<f64>,
@@ -107,22 +113,26 @@ impl ElasticLaw for Linear {
     }
 
     /// G = I: fᵢ = −V σ ∇Nᵢ.
+    #[inline]
     fn force_frame(&self, _rotation: &Matrix3<f64>, _offset: &StrainOffset) -> Matrix3<f64> {
         Matrix3::identity()
     }
 
     /// p I (∂θ/∂H = I).
+    #[inline]
     fn pressure_stress(&self, _strain: &Matrix3<f64>, p: f64) -> Matrix3<f64> {
         Matrix3::identity() * p
     }
 
     /// C and K 1⊗1 do not depend on the deformation.
+    #[inline]
     fn constant_tangent(&self) -> bool {
         true
     }
 }
 
 /// dP/dF of the small-strain law with Lamé constants `lambda`, `mu` (Pa): C acting on sym(dF).
+#[inline]
 fn linear_tangent(mu: f64, lambda: f64) -> Tangent {
     let mut t = Tangent::zeros();
     for a in 0..3 {

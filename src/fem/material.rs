@@ -31,6 +31,7 @@ impl Material {
         self.lambda / (2.0 * (self.lambda + self.mu))
     }
     /// Bulk modulus K = λ + 2μ/3 (Pa).
+    #[inline]
     pub fn bulk(&self) -> f64 {
         self.lambda + 2.0 * self.mu / 3.0
     }
@@ -39,6 +40,7 @@ impl Material {
         ((self.lambda + 2.0 * self.mu) / self.density).sqrt()
     }
     /// Hooke's law σ = 2με + λ tr(ε) I (Pa) for a symmetric strain ε.
+    #[inline]
     pub fn hooke(&self, eps: &Matrix3<f64>) -> Matrix3<f64> {
         2.0 * self.mu * eps + Matrix3::identity() * (self.lambda * eps.trace())
     }

@@ -22,6 +22,10 @@
 //!
 //! An elastic model is a file implementing [`ElasticLaw`] and its variant of [`ElasticModel`]
 //! (the scene's `model`) resolved in [`ElasticModel::law`].
+//!
+//! The small kernels an element evaluation calls across these files are `#[inline]`: each file
+//! is its own codegen unit, and without the hint they are not inlined across files (measured:
+//! 2–9 % more time per element).
 
 mod corotated;
 mod element;
@@ -61,6 +65,7 @@ pub enum ElasticModel {
 impl ElasticModel {
     /// The law of this model: where a model's name becomes its implementation (a static,
     /// so resolving it is a branch and calling it one virtual call per element).
+    #[inline]
     pub fn law(self) -> &'static dyn ElasticLaw {
         match self {
             ElasticModel::Linear => &Linear,

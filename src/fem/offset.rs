@@ -45,6 +45,7 @@ impl StrainOffset {
     }
 
     /// Whether ε* = 0.
+    #[inline]
     pub fn is_zero(&self) -> bool {
         self.strain.iter().all(|v| *v == 0.0)
     }
@@ -52,6 +53,7 @@ impl StrainOffset {
 
 /// The corotated model's offset factor A = F*⁻¹ of `offset` and the elastic displacement
 /// gradient He = (I + H) A − I for the displacement gradient H, formed as H A + (A − I).
+#[inline]
 pub(super) fn offset_elastic_gradient(
     offset: &StrainOffset,
     H: &Matrix3<f64>,

@@ -37,6 +37,7 @@ pub const YIELD_SMOOTHING: f64 = 0.1;
 /// The deviatoric stress, as γ φ(r/γ) = ‖σ'‖/2μ, of a deviatoric elastic strain norm `r`
 /// with elastic limit `gamma`, and φ′: r below (1 − δ)γ, γ from (1 + δ)γ, and
 /// φ(x) = x − (x − 1 + δ)²/(4δ) between (see [`YIELD_SMOOTHING`]).
+#[inline]
 pub fn deviatoric_stress_norm(r: f64, gamma: f64) -> (f64, f64) {
     let d = YIELD_SMOOTHING;
     let x = r / gamma;
@@ -65,6 +66,7 @@ pub fn deviatoric_stress_norm(r: f64, gamma: f64) -> (f64, f64) {
 /// (‖σ'‖ = 2μγ: von Mises = √(3/2)·2μγ), and its Hessian is the consistent tangent
 /// K 1⊗1 + 2μγ/r (I_dev − n⊗n), n = ε'/r. Within δγ of the limit the deviatoric stress is
 /// 2μγφ(r/γ) n ([`deviatoric_stress_norm`]), whose energy is μr² − μγ²y³/(6δ) with y = r/γ − 1 + δ.
+#[inline]
 pub fn solid_response(
     mat: &Material,
     yield_limit: Option<f64>,

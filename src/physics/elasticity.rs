@@ -142,6 +142,7 @@ impl Elasticity {
 
     /// The law of the elastic model (strain measure and response), resolved from
     /// [`Elasticity::model`].
+    #[inline]
     pub fn law(&self) -> &'static dyn ElasticLaw {
         self.model.law()
     }
