@@ -172,7 +172,7 @@ pub struct FractureReport {
     /// allowed); each refused node is recorded (see [`Fracture::refused`]).
     pub refused: usize,
     /// Nodes eligible for fracture after the step's processing: every element around them
-    /// fully frozen.
+    /// holds ice (freeze state s > 0, however little frozen).
     pub eligible_nodes: usize,
     /// Eligible nodes still above the toughness after the processing, not counting those
     /// whose split is refused: nonzero only when the step's cap on splits was reached or a

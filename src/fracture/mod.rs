@@ -1,13 +1,14 @@
-//! Fracture criterion of O'Brien & Hodgins (1999) as the paper uses it (SPEC §3): the
-//! separation tensor of every node and its largest eigenvalue, and the conforming node split
-//! along the crack plane.
+//! Fracture criterion of O'Brien & Hodgins (1999) as the paper uses it (its §3; see
+//! docs/numerics.md#fracture): the separation tensor of every node and its largest eigenvalue,
+//! and the conforming node split along the crack plane.
 //!
 //! Per element, the stress is split by its eigen-decomposition into a tensile part
 //! σ⁺ = Σ max(0, vᵢ) nᵢnᵢᵀ and a compressive part σ⁻ = Σ min(0, vᵢ) nᵢnᵢᵀ; each part exerts
 //! nodal forces by the elastic force formula, f = −V R σ F*⁻ᵀ ∇Nᵢ in the world frame (σ the
 //! corotated stress in the element's frame, R its rotation, F* the natural shape of its strain
-//! offset (`fem::offset_elastic_gradient`); the linear model has R = I and no offset factor) —
-//! exactly the forces the simulation balances. The stress is the one the step converged to:
+//! offset (`fem::StrainOffset`); the linear model has R = I and no offset factor) — exactly
+//! the forces the simulation balances, as the element's law gives them
+//! (`fem::stress_forces`). The stress is the one the step converged to:
 //! returned onto the yield surface, and with the nodal volumetric energy the deviatoric stress
 //! plus the element pressure acting through its volume change. At node i, with F± = Σₑ f± and
 //! m(a) = a aᵀ/|a| (0 for a = 0),
@@ -18,13 +19,14 @@
 //!
 //! Its largest eigenvalue v⁺ is a force (N); its eigenvector the crack normal n. Toughness is
 //! given as a stress (Pa, the paper's 3.0e6 N/m² — ice's tensile strength): the node fractures
-//! when v⁺ exceeds τ A(n), with A(n) = ½ Σₑ Vₑ |n · R∇Nᵢ| the node's share of the plane through
-//! it with normal n, at least [`area_floor`]. For a uniform uniaxial stress s along n,
+//! when v⁺ exceeds τ A(n), with A(n) = ½ Σₑ Vₑ |n · R F*⁻ᵀ∇Nᵢ| the node's share of the plane
+//! through it with normal n, at least [`area_floor`]. For a uniform uniaxial stress s along n,
 //! v⁺ = s A(n) exactly (tested), and on a grid A(n) is the node's cross-section h_y h_z: v⁺ is
 //! the force the node's share of the plane carries, and the criterion v⁺/A > τ is mesh
-//! independent, unlike a force threshold (see SPEC's calibration note). Only ice fractures: elements that hold ice (freeze
-//! state s > 0, partly frozen ones with the stress the solve balanced) contribute, and a node
-//! touching an element that is still all water gets ς = 0 — the water's pressure, which
+//! independent, unlike a force threshold (see the calibration under "Toughness is a stress" in
+//! docs/numerics.md#fracture). Only ice fractures: elements that hold ice (freeze state s > 0,
+//! partly frozen ones with the stress the solve balanced) contribute, and a node touching an
+//! element that is still all water gets ς = 0 — the water's pressure, which
 //! balances the ice there, is not in the sums, and the unbalanced ice forces would otherwise
 //! read as separation all along the freezing front. A node is thus eligible once the front
 //! has passed it, whatever the element size; waiting for its whole star to finish freezing
@@ -41,7 +43,7 @@ pub mod split;
 pub use driver::{Fracture, FractureEvent, FractureReport, FractureSettings};
 pub use nonlocal::Averaging;
 
-use crate::fem::{elastic_strain, offset_elastic_gradient, solid_response, ElasticModel};
+use crate::fem::stress_forces;
 use crate::physics::elasticity::Elasticity;
 use crate::physics::history::ElementHistory;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
@@ -57,7 +59,8 @@ pub struct NodeSeparation {
     pub normal: Vector3<f64>,
     /// The node's share A(n) of the plane with that normal (m²), at least the area floor.
     pub area: f64,
-    /// Whether the criterion applies: every element around the node is fully frozen ice.
+    /// Whether the criterion applies: every element around the node holds ice (freeze state
+    /// s > 0, however little frozen; `ElementHistory::holds_ice`).
     pub eligible: bool,
 }
 
@@ -164,39 +167,21 @@ pub fn separation(
         }
         let rest = &elasticity.rest[e];
         let local = Elasticity::local(u, tet);
-        let offset = &offsets[e];
-        let (strain, r) = elastic_strain(elasticity.model, rest, &local, offset);
-        // The simulation's nodal force of a stress σ (in the element's frame) is −V R σ G ∇Nᵢ,
-        // with G = I (linear) or F*⁻ᵀ (the corotated model's multiplicative offset).
-        let frame = match elasticity.model {
-            ElasticModel::Linear => Matrix3::identity(),
-            ElasticModel::Corotated => {
-                r * offset_elastic_gradient(offset, &Matrix3::zeros())
-                    .0
-                    .transpose()
-            }
-        };
-        // The solid's stress as the solve balanced it: returned onto the yield surface.
+        // The stress as the solve balanced it (returned onto the yield surface, with the
+        // element pressure of the nodal volumetric energy) and the simulation's nodal force
+        // formula for a stress in the element's frame.
         let law = elasticity.law_of(history, e);
-        let mut sigma = solid_response(&law.material, law.yield_limit, &strain).sigma;
-        if let Some(p) = &pressure {
-            // The force p̄ ∂θ/∂x in the frame's form −V R σ G ∇N: σ = p̄ I (linear), or
-            // p̄ J S⁻¹ for θ = det Fe − 1 with Fe = R S (∂J/∂Fe = J Fe⁻ᵀ = R J S⁻¹).
-            sigma += match elasticity.model {
-                ElasticModel::Linear => Matrix3::identity() * p[e],
-                ElasticModel::Corotated => {
-                    let s = Matrix3::identity() + strain;
-                    s.try_inverse().unwrap_or_else(Matrix3::identity) * (p[e] * s.determinant())
-                }
-            };
-        }
-        let (plus, minus) = split(&sigma);
+        let element = stress_forces(
+            &law,
+            rest,
+            &local,
+            &offsets[e],
+            pressure.as_ref().map(|p| p[e]),
+        );
+        let (plus, minus) = split(&element.stress);
+        let (f_p, f_m) = (element.forces(&plus), element.forces(&minus));
         for (k, &i) in tet.iter().enumerate() {
-            let g = frame * rest.grads[k] * rest.volume;
-            let (fp, fm) = (
-                -(r * plus * r.transpose()) * g,
-                -(r * minus * r.transpose()) * g,
-            );
+            let (fp, fm, g) = (f_p[k], f_m[k], element.weighted_grads[k]);
             f_plus[i] += fp;
             f_minus[i] += fm;
             s_plus[i] += m(&fp);
@@ -226,9 +211,10 @@ pub fn separation(
 pub(crate) struct NodeForces {
     /// ς (N).
     pub tensor: Matrix3<f64>,
-    /// Vₑ R∇Nᵢ of the node's ice elements (m²), for A(n).
+    /// Vₑ R F*⁻ᵀ∇Nᵢ of the node's ice elements (m², `fem::StressForces::weighted_grads`), for
+    /// A(n).
     pub weighted_grads: Vec<Vector3<f64>>,
-    /// Every element around the node is fully frozen ice.
+    /// Every element around the node holds ice (freeze state s > 0, however little frozen).
     pub eligible: bool,
 }
 
@@ -245,7 +231,7 @@ impl NodeForces {
         }
     }
 
-    /// A(n) = ½ Σₑ Vₑ |n · R∇Nᵢ| (m²), at least `floor`.
+    /// A(n) = ½ Σₑ Vₑ |n · R F*⁻ᵀ∇Nᵢ| (m²), at least `floor`.
     pub fn area(&self, normal: &Vector3<f64>, floor: f64) -> f64 {
         let area = 0.5
             * self
@@ -268,6 +254,7 @@ fn largest_eigen(tensor: &Matrix3<f64>) -> (f64, Vector3<f64>) {
 mod tests {
     use super::*;
     use crate::fem::tests::ICE;
+    use crate::fem::ElasticModel;
     use crate::mesh::box_mesh;
     use crate::physics::elasticity::Volumetric;
 

@@ -15,8 +15,8 @@ use super::term::StepTerm;
 use super::volumetric::NodalVolume;
 use crate::assembly::{Assembly, ElementSubset};
 use crate::fem::{
-    elastic_strain, element_eval, element_stress, volume_change, ElasticModel, ElementEval,
-    ElementRest, Law, Material, StrainOffset, VolumeChange,
+    element_eval, element_stress, ElasticLaw, ElasticModel, ElementEval, ElementRest, Law,
+    Material, StrainOffset, VolumeChange,
 };
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
@@ -43,7 +43,7 @@ pub struct Elasticity {
     pub other_materials: Vec<Material>,
     /// Per element: 0 for `material`, k for `other_materials[k − 1]`; empty: all `material`.
     pub material_index: Vec<u16>,
-    /// Strain measure.
+    /// Strain measure: the scene's elastic model, whose law [`Elasticity::law`] gives.
     pub model: ElasticModel,
     /// Rest data per element.
     pub rest: Vec<ElementRest>,
@@ -140,6 +140,13 @@ impl Elasticity {
         ElementHistory::initial(&self.eigenstrain, self.plasticity.is_some())
     }
 
+    /// The law of the elastic model (strain measure and response), resolved from
+    /// [`Elasticity::model`].
+    #[inline]
+    pub fn law(&self) -> &'static dyn ElasticLaw {
+        self.model.law()
+    }
+
     /// Displacements of the four vertices of `tet` from the global dof vector `u` (m).
     pub fn local(u: &[f64], tet: &[usize; 4]) -> [Vector3<f64>; 4] {
         tet.map(|v| Vector3::new(u[3 * v], u[3 * v + 1], u[3 * v + 2]))
@@ -193,7 +200,7 @@ impl Elasticity {
             (ice && below_cap).then_some(p.elastic_limit)
         });
         Law {
-            model: self.model,
+            model: self.law(),
             material,
             water_bulk,
             yield_limit,
@@ -217,13 +224,9 @@ impl Elasticity {
         with_hessian: bool,
     ) -> (Vec<VolumeChange>, Vec<f64>) {
         crate::parallel::map_range(tets.len(), |e| {
-            let change = volume_change(
-                self.model,
-                &self.rest[e],
-                &Self::local(u, &tets[e]),
-                &offsets[e],
-                with_hessian,
-            );
+            let rest = &self.rest[e];
+            let grad_u = rest.displacement_gradient(&Self::local(u, &tets[e]));
+            let change = self.law().volume_change(&grad_u, &offsets[e], with_hessian);
             (change, self.bulk_of(history, e))
         })
         .into_iter()
@@ -262,7 +265,7 @@ impl Elasticity {
     }
 
     /// As [`Elasticity::element`], with the element's strain `offset` given; with `project`
-    /// the stiffness is made positive semi-definite (see `fem::constitutive`).
+    /// the stiffness is made positive semi-definite (see `fem::ElasticLaw::solid`).
     // The element's inputs: mesh, history, state, which element and what to compute.
     #[allow(clippy::too_many_arguments)]
     pub fn element_with(
@@ -339,7 +342,7 @@ impl Elasticity {
     }
 
     /// Elastic strain of element `e` in its own frame with its strain `offset` (see
-    /// `fem::elastic_strain`).
+    /// `fem::ElasticLaw::elastic_strain`).
     pub fn elastic_strain(
         &self,
         tets: &[[usize; 4]],
@@ -347,7 +350,8 @@ impl Elasticity {
         e: usize,
         offset: &StrainOffset,
     ) -> Matrix3<f64> {
-        elastic_strain(self.model, &self.rest[e], &Self::local(u, &tets[e]), offset).0
+        let grad_u = self.rest[e].displacement_gradient(&Self::local(u, &tets[e]));
+        self.law().elastic_strain(&grad_u, offset).0
     }
 
     /// Cauchy stress (Pa, Voigt xx yy zz yz xz xy) of every element.
@@ -534,11 +538,12 @@ impl StepTerm for ElasticStep<'_> {
         !std::mem::replace(&mut self.project, true)
     }
 
-    /// The linear model with per-element volume and no plasticity, whose elements' stiffness
-    /// no freezing blends from step to step: K, whatever u and the eigenstrain.
+    /// A model with a constant tangent (the linear one) with per-element volume and no
+    /// plasticity, whose elements' stiffness no freezing blends from step to step: K, whatever
+    /// u and the eigenstrain.
     fn hessian_is_fixed(&self) -> bool {
         let e = self.elasticity;
-        e.model == ElasticModel::Linear
+        e.law().constant_tangent()
             && e.plasticity.is_none()
             && e.volumetric() == Volumetric::Element
             && self.history.freeze_state.is_empty()

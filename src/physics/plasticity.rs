@@ -1,4 +1,5 @@
-//! Plasticity by return mapping (O'Brien et al. 2002; docs/numerics.md#plasticity).
+//! Plasticity by return mapping (O'Brien et al. 2002, the paper's eqs. (3)–(5); see
+//! docs/numerics.md#plasticity).
 //!
 //! With the elastic strain ε_e = ε − ε_p − ε_exp of an element and its deviatoric part
 //! ε' = ε_e − tr(ε_e)/3 I, an element whose ‖ε'‖ (Frobenius) exceeds the elastic limit γ moves
@@ -20,7 +21,7 @@
 //! the cap is elastic from then on, so its stress is no longer bounded by the yield stress.
 //!
 //! In the corotated model the plastic strain is the logarithm of the natural shape's
-//! deviatoric stretch (`fem::offset_elastic_gradient`) and the mapping adds the increment
+//! deviatoric stretch (`fem::StrainOffset`) and the mapping adds the increment
 //! found in the element's frame: exact to first order in the increment, so the next step's
 //! trial stress at the same displacements is the returned stress to that order.
 

@@ -14,14 +14,14 @@
 //! U_vol = Σₐ Vₐ κₐ/2 θ̄ₐ²,   κₐ = Σₑ∋ₐ wₐₑ κₑ,
 //! ```
 //!
-//! with κₑ the element's bulk modulus (its ice's K plus its water's) and θₑ the volume change
-//! of its elastic deformation (`fem::volume_change`: tr ε − tr ε* linear, det Fe − 1
-//! corotated). The elements then carry only the deviatoric energy. The nodal forces are those
-//! of an element pressure p̄ₑ = ¼ Σₐ∈ₑ κₐ θ̄ₐ acting through θₑ, so an element's stress is its
-//! deviatoric stress plus p̄ₑ and the nodal force balance the fracture criterion relies on
-//! holds element by element. The Hessian Σₐ Vₐ κₐ ∇θ̄ₐ ∇θ̄ₐᵀ (plus p̄ₑ ∂²θₑ for the corotated
-//! model) couples every pair of nodes of a node's star, so the sparsity pattern gains those
-//! pairs ([`NodalVolume::couplings`]).
+//! with κₑ the element's bulk modulus (its ice's K plus its water's) and θₑ the volume change of
+//! its elastic deformation (`fem::ElasticLaw::volume_change`: tr ε − tr ε* linear, det Fe − 1
+//! corotated). The elements then carry only the deviatoric energy. The nodal forces are those of an
+//! element pressure p̄ₑ = ¼ Σₐ∈ₑ κₐ θ̄ₐ acting through θₑ, so an element's stress is its deviatoric
+//! stress plus p̄ₑ and the nodal force balance the fracture criterion relies on holds element by
+//! element. The Hessian Σₐ Vₐ κₐ ∇θ̄ₐ ∇θ̄ₐᵀ (plus p̄ₑ ∂²θₑ for the corotated model) couples every
+//! pair of nodes of a node's star, so the sparsity pattern gains those pairs
+//! ([`NodalVolume::couplings`]).
 
 use crate::assembly::Assembly;
 use crate::fem::{ElementRest, VolumeChange};
