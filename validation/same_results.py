@@ -22,6 +22,10 @@ wrote, so beam_bent.toml must come before it in --scenes.
 --timing N then runs each scene N more times, alternating old, new, old, new, ..., and prints
 the median wall time of each binary and their ratio.
 
+Run both binaries on the same machine with the same threads: freezing_container_1e5 (a
+single-precision Cholesky factor kept as CG's preconditioner) gives other bits with
+RAYON_NUM_THREADS=1 than with 2, though the same bits run after run at a given count.
+
 Exit code 0 when every scene gives identical files, 1 otherwise (also when a run fails).
 Needs h5py and numpy.
 """
