@@ -1,6 +1,6 @@
 """Tests of icefem_reader against files written by the real icefem binary.
 
-The binary is $ICEFEM_BIN (default /work/main/target/release/icefem); the tests that need it
+The binary is $ICEFEM_BIN (default target/release/icefem of this repository); the tests that need it
 are skipped when it is missing. Every run is a few steps on a small mesh (well under 2 s).
 """
 
@@ -15,8 +15,9 @@ import pytest
 
 from icefem_reader import Run, open_run, voigt
 
-ICEFEM_BIN = os.environ.get("ICEFEM_BIN", "/work/main/target/release/icefem")
-PULLED_BAR = Path(os.environ.get("ICEFEM_SCENES", "/work/main/scenes")) / "pulled_bar.toml"
+REPO = Path(__file__).resolve().parents[2]
+ICEFEM_BIN = os.environ.get("ICEFEM_BIN", str(REPO / "target" / "release" / "icefem"))
+PULLED_BAR = Path(os.environ.get("ICEFEM_SCENES", str(REPO / "scenes"))) / "pulled_bar.toml"
 
 DT = 2.0**-10  # s, exact in binary so that end_time = 6 dt is exactly 6 steps
 
