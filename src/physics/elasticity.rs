@@ -534,8 +534,8 @@ impl StepTerm for ElasticStep<'_> {
         }
     }
 
-    fn project_hessian(&mut self) -> bool {
-        !std::mem::replace(&mut self.project, true)
+    fn project_hessian(&mut self, project: bool) -> bool {
+        std::mem::replace(&mut self.project, project) != project
     }
 
     /// A model with a constant tangent (the linear one) with per-element volume and no

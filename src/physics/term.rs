@@ -36,9 +36,9 @@ pub trait StepTerm {
         gradient: Option<&mut [f64]>,
         hessian: Option<&mut [f64]>,
     );
-    /// Switches to a positive semi-definite approximation of the Hessian from now on; returns
-    /// whether anything changed.
-    fn project_hessian(&mut self) -> bool {
+    /// Switches to a positive semi-definite approximation of the Hessian (`project`) or back
+    /// to the exact one from the next evaluation on; returns whether anything changed.
+    fn project_hessian(&mut self, _project: bool) -> bool {
         false
     }
     /// Given the iterate `u` and the full Newton step `trial`, adds to later Hessians the

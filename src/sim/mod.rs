@@ -11,6 +11,7 @@ mod hessians;
 pub mod integrator;
 pub mod part;
 pub mod potential;
+mod rigid_start;
 mod shared;
 mod step;
 mod terms;
@@ -31,6 +32,7 @@ use balance::{energies_of, EnergyRise};
 use hessians::KeptHessians;
 pub use integrator::{Scheme, SchemeState, TimeIntegrator};
 pub use potential::Collective;
+use rigid_start::RigidStart;
 pub use shared::Distribution;
 use shared::Shared;
 use terms::ElasticInputs;
@@ -310,6 +312,8 @@ pub struct Simulation {
     /// The supports hold every part of the mesh against rigid motion
     /// (`physics::dirichlet::hold_every_part`).
     parts_held: bool,
+    /// The parts that move freely, for Newton's start of a turning part.
+    rigid_start: RigidStart,
     /// This process's share of a distributed run.
     shared: Option<Shared>,
 }
@@ -410,6 +414,7 @@ impl Simulation {
             hessians: KeptHessians::default(),
             integrator: settings.scheme.integrator(),
             parts_held: crate::physics::dirichlet::hold_every_part(&model.mesh, &constrained),
+            rigid_start: RigidStart::new(&model.mesh, &constrained),
             shared: None,
             damping_stiffness: if with_beta {
                 vec![0.0; assembly.nnz()]

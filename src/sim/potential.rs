@@ -387,10 +387,10 @@ impl Potential for StepPotential<'_> {
         self.share.map(|share| share.owned)
     }
 
-    fn project_hessian(&mut self) -> bool {
+    fn project_hessian(&mut self, project: bool) -> bool {
         let mut changed = false;
         for term in self.all_terms_mut() {
-            changed |= term.project_hessian();
+            changed |= term.project_hessian(project);
         }
         self.any_over_processes(changed)
     }

@@ -19,6 +19,7 @@ use crate::physics::term::{Solve, StepStartView, StepTerm};
 use crate::physics::{Model, Rayleigh};
 use crate::solver::{
     minimize, minimize_quadratic, LinearSolver, NewtonParams, NewtonReport, NewtonWorkspace,
+    Potential,
 };
 use std::time::Instant;
 
@@ -46,6 +47,9 @@ struct SolveSetup {
     damping: Rayleigh,
     /// The order of accuracy of the scheme's formula for this solve.
     order: u32,
+    /// Newton's other start where a part turns (see `rigid_start`): the solve starts from
+    /// whichever of it and the predictor has the lower potential.
+    turned_start: Option<Vec<f64>>,
 }
 
 /// The elastic energy at a solve's solution (J).
@@ -215,16 +219,27 @@ impl Simulation {
         let mut offsets = std::mem::take(&mut self.offsets);
         self.state.history.update_offsets(&mut offsets);
         let mut u = self.state.u.clone();
+        let mut turned_start = None;
         if dynamic {
             self.integrator.predict(&self.state, h, &mut self.predictor);
             u.copy_from_slice(&self.predictor);
+            // A process of a distributed run holds a piece of a part, not a part.
+            if self.shared.is_none() {
+                let at = (&self.state.u[..], &self.predictor[..]);
+                turned_start =
+                    (self.rigid_start).start(&self.model.mesh.rest, at, &self.model.mass);
+            }
         }
         // A retaken step starts from its earlier solution (only for the full step: a halved
         // one starts from the predictor).
         if let Some(guess) = self.initial_guess.take() {
             if h == self.settings.dt && guess.len() == u.len() {
                 u = guess;
+                turned_start = None;
             }
+        }
+        if let Some(start) = &mut turned_start {
+            self.model.apply_dirichlet(t_new, start);
         }
         self.model.apply_dirichlet(t_new, &mut u);
         let damping = self.model.damping.unwrap_or_default();
@@ -261,6 +276,7 @@ impl Simulation {
             damping_step,
             damping,
             order: self.integrator.order(&self.state, h),
+            turned_start,
         };
         (setup, u)
     }
@@ -346,6 +362,12 @@ impl Simulation {
             owned: s.distribution.owned_dofs(),
             assembly,
         });
+        if let Some(start) = setup.turned_start.as_deref().filter(|_| !fixed) {
+            // A quadratic solve is one linear solve from anywhere: only Newton's start matters.
+            if potential.energy(start) < potential.energy(u) {
+                u.copy_from_slice(start);
+            }
+        }
         let fixed_step = fixed.then_some(setup.inertia_step);
         let lent = hessians.lend(&mut potential, fixed_step, u, assembly);
         t_fixed_assembly += lent.t_assembly;

@@ -41,9 +41,10 @@ pub trait Potential {
     fn owned_dofs(&self) -> Option<&[bool]> {
         None
     }
-    /// Switches to a positive semi-definite approximation of the Hessian from now on; returns
-    /// whether anything changed (false if already projected or nothing to project).
-    fn project_hessian(&mut self) -> bool {
+    /// Switches to a positive semi-definite approximation of the Hessian (`project`) or back
+    /// to the exact one from the next evaluation on; returns whether anything changed (false
+    /// if it already was, or there is nothing to project).
+    fn project_hessian(&mut self, _project: bool) -> bool {
         false
     }
     /// Given the current iterate `u` and the full Newton step `trial`, lets the potential add
@@ -78,6 +79,16 @@ pub trait Potential {
 /// iteration; 0.1 keeps the chord only while it is nearly as good.
 pub const CHORD_CONTRACTION: f64 = 0.1;
 
+/// After the exact Hessian was found indefinite and projected, Newton tries the exact one
+/// again at the first refresh where the residual has fallen below this fraction of where it
+/// was projected. Far from the solution compressed elements make the exact Hessian
+/// indefinite; near a minimum it is positive definite again, and Newton with it converges
+/// quadratically, while the projection (|c| for each negative twist curvature c) converges
+/// only linearly: 0.89 per iteration, 50 iterations without converging, on a cracked water
+/// column that kept the projection for the whole solve. A retry that is indefinite again
+/// costs one failed factorisation.
+pub const EXACT_AGAIN: f64 = 0.1;
+
 /// Newton settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NewtonParams {
@@ -97,6 +108,8 @@ pub struct NewtonReport {
     /// Numeric factorisations or multigrid set-ups (Hessian refreshes, and those a solve had to
     /// do itself when a reused preconditioner was too stale).
     pub factorizations: usize,
+    /// Switches to the projected Hessian after the exact one was found indefinite.
+    pub projections: usize,
     /// Linear-solver iterations summed over Newton iterations.
     pub linear_iterations: usize,
     /// Final max |free residual| (N).
@@ -129,6 +142,7 @@ impl NewtonReport {
         NewtonReport {
             iterations: self.iterations + next.iterations,
             factorizations: self.factorizations + next.factorizations,
+            projections: self.projections + next.projections,
             linear_iterations: self.linear_iterations + next.linear_iterations,
             residual: self.residual.max(next.residual),
             force_scale: next.force_scale,
@@ -211,8 +225,9 @@ impl NewtonWorkspace {
 }
 
 /// Prepares `linear` for the Hessian in `work`: the exact Hessian first; if it is indefinite
-/// (compressed corotated elements), its positive semi-definite projection for the rest of
-/// this solve, re-evaluated at `u` (updating `energy` and the gradient).
+/// (compressed corotated elements), its positive semi-definite projection, re-evaluated at
+/// `u` (updating `energy` and the gradient), which later evaluations keep until Newton
+/// switches back (see [`EXACT_AGAIN`]).
 fn factorize_or_project(
     potential: &mut impl Potential,
     u: &[f64],
@@ -224,7 +239,8 @@ fn factorize_or_project(
 ) -> Result<(), NewtonError> {
     work.factor_kept = false;
     let t = match linear.factorize(assembly, &work.hessian) {
-        Err(e) if e.is_indefinite() && potential.project_hessian() => {
+        Err(e) if e.is_indefinite() && potential.project_hessian(true) => {
+            report.projections += 1;
             let start = Instant::now();
             *energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
             report.t_assembly += start.elapsed().as_secs_f64();
@@ -252,7 +268,8 @@ fn solve_or_project(
     report: &mut NewtonReport,
 ) -> Result<LinearStats, NewtonError> {
     match linear.solve(assembly, &work.hessian, &work.rhs, &mut work.direction) {
-        Err(e) if e.is_indefinite() && potential.project_hessian() => {
+        Err(e) if e.is_indefinite() && potential.project_hessian(true) => {
+            report.projections += 1;
             let start = Instant::now();
             potential.evaluate(u, &mut work.gradient, &mut work.hessian);
             report.t_assembly += start.elapsed().as_secs_f64();
@@ -309,10 +326,20 @@ fn iterate(
     let mut floor = 0.0;
     // Potential at `u` when `work.gradient` already holds its gradient (from the line search).
     let mut known: Option<f64> = None;
+    // The residual where the Hessian was last projected.
+    let mut projected_at: Option<f64> = None;
+    let mut projections_seen = 0;
+    // Whether the last step was damped: then a constraint it ran into is anticipated even
+    // past ANTICIPATION_ITERATIONS.
+    let mut damped = false;
     for iteration in 0..=params.max_iterations {
         let start = Instant::now();
         let mut energy = if refresh {
             potential.forget_anticipated();
+            if projected_at.is_some_and(|r| previous_residual < EXACT_AGAIN * r) {
+                potential.project_hessian(false);
+                projected_at = None;
+            }
             potential.evaluate(u, &mut work.gradient, &mut work.hessian)
         } else if let Some(e) = known {
             e
@@ -352,6 +379,10 @@ fn iterate(
             // The chord stalled: take the true Hessian at this iterate.
             refresh = true;
             potential.forget_anticipated();
+            if projected_at.is_some_and(|r| residual < EXACT_AGAIN * r) {
+                potential.project_hessian(false);
+                projected_at = None;
+            }
             let start = Instant::now();
             energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
             report.t_assembly += start.elapsed().as_secs_f64();
@@ -364,6 +395,8 @@ fn iterate(
             }
             report.t_assembly += start.elapsed().as_secs_f64();
         }
+        // A chord iteration steps with a factor of an earlier iterate (or solve).
+        let mut chord = !refresh;
         if refresh {
             factorize_or_project(
                 potential,
@@ -381,23 +414,34 @@ fn iterate(
         linear.set_forcing(forcing(residual, previous_residual, target));
         let stats = solve_or_project(potential, u, assembly, linear, work, &mut report)?;
         report.add_solve(&stats);
-        if iteration < ANTICIPATION_ITERATIONS {
+        if iteration < ANTICIPATION_ITERATIONS || damped {
             let solver = NewtonSystem {
                 assembly,
                 linear: &mut *linear,
                 work: &mut *work,
             };
-            anticipate(potential, u, solver, &mut report, &mut energy)?;
+            chord &= !anticipate(potential, u, solver, &mut report, &mut energy)?;
+        }
+        if report.projections > projections_seen {
+            projections_seen = report.projections;
+            projected_at = Some(residual);
         }
         report.iterations += 1;
         let start = Instant::now();
-        let (alpha, accepted) =
-            line_search(potential, u, dofs, work, energy).ok_or(NewtonError::LineSearch {
-                iteration,
-                residual,
-            })?;
-        known = accepted;
+        let searched = line_search(potential, u, dofs, work, energy);
         report.t_assembly += start.elapsed().as_secs_f64();
+        if chord && searched.is_none_or(|(alpha, _)| alpha < 1.0) {
+            // A stale factor's step that the line search must damp (or cannot use) is not
+            // worth taking: the true Hessian at this iterate gives the step instead.
+            refresh = true;
+            known = None;
+            continue;
+        }
+        let (alpha, accepted) = searched.ok_or(NewtonError::LineSearch {
+            iteration,
+            residual,
+        })?;
+        known = accepted;
         let mut step_max: f64 = 0.0;
         for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
             u[d] += alpha * dx;
@@ -415,6 +459,7 @@ fn iterate(
         // A damped step means the model changed enough that the next iteration should see
         // the true Hessian.
         refresh = alpha < 1.0;
+        damped = alpha < 1.0;
         previous_residual = residual;
     }
     unreachable!("the loop returns at iteration max_iterations")
@@ -431,20 +476,21 @@ struct NewtonSystem<'a> {
 /// Hessian and solves again (a few rounds at most; each marks pairs for good within this
 /// solve), then solves with the anticipated constraints' force in the right-hand side too
 /// and takes that step if it still descends. `energy` is the potential at `u`, re-evaluated
-/// with the Hessian.
+/// with the Hessian. Returns whether it factorised the Hessian at `u`.
 fn anticipate(
     potential: &mut impl Potential,
     u: &[f64],
     system: NewtonSystem,
     report: &mut NewtonReport,
     energy: &mut f64,
-) -> Result<(), NewtonError> {
+) -> Result<bool, NewtonError> {
     let NewtonSystem {
         assembly,
         linear,
         work,
     } = system;
     let dofs = assembly.dofs();
+    let mut refactored = false;
     for _ in 0..3 {
         work.trial.copy_from_slice(u);
         for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
@@ -457,6 +503,7 @@ fn anticipate(
         *energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
         report.t_assembly += start.elapsed().as_secs_f64();
         factorize_or_project(potential, u, assembly, linear, work, report, energy)?;
+        refactored = true;
         let stats = solve_or_project(potential, u, assembly, linear, work, report)?;
         report.add_solve(&stats);
     }
@@ -473,7 +520,7 @@ fn anticipate(
             std::mem::swap(&mut work.direction, &mut work.landing);
         }
     }
-    Ok(())
+    Ok(refactored)
 }
 
 /// Backtracking (Armijo) line search on the potential along `work.direction` from `u`, where
@@ -662,10 +709,13 @@ fn forcing(residual: f64, previous: f64, target: f64) -> f64 {
 }
 
 /// Newton iterations during which constraints a step would activate are anticipated (see
-/// `Potential::anticipate`). Past them Newton runs plain: anticipation can cycle — a
-/// constraint the full step would activate is stiffened, the stiffened step leaves it
-/// inactive, the next full step activates it again — and two crack sides of a fractured
-/// block at rest against each other kept a step at a 20 N residual for 50 iterations that way.
+/// `Potential::anticipate`). Past them Newton anticipates only after a damped step:
+/// anticipation can cycle — a constraint the full step would activate is stiffened, the
+/// stiffened step leaves it inactive, the next full step activates it again — and two crack
+/// sides of a fractured block at rest against each other kept a step at a 20 N residual for
+/// 50 iterations that way; without it, a node that the line search stops at an inactive
+/// constraint creeps towards it by ~1e-3 of the step per iteration (a cracked ball of ice in a
+/// Gmsh cup: 40 iterations at a 13 N residual, then failure).
 const ANTICIPATION_ITERATIONS: usize = 10;
 
 /// The smallest residual (N) double precision can resolve at `u`: forces are stiffness times
@@ -725,8 +775,8 @@ mod tests {
             }
             self.energy(u)
         }
-        fn project_hessian(&mut self) -> bool {
-            !std::mem::replace(&mut self.projected, true)
+        fn project_hessian(&mut self, project: bool) -> bool {
+            std::mem::replace(&mut self.projected, project) != project
         }
         fn anticipate(&mut self, _u: &[f64], _trial: &[f64]) -> bool {
             !std::mem::replace(&mut self.anticipated, true)
