@@ -104,8 +104,10 @@ impl RigidStart {
 fn turn(a: &Matrix3<f64>) -> Option<Matrix3<f64>> {
     let svd = a.svd(true, true);
     let (u, v_t) = (svd.u?, svd.v_t?);
+    // NaN singular values (a part with non-finite positions) count as degenerate too.
     let smallest = svd.singular_values.min();
-    if !(smallest > 1e-12 * svd.singular_values.max()) {
+    let degenerate = smallest.is_nan() || smallest <= 1e-12 * svd.singular_values.max();
+    if degenerate {
         return None;
     }
     let mut flip = Matrix3::identity();
