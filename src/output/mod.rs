@@ -227,6 +227,9 @@ pub struct StepStats {
     /// Numeric factorisations or multigrid set-ups in the step (Hessian refreshes, and those a
     /// solve did itself when a reused preconditioner was too stale).
     pub factorizations: u32,
+    /// Switches of Newton to the projected Hessian in the step, after the exact one was
+    /// found indefinite.
+    pub projections: u32,
     /// Solves the step took (1, or more when Newton failed and the step was halved).
     pub substeps: u32,
     /// Final Newton residual, max |free-dof force imbalance| (N).

@@ -66,6 +66,7 @@ pub(super) fn stats(step: u64) -> StepStats {
         newton_solves: 2,
         linear_iterations: 7,
         factorizations: 2,
+        projections: 1,
         substeps: 1,
         residual: 1e-9,
         energy: 1.5,

@@ -34,7 +34,7 @@ pub(super) enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 37] = [
+pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 38] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -48,6 +48,7 @@ pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 37] = [
         StatsColumn::U32(|s| s.linear_iterations),
     ),
     ("factorizations", StatsColumn::U32(|s| s.factorizations)),
+    ("projections", StatsColumn::U32(|s| s.projections)),
     ("substeps", StatsColumn::U32(|s| s.substeps)),
     ("residual", StatsColumn::F64(|s| s.residual)),
     ("energy", StatsColumn::F64(|s| s.energy)),

@@ -522,6 +522,7 @@ fn stats_row(
         newton_solves: report.newton_solves,
         linear_iterations: n.linear_iterations as u32,
         factorizations: n.factorizations as u32,
+        projections: n.projections as u32,
         substeps: report.substeps,
         residual: n.residual,
         energy: report.energies.total(),
