@@ -12,6 +12,17 @@ Writes, next to this script, Gmsh 4.1 ASCII files (metres, z up, linear elements
   two_material_block.msh  block [0,0.1]^2 x [0,0.06], conformal at z = 0.02; physical
                           volumes "base" (z < 0.02) and "ice" (z > 0.02), physical
                           surfaces "bottom" (z = 0) and "top" (z = 0.06)
+  water_column.msh        water cylinder r = 0.03, h = 0.08 standing on z = 0 (axis = z),
+                          tets; physical volume "water", physical surfaces "bottom" (z = 0),
+                          "side", "top" (z = 0.08) and "shell" (all three)
+  glass.msh               obstacle sheet (triangles only): a glass of inner radius 0.0315,
+                          1.5 mm around the column: flat floor at z = -0.0003 (0.3 mm below
+                          the column) plus a vertical wall up to z = 0.10, open top; normals
+                          point into the cavity; physical surface "glass"
+  bottle.msh              water in a bottle shape, tets: body cylinder r = 0.03 from z = 0 to
+                          0.10, conical shoulder to r = 0.011 at z = 0.125, neck r = 0.011 up
+                          to z = 0.15; physical volume "water", physical surfaces "bottom"
+                          (z = 0) and "shell" (the whole boundary)
 
 Run (from the repository root):
 
@@ -95,6 +106,20 @@ def cavity_direction(c):
     return np.where(c[:, 2:3] < 0, -c, c * [-1.0, -1.0, 0.0])
 
 
+GLASS_R, GLASS_FLOOR, GLASS_TOP = 0.0315, -0.0003, 0.10
+
+
+def glass_cavity_direction(c):
+    """Into the glass: up on the floor, towards the z axis on the wall."""
+    on_floor = np.abs(c[:, 2:3] - GLASS_FLOOR) < 1e-9
+    return np.where(on_floor, [0.0, 0.0, 1.0], c * [-1.0, -1.0, 0.0])
+
+
+def surfaces_at_z(z, eps=1e-6, xy=0.2):
+    """Surface entities lying in the plane at height z (within |x|, |y| <= xy)."""
+    return [s for _, s in gmsh.model.getEntitiesInBoundingBox(-xy, -xy, z - eps, xy, xy, z + eps, 2)]
+
+
 def water_sphere():
     begin("water_sphere", 0.012)
     ball = gmsh.model.occ.addSphere(0, 0, 0, 0.04)
@@ -153,6 +178,62 @@ def two_material_block():
         gmsh.model.addPhysicalGroup(2, [s for _, s in faces], name=name)
     gmsh.model.mesh.generate(3)
     finish("two_material_block.msh")
+
+
+def water_column():
+    r, height = 0.03, 0.08
+    begin("water_column", 0.0105)
+    column = gmsh.model.occ.addCylinder(0, 0, 0, 0, 0, height, r)
+    gmsh.model.occ.synchronize()
+    shell = [s for _, s in gmsh.model.getBoundary([(3, column)])]
+    bottom, top = surfaces_at_z(0.0), surfaces_at_z(height)
+    gmsh.model.addPhysicalGroup(3, [column], name="water")
+    gmsh.model.addPhysicalGroup(2, bottom, name="bottom")
+    gmsh.model.addPhysicalGroup(2, [s for s in shell if s not in bottom + top], name="side")
+    gmsh.model.addPhysicalGroup(2, top, name="top")
+    gmsh.model.addPhysicalGroup(2, shell, name="shell")
+    gmsh.model.mesh.generate(3)
+    finish("water_column.msh")
+
+
+def glass():
+    begin("glass", 0.005)
+    occ = gmsh.model.occ
+    # Profile in the xz half-plane: the floor line from the axis out to the wall, then the
+    # wall line up to the rim; revolving it about z gives one connected open sheet.
+    axis, corner, rim = (occ.addPoint(0, 0, GLASS_FLOOR), occ.addPoint(GLASS_R, 0, GLASS_FLOOR),
+                         occ.addPoint(GLASS_R, 0, GLASS_TOP))
+    floor = occ.addLine(axis, corner)
+    wall = occ.addLine(corner, rim)
+    occ.revolve([(1, floor), (1, wall)], 0, 0, 0, 0, 0, 1, 2 * math.pi)
+    occ.removeAllDuplicates()          # make the floor and wall share their bottom circle
+    occ.synchronize()
+    surfaces = [s for _, s in gmsh.model.getEntities(2)]
+    gmsh.model.addPhysicalGroup(2, surfaces, name="glass")
+    gmsh.model.mesh.generate(2)        # a sheet: triangles only
+    orient(glass_cavity_direction)
+    finish("glass.msh")
+
+
+def bottle():
+    body_r, body_top, shoulder_top, neck_r, neck_top = 0.03, 0.10, 0.125, 0.011, 0.15
+    begin("bottle", 0.0108)
+    occ = gmsh.model.occ
+    body = occ.addCylinder(0, 0, 0, 0, 0, body_top, body_r)
+    shoulder = occ.addCone(0, 0, body_top, 0, 0, shoulder_top - body_top, body_r, neck_r)
+    neck = occ.addCylinder(0, 0, shoulder_top, 0, 0, neck_top - shoulder_top, neck_r)
+    # one volume: the discs where the parts met are gone, their circles stay as the edges
+    # between the body's side, the shoulder's cone and the neck's side
+    out, _ = occ.fuse([(3, body)], [(3, shoulder), (3, neck)])
+    occ.synchronize()
+    volumes = [v for d, v in out if d == 3]
+    assert len(volumes) == 1, out
+    shell = [s for _, s in gmsh.model.getBoundary([(3, volumes[0])])]
+    gmsh.model.addPhysicalGroup(3, volumes, name="water")
+    gmsh.model.addPhysicalGroup(2, surfaces_at_z(0.0), name="bottom")
+    gmsh.model.addPhysicalGroup(2, shell, name="shell")
+    gmsh.model.mesh.generate(3)
+    finish("bottle.msh")
 
 
 # ---------------------------------------------------------------- check the written files
@@ -222,6 +303,38 @@ def verify(name):
         for n in ("bottom", "top"):
             zt = p[tris[members(m, n, "triangle")]][:, :, 2]
             notes.append(f"{n} triangles z in [{zt.min():.4f}, {zt.max():.4f}]")
+    if name in ("water_column.msh", "bottle.msh"):
+        a, b, c, d = (p[tets[:, i]] for i in range(4))
+        volume = np.einsum("ij,ij->i", b - a, np.cross(c - a, d - a)).sum() / 6
+        shell = t[members(m, "shell", "triangle")]
+        enclosed = np.einsum("ij,ij->i", shell[:, 0], np.cross(shell[:, 1], shell[:, 2])).sum() / 6
+        zb = t[members(m, "bottom", "triangle")][:, :, 2]
+        lo, hi = p[np.unique(tets)].min(axis=0), p[np.unique(tets)].max(axis=0)
+        notes.append(f"volume {volume:.6e} m^3, shell encloses {enclosed:.6e} m^3 (signed); "
+                     f"tets in \"water\" {len(members(m, 'water', 'tetra'))}/{len(tets)}")
+        notes.append(f"bounding box {np.round(lo, 5).tolist()} .. {np.round(hi, 5).tolist()}; "
+                     f"bottom triangles {len(zb)}, z in [{zb.min():.4f}, {zb.max():.4f}]")
+        assert len(members(m, "water", "tetra")) == len(tets)
+        assert abs(enclosed - volume) < 1e-12 * len(shell) and np.all(np.abs(zb) < 1e-12)
+    if name == "water_column.msh":
+        parts = {n: len(members(m, n, "triangle")) for n in ("bottom", "side", "top", "shell")}
+        zt = t[members(m, "top", "triangle")][:, :, 2]
+        notes.append(f"bottom + side + top = {parts['bottom'] + parts['side'] + parts['top']} "
+                     f"(shell {parts['shell']}); top triangles z in [{zt.min():.4f}, {zt.max():.4f}]")
+        assert parts["bottom"] + parts["side"] + parts["top"] == parts["shell"] == len(tris)
+        assert np.all(np.abs(zt - 0.08) < 1e-12)
+    if name == "glass.msh":
+        normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        bad = np.sum(np.einsum("ij,ij->i", normal, glass_cavity_direction(t.mean(axis=1))) <= 0)
+        wall = np.abs(p[:, 2] - GLASS_FLOOR) > 1e-9
+        c = t.mean(axis=1)
+        on_wall = np.abs(c[:, 2] - GLASS_FLOOR) > 1e-9
+        # the wall's facets sag inward between its nodes: the least centroid radius is its inside
+        notes.append(f"triangles not facing the cavity {bad}; z range [{p[:, 2].min():.4f}, "
+                     f"{p[:, 2].max():.4f}]; wall node radius {np.hypot(*p[wall, :2].T).min():.5f}.."
+                     f"{np.hypot(*p[wall, :2].T).max():.5f}, least wall facet centroid radius "
+                     f"{np.hypot(*c[on_wall, :2].T).min():.5f}")
+        assert bad == 0
     return row, notes
 
 
@@ -230,8 +343,12 @@ if __name__ == "__main__":
     cup()
     paddle()
     two_material_block()
+    water_column()
+    glass()
+    bottle()
     print(f"{'file':24} {'nodes':>6} {'tets':>6} {'tris':>6}  physical groups (elements)")
-    for name in ("water_sphere.msh", "cup.msh", "paddle.msh", "two_material_block.msh"):
+    for name in ("water_sphere.msh", "cup.msh", "paddle.msh", "two_material_block.msh",
+                 "water_column.msh", "glass.msh", "bottle.msh"):
         row, notes = verify(name)
         print(f"{row[0]:24} {row[1]:6} {row[2]:6} {row[3]:6}  {row[4]}")
         for n in notes:
