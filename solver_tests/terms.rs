@@ -221,6 +221,10 @@ fn check(term: &mut dyn StepTerm, assembly: &Assembly, u0: &[f64], step: f64, se
 struct Minus<'a>(Box<dyn StepTerm + 'a>, Box<dyn StepTerm + 'a>);
 
 impl StepTerm for Minus<'_> {
+    fn name(&self) -> &'static str {
+        "minus"
+    }
+
     fn add(
         &mut self,
         u: &[f64],

@@ -68,6 +68,8 @@ DEFAULT_SCENES = [
     "scenes/gallery/two_material_block.toml",         #   0.8 s
     "scenes/gallery/water_sphere_in_cup.toml",        #  28 s
     "scenes/gallery/water_sphere_thermal.toml",       #   3.3 s
+    "scenes/gallery/glass_column.toml",               #  33 s
+    "scenes/gallery/bottle_thermal.toml",             #  10 s
 ]
 
 # /stats columns that hold wall-clock seconds (docs/output.md): they differ from run to run.

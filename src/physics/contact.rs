@@ -879,6 +879,10 @@ impl SceneContact for ObstacleContact {
 }
 
 impl StepTerm for ObstacleStep<'_> {
+    fn name(&self) -> &'static str {
+        "obstacle contact"
+    }
+
     fn add(
         &mut self,
         u: &[f64],

@@ -457,6 +457,10 @@ impl<'a> ElasticStep<'a> {
 }
 
 impl StepTerm for ElasticStep<'_> {
+    fn name(&self) -> &'static str {
+        "elasticity"
+    }
+
     fn add(
         &mut self,
         u: &[f64],

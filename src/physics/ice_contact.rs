@@ -677,6 +677,10 @@ impl<'a> IceStep<'a> {
 }
 
 impl StepTerm for IceStep<'_> {
+    fn name(&self) -> &'static str {
+        "ice–ice contact"
+    }
+
     fn add(
         &mut self,
         u: &[f64],

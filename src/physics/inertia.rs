@@ -35,6 +35,10 @@ pub struct Inertia<'a> {
 }
 
 impl StepTerm for Inertia<'_> {
+    fn name(&self) -> &'static str {
+        "inertia"
+    }
+
     fn add(
         &mut self,
         u: &[f64],
@@ -76,6 +80,10 @@ pub struct StiffnessDamping<'a> {
 }
 
 impl StepTerm for StiffnessDamping<'_> {
+    fn name(&self) -> &'static str {
+        "stiffness damping"
+    }
+
     fn add(
         &mut self,
         u: &[f64],

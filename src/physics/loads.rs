@@ -81,6 +81,10 @@ pub struct DeadLoads<'a> {
 }
 
 impl super::term::StepTerm for DeadLoads<'_> {
+    fn name(&self) -> &'static str {
+        "the dead loads"
+    }
+
     fn add(
         &mut self,
         u: &[f64],

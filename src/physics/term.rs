@@ -26,6 +26,8 @@ use std::any::Any;
 
 /// A term during one solve.
 pub trait StepTerm {
+    /// What the term is, for messages ("elasticity", "obstacle contact", …).
+    fn name(&self) -> &'static str;
     /// Adds the term's energy at `u` (all dofs, m) to `energy` (J), its gradient to
     /// `gradient` (N, all dofs) and its Hessian to `hessian` (CSC values of the free system,
     /// N/m), each if given.

@@ -31,6 +31,7 @@ pub use adaptive::Adaptive;
 use balance::{energies_of, EnergyRise};
 use hessians::KeptHessians;
 pub use integrator::{Scheme, SchemeState, TimeIntegrator};
+use nalgebra::Vector3;
 pub use potential::Collective;
 use rigid_start::RigidStart;
 pub use shared::Distribution;
@@ -222,12 +223,53 @@ impl StepReport {
 /// Why a solve failed.
 #[derive(Debug, thiserror::Error)]
 pub enum SolveFailure {
-    /// Newton found no solution.
-    #[error(transparent)]
-    Newton(#[from] NewtonError),
+    /// Newton found no solution; where its last iterate is furthest from balance, if known.
+    #[error("{error}{}", imbalance.as_ref().map_or(String::new(), |i| format!("; {i}")))]
+    Newton {
+        /// Newton's failure.
+        error: NewtonError,
+        /// The node of the largest force imbalance at Newton's last iterate and the term that
+        /// pushes hardest there.
+        imbalance: Option<Box<Imbalance>>,
+    },
     /// The solution holds energy no work accounts for.
     #[error(transparent)]
     EnergyRise(#[from] EnergyRise),
+}
+
+impl From<NewtonError> for SolveFailure {
+    fn from(error: NewtonError) -> Self {
+        SolveFailure::Newton {
+            error,
+            imbalance: None,
+        }
+    }
+}
+
+/// Where a failed solve's last iterate is furthest from balance.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Imbalance {
+    /// The node with the largest free-dof force imbalance.
+    pub node: usize,
+    /// Its rest position (m).
+    pub rest: Vector3<f64>,
+    /// The imbalance there, the norm of the node's summed forces (N).
+    pub force: f64,
+    /// The term with the largest force on that node.
+    pub term: &'static str,
+    /// That term's force on the node (N, norm).
+    pub term_force: f64,
+}
+
+impl std::fmt::Display for Imbalance {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let x = &self.rest;
+        write!(
+            f,
+            "the largest force imbalance, {:.3e} N, is at node {} (rest position {:.4}, {:.4}, {:.4} m), where {} exerts {:.3e} N",
+            self.force, self.node, x.x, x.y, x.z, self.term, self.term_force
+        )
+    }
 }
 
 /// Errors while setting up or stepping.

@@ -320,6 +320,53 @@ impl<'a> StepPotential<'a> {
         std::iter::once(&mut self.elastic).chain(&mut self.terms)
     }
 
+    /// The node of the largest free-dof force imbalance at `u` and the term with the largest
+    /// force on it, with the rest positions `rest` (m); `None` in a distributed run (each
+    /// process holds a part of the forces) or where every free force is zero.
+    pub fn largest_imbalance(
+        &mut self,
+        u: &[f64],
+        assembly: &Assembly,
+        rest: &[nalgebra::Vector3<f64>],
+    ) -> Option<super::Imbalance> {
+        if self.share.is_some() {
+            return None;
+        }
+        let dofs = assembly.dofs();
+        let at_node = |g: &[f64], node: usize| -> f64 {
+            (3 * node..3 * node + 3)
+                .filter(|&d| dofs.free(d).is_some())
+                .map(|d| g[d] * g[d])
+                .sum::<f64>()
+                .sqrt()
+        };
+        let mut total = vec![0.0; u.len()];
+        self.sum(u, Some(&mut total), None);
+        let node =
+            (0..rest.len()).max_by(|&a, &b| at_node(&total, a).total_cmp(&at_node(&total, b)))?;
+        let force = at_node(&total, node);
+        if force == 0.0 {
+            return None;
+        }
+        let (mut term, mut term_force) = ("", -1.0);
+        for t in self.all_terms_mut() {
+            let mut g = vec![0.0; u.len()];
+            let mut energy = 0.0;
+            t.add(u, &mut energy, Some(&mut g), None);
+            let f = at_node(&g, node);
+            if f > term_force {
+                (term, term_force) = (t.name(), f);
+            }
+        }
+        Some(super::Imbalance {
+            node,
+            rest: rest[node],
+            force,
+            term,
+            term_force,
+        })
+    }
+
     /// Wall time the terms spent choosing contact pairs (s).
     pub fn broad_phase_time(&self) -> f64 {
         self.terms

@@ -397,7 +397,14 @@ impl Simulation {
             minimize_relagged(&mut potential, u, newton, (lent.fixed, lent.factored))
         });
         self.balance_scratch = balance_scratch;
-        let (newton, newton_solves) = solved?;
+        let (newton, newton_solves) = match solved {
+            Err(SolveFailure::Newton { error, .. }) => {
+                let imbalance =
+                    (potential.largest_imbalance(u, assembly, &model.mesh.rest)).map(Box::new);
+                return Err(SolveFailure::Newton { error, imbalance });
+            }
+            other => other?,
+        };
         let before = (!fixed).then(|| before.unwrap_or_default());
         let mut solved = solved_at(&mut potential, u, newton, before);
         solved.newton_solves = newton_solves;

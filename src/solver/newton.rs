@@ -326,9 +326,7 @@ fn iterate(
     let mut floor = 0.0;
     // Potential at `u` when `work.gradient` already holds its gradient (from the line search).
     let mut known: Option<f64> = None;
-    // The residual where the Hessian was last projected.
-    let mut projected_at: Option<f64> = None;
-    let mut projections_seen = 0;
+    let mut projection = Projection::default();
     // Whether the last step was damped: then a constraint it ran into is anticipated even
     // past ANTICIPATION_ITERATIONS.
     let mut damped = false;
@@ -336,10 +334,7 @@ fn iterate(
         let start = Instant::now();
         let mut energy = if refresh {
             potential.forget_anticipated();
-            if projected_at.is_some_and(|r| previous_residual < EXACT_AGAIN * r) {
-                potential.project_hessian(false);
-                projected_at = None;
-            }
+            projection.try_exact(potential, previous_residual);
             potential.evaluate(u, &mut work.gradient, &mut work.hessian)
         } else if let Some(e) = known {
             e
@@ -379,10 +374,7 @@ fn iterate(
             // The chord stalled: take the true Hessian at this iterate.
             refresh = true;
             potential.forget_anticipated();
-            if projected_at.is_some_and(|r| residual < EXACT_AGAIN * r) {
-                potential.project_hessian(false);
-                projected_at = None;
-            }
+            projection.try_exact(potential, residual);
             let start = Instant::now();
             energy = potential.evaluate(u, &mut work.gradient, &mut work.hessian);
             report.t_assembly += start.elapsed().as_secs_f64();
@@ -422,10 +414,7 @@ fn iterate(
             };
             chord &= !anticipate(potential, u, solver, &mut report, &mut energy)?;
         }
-        if report.projections > projections_seen {
-            projections_seen = report.projections;
-            projected_at = Some(residual);
-        }
+        projection.note(&report, residual);
         report.iterations += 1;
         let start = Instant::now();
         let searched = line_search(potential, u, dofs, work, energy);
@@ -442,12 +431,7 @@ fn iterate(
             residual,
         })?;
         known = accepted;
-        let mut step_max: f64 = 0.0;
-        for (&d, dx) in dofs.free_dofs().iter().zip(&work.direction) {
-            u[d] += alpha * dx;
-            step_max = step_max.max((alpha * dx).abs());
-        }
-        let step_max = potential.max_over_processes(step_max);
+        let step_max = potential.max_over_processes(advance(u, dofs, &work.direction, alpha));
         if step_max <= params.step_tolerance {
             report.energy = match known {
                 Some(e) => e,
@@ -463,6 +447,44 @@ fn iterate(
         previous_residual = residual;
     }
     unreachable!("the loop returns at iteration max_iterations")
+}
+
+/// Moves the free dofs of `u` by `alpha` × `direction`; returns the largest move (m).
+fn advance(u: &mut [f64], dofs: &DofMap, direction: &[f64], alpha: f64) -> f64 {
+    let mut step_max: f64 = 0.0;
+    for (&d, dx) in dofs.free_dofs().iter().zip(direction) {
+        u[d] += alpha * dx;
+        step_max = step_max.max((alpha * dx).abs());
+    }
+    step_max
+}
+
+/// When a solve last switched to the projected Hessian (see [`EXACT_AGAIN`]).
+#[derive(Default)]
+struct Projection {
+    /// The residual (N) at the last switch, while the projection holds.
+    at: Option<f64>,
+    /// The report's switches seen so far.
+    seen: usize,
+}
+
+impl Projection {
+    /// Switches `potential` back to the exact Hessian if the residual has fallen below
+    /// [`EXACT_AGAIN`] × the one where it projected.
+    fn try_exact(&mut self, potential: &mut impl Potential, residual: f64) {
+        if self.at.is_some_and(|r| residual < EXACT_AGAIN * r) {
+            potential.project_hessian(false);
+            self.at = None;
+        }
+    }
+
+    /// Records a switch the iteration at `residual` made (counted in `report`).
+    fn note(&mut self, report: &NewtonReport, residual: f64) {
+        if report.projections > self.seen {
+            self.seen = report.projections;
+            self.at = Some(residual);
+        }
+    }
 }
 
 /// What a Newton iteration solves with: the pattern, the linear solver and the workspace.
