@@ -363,7 +363,7 @@ impl Simulation {
             assembly,
         });
         if let Some(start) = setup.turned_start.as_deref().filter(|_| !fixed) {
-            // A quadratic solve is one linear solve from anywhere: only Newton's start matters.
+            // Only where Newton iterates: a quadratic solve is one linear solve from any start.
             if potential.energy(start) < potential.energy(u) {
                 u.copy_from_slice(start);
             }
