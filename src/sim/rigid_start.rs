@@ -12,14 +12,17 @@
 //! solution, so Newton started there has only the elastic response left to solve for. The
 //! solution does not depend on where Newton starts; the solve takes the start of lower
 //! potential.
+//!
+//! Only a part that turns by more than the width of that valley is started rigidly: Newton's
+//! quadratic model of the step holds along a rotation by θ while the elastic energy of the
+//! stretch, ~K L² θ⁴, stays below the inertia's, ~M L² θ²/h², i.e. for
+//! θ < w = √(M / (h² K)) with K ≈ E L (E Young's modulus, L the part's radius of gyration, M
+//! its mass). w is 3.6e-3 rad for the 4 cm cube at h = 1/600 s (it turns by 1.7e-2); a body
+//! at rest turns by round-off, far below, and keeps the predictor.
 
 use crate::mesh::parts::parts_of;
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
-
-/// Rotation in a solve (rad) below which a part keeps the predictor: moving it rigidly would
-/// change the start by less than ~½ 1e-12 of the part's size, far below any solver tolerance.
-const SMALLEST_ROTATION: f64 = 1e-6;
 
 /// The parts of a mesh that move freely (none of their nodes supported).
 #[derive(Clone, Debug, Default)]
@@ -48,16 +51,17 @@ impl RigidStart {
         RigidStart { part, count }
     }
 
-    /// Newton's start (displacements, m, 3 per node) with every free part that turns by at
-    /// least [`SMALLEST_ROTATION`] moved rigidly from its shape at the start `u` (m) to the
-    /// predictor `predictor` (m) as the module describes, and every other node at the
-    /// predictor; `None` if no part turns. `rest` are the rest positions (m), `mass` the nodal
-    /// masses (kg).
+    /// Newton's start (displacements, m, 3 per node) with every free part that turns by more
+    /// than its valley's width (see the module docs) moved rigidly from its shape at the start
+    /// `u` (m) to the predictor `predictor` (m), and every other node at the predictor; `None`
+    /// if no part turns that much. `rest` are the rest positions (m), `mass` the nodal masses
+    /// (kg), `h` the solve's step (s) and `young` the ice's Young's modulus (Pa).
     pub(super) fn start(
         &self,
         rest: &[Vector3<f64>],
         (u, predictor): (&[f64], &[f64]),
         mass: &[f64],
+        (h, young): (f64, f64),
     ) -> Option<Vec<f64>> {
         let at = |d: &[f64], i: usize| rest[i] + Vector3::new(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
         let free = || self.part.iter().enumerate().filter(|(_, &p)| p != u32::MAX);
@@ -75,14 +79,19 @@ impl RigidStart {
             }
         }
         let mut covariance = vec![Matrix3::zeros(); self.count];
+        let mut second_moment = vec![0.0; self.count];
         for (i, &p) in free() {
             let (c, c_pred) = centre[p as usize];
-            covariance[p as usize] +=
-                mass[i] * (at(predictor, i) - c_pred) * (at(u, i) - c).transpose();
+            let r = at(u, i) - c;
+            covariance[p as usize] += mass[i] * (at(predictor, i) - c_pred) * r.transpose();
+            second_moment[p as usize] += mass[i] * r.norm_squared();
         }
-        let rotation: Vec<Option<Matrix3<f64>>> = covariance
-            .iter()
-            .map(|a| turn(a).filter(|r| angle(r) >= SMALLEST_ROTATION))
+        let rotation: Vec<Option<Matrix3<f64>>> = (0..self.count)
+            .map(|p| {
+                let gyration = (second_moment[p] / total[p]).sqrt();
+                let width = (total[p] / (h * h * young * gyration)).sqrt();
+                turn(&covariance[p]).filter(|r| angle(r) > width)
+            })
             .collect();
         if rotation.iter().all(Option::is_none) {
             return None;
@@ -144,6 +153,10 @@ mod tests {
             .collect()
     }
 
+    /// Step (s) and Young's modulus (Pa) of a stiff body: unit masses on ~1 m boxes give a
+    /// rotation valley √(M / (h² E L)) of ~7e-3 rad, well below the turns of the tests.
+    const STIFF: (f64, f64) = (1.0, 1e6);
+
     /// Largest absolute difference of two vectors.
     fn max_diff(a: &[f64], b: &[f64]) -> f64 {
         a.iter()
@@ -165,7 +178,8 @@ mod tests {
         let rotated = moved(rest, Rotation3::new(turn).matrix(), shift);
         let start = RigidStart::new(&mesh, &vec![false; 3 * n]);
         let zero = vec![0.0; 3 * n];
-        let guess = (start.start(rest, (&zero, &predictor), &vec![1.0; n])).expect("it turns");
+        let guess =
+            (start.start(rest, (&zero, &predictor), &vec![1.0; n], STIFF)).expect("it turns");
         // For a cube (isotropic second moment) the fit is the polar factor of I + h[ω]ₓ, the
         // rotation by atan|hω| about ω: |hω|³/3 ≈ 3.3e-4 rad from exp(h[ω]ₓ), times the
         // cube's half-diagonal 0.87 m.
@@ -190,10 +204,16 @@ mod tests {
         constrained[0] = true;
         let held = RigidStart::new(&mesh, &constrained);
         assert!(held
-            .start(rest, (&zero, &predictor), &vec![1.0; n])
+            .start(rest, (&zero, &predictor), &vec![1.0; n], STIFF)
             .is_none());
-        // A part at rest keeps it too.
-        assert!(start.start(rest, (&zero, &zero), &vec![1.0; n]).is_none());
+        // A part at rest keeps it too, and so does one whose turn is within the valley of a
+        // soft material (E = 1 Pa: a valley of ~7 rad).
+        assert!(start
+            .start(rest, (&zero, &zero), &vec![1.0; n], STIFF)
+            .is_none());
+        assert!(start
+            .start(rest, (&zero, &predictor), &vec![1.0; n], (1.0, 1.0))
+            .is_none());
     }
 
     /// On an elongated box with unequal masses the start is the rigid motion closest to the
@@ -209,7 +229,7 @@ mod tests {
         let zero = vec![0.0; 3 * n];
         let start = RigidStart::new(&mesh, &vec![false; 3 * n]);
         let guess = start
-            .start(rest, (&zero, &predictor), &mass)
+            .start(rest, (&zero, &predictor), &mass, STIFF)
             .expect("it turns");
         let distance = |u: &[f64]| -> f64 {
             (0..3 * n)

@@ -226,8 +226,9 @@ impl Simulation {
             // A process of a distributed run holds a piece of a part, not a part.
             if self.shared.is_none() {
                 let at = (&self.state.u[..], &self.predictor[..]);
-                turned_start =
-                    (self.rigid_start).start(&self.model.mesh.rest, at, &self.model.mass);
+                let young = self.model.elasticity.material.young();
+                let (rest, mass) = (&self.model.mesh.rest, &self.model.mass);
+                turned_start = (self.rigid_start).start(rest, at, mass, (h, young));
             }
         }
         // A retaken step starts from its earlier solution (only for the full step: a halved
