@@ -5,8 +5,8 @@
                          [--markdown FILE]
 
 Runs each scene once with each binary (staged as validation/same_results.py stages it: the
-scene copied into DIR/<binary index>/, the files it names linked beside it) and prints, per
-scene and binary, the Newton iterations per step read from `/stats/newton_iterations` —
+scene copied into DIR/<binary index>/ (DIR: ./newton_iterations), the files it names linked
+beside it) and prints, per scene and binary, the Newton iterations per step read from `/stats/newton_iterations` —
 median, 99th percentile, maximum and total — with the number of steps, Newton solves,
 factorisations, steps solved in more than one substep (halved), the wall time of the run,
 and the error message of a run that stopped. With --markdown the table is also written to FILE.
@@ -92,7 +92,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("binaries", nargs="+", type=Path)
     parser.add_argument("--scenes", nargs="+", type=Path)
-    parser.add_argument("--workdir", type=Path, default=Path("/tmp/icefem-newton-iterations"))
+    parser.add_argument("--workdir", type=Path, default=Path("newton_iterations"))
     parser.add_argument("--markdown", type=Path)
     args = parser.parse_args()
     scenes = [s.resolve() for s in args.scenes] if args.scenes else [REPO / s for s in DEFAULT_SCENES]

@@ -26,9 +26,9 @@ Writes, next to this script, Gmsh 4.1 ASCII files (metres, z up, linear elements
 
 Run (from the repository root):
 
-  python3 -m venv /tmp/gallery-venv
-  /tmp/gallery-venv/bin/pip install -r scenes/gallery/requirements.txt
-  /tmp/gallery-venv/bin/python scenes/gallery/make_meshes.py
+  python3 -m venv scenes/gallery/.venv
+  scenes/gallery/.venv/bin/pip install -r scenes/gallery/requirements.txt
+  scenes/gallery/.venv/bin/python scenes/gallery/make_meshes.py
 
 The pip wheel of gmsh 4.15.2 imported and meshed here without any extra Debian package
 (it needs libGLU/libXcursor/libXft/libXinerama only on machines lacking them; then:
