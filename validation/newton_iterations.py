@@ -6,8 +6,8 @@
 
 Runs each scene once with each binary (staged as validation/same_results.py stages it: the
 scene copied into DIR/<binary index>/ (DIR: ./newton_iterations), the files it names linked
-beside it) and prints, per scene and binary, the Newton iterations per step read from `/stats/newton_iterations` —
-median, 99th percentile, maximum and total — with the number of steps, Newton solves,
+beside it) and prints, per scene and binary, the Newton iterations per step read from
+`/stats/newton_iterations` — median, 99th percentile, maximum and total — with the number of steps, Newton solves,
 factorisations, steps solved in more than one substep (halved), the wall time of the run,
 and the error message of a run that stopped. With --markdown the table is also written to FILE.
 
