@@ -134,19 +134,7 @@ fn freezing_run_with_plasticity_resumes_bit_identically() {
 }
 
 fn last_frame(path: &Path) -> (f64, u64, Vec<Vec<f64>>) {
-    let file = hdf5::File::open(path).unwrap();
-    let mut frames = file.group("frames").unwrap().member_names().unwrap();
-    frames.sort();
-    // The last frame marked complete (a killed run may leave a partial group after it).
-    let g = frames
-        .iter()
-        .rev()
-        .map(|f| file.group(&format!("frames/{f}")).unwrap())
-        .find(|g| {
-            g.attr("complete")
-                .is_ok_and(|a| a.read_scalar::<u8>().unwrap_or(0) == 1)
-        })
-        .expect("a complete frame");
+    let g = last_complete_frame(path);
     let time = g.attr("time").unwrap().read_scalar::<f64>().unwrap();
     let step = g.attr("step").unwrap().read_scalar::<u64>().unwrap();
     let data = ["positions", "velocities", "displacement", "stress"]
@@ -154,6 +142,23 @@ fn last_frame(path: &Path) -> (f64, u64, Vec<Vec<f64>>) {
         .map(|d| g.dataset(d).unwrap().read_raw::<f64>().unwrap())
         .collect();
     (time, step, data)
+}
+
+/// The group of the last frame of `path` marked complete (a killed run may leave a partial
+/// group after it).
+fn last_complete_frame(path: &Path) -> hdf5::Group {
+    let file = hdf5::File::open(path).unwrap();
+    let mut frames = file.group("frames").unwrap().member_names().unwrap();
+    frames.sort();
+    frames
+        .iter()
+        .rev()
+        .map(|f| file.group(&format!("frames/{f}")).unwrap())
+        .find(|g| {
+            g.attr("complete")
+                .is_ok_and(|a| a.read_scalar::<u8>().unwrap_or(0) == 1)
+        })
+        .expect("a complete frame")
 }
 
 fn stats_column(path: &Path, name: &str) -> Vec<f64> {
@@ -409,6 +414,15 @@ fn fractured_run_resumes_bit_identically_on_its_split_mesh() {
         last_frame(&half),
         "resumed end state differs"
     );
+    // Frames carry the gaps of the crack's pairs of copies (rows p, q, g; what the resumed
+    // run continued from), the same in both runs.
+    let gaps = |path: &Path| -> Vec<f64> {
+        let ds = last_complete_frame(path).dataset("crack_gaps").unwrap();
+        assert_eq!(ds.shape()[1], 3);
+        ds.read_raw::<f64>().unwrap()
+    };
+    assert!(!gaps(&full).is_empty());
+    assert_eq!(gaps(&full), gaps(&half));
     for column in ["elements", "crack_faces", "fracture_events", "energy"] {
         assert_eq!(
             stats_column(&full, column),

@@ -54,6 +54,7 @@ fn write_box_file_with_scene(
                 stress: &stress,
                 element_fields: &[],
                 node_fields: &[],
+                row_fields: &[],
                 attributes: &[],
                 cracks: None,
             })

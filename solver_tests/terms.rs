@@ -655,6 +655,7 @@ fn with_step_terms<R>(
         u: &start.previous,
         v: &start.velocity,
         dt: start.h,
+        carried: &Default::default(),
     };
     let mut terms = terms;
     let couplings: Vec<_> = terms.iter_mut().map(|t| t.start_step(&view)).collect();
@@ -1276,7 +1277,9 @@ fn ice_friction_normal_force_at_rest_extrapolates_to_itself() {
     let mesh = &scene.model.mesh;
     let ice = scene.model.ice_contact().unwrap();
     let u = pressed_cubes(&scene, ICE_DEPTH);
-    let candidates = ice.candidates(&mesh.rest, &u, &vec![0.0; u.len()], scene.settings.dt);
+    let (v, normals) = (vec![0.0; u.len()], ice.copy_normals(&mesh.rest, &u));
+    let frames = ice.copy_frames(&mesh.rest, &u, &normals, &[]);
+    let candidates = ice.candidates(&mesh.rest, (&u, &v), scene.settings.dt, &frames);
     let step = IceStep {
         term: ice,
         rest: &mesh.rest,

@@ -242,7 +242,8 @@ impl Fracture {
             .model
             .remeshed(&mesh.rest, mesh.tets, &f.parent, &cracks)
             .map_err(invalid)?;
-        sim.remesh(model, f.u, f.v, &f.parent)
+        let carried = model.inherited_history(&sim.state.term_history, &f.node_parent);
+        sim.remesh(model, f.u, f.v, carried, &f.parent)
     }
 
     /// Number of distinct cracks.
@@ -440,13 +441,18 @@ impl Fracture {
             let origin = f.parent.iter().map(|&p| self.origin[p]).collect();
             // The step's start state on the new mesh: nodal fields were carried through the
             // split (`extra`), element fields follow the parent element.
-            let start = attempt.start.map(|st| State {
+            let mut start = attempt.start.map(|st| State {
                 u: f.extra[0].clone(),
                 v: f.extra[1].clone(),
                 history: st.history.inherit(&f.parent),
                 ..st
             });
+            let node_parent = f.node_parent.clone();
             self.rebuild(sim, f, origin)?;
+            if let Some(start) = &mut start {
+                let carried = &start.term_history;
+                start.term_history = sim.model.inherited_history(carried, &node_parent);
+            }
             report.t_remesh += clock.elapsed().as_secs_f64();
             if let Some(start) = start {
                 let clock = Instant::now();

@@ -31,6 +31,9 @@ pub struct Fracturable {
     pub v: Vec<f64>,
     /// For each tet, the element it came from (its own index before any split).
     pub parent: Vec<usize>,
+    /// For each node, the node it is a copy of (a split node's copy, a pinched node's
+    /// copy), itself if it is none.
+    pub node_parent: Vec<usize>,
     /// Further nodal vector fields (3 per node) carried like `u`, e.g. a step's start state.
     pub extra: Vec<Vec<f64>>,
     /// Smallest rest volume an edge split may create (m³; 0 by default): repeated splits in
@@ -55,12 +58,14 @@ impl Fracturable {
     /// The mesh and its state, every tet its own parent.
     pub fn new(rest: Vec<Vector3<f64>>, tets: Vec<[usize; 4]>, u: Vec<f64>, v: Vec<f64>) -> Self {
         let parent = (0..tets.len()).collect();
+        let node_parent = (0..rest.len()).collect();
         Fracturable {
             rest,
             tets,
             u,
             v,
             parent,
+            node_parent,
             extra: Vec::new(),
             min_volume: 0.0,
         }
@@ -76,6 +81,8 @@ impl Fracturable {
     fn interpolated_node(&mut self, a: usize, b: usize, t: f64) -> usize {
         let n = self.rest.len();
         self.rest.push(self.rest[a] * (1.0 - t) + self.rest[b] * t);
+        self.node_parent
+            .push(if a == b { self.node_parent[a] } else { n });
         for k in 0..3 {
             let (ua, ub) = (self.u[3 * a + k], self.u[3 * b + k]);
             self.u.push(ua + t * (ub - ua));

@@ -200,6 +200,10 @@ pub struct Frame<'a> {
     pub element_fields: &'a [Field<'a>],
     /// Extra per-node state (e.g. `temperature` n×1).
     pub node_fields: &'a [Field<'a>],
+    /// State stored as rows of any count (e.g. `crack_gaps`, one row p, q, g per pair of
+    /// copies of a split node): what a resumed run continues from, not drawn (not in the
+    /// XDMF sidecar); attribute `center` = "Rows".
+    pub row_fields: &'a [Field<'a>],
     /// Scalar attributes of the frame besides `step` and `time` (e.g. `next_dt`, s): state
     /// a resumed run continues from.
     pub attributes: &'a [(&'a str, f64)],

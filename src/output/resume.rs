@@ -37,6 +37,8 @@ pub struct ResumeFrame {
     pub element_fields: Vec<StoredField>,
     /// Every per-node field, sorted by name.
     pub node_fields: Vec<StoredField>,
+    /// Every field of rows of any count (`center` = "Rows"), sorted by name.
+    pub row_fields: Vec<StoredField>,
     /// The frame's scalar attributes besides `step`, `time` and `complete` (f64 ones).
     pub attributes: Vec<(String, f64)>,
 }
@@ -66,7 +68,7 @@ impl ResumeFrame {
             .iter()
             .flatten()
             .for_each(|&v| put(&mut out, v as u64));
-        for fields in [&self.element_fields, &self.node_fields] {
+        for fields in [&self.element_fields, &self.node_fields, &self.row_fields] {
             put(&mut out, fields.len() as u64);
             for f in fields {
                 put_str(&mut out, &f.name);
@@ -110,7 +112,7 @@ impl ResumeFrame {
                 })
                 .collect()
         };
-        let (element_fields, node_fields) = (fields()?, fields()?);
+        let (element_fields, node_fields, row_fields) = (fields()?, fields()?, fields()?);
         let attributes = (0..r.count()?)
             .map(|_| Some((r.string()?, f64::from_bits(r.word()?))))
             .collect::<Option<_>>()?;
@@ -124,6 +126,7 @@ impl ResumeFrame {
             tets,
             element_fields,
             node_fields,
+            row_fields,
             attributes,
         })
     }
@@ -366,6 +369,7 @@ pub(super) fn read_frame(
 
     let mut element_fields = Vec::new();
     let mut node_fields = Vec::new();
+    let mut row_fields = Vec::new();
     let names = g.member_names().ctx(path, || format!("listing {gname}"))?;
     for name in names {
         if RESERVED_FRAME_NAMES.contains(&name.as_str()) {
@@ -383,6 +387,17 @@ pub(super) fn read_frame(
             }
         };
         let center = ds.attr("center").ok().and_then(|a| read_string(&a).ok());
+        if center.as_deref() == Some("Rows") {
+            let data = ds
+                .read_raw::<f64>()
+                .ctx(path, || format!("reading {gname}/{name}"))?;
+            row_fields.push(StoredField {
+                name,
+                columns: cols,
+                data,
+            });
+            continue;
+        }
         // Without a `center` attribute, fall back to the row count
         // (element first, matching how the writer validates).
         let is_cell = match center.as_deref() {
@@ -431,6 +446,7 @@ pub(super) fn read_frame(
         tets,
         element_fields,
         node_fields,
+        row_fields,
         attributes,
     })
 }
@@ -455,6 +471,11 @@ mod tests {
                 data: (0..6).map(f64::from).collect(),
             }],
             node_fields: Vec::new(),
+            row_fields: vec![super::StoredField {
+                name: "crack_gaps".into(),
+                columns: 3,
+                data: vec![3.0, 4.0, -1e-6],
+            }],
             attributes: vec![("next_dt".into(), 1e-3)],
         };
         let bytes = frame.to_bytes();

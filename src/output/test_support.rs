@@ -170,6 +170,7 @@ pub(super) fn write(w: &mut OutputWriter, k: usize, d: &FrameData, topology_chan
         stress: &d.stress,
         element_fields: &ef,
         node_fields: &nf,
+        row_fields: &[],
         attributes: &[],
         cracks: None,
     })

@@ -212,7 +212,10 @@ fn frame_bytes(frame: &Frame) -> u64 {
     if frame.topology_changed {
         bytes += rows3 + 32 * frame.tets.len() as u64;
     }
-    for f in frame.element_fields.iter().chain(frame.node_fields) {
+    for f in (frame.element_fields.iter())
+        .chain(frame.node_fields)
+        .chain(frame.row_fields)
+    {
         // A 6-column field is stored again as matrices: 8 + 8 × 9 / 6 bytes a value.
         let per_value = if f.cols == 6 { 20 } else { 8 };
         bytes += per_value * f.data.len() as u64;
@@ -469,7 +472,12 @@ impl OutputWriter {
         }
         let stress = frame.stress.as_flattened();
         write_matrix(&path, &g, "stress", frame.stress.len(), 6, stress)?;
-        for (fields, center) in [(frame.element_fields, "Cell"), (frame.node_fields, "Node")] {
+        let centers = [
+            (frame.element_fields, "Cell"),
+            (frame.node_fields, "Node"),
+            (frame.row_fields, "Rows"),
+        ];
+        for (fields, center) in centers {
             for f in fields {
                 let rows = f.data.len() / f.cols;
                 let ds = write_matrix(&path, &g, f.name, rows, f.cols, f.data)?;
@@ -539,10 +547,13 @@ impl OutputWriter {
         }
         let mut seen: Vec<&str> = Vec::new();
         for (fields, rows, kind) in [
-            (frame.element_fields, m, "element"),
-            (frame.node_fields, n, "node"),
+            (frame.element_fields, Some(m), "element"),
+            (frame.node_fields, Some(n), "node"),
+            (frame.row_fields, None, "row"),
         ] {
             for f in fields {
+                // Row fields have as many rows as their values fill.
+                let rows = rows.unwrap_or(f.data.len() / f.cols.max(1));
                 if f.name.is_empty()
                     || f.name == "."
                     || f.name.contains('/')

@@ -17,11 +17,24 @@
 //!
 //! The two sides of a crack that has not (yet) cut a piece off belong to one part; they must
 //! still not pass through each other. They touch where they were split apart: every copy of a
-//! split node is paired with its other copies (same rest position), and the pair's gap is
-//! g = (p − q)·m, with m the unit normal from q's side of the crack to p's (the difference of
-//! the two sides' crack-face normals at p and q, taken at the start of the step and frozen for
-//! it). Such a pair is a candidate like a node–triangle pair whose triangle is the point q
-//! (β = (1, 0, 0)). The same holds for the two sides of a crack that has cut a piece off: crack
+//! split node is paired with its other copies (same rest position). The pair's gap g is
+//! carried from step to step (the state's rows `crack_gaps`: p, q, g at the end of the last
+//! step), and within a step it moves with the copies along m, the unit normal from q's side
+//! of the crack to p's (the difference of the two sides' crack-face normals at p and q, taken
+//! at the start of the step and frozen for it): g = g₀ + ((p − q) − (p₀ − q₀))·m. Such a pair
+//! is a candidate like a node–triangle pair whose triangle is the point q (β = (1, 0, 0)).
+//!
+//! The gap is carried, not measured as (p − q)·m at each step's start: copies that have slid
+//! apart along the crack would see that gap jump whenever m turns between steps — a new split
+//! at the node changes the faces m comes from — by their tangential offset × the turn (57 µm ×
+//! 0.15 rad gave an 8 µm penetration, 5e4 N at the penalty stiffness, at the start of a step,
+//! and Newton failed there even at dt/16: a water ball freezing in a Gmsh cup). Carried, the
+//! gap is continuous in time; m's turn changes only the direction in which the copies' next
+//! motion counts. A split's new pairs inherit the gap of the pair their copies were made
+//! from (a copy of p pairs with q as p did; p and its new copy start at 0); a pair with
+//! nothing to inherit (a run resumed from a file without the rows) starts from (p − q)·m.
+//!
+//! The same holds for the two sides of a crack that has cut a piece off: crack
 //! nodes are never paired with crack faces node-to-triangle. That would not do: a copy sits
 //! exactly on a vertex of the other side's faces, and which face is nearest flips with
 //! round-off where the crack bends, making the energy jump. Copies that have slid apart by more
@@ -117,6 +130,9 @@ pub struct Candidate {
     /// For a pair of copies: the unit normal m from the other copy's side to the node's
     /// (frozen for the step); zero otherwise.
     pub normal: Vector3<f64>,
+    /// For a pair of copies: g₀ − (p₀ − q₀)·m, the carried gap at the step's start less the
+    /// part the positions give there (m); zero otherwise.
+    pub offset: f64,
 }
 
 impl Candidate {
@@ -238,12 +254,13 @@ impl IceContact {
     /// Candidate pairs for a step from displacement `u` with velocities `v` over `h` seconds:
     /// node and triangle of different parts, or across a crack (see the module docs), whose
     /// boxes, grown by the motion of the step plus half an edge, overlap.
+    /// The pairs of copies get their normal and offset from `frames` ([`IceContact::copy_frames`]).
     pub fn candidates(
         &self,
         rest: &[Vector3<f64>],
-        u: &[f64],
-        v: &[f64],
+        (u, v): (&[f64], &[f64]),
         h: f64,
+        frames: &[Option<(Vector3<f64>, f64)>],
     ) -> Vec<Candidate> {
         let vmax = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let margin = 2.0 * vmax * h + 0.5 * self.edge;
@@ -287,11 +304,55 @@ impl IceContact {
                         area,
                         face,
                         normal: Vector3::zeros(),
+                        offset: 0.0,
                     });
                 }
             }
         }
         // Copies of split nodes, after the node–triangle pairs (which come in runs by node).
+        for (pair, frame) in self.copies.iter().zip(frames) {
+            // Copies that slid apart by more than an edge no longer face each other.
+            let d = position(rest, u, pair.p) - position(rest, u, pair.q);
+            if let Some((normal, offset)) =
+                frame.filter(|(m, _)| (d - d.dot(m) * m).norm() < self.edge)
+            {
+                out.push(Candidate {
+                    node: pair.p,
+                    area: pair.area,
+                    face: [pair.q; 3],
+                    normal,
+                    offset,
+                });
+            }
+        }
+        out
+    }
+
+    /// For each pair of copies (in [`IceContact::copies`]' order), its normal m for a step
+    /// from `u` (`normals`, [`IceContact::copy_normals`] at `u`) and the offset that starts
+    /// its gap there at its carried gap (`gaps`, m; from (p − q)·m, offset 0, where one is
+    /// missing or not finite); `None` where the normal is.
+    pub fn copy_frames(
+        &self,
+        rest: &[Vector3<f64>],
+        u: &[f64],
+        normals: &[Option<Vector3<f64>>],
+        gaps: &[f64],
+    ) -> Vec<Option<(Vector3<f64>, f64)>> {
+        (self.copies.iter().zip(normals).enumerate())
+            .map(|(k, (c, m))| {
+                let m = (*m)?;
+                let d = position(rest, u, c.p) - position(rest, u, c.q);
+                let carried = gaps.get(k).copied().filter(|g| g.is_finite());
+                Some((m, carried.map_or(0.0, |g| g - d.dot(&m))))
+            })
+            .collect()
+    }
+
+    /// For each pair of copies of a split node (in [`IceContact::copies`]' order), the unit
+    /// normal m from q's side of the crack to p's at `u`: the difference of the two sides'
+    /// crack-face normals at p and q; `None` where they cancel.
+    pub fn copy_normals(&self, rest: &[Vector3<f64>], u: &[f64]) -> Vec<Option<Vector3<f64>>> {
         let outward = |faces: &[[usize; 3]]| -> Vector3<f64> {
             faces
                 .iter()
@@ -304,20 +365,49 @@ impl IceContact {
                 })
                 .sum()
         };
-        for pair in &self.copies {
-            // Copies that slid apart by more than an edge no longer face each other.
-            let d = position(rest, u, pair.p) - position(rest, u, pair.q);
-            let m = (outward(&pair.faces_q) - outward(&pair.faces_p)).try_normalize(0.0);
-            if let Some(normal) = m.filter(|m| (d - d.dot(m) * m).norm() < self.edge) {
-                out.push(Candidate {
-                    node: pair.p,
-                    area: pair.area,
-                    face: [pair.q; 3],
-                    normal,
-                });
-            }
-        }
-        out
+        self.copies
+            .iter()
+            .map(|pair| (outward(&pair.faces_q) - outward(&pair.faces_p)).try_normalize(0.0))
+            .collect()
+    }
+
+    /// The carried gaps (m, in [`IceContact::copies`]' order) of `rows` (p, q, g per pair, as
+    /// [`IceContact::gap_rows`] makes them); NaN for a pair that has none.
+    pub fn gaps_of_rows(&self, rows: &[f64]) -> Vec<f64> {
+        self.inherited_gaps(rows, &[])
+    }
+
+    /// The rows p, q, g of the pairs of copies with gaps `gaps` (m, in
+    /// [`IceContact::copies`]' order).
+    pub fn gap_rows(&self, gaps: &[f64]) -> Vec<f64> {
+        (self.copies.iter().zip(gaps))
+            .flat_map(|(c, &g)| [c.p as f64, c.q as f64, g])
+            .collect()
+    }
+
+    /// The carried gaps of this mesh's pairs of copies (m, in [`IceContact::copies`]' order)
+    /// from `rows`, those of the mesh it was split from, with `node_parent` as in
+    /// [`crate::physics::term::Term::inherit`] (empty: no split): a pair keeps its gap; a new
+    /// pair takes the gap of the pair its copies were made from, 0 for a node and its own new
+    /// copy (they coincide); NaN where there is none.
+    pub fn inherited_gaps(&self, rows: &[f64], node_parent: &[usize]) -> Vec<f64> {
+        let carried: std::collections::HashMap<(usize, usize), f64> = rows
+            .chunks_exact(3)
+            .map(|r| ((r[0] as usize, r[1] as usize), r[2]))
+            .collect();
+        let parent = |i: usize| node_parent.get(i).copied().unwrap_or(i);
+        (self.copies.iter())
+            .map(|c| {
+                let (a, b) = (parent(c.p), parent(c.q));
+                match carried.get(&(c.p, c.q)) {
+                    Some(&g) => g,
+                    None if a == b => 0.0,
+                    // The gap is the same seen from either side: (p − q)·m with m from q's
+                    // side to p's.
+                    None => (carried.get(&(a.min(b), a.max(b))).copied()).unwrap_or(f64::NAN),
+                }
+            })
+            .collect()
     }
 
     /// The penalty per unit k Aₚ at gap g (m): its value (m²), slope (m) and curvature, or
@@ -357,7 +447,7 @@ impl IceContact {
     pub fn gap(&self, rest: &[Vector3<f64>], u: &[f64], c: &Candidate) -> Option<(f64, [f64; 12])> {
         let p = position(rest, u, c.node);
         if c.is_copy_pair() {
-            let g = (p - position(rest, u, c.face[0])).dot(&c.normal);
+            let g = (p - position(rest, u, c.face[0])).dot(&c.normal) + c.offset;
             let mut grad_g = [0.0; 12];
             for k in 0..3 {
                 grad_g[k] = c.normal[k];
@@ -733,7 +823,13 @@ pub struct IceContactTerm {
     /// CSC value indices of each candidate's 12 × 12 block (row-major), `u32::MAX` where a
     /// dof is constrained.
     candidate_slots: Vec<Vec<u32>>,
+    /// The pairs of copies of the current step: normal m and offset (see [`Candidate`]), or
+    /// `None` where the normals cancel (in [`IceContact::copies`]' order).
+    copy_frames: Vec<Option<(Vector3<f64>, f64)>>,
 }
+
+/// The name of the pairs' carried gaps in the state and in frames (see the module docs).
+pub const CRACK_GAPS: &str = "crack_gaps";
 
 impl IceContactTerm {
     /// The term on `mesh` with crack faces `cracks`; `stiffness` 0 takes the default
@@ -758,6 +854,7 @@ impl IceContactTerm {
             active: IceContact::new(mesh, k, friction, smoothing_velocity, cracks),
             candidates: Vec::new(),
             candidate_slots: Vec::new(),
+            copy_frames: Vec::new(),
         }
     }
 
@@ -771,6 +868,7 @@ impl IceContactTerm {
             active: None,
             candidates: Vec::new(),
             candidate_slots: Vec::new(),
+            copy_frames: Vec::new(),
         }
     }
 
@@ -815,7 +913,13 @@ impl Term for IceContactTerm {
     /// history-dependent superset) keeps resumed runs bit-identical.
     fn start_step(&mut self, start: &StepStartView) -> Option<Vec<(usize, usize)>> {
         let term = self.active.as_ref()?;
-        self.candidates = term.candidates(start.rest, start.u, start.v, start.dt);
+        let normals = term.copy_normals(start.rest, start.u);
+        let gaps = term.gaps_of_rows(start.carried.get(CRACK_GAPS));
+        // Kept for every pair, also those not facing each other this step: their gaps are
+        // carried all the same.
+        self.copy_frames = term.copy_frames(start.rest, start.u, &normals, &gaps);
+        let at = (start.u, start.v);
+        self.candidates = term.candidates(start.rest, at, start.dt, &self.copy_frames);
         let mut couplings: Vec<(usize, usize)> = self
             .candidates
             .iter()
@@ -824,6 +928,27 @@ impl Term for IceContactTerm {
         couplings.sort_unstable();
         couplings.dedup();
         Some(couplings)
+    }
+    fn carried(&self) -> Option<(&'static str, usize)> {
+        let term = self.active.as_ref()?;
+        (!term.copies.is_empty()).then_some((CRACK_GAPS, 3))
+    }
+    fn carry(&self, rest: &[Vector3<f64>], u: &[f64]) -> Vec<f64> {
+        let Some(term) = &self.active else {
+            return Vec::new();
+        };
+        let gaps: Vec<f64> = (term.copies.iter().zip(&self.copy_frames))
+            .map(|(c, frame)| {
+                let d = position(rest, u, c.p) - position(rest, u, c.q);
+                frame.map_or(f64::NAN, |(m, offset)| d.dot(&m) + offset)
+            })
+            .collect();
+        term.gap_rows(&gaps)
+    }
+    fn inherit(&self, old: &[f64], node_parent: &[usize]) -> Vec<f64> {
+        self.active.as_ref().map_or(Vec::new(), |term| {
+            term.gap_rows(&term.inherited_gaps(old, node_parent))
+        })
     }
     fn pattern_ready(&mut self, assembly: &Assembly, _changed: bool) {
         if self.active.is_none() {

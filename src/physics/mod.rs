@@ -35,7 +35,7 @@ use crate::mesh::{MeshError, TetMesh};
 use history::ElementHistory;
 use ice_contact::{IceContact, IceContactTerm};
 use nalgebra::Vector3;
-use term::{NodeRestriction, Remesh, Term};
+use term::{NodeRestriction, Remesh, Term, TermHistory};
 
 /// Axis-aligned box region in rest coordinates (m), bounds inclusive.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -243,6 +243,18 @@ impl Model {
             }
         }
         self.terms = terms.iter().map(|t| t.restricted(part)).collect();
+    }
+
+    /// What this model's terms carry, inherited from `old`, what they carried on the mesh this
+    /// one's was split from (`node_parent` as in [`term::Term::inherit`]).
+    pub fn inherited_history(&self, old: &TermHistory, node_parent: &[usize]) -> TermHistory {
+        let mut history = TermHistory::default();
+        for term in &self.terms {
+            if let Some((name, columns)) = term.carried() {
+                history.set(name, columns, term.inherit(old.get(name), node_parent));
+            }
+        }
+        history
     }
 
     /// Adds contact with rigid obstacles, summed before the other contact terms.

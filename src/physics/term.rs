@@ -116,6 +116,49 @@ pub struct StepStartView<'a> {
     pub v: &'a [f64],
     /// The step (s).
     pub dt: f64,
+    /// What the terms carry, at the start of the step.
+    pub carried: &'a TermHistory,
+}
+
+/// What terms carry from step to step, by name: rows of numbers each term defines (ice–ice
+/// contact: one row p, q, g per pair of copies of a split node — see `ice_contact`). Part of
+/// the simulation's state, so a rolled-back step restores it, frames store it for resuming,
+/// and a remesh hands it to the term on the new mesh to inherit (see [`Term::inherit`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TermHistory(pub Vec<CarriedRows>);
+
+/// Rows of numbers a term carries (see [`TermHistory`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CarriedRows {
+    /// The name (of the dataset in frames, too).
+    pub name: &'static str,
+    /// Numbers in a row.
+    pub columns: usize,
+    /// The rows, row-major.
+    pub data: Vec<f64>,
+}
+
+impl TermHistory {
+    /// The rows `name` carries (empty if none).
+    pub fn get(&self, name: &str) -> &[f64] {
+        self.0
+            .iter()
+            .find(|r| r.name == name)
+            .map_or(&[], |r| &r.data[..])
+    }
+
+    /// Replaces the rows `name` carries, of `columns` numbers each.
+    pub fn set(&mut self, name: &'static str, columns: usize, data: Vec<f64>) {
+        let rows = CarriedRows {
+            name,
+            columns,
+            data,
+        };
+        match self.0.iter_mut().find(|r| r.name == name) {
+            Some(entry) => *entry = rows,
+            None => self.0.push(rows),
+        }
+    }
 }
 
 /// What a term sees of one solve: fixed while it lasts.
@@ -164,6 +207,22 @@ pub trait Term: Send + Sync + std::fmt::Debug {
     /// the sparsity pattern beyond the elements' (sorted, unique), if it couples any.
     fn start_step(&mut self, _start: &StepStartView) -> Option<Vec<(usize, usize)>> {
         None
+    }
+    /// The name under which the term carries rows of numbers from step to step (see
+    /// [`TermHistory`]) and the number of numbers in a row, if it carries any.
+    fn carried(&self) -> Option<(&'static str, usize)> {
+        None
+    }
+    /// What the term carries at the solution `u` (m) of the step prepared by
+    /// [`Term::start_step`].
+    fn carry(&self, _rest: &[Vector3<f64>], _u: &[f64]) -> Vec<f64> {
+        Vec::new()
+    }
+    /// What this term, on a mesh made by splitting elements, carries from `old`, what the
+    /// term on the mesh before carried; `node_parent[i]` is the node that node `i` of the new
+    /// mesh copies (itself if none).
+    fn inherit(&self, _old: &[f64], _node_parent: &[usize]) -> Vec<f64> {
+        Vec::new()
     }
     /// Called with the pattern a step is solved on, after [`Term::start_step`] (and when the
     /// simulation is built); `changed` tells whether the pattern is new.

@@ -212,6 +212,17 @@ fn node_fields<'a>(
     fields
 }
 
+/// The fields of rows of any count of a frame: what the terms carry.
+fn row_fields(state: &State) -> Vec<Field<'_>> {
+    (state.term_history.0.iter())
+        .map(|r| Field {
+            name: r.name,
+            cols: r.columns,
+            data: &r.data,
+        })
+        .collect()
+}
+
 /// The element fields of a frame besides the stress.
 fn element_fields<'a>(
     source: &'a FrameSource,
@@ -265,6 +276,7 @@ fn write_frame(
         stress: &source.stress,
         element_fields: &element_fields(source, &derived, fracture.is_some()),
         node_fields: &node_fields(source, &derived, fracture.is_some()),
+        row_fields: &row_fields(state),
         attributes: &attributes,
         cracks: cracks.as_ref(),
     })

@@ -35,6 +35,7 @@ pub(super) fn part_frame(part: &Part, frame: &ResumeFrame, mesh: &TetMesh) -> Re
         tets: part.tets_of(&mesh.tets),
         element_fields: fields(&frame.element_fields, mesh.num_tets(), true),
         node_fields: fields(&frame.node_fields, mesh.num_nodes(), false),
+        row_fields: frame.row_fields.clone(),
         attributes: frame.attributes.clone(),
     }
 }
@@ -95,6 +96,16 @@ pub(super) fn restore(
     // What the time scheme carries (absent in a frame written before the first step or after
     // a split: then the next step starts as the first does).
     sim.state.carried = SchemeState::read(sim.integrator(), field, |name| frame.attribute(name));
+    // What the terms carry (absent in a frame written before the first step that needed it).
+    for term in &sim.model.terms {
+        let Some((name, columns)) = term.carried() else {
+            continue;
+        };
+        let stored = (frame.row_fields.iter()).find(|f| f.name == name && f.columns == columns);
+        if let Some(f) = stored {
+            sim.state.term_history.set(name, columns, f.data.clone());
+        }
+    }
     sim.state.next_dt = frame.attribute("next_dt").unwrap_or(0.0);
     sim.state.time = frame.time;
     sim.state.step = frame.step;

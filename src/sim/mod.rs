@@ -21,6 +21,7 @@ use crate::fem::StrainOffset;
 use crate::physics::contact::ContactForces;
 use crate::physics::freezing::Schedule;
 use crate::physics::history::ElementHistory;
+use crate::physics::term::TermHistory;
 use crate::physics::Model;
 use crate::solver::{
     FillOrdering, LinearSolver, LinearSolverKind, NewtonError, NewtonParams, NewtonReport,
@@ -114,6 +115,9 @@ pub struct State {
     /// What the time scheme carries from step to step (Newmark's acceleration, BDF2's step
     /// back; empty before the first step and after a remesh).
     pub carried: SchemeState,
+    /// What the model's terms carry from step to step (the gaps of the pairs of copies of
+    /// split nodes).
+    pub term_history: TermHistory,
     /// The step length the adaptive control proposes for the next step (s; 0 without
     /// adaptive steps, or before the first step: then the scene's `dt`).
     pub next_dt: f64,
@@ -434,6 +438,7 @@ impl Simulation {
             history,
             temperature: Vec::new(),
             carried: SchemeState::default(),
+            term_history: TermHistory::default(),
             next_dt: 0.0,
         };
         let with_beta = model.damping.is_some_and(|d| d.stiffness > 0.0);
@@ -474,7 +479,8 @@ impl Simulation {
 
     /// Continues with `model` on a new mesh after a topology change (fracture; see
     /// [`Model::remeshed`]), with the nodal displacements `u` and velocities `v` (3 per node)
-    /// on the new mesh; new element `e` inherits the history of element `parent[e]`. Pattern,
+    /// and what the terms carry, `term_history`, on the new mesh; new element `e` inherits the
+    /// history of element `parent[e]`. Pattern,
     /// colouring and symbolic factorisation are rebuilt (only here); time and step count carry
     /// on.
     pub fn remesh(
@@ -482,6 +488,7 @@ impl Simulation {
         model: Model,
         u: Vec<f64>,
         v: Vec<f64>,
+        term_history: TermHistory,
         parent: &[usize],
     ) -> Result<(), SimError> {
         if self.shared.is_some() {
@@ -506,6 +513,7 @@ impl Simulation {
             history,
             temperature: std::mem::take(&mut self.state.temperature),
             carried: SchemeState::default(),
+            term_history,
             next_dt: self.state.next_dt,
         };
         next.set_time(time);

@@ -113,6 +113,7 @@ impl Simulation {
             time,
             cause: source,
         })?;
+        self.carry_term_history();
         self.state.step += 1;
         report.t_step = start.elapsed().as_secs_f64();
         report.heat = heat;
@@ -134,6 +135,7 @@ impl Simulation {
             u: &self.state.u,
             v: &self.state.v,
             dt: self.settings.dt,
+            carried: &self.state.term_history,
         };
         let mut asked: Option<Vec<(usize, usize)>> = None;
         for term in &mut self.model.terms {
@@ -155,6 +157,16 @@ impl Simulation {
             term.pattern_ready(&self.assembly, changed);
         }
         Ok(())
+    }
+
+    /// Replaces what the terms carry with its values at the step's end.
+    fn carry_term_history(&mut self) {
+        for term in &self.model.terms {
+            if let Some((name, columns)) = term.carried() {
+                let rows = term.carry(&self.model.mesh.rest, &self.state.u);
+                self.state.term_history.set(name, columns, rows);
+            }
+        }
     }
 
     /// Rebuilds the pattern, the linear solver and what depends on them for the terms'

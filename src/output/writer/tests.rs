@@ -254,6 +254,7 @@ fn invalid_frames_are_rejected_before_writing() {
             stress: &d.stress,
             element_fields: ef,
             node_fields: &[],
+            row_fields: &[],
             attributes: &[],
             cracks: None,
         });
@@ -273,6 +274,7 @@ fn invalid_frames_are_rejected_before_writing() {
         stress: &d2.stress,
         element_fields: &[],
         node_fields: &[],
+        row_fields: &[],
         attributes: &[],
         cracks: None,
     });
