@@ -33,7 +33,7 @@ Written by `validation/newton_iterations.py BINARY --markdown FILE` (one run per
 machine that ran it: 2 cores for the committed file). Iterations per step from
 `/stats/newton_iterations`: median / 99th percentile / largest, and the total; "solves" counts
 Newton solves (re-solves after friction's re-lag included), "halved steps" the steps retried
-at dt/2 or less. `solver_tests/newton_iterations.rs` bounds twelve of these rows.
+at dt/2 or less. `solver_tests/newton_iterations.rs` bounds thirteen of these rows.
 
 """
 

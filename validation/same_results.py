@@ -70,6 +70,7 @@ DEFAULT_SCENES = [
     "scenes/gallery/water_sphere_thermal.toml",       #   3.3 s
     "scenes/gallery/glass_column.toml",               #  33 s
     "scenes/gallery/bottle_thermal.toml",             #  10 s
+    "scenes/gallery/ball_cracking_in_cup.toml",       # 120 s
 ]
 
 # /stats columns that hold wall-clock seconds (docs/output.md): they differ from run to run.
