@@ -31,8 +31,8 @@ pub struct Fracturable {
     pub v: Vec<f64>,
     /// For each tet, the element it came from (its own index before any split).
     pub parent: Vec<usize>,
-    /// For each node, the node it is a copy of (a split node's copy, a pinched node's
-    /// copy), itself if it is none.
+    /// For each node, the node of the mesh this was made from that it is a copy of (a split
+    /// node's copy, a pinched node's copy, through any number of splits), itself if none.
     pub node_parent: Vec<usize>,
     /// Further nodal vector fields (3 per node) carried like `u`, e.g. a step's start state.
     pub extra: Vec<Vec<f64>>,
