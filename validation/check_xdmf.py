@@ -119,7 +119,9 @@ def frames_of(h5):
                 if isinstance(ds, h5py.Dataset) and "center" in ds.attrs:
                     center = ds.attrs["center"]
                     center = center.decode() if isinstance(center, bytes) else center
-                    fields[k] = (center, ds[()])
+                    # "Rows" (state for resuming, e.g. crack_gaps) is not drawn: no sidecar array.
+                    if center in ("Cell", "Node"):
+                        fields[k] = (center, ds[()])
             cracks = g.get("cracks")
             frames.append({
                 "name": name,

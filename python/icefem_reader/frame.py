@@ -113,6 +113,8 @@ class Frame:
             center = obj.attrs.get("center", _BUILTIN_CENTER.get(name))
             if isinstance(center, bytes):
                 center = center.decode()
+            if center == "Rows":  # state for resuming (crack_gaps): neither nodes nor elements
+                continue
             if center not in fields:  # no attribute: judge by the row count, elements first
                 center = "Cell" if obj.shape[0] == m else "Node" if obj.shape[0] == n else None
             if center is not None:
