@@ -288,8 +288,12 @@ fn stacked_cubes_rest_on_each_other_through_ice_contact() {
     // edge (the upper one overhangs it) the pressure concentrates, so allow 10× the mean depth
     // (measured: 0.57×).
     let at = (&sim.state.u[..], &sim.state.v[..]);
-    let normals = ice.copy_normals(&sim.model.mesh.rest, &sim.state.u);
-    let frames = ice.copy_frames(&sim.model.mesh.rest, &sim.state.u, &normals, &[]);
+    let normals = ice
+        .crack_sides()
+        .normals(&sim.model.mesh.rest, &sim.state.u);
+    let frames = ice
+        .crack_sides()
+        .frames(&sim.model.mesh.rest, &sim.state.u, &normals, &[]);
     let candidates = ice.candidates(&sim.model.mesh.rest, at, scene.settings.dt, &frames);
     let mut deepest: f64 = 0.0;
     ice.for_each_closest(

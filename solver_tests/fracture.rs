@@ -493,10 +493,10 @@ fn a_cracks_copies_keep_their_gap_when_its_normal_turns() {
     let rest = &sim.model.mesh.rest;
     let ice = sim.model.ice_contact().unwrap();
     let mut u = vec![0.0; 3 * rest.len()];
-    let normals = ice.copy_normals(rest, &u);
+    let normals = ice.crack_sides().normals(rest, &u);
     assert_eq!(normals.len(), 9);
     let (slid, pressed) = (5.7e-5, 1e-6);
-    let frames = ice.copy_frames(rest, &u, &normals, &[]);
+    let frames = ice.crack_sides().frames(rest, &u, &normals, &[]);
     let candidates = ice.candidates(rest, (&u, &u), 1e-4, &frames);
     for c in candidates.iter().filter(|c| c.is_copy_pair()) {
         // q (the face's node) moves against m and along y.
@@ -508,7 +508,7 @@ fn a_cracks_copies_keep_their_gap_when_its_normal_turns() {
     let turn = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 0.15);
     let turned: Vec<_> = normals.iter().map(|m| m.map(|m| turn * m)).collect();
     let gaps = |carried: &[f64]| -> Vec<f64> {
-        let frames = ice.copy_frames(rest, &u, &turned, carried);
+        let frames = ice.crack_sides().frames(rest, &u, &turned, carried);
         let c = ice.candidates(rest, (&u, &u), 1e-4, &frames);
         c.iter()
             .filter(|c| c.is_copy_pair())

@@ -1277,8 +1277,11 @@ fn ice_friction_normal_force_at_rest_extrapolates_to_itself() {
     let mesh = &scene.model.mesh;
     let ice = scene.model.ice_contact().unwrap();
     let u = pressed_cubes(&scene, ICE_DEPTH);
-    let (v, normals) = (vec![0.0; u.len()], ice.copy_normals(&mesh.rest, &u));
-    let frames = ice.copy_frames(&mesh.rest, &u, &normals, &[]);
+    let (v, normals) = (
+        vec![0.0; u.len()],
+        ice.crack_sides().normals(&mesh.rest, &u),
+    );
+    let frames = ice.crack_sides().frames(&mesh.rest, &u, &normals, &[]);
     let candidates = ice.candidates(&mesh.rest, (&u, &v), scene.settings.dt, &frames);
     let step = IceStep {
         term: ice,

@@ -130,6 +130,24 @@ def water_sphere():
     finish("water_sphere.msh")
 
 
+def sheet_of_revolution(name, profile, cavity, remove=()):
+    """The open sheet of triangles swept by the curves `profile` (in the xz half-plane)
+    revolved about z, the entities `remove` (construction points) taken out, its pieces
+    sharing their seams, physical surface `name`, normals towards cavity(centroids); written
+    as name.msh."""
+    occ = gmsh.model.occ
+    occ.revolve([(1, c) for c in profile], 0, 0, 0, 0, 0, 1, 2 * math.pi)
+    if remove:
+        occ.remove(list(remove))
+    occ.removeAllDuplicates()          # the revolved pieces share their seam circles
+    occ.synchronize()
+    surfaces = [s for _, s in gmsh.model.getEntities(2)]
+    gmsh.model.addPhysicalGroup(2, surfaces, name=name)
+    gmsh.model.mesh.generate(2)        # a sheet: triangles only
+    orient(cavity)
+    finish(name + ".msh")
+
+
 def cup():
     r, height = 0.042, 0.05
     begin("cup", 0.006)
@@ -140,15 +158,7 @@ def cup():
                                   occ.addPoint(r, 0, 0), occ.addPoint(r, 0, height))
     arc = occ.addCircleArc(bottom, centre, rim0)
     wall = occ.addLine(rim0, rim1)
-    occ.revolve([(1, arc), (1, wall)], 0, 0, 0, 0, 0, 1, 2 * math.pi)
-    occ.remove([(0, centre)])
-    occ.removeAllDuplicates()          # make the bowl and wall share their z = 0 circle
-    occ.synchronize()
-    surfaces = [s for _, s in gmsh.model.getEntities(2)]
-    gmsh.model.addPhysicalGroup(2, surfaces, name="cup")
-    gmsh.model.mesh.generate(2)        # a sheet: triangles only
-    orient(cavity_direction)
-    finish("cup.msh")
+    sheet_of_revolution("cup", [arc, wall], cavity_direction, remove=[(0, centre)])
 
 
 def paddle():
@@ -205,14 +215,7 @@ def glass():
                          occ.addPoint(GLASS_R, 0, GLASS_TOP))
     floor = occ.addLine(axis, corner)
     wall = occ.addLine(corner, rim)
-    occ.revolve([(1, floor), (1, wall)], 0, 0, 0, 0, 0, 1, 2 * math.pi)
-    occ.removeAllDuplicates()          # make the floor and wall share their bottom circle
-    occ.synchronize()
-    surfaces = [s for _, s in gmsh.model.getEntities(2)]
-    gmsh.model.addPhysicalGroup(2, surfaces, name="glass")
-    gmsh.model.mesh.generate(2)        # a sheet: triangles only
-    orient(glass_cavity_direction)
-    finish("glass.msh")
+    sheet_of_revolution("glass", [floor, wall], glass_cavity_direction)
 
 
 def bottle():

@@ -17,22 +17,11 @@
 //!
 //! The two sides of a crack that has not (yet) cut a piece off belong to one part; they must
 //! still not pass through each other. They touch where they were split apart: every copy of a
-//! split node is paired with its other copies (same rest position). The pair's gap g is
-//! carried from step to step (the state's rows `crack_gaps`: p, q, g at the end of the last
-//! step), and within a step it moves with the copies along m, the unit normal from q's side
-//! of the crack to p's (the difference of the two sides' crack-face normals at p and q, taken
-//! at the start of the step and frozen for it): g = g₀ + ((p − q) − (p₀ − q₀))·m. Such a pair
-//! is a candidate like a node–triangle pair whose triangle is the point q (β = (1, 0, 0)).
-//!
-//! The gap is carried, not measured as (p − q)·m at each step's start: copies that have slid
-//! apart along the crack would see that gap jump whenever m turns between steps — a new split
-//! at the node changes the faces m comes from — by their tangential offset × the turn (57 µm ×
-//! 0.15 rad gave an 8 µm penetration, 5e4 N at the penalty stiffness, at the start of a step,
-//! and Newton failed there even at dt/16: a water ball freezing in a Gmsh cup). Carried, the
-//! gap is continuous in time; m's turn changes only the direction in which the copies' next
-//! motion counts. A split's new pairs inherit the gap of the pair their copies were made
-//! from (a copy of p pairs with q as p did; p and its new copy start at 0); a pair with
-//! nothing to inherit (a run resumed from a file without the rows) starts from (p − q)·m.
+//! split node is paired with its other copies (same rest position; `crack_sides`), and the
+//! pair's gap g = g₀ + ((p − q) − (p₀ − q₀))·m moves with the copies along m, the unit normal
+//! from q's side of the crack to p's frozen for the step, from g₀, the gap the pair carries
+//! from step to step. Such a pair is a candidate like a node–triangle pair whose triangle is
+//! the point q (β = (1, 0, 0)).
 //!
 //! The same holds for the two sides of a crack that has cut a piece off: crack
 //! nodes are never paired with crack faces node-to-triangle. That would not do: a copy sits
@@ -57,6 +46,7 @@
 
 use super::contact::{default_stiffness, friction_terms};
 use super::contact_forces::{ContactForces, SceneContact, SolveContact};
+use super::crack_sides::{position, CopyFrame, CrackSides};
 use super::grid::BoxGrid;
 use super::term::{LagChange, NodeRestriction, Remesh, Solve, StepStartView, StepTerm, Term};
 use crate::assembly::Assembly;
@@ -85,7 +75,7 @@ pub struct IceContact {
     /// Gap (m) below which the penalty starts: ONSET × the mean edge.
     onset: f64,
     /// Copies of split nodes on cracks, paired (see the module docs).
-    copies: Vec<CopyPair>,
+    copies: CrackSides,
     /// Per boundary face, whether it is a crack face.
     crack_face: Vec<bool>,
     /// Per node, whether it lies on a crack face.
@@ -103,19 +93,6 @@ const ONSET: f64 = 1e-4;
 /// start of a step is taken to be beside the other piece rather than in it. A real penetration
 /// is the penalty depth, pressure / stiffness: ~1e-5 m at 1e9 Pa, far below 1 % of an edge.
 const GATE: f64 = 1e-2;
-
-/// Two copies of a split node on the two sides of a crack.
-#[derive(Clone, Debug)]
-struct CopyPair {
-    /// The copies.
-    p: usize,
-    q: usize,
-    /// Rest crack area share of p (m²).
-    area: f64,
-    /// Crack faces (outward of their side) at p and at q.
-    faces_p: Vec<[usize; 3]>,
-    faces_q: Vec<[usize; 3]>,
-}
 
 /// A (node, triangle) pair that may touch during a step.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -140,51 +117,6 @@ impl Candidate {
     pub fn is_copy_pair(&self) -> bool {
         self.face[0] == self.face[1]
     }
-}
-
-/// Every two copies of a split node lying on `cracks` (crack faces, outward), once each.
-fn copy_pairs(mesh: &TetMesh, cracks: &[[usize; 3]]) -> Vec<CopyPair> {
-    use std::collections::HashMap;
-    let mut at: HashMap<usize, (f64, Vec<[usize; 3]>)> = HashMap::new();
-    for f in cracks {
-        let [a, b, c] = f.map(|i| mesh.rest[i]);
-        let share = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
-        for &i in f {
-            let entry = at.entry(i).or_default();
-            entry.0 += share;
-            entry.1.push(*f);
-        }
-    }
-    let mut by_position: HashMap<[u64; 3], Vec<usize>> = HashMap::new();
-    for &i in at.keys() {
-        let x = mesh.rest[i];
-        by_position
-            .entry([x.x.to_bits(), x.y.to_bits(), x.z.to_bits()])
-            .or_default()
-            .push(i);
-    }
-    let mut pairs = Vec::new();
-    for group in by_position.values_mut() {
-        group.sort_unstable();
-        for (k, &p) in group.iter().enumerate() {
-            for &q in &group[k + 1..] {
-                pairs.push(CopyPair {
-                    p,
-                    q,
-                    area: 0.5 * (at[&p].0 + at[&q].0),
-                    faces_p: at[&p].1.clone(),
-                    faces_q: at[&q].1.clone(),
-                });
-            }
-        }
-    }
-    // Deterministic order (the hash maps' is not): runs must repeat bit for bit.
-    pairs.sort_unstable_by_key(|c| (c.p, c.q));
-    pairs
-}
-
-fn position(rest: &[Vector3<f64>], u: &[f64], i: usize) -> Vector3<f64> {
-    rest[i] + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2])
 }
 
 impl IceContact {
@@ -218,7 +150,7 @@ impl IceContact {
             .map(|i| (i, area[i]))
             .collect();
         let faces: Vec<[usize; 3]> = boundary.iter().map(|f| f.nodes).collect();
-        let copies = copy_pairs(mesh, cracks);
+        let copies = CrackSides::new(mesh, cracks);
         let sorted = |f: &[usize; 3]| {
             let mut k = *f;
             k.sort_unstable();
@@ -254,13 +186,13 @@ impl IceContact {
     /// Candidate pairs for a step from displacement `u` with velocities `v` over `h` seconds:
     /// node and triangle of different parts, or across a crack (see the module docs), whose
     /// boxes, grown by the motion of the step plus half an edge, overlap.
-    /// The pairs of copies get their normal and offset from `frames` ([`IceContact::copy_frames`]).
+    /// The pairs of copies get their normal and offset from `frames` ([`CrackSides::frames`]).
     pub fn candidates(
         &self,
         rest: &[Vector3<f64>],
         (u, v): (&[f64], &[f64]),
         h: f64,
-        frames: &[Option<(Vector3<f64>, f64)>],
+        frames: &[CopyFrame],
     ) -> Vec<Candidate> {
         let vmax = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let margin = 2.0 * vmax * h + 0.5 * self.edge;
@@ -310,9 +242,9 @@ impl IceContact {
             }
         }
         // Copies of split nodes, after the node–triangle pairs (which come in runs by node).
-        for (pair, frame) in self.copies.iter().zip(frames) {
+        for (pair, frame) in self.copies.pairs().iter().zip(frames) {
             // Copies that slid apart by more than an edge no longer face each other.
-            let d = position(rest, u, pair.p) - position(rest, u, pair.q);
+            let d = self.copies.separation(rest, u, pair);
             if let Some((normal, offset)) =
                 frame.filter(|(m, _)| (d - d.dot(m) * m).norm() < self.edge)
             {
@@ -326,88 +258,6 @@ impl IceContact {
             }
         }
         out
-    }
-
-    /// For each pair of copies (in [`IceContact::copies`]' order), its normal m for a step
-    /// from `u` (`normals`, [`IceContact::copy_normals`] at `u`) and the offset that starts
-    /// its gap there at its carried gap (`gaps`, m; from (p − q)·m, offset 0, where one is
-    /// missing or not finite); `None` where the normal is.
-    pub fn copy_frames(
-        &self,
-        rest: &[Vector3<f64>],
-        u: &[f64],
-        normals: &[Option<Vector3<f64>>],
-        gaps: &[f64],
-    ) -> Vec<Option<(Vector3<f64>, f64)>> {
-        (self.copies.iter().zip(normals).enumerate())
-            .map(|(k, (c, m))| {
-                let m = (*m)?;
-                let d = position(rest, u, c.p) - position(rest, u, c.q);
-                let carried = gaps.get(k).copied().filter(|g| g.is_finite());
-                Some((m, carried.map_or(0.0, |g| g - d.dot(&m))))
-            })
-            .collect()
-    }
-
-    /// For each pair of copies of a split node (in [`IceContact::copies`]' order), the unit
-    /// normal m from q's side of the crack to p's at `u`: the difference of the two sides'
-    /// crack-face normals at p and q; `None` where they cancel.
-    pub fn copy_normals(&self, rest: &[Vector3<f64>], u: &[f64]) -> Vec<Option<Vector3<f64>>> {
-        let outward = |faces: &[[usize; 3]]| -> Vector3<f64> {
-            faces
-                .iter()
-                .map(|f| {
-                    let [a, b, c] = f.map(|i| position(rest, u, i));
-                    (b - a)
-                        .cross(&(c - a))
-                        .try_normalize(0.0)
-                        .unwrap_or_default()
-                })
-                .sum()
-        };
-        self.copies
-            .iter()
-            .map(|pair| (outward(&pair.faces_q) - outward(&pair.faces_p)).try_normalize(0.0))
-            .collect()
-    }
-
-    /// The carried gaps (m, in [`IceContact::copies`]' order) of `rows` (p, q, g per pair, as
-    /// [`IceContact::gap_rows`] makes them); NaN for a pair that has none.
-    pub fn gaps_of_rows(&self, rows: &[f64]) -> Vec<f64> {
-        self.inherited_gaps(rows, &[])
-    }
-
-    /// The rows p, q, g of the pairs of copies with gaps `gaps` (m, in
-    /// [`IceContact::copies`]' order).
-    pub fn gap_rows(&self, gaps: &[f64]) -> Vec<f64> {
-        (self.copies.iter().zip(gaps))
-            .flat_map(|(c, &g)| [c.p as f64, c.q as f64, g])
-            .collect()
-    }
-
-    /// The carried gaps of this mesh's pairs of copies (m, in [`IceContact::copies`]' order)
-    /// from `rows`, those of the mesh it was split from, with `node_parent` as in
-    /// [`crate::physics::term::Term::inherit`] (empty: no split): a pair keeps its gap; a new
-    /// pair takes the gap of the pair its copies were made from, 0 for a node and its own new
-    /// copy (they coincide); NaN where there is none.
-    pub fn inherited_gaps(&self, rows: &[f64], node_parent: &[usize]) -> Vec<f64> {
-        let carried: std::collections::HashMap<(usize, usize), f64> = rows
-            .chunks_exact(3)
-            .map(|r| ((r[0] as usize, r[1] as usize), r[2]))
-            .collect();
-        let parent = |i: usize| node_parent.get(i).copied().unwrap_or(i);
-        (self.copies.iter())
-            .map(|c| {
-                let (a, b) = (parent(c.p), parent(c.q));
-                match carried.get(&(c.p, c.q)) {
-                    Some(&g) => g,
-                    None if a == b => 0.0,
-                    // The gap is the same seen from either side: (p − q)·m with m from q's
-                    // side to p's.
-                    None => (carried.get(&(a.min(b), a.max(b))).copied()).unwrap_or(f64::NAN),
-                }
-            })
-            .collect()
     }
 
     /// The penalty per unit k Aₚ at gap g (m): its value (m²), slope (m) and curvature, or
@@ -434,6 +284,11 @@ impl IceContact {
         } else {
             Some((0.5 * g * g - 0.5 * d * g + d * d / 6.0, g - 0.5 * d, 1.0))
         }
+    }
+
+    /// The pairs of copies of split nodes (the crack sides' contact).
+    pub fn crack_sides(&self) -> &CrackSides {
+        &self.copies
     }
 
     /// The gap δ (m) at which the penalty starts.
@@ -823,9 +678,8 @@ pub struct IceContactTerm {
     /// CSC value indices of each candidate's 12 × 12 block (row-major), `u32::MAX` where a
     /// dof is constrained.
     candidate_slots: Vec<Vec<u32>>,
-    /// The pairs of copies of the current step: normal m and offset (see [`Candidate`]), or
-    /// `None` where the normals cancel (in [`IceContact::copies`]' order).
-    copy_frames: Vec<Option<(Vector3<f64>, f64)>>,
+    /// The frames of the pairs of copies of the current step (see [`CrackSides::frames`]).
+    copy_frames: Vec<CopyFrame>,
 }
 
 /// The name of the pairs' carried gaps in the state and in frames (see the module docs).
@@ -913,11 +767,12 @@ impl Term for IceContactTerm {
     /// history-dependent superset) keeps resumed runs bit-identical.
     fn start_step(&mut self, start: &StepStartView) -> Option<Vec<(usize, usize)>> {
         let term = self.active.as_ref()?;
-        let normals = term.copy_normals(start.rest, start.u);
-        let gaps = term.gaps_of_rows(start.carried.get(CRACK_GAPS));
+        let sides = &term.copies;
+        let normals = sides.normals(start.rest, start.u);
+        let gaps = sides.gaps_of_rows(start.carried.get(CRACK_GAPS));
         // Kept for every pair, also those not facing each other this step: their gaps are
         // carried all the same.
-        self.copy_frames = term.copy_frames(start.rest, start.u, &normals, &gaps);
+        self.copy_frames = sides.frames(start.rest, start.u, &normals, &gaps);
         let at = (start.u, start.v);
         self.candidates = term.candidates(start.rest, at, start.dt, &self.copy_frames);
         let mut couplings: Vec<(usize, usize)> = self
@@ -934,20 +789,15 @@ impl Term for IceContactTerm {
         (!term.copies.is_empty()).then_some((CRACK_GAPS, 3))
     }
     fn carry(&self, rest: &[Vector3<f64>], u: &[f64]) -> Vec<f64> {
-        let Some(term) = &self.active else {
-            return Vec::new();
-        };
-        let gaps: Vec<f64> = (term.copies.iter().zip(&self.copy_frames))
-            .map(|(c, frame)| {
-                let d = position(rest, u, c.p) - position(rest, u, c.q);
-                frame.map_or(f64::NAN, |(m, offset)| d.dot(&m) + offset)
-            })
-            .collect();
-        term.gap_rows(&gaps)
+        self.active.as_ref().map_or(Vec::new(), |term| {
+            let sides = &term.copies;
+            sides.rows(&sides.gaps(rest, u, &self.copy_frames))
+        })
     }
     fn inherit(&self, old: &[f64], node_parent: &[usize]) -> Vec<f64> {
         self.active.as_ref().map_or(Vec::new(), |term| {
-            term.gap_rows(&term.inherited_gaps(old, node_parent))
+            let sides = &term.copies;
+            sides.rows(&sides.inherited_gaps(old, node_parent))
         })
     }
     fn pattern_ready(&mut self, assembly: &Assembly, _changed: bool) {

@@ -7,6 +7,7 @@
 pub mod amplitude;
 pub mod contact;
 pub mod contact_forces;
+pub mod crack_sides;
 pub mod dirichlet;
 pub mod distance;
 pub mod elasticity;
