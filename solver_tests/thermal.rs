@@ -204,6 +204,7 @@ fn stefan_convergence_study() {
 
 /// A 4 cm cube of water at +1 °C in a container whose walls and floor (−10 °C, contact
 /// conductance 500 W/(m² K)) and the air above (−10 °C, 10 W/(m² K)) cool it: 10-minute steps.
+/// Its ice contracts as it cools below the melting point.
 const FREEZING_CUBE: &str = r#"
 [mesh]
 box = { size = [0.04, 0.04, 0.04], cells = [2, 2, 2] }
@@ -211,6 +212,7 @@ box = { size = [0.04, 0.04, 0.04], cells = [2, 2, 2] }
 density = 916.0
 lambda = 8.64e10
 mu = 3.70e10
+thermal_expansion = 5e-5
 [physics]
 gravity = [0.0, 0.0, -9.81]
 [[obstacle]]
@@ -347,11 +349,183 @@ fn thermal_scene_errors_name_the_field() {
     let err = load(dir.path(), &FREEZING_CUBE.replace("h = 10.0", "h = -1.0")).unwrap_err();
     assert!(err.contains("thermal.convection[1].h"), "{err}");
     // Without [thermal], the prescribed front needs its keys.
-    let no_thermal = FREEZING_CUBE.split("[thermal]").next().unwrap().to_string()
+    let no_thermal = FREEZING_CUBE
+        .split("[thermal]")
+        .next()
+        .unwrap()
+        .replace("thermal_expansion = 5e-5\n", "")
         + "[freezing]\nwater = \"bulk\"\n[time]\ndt = 600.0\nend_time = 7200.0\n";
     let err = load(dir.path(), &no_thermal).unwrap_err();
     assert!(
         err.contains("freezing.cooling") && err.contains("required"),
         "{err}"
     );
+}
+
+/// A 2 cm cube of ice at −1 °C (ice from the start: it keeps the mesh's shape and takes no
+/// freezing expansion), 27 cells, cooled to −21 °C by a cold bath on its whole surface
+/// (h = 1e4 W/(m² K)), on rollers on its three lower faces: free to contract. Static steps of
+/// 10 min for 2 h, ~20 of the cube's slowest thermal time constants: it ends at the bath's
+/// temperature to round-off.
+const COOLED_ICE_CUBE: &str = r#"
+[mesh]
+box = { size = [0.02, 0.02, 0.02], cells = [3, 3, 3] }
+[material]
+density = 917.0
+youngs_modulus = 9e9
+poisson_ratio = 0.33
+thermal_expansion = 5e-5
+[thermal]
+initial_temperature = -1.0
+[[thermal.convection]]
+faces = ["surface"]
+h = 1e4
+ambient_temperature = -21.0
+[[dirichlet]]
+min = [-1.0, -1.0, -1.0]
+max = [1e-9, 1.0, 1.0]
+axes = "x"
+[[dirichlet]]
+min = [-1.0, -1.0, -1.0]
+max = [1.0, 1e-9, 1.0]
+axes = "y"
+[[dirichlet]]
+min = [-1.0, -1.0, -1.0]
+max = [1.0, 1.0, 1e-9]
+axes = "z"
+[time]
+analysis = "static"
+dt = 600.0
+end_time = 7200.0
+output_every = 12
+"#;
+
+#[test]
+fn ice_cooled_freely_contracts_by_its_thermal_strain_without_stress() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = load(dir.path(), COOLED_ICE_CUBE).unwrap();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let out = dir.path().join("cube.h5");
+    icefem::run::run(&scene, &options(&out, None, false), &never, |_| {}).unwrap();
+    let file = hdf5::File::open(&out).unwrap();
+    let mut names = file.group("frames").unwrap().member_names().unwrap();
+    names.sort();
+    let read = |field: &str| {
+        let path = format!("frames/{}/{field}", names.last().unwrap());
+        file.dataset(&path).unwrap().read_raw::<f64>().unwrap()
+    };
+    let (temperature, displacement, stress) =
+        (read("temperature"), read("displacement"), read("stress"));
+    let rest = file
+        .dataset("mesh/rest")
+        .map(|d| d.read_raw::<f64>().unwrap());
+    let positions = read("positions");
+    let rest = rest.unwrap_or_else(|_| {
+        positions
+            .iter()
+            .zip(&displacement)
+            .map(|(p, u)| p - u)
+            .collect()
+    });
+    // At the bath's temperature, to the heat solve's tolerance (measured 4e-11 K).
+    assert!(
+        temperature.iter().all(|t| (t + 21.0).abs() < 1e-9),
+        "{temperature:?}"
+    );
+    // ε_th = α ΔT = 5e-5 × (−20) = −1e-3, uniform: u = ε_th x from the rollers' corner. The
+    // corotated model takes the offset as the element's natural shape (1 + ε_th) I, exactly;
+    // what is left is round-off (measured 7.8e-16 m) and the temperatures' 4e-11 K (2e-15 of
+    // strain, 4e-17 m).
+    let strain = 5e-5 * -20.0;
+    let worst = rest
+        .iter()
+        .zip(&displacement)
+        .map(|(x, u)| (u - strain * x).abs())
+        .fold(0.0f64, f64::max);
+    assert!(
+        worst < 1e-14,
+        "largest deviation from ε_th x: {worst:e} m (of 2e-5 m)"
+    );
+    // And without stress: against E ε_th = 9e6 Pa, below 1e-7 of it (measured 1.8e-3 Pa).
+    let largest = stress.iter().fold(0.0f64, |m, s| m.max(s.abs()));
+    assert!(largest < 0.9, "largest stress component {largest:e} Pa");
+}
+
+#[test]
+fn thermal_expansion_errors_name_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let with = |value: &str| {
+        load(
+            dir.path(),
+            &COOLED_ICE_CUBE.replace(
+                "thermal_expansion = 5e-5",
+                &format!("thermal_expansion = {value}"),
+            ),
+        )
+    };
+    // A table of rows is read; a wrong one names the row.
+    with("[[-40.0, 4.3e-5], [0.0, 5.3e-5]]").unwrap();
+    let err = with("[[0.0, 5e-5], [-10.0, 4e-5]]").unwrap_err();
+    assert!(
+        err.contains("material.thermal_expansion[1]") && err.contains("increase"),
+        "{err}"
+    );
+    let err = with("0.05").unwrap_err();
+    assert!(
+        err.contains("material.thermal_expansion") && err.contains("1/K"),
+        "{err}"
+    );
+    let err = with("[[0.0, 5e-5]]").unwrap_err();
+    assert!(err.contains("at least two"), "{err}");
+    // Thermal strain needs the heat solve's temperatures.
+    let no_thermal = COOLED_ICE_CUBE
+        .split("[thermal]")
+        .next()
+        .unwrap()
+        .to_string()
+        + "[time]\nanalysis = \"static\"\ndt = 1.0\nend_time = 1.0\n";
+    let err = load(dir.path(), &no_thermal).unwrap_err();
+    assert!(
+        err.contains("material.thermal_expansion") && err.contains("[thermal]"),
+        "{err}"
+    );
+}
+
+#[test]
+fn ice_cooled_inside_rigid_walls_takes_the_thermal_stress_of_its_bulk_modulus() {
+    // The cube of `ice_cooled_freely…` on rollers on all six faces, small-strain model: no
+    // strain, so σ = −(3λ + 2μ) ε_th I = −E ε_th / (1 − 2ν) I, tension as it contracts.
+    let walls = "[[dirichlet]]\nmin = [0.02, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\naxes = \"x\"\n\
+                 [[dirichlet]]\nmin = [-1.0, 0.02, -1.0]\nmax = [1.0, 1.0, 1.0]\naxes = \"y\"\n\
+                 [[dirichlet]]\nmin = [-1.0, -1.0, 0.02]\nmax = [1.0, 1.0, 1.0]\naxes = \"z\"\n";
+    let text = COOLED_ICE_CUBE
+        .replace(
+            "thermal_expansion = 5e-5\n",
+            "thermal_expansion = 5e-5\nmodel = \"linear\"\n",
+        )
+        .replace("[time]", &format!("{walls}[time]"));
+    let dir = tempfile::tempdir().unwrap();
+    let scene = load(dir.path(), &text).unwrap();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let out = dir.path().join("walls.h5");
+    icefem::run::run(&scene, &options(&out, None, false), &never, |_| {}).unwrap();
+    let file = hdf5::File::open(&out).unwrap();
+    let mut names = file.group("frames").unwrap().member_names().unwrap();
+    names.sort();
+    let path = format!("frames/{}/stress", names.last().unwrap());
+    let stress = file.dataset(&path).unwrap().read_raw::<f64>().unwrap();
+    let expected = 9e9 * (5e-5 * 20.0) / (1.0 - 2.0 * 0.33);
+    for s in stress.chunks(6) {
+        // Linear in the temperatures, which are at the bath's to 1e-9 K (5e-14 of strain):
+        // 1e-9 of the stress leaves room for round-off in the assembly and solve.
+        for &normal in &s[..3] {
+            assert!(
+                (normal - expected).abs() < 1e-9 * expected,
+                "{s:?} vs {expected:e}"
+            );
+        }
+        for &shear in &s[3..] {
+            assert!(shear.abs() < 1e-9 * expected, "{s:?}");
+        }
+    }
 }

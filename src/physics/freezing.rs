@@ -30,6 +30,7 @@
 
 use super::distance::SurfaceDistance;
 use super::history::ElementHistory;
+use super::thermal_strain::ThermalStrain;
 use super::Region;
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
@@ -82,15 +83,48 @@ pub enum Schedule {
         /// Time an element takes to freeze once the front arrives (s).
         transition: f64,
     },
-    /// A heat solve ([`crate::thermal`]): each element's ice fraction at the start and the
-    /// end of the current step, linear in time between them (halved substeps see the
-    /// fractions in between).
+    /// A heat solve ([`crate::thermal`]): each element's ice fraction and temperature at the
+    /// start and the end of the current step, linear in time between them (halved substeps
+    /// see the values in between).
     Thermal {
-        /// Time (s) and ice fraction per element at the step's start.
-        start: (f64, Vec<f64>),
-        /// Time (s) and ice fraction per element at the step's end.
-        end: (f64, Vec<f64>),
+        /// The elements at the step's start.
+        start: ThermalPoint,
+        /// The elements at the step's end.
+        end: ThermalPoint,
     },
+}
+
+/// The elements of a heat-driven run at one time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ThermalPoint {
+    /// Time (s).
+    pub time: f64,
+    /// Ice fraction per element, 0 … 1.
+    pub fraction: Vec<f64>,
+    /// Temperature per element (°C): the mean of its nodes'.
+    pub temperature: Vec<f64>,
+}
+
+impl ThermalPoint {
+    /// `values` of the points `a` (at time a.time) and `b` (b.time) interpolated linearly to
+    /// time `t` (s); `b`'s at and after b.time.
+    fn between(a: &Self, b: &Self, t: f64, values: impl Fn(&Self) -> f64) -> f64 {
+        if t >= b.time || b.time <= a.time {
+            values(b)
+        } else {
+            let w = ((t - a.time) / (b.time - a.time)).clamp(0.0, 1.0);
+            values(a) + w * (values(b) - values(a))
+        }
+    }
+
+    /// The point on a split mesh whose element `e` came from element `parent[e]`.
+    fn inherit(&self, parent: &[usize]) -> Self {
+        ThermalPoint {
+            time: self.time,
+            fraction: take(&self.fraction, parent),
+            temperature: take(&self.temperature, parent),
+        }
+    }
 }
 
 impl Schedule {
@@ -116,16 +150,19 @@ impl Schedule {
                 // Exactly 1 once every sample has frozen (the sum of ones is exact).
                 frozen / SAMPLES as f64
             }
-            Schedule::Thermal {
-                start: (t0, f0),
-                end: (t1, f1),
-            } => {
-                if t >= *t1 || t1 <= t0 {
-                    f1[e]
-                } else {
-                    let w = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
-                    f0[e] + w * (f1[e] - f0[e])
-                }
+            Schedule::Thermal { start, end } => {
+                ThermalPoint::between(start, end, t, |p| p.fraction[e])
+            }
+        }
+    }
+
+    /// Temperature of element `e` at time `t` (s) (°C), interpolated over the step; `None`
+    /// for a prescribed front.
+    pub fn temperature(&self, e: usize, t: f64) -> Option<f64> {
+        match self {
+            Schedule::Front { .. } => None,
+            Schedule::Thermal { start, end } => {
+                Some(ThermalPoint::between(start, end, t, |p| p.temperature[e]))
             }
         }
     }
@@ -141,8 +178,8 @@ impl Schedule {
                 transition: *transition,
             },
             Schedule::Thermal { start, end } => Schedule::Thermal {
-                start: (start.0, take(&start.1, parent)),
-                end: (end.0, take(&end.1, parent)),
+                start: start.inherit(parent),
+                end: end.inherit(parent),
             },
         }
     }
@@ -166,6 +203,13 @@ pub struct Freezing {
     pub water_shear: f64,
     /// Eigenstrain of each element without freezing (from the scene), added to the expansion.
     pub base_eigenstrain: Vec<f64>,
+    /// The ice's thermal strain, for a heat-driven schedule with a thermal expansion
+    /// coefficient (none: ice keeps its size at every temperature).
+    pub thermal_strain: Option<ThermalStrain>,
+    /// Ice fraction each element starts with (empty: none, as for a front). The mesh is
+    /// the shape of the material it starts as: ice present at the start does not expand, ice
+    /// formed later does, and ice that melts shrinks back (expansion (s − s₀) e_max).
+    pub initial_ice: Vec<f64>,
 }
 
 impl Freezing {
@@ -266,22 +310,26 @@ impl Freezing {
             water,
             water_shear: 0.0,
             base_eigenstrain: vec![0.0; mesh.num_tets()],
+            thermal_strain: None,
+            initial_ice: Vec::new(),
         }
     }
 
     /// Freezing driven by a heat solve, every element at ice fraction `fraction` at time `t`
     /// (s) until the first step sets the next; the expansion and water as [`Self::from_front`].
-    pub fn thermal(fraction: Vec<f64>, t: f64, expansion_ratio: f64, water: Water) -> Self {
-        let n = fraction.len();
+    pub fn thermal(at: ThermalPoint, expansion_ratio: f64, water: Water) -> Self {
+        let n = at.fraction.len();
         Freezing {
+            initial_ice: at.fraction.clone(),
             schedule: Schedule::Thermal {
-                start: (t, fraction.clone()),
-                end: (t, fraction),
+                start: at.clone(),
+                end: at,
             },
             expansion: expansion_ratio.cbrt() - 1.0,
             water,
             water_shear: 0.0,
             base_eigenstrain: vec![0.0; n],
+            thermal_strain: None,
         }
     }
 
@@ -304,6 +352,12 @@ impl Freezing {
         Freezing {
             schedule: self.schedule.inherit(parent),
             base_eigenstrain: take(&self.base_eigenstrain, parent),
+            thermal_strain: self.thermal_strain.as_ref().map(|t| t.inherit(parent)),
+            initial_ice: if self.initial_ice.is_empty() {
+                Vec::new()
+            } else {
+                take(&self.initial_ice, parent)
+            },
             ..self.clone()
         }
     }
@@ -317,15 +371,23 @@ impl Freezing {
     }
 
     /// Sets every element's freeze state and eigenstrain in `history` for time `t` (s), the
-    /// freeze states those of `schedule` (this freezing's own, or a heat solve's over the
-    /// current step).
+    /// freeze states (and temperatures) those of `schedule` (this freezing's own, or a heat
+    /// solve's over the current step). The eigenstrain of an element whose ice fraction is s
+    /// (s₀ at the start) is its base eigenstrain plus (s − s₀) e_max + s ε_th: the water's
+    /// share neither expands nor contracts with temperature.
     pub fn apply(&self, schedule: &Schedule, t: f64, history: &mut ElementHistory) {
         let n = self.base_eigenstrain.len();
         history.freeze_state.resize(n, 0.0);
         for e in 0..n {
             let s = schedule.state(e, t);
+            let thermal = match (&self.thermal_strain, schedule.temperature(e, t)) {
+                (Some(strain), Some(temperature)) => strain.strain(e, temperature),
+                _ => 0.0,
+            };
             history.freeze_state[e] = s;
-            history.eigenstrain[e] = self.base_eigenstrain[e] + s * self.expansion;
+            let formed = s - self.initial_ice.get(e).copied().unwrap_or(0.0);
+            history.eigenstrain[e] =
+                self.base_eigenstrain[e] + formed * self.expansion + s * thermal;
         }
     }
 }

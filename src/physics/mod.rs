@@ -22,6 +22,7 @@ pub mod obstacle_mesh;
 pub mod plasticity;
 pub mod selection;
 pub mod term;
+pub mod thermal_strain;
 pub mod volumetric;
 
 pub use amplitude::Amplitude;

@@ -6,6 +6,7 @@ use super::{SceneError, SceneFile, Validator};
 use crate::fem::{ElasticModel, Material};
 use crate::mesh::TetMesh;
 use crate::physics::elasticity::Volumetric;
+use crate::physics::thermal_strain::Expansion;
 use crate::physics::Elasticity;
 use serde::Deserialize;
 
@@ -38,7 +39,23 @@ pub struct MaterialSection {
     pub min: Option<[f64; 3]>,
     /// `[materials.NAME]` only: box upper corner (m).
     pub max: Option<[f64; 3]>,
+    /// `[material]` with `[thermal]` only: the ice's linear thermal expansion coefficient
+    /// (1/K), a number or a table of [temperature °C, coefficient 1/K] rows.
+    pub thermal_expansion: Option<ThermalExpansionKey>,
 }
+
+/// `thermal_expansion`: one coefficient (1/K), or [temperature °C, coefficient 1/K] rows.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub enum ThermalExpansionKey {
+    /// One coefficient at every temperature.
+    Constant(f64),
+    /// Rows with increasing temperatures, linear between them, constant beyond.
+    Table(Vec<[f64; 2]>),
+}
+
+/// Largest |α| accepted (1/K): solids' coefficients are 1e-6 … 3e-4 (ice ≈ 5e-5).
+const MAX_EXPANSION: f64 = 1e-3;
 
 impl Validator<'_> {
     pub(super) fn material(
@@ -62,6 +79,49 @@ impl Validator<'_> {
             [m.lambda, m.mu, m.youngs_modulus, m.poisson_ratio],
         )?;
         Ok((material, m.model.unwrap_or(ElasticModel::Corotated)))
+    }
+
+    /// `[material] thermal_expansion`, checked: |α| ≤ [`MAX_EXPANSION`], a table's
+    /// temperatures finite and increasing.
+    pub(super) fn thermal_expansion(
+        &self,
+        key: &ThermalExpansionKey,
+    ) -> Result<Expansion, SceneError> {
+        let field = "material.thermal_expansion";
+        let coefficient = |f: &str, a: f64| {
+            if a.is_finite() && a.abs() <= MAX_EXPANSION {
+                Ok(a)
+            } else {
+                Err(self.invalid(f, format!("must be a coefficient in 1/K with |α| ≤ {MAX_EXPANSION:e} (ice: about 5e-5), got {a}")))
+            }
+        };
+        match key {
+            ThermalExpansionKey::Constant(a) => Ok(Expansion::Constant(coefficient(field, *a)?)),
+            ThermalExpansionKey::Table(rows) => {
+                if rows.len() < 2 {
+                    return Err(self.invalid(field, "a table needs at least two [temperature °C, coefficient 1/K] rows (or give one number)"));
+                }
+                let mut points = Vec::with_capacity(rows.len());
+                for (i, &[t, a]) in rows.iter().enumerate() {
+                    let row = format!("{field}[{i}]");
+                    let t = self.finite(&row, t)?;
+                    if points
+                        .last()
+                        .is_some_and(|&(last, _): &(f64, f64)| t <= last)
+                    {
+                        return Err(self.invalid(
+                            &row,
+                            format!(
+                                "temperatures must increase row by row, got {t} °C after {} °C",
+                                points.last().map_or(0.0, |p: &(f64, f64)| p.0)
+                            ),
+                        ));
+                    }
+                    points.push((t, coefficient(&row, a)?));
+                }
+                Ok(Expansion::Table(points))
+            }
+        }
     }
 
     /// A material from its density and `[lambda, mu, youngs_modulus, poisson_ratio]` (one
@@ -139,6 +199,12 @@ impl Validator<'_> {
         }
         for (k, (name, m)) in raw.materials.iter().enumerate() {
             let field = format!("materials.{name}");
+            if m.thermal_expansion.is_some() {
+                return Err(self.invalid(
+                    &format!("{field}.thermal_expansion"),
+                    "thermal strain is defined for the `[material]` ice of a scene with [thermal] only",
+                ));
+            }
             if m.model.is_some() || m.volumetric.is_some() {
                 let key = if m.model.is_some() {
                     "model"

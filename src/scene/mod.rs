@@ -735,6 +735,12 @@ impl Validator<'_> {
         model: &Model,
         ice: &Material,
     ) -> Result<Option<Freezing>, SceneError> {
+        if thermal.is_none() && raw.material.thermal_expansion.is_some() {
+            return Err(self.invalid(
+                "material.thermal_expansion",
+                "thermal strain needs temperatures: add a [thermal] section (or remove the key)",
+            ));
+        }
         if let Some(setup) = thermal {
             if !raw.materials.is_empty() {
                 return Err(self.invalid(
@@ -742,12 +748,18 @@ impl Validator<'_> {
                     "[thermal] freezes the `[material]` water; it is not defined for scenes with [materials.NAME] entries",
                 ));
             }
+            let expansion = raw
+                .material
+                .thermal_expansion
+                .as_ref()
+                .map(|key| self.thermal_expansion(key))
+                .transpose()?;
             Ok(Some(self.thermal_freezing(
                 raw.freezing.as_ref(),
                 setup,
-                &model.mesh,
-                &model.elasticity.eigenstrain,
+                (&model.mesh, &model.elasticity.eigenstrain),
                 ice,
+                expansion,
             )?))
         } else if let Some(f) = &raw.freezing {
             if !raw.materials.is_empty() {

@@ -8,7 +8,9 @@ use super::freezing::{box_face_indices, FreezingSection, BOX_FACES};
 use super::regions::SelectionKeys;
 use super::{SceneError, Validator};
 use crate::mesh::TetMesh;
-use crate::physics::freezing::Freezing;
+use crate::physics::freezing::{Freezing, ThermalPoint};
+use crate::physics::thermal_strain::{Expansion, ThermalStrain};
+use crate::thermal::link::element_means;
 use crate::thermal::{HeatBoundary, Phase, Phases};
 
 /// `[thermal]`.
@@ -251,9 +253,9 @@ impl Validator<'_> {
         &self,
         f: Option<&FreezingSection>,
         setup: &HeatSetup,
-        mesh: &TetMesh,
-        eigenstrain: &[f64],
+        (mesh, eigenstrain): (&TetMesh, &[f64]),
         ice: &crate::fem::Material,
+        expansion: Option<Expansion>,
     ) -> Result<Freezing, SceneError> {
         if let Some(f) = f {
             let front = [
@@ -275,20 +277,24 @@ impl Validator<'_> {
         for &(i, t) in &setup.boundary.fixed {
             fixed[i] = t;
         }
-        // As `HeatLink::element_fractions`: the mean of the nodes' ice fractions.
-        let fractions = mesh
-            .tets
+        // As `HeatLink::element_fractions` and `element_temperatures`: means over the nodes.
+        let nodal: Vec<f64> = fixed
             .iter()
-            .map(|tet| {
-                tet.iter()
-                    .map(|&i| setup.phases.ice_fraction(fixed[i]))
-                    .sum::<f64>()
-                    / 4.0
-            })
+            .map(|&t| setup.phases.ice_fraction(t))
             .collect();
-        let mut freezing = Freezing::thermal(fractions, 0.0, ratio, water);
+        let at = ThermalPoint {
+            time: 0.0,
+            fraction: element_means(&nodal, &mesh.tets),
+            temperature: element_means(&fixed, &mesh.tets),
+        };
+        let thermal_strain = expansion.map(|expansion| {
+            let melting = setup.phases.melting_point;
+            ThermalStrain::new(expansion, &at.fraction, &at.temperature, melting)
+        });
+        let mut freezing = Freezing::thermal(at, ratio, water);
         freezing.base_eigenstrain = eigenstrain.to_vec();
         freezing.water_shear = shear;
+        freezing.thermal_strain = thermal_strain;
         Ok(freezing)
     }
 }

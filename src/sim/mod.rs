@@ -19,7 +19,7 @@ mod terms;
 use crate::assembly::{Assembly, DofMap};
 use crate::fem::StrainOffset;
 use crate::physics::contact::ContactForces;
-use crate::physics::freezing::Schedule;
+use crate::physics::freezing::{Schedule, ThermalPoint};
 use crate::physics::history::ElementHistory;
 use crate::physics::term::TermHistory;
 use crate::physics::Model;
@@ -530,14 +530,14 @@ impl Simulation {
         }
         self.state.temperature = link.heat.temperature().to_vec();
         self.heat = Some(link);
-        self.set_thermal_schedule(self.state.time, self.state.time);
+        self.set_thermal_schedule(self.state.time, self.state.time, None);
     }
 
     /// Sets the scene-mesh temperatures (°C; a resumed run's) and the freeze states they give.
     pub fn set_temperature(&mut self, temperature: Vec<f64>) {
         if self.heat.is_some() {
             self.state.temperature = temperature;
-            self.set_thermal_schedule(self.state.time, self.state.time);
+            self.set_thermal_schedule(self.state.time, self.state.time, None);
         }
     }
 
@@ -554,20 +554,27 @@ impl Simulation {
     }
 
     /// Makes the freeze states run from the elements' current ones at `t0` to those of the
-    /// state's temperatures at `t1` (s), and applies them at `t0`.
-    fn set_thermal_schedule(&mut self, t0: f64, t1: f64) {
+    /// state's temperatures at `t1` (s), and the element temperatures from those of the
+    /// scene-mesh temperatures `before` (°C; the state's when `None`) to the state's, and
+    /// applies them at `t0`.
+    fn set_thermal_schedule(&mut self, t0: f64, t1: f64, before: Option<&[f64]>) {
         let Some(link) = &self.heat else { return };
-        let end = link.element_fractions(&self.state.temperature, &self.model.mesh.tets);
-        let start = if t1 > t0 && self.state.history.freeze_state.len() == end.len() {
-            self.state.history.freeze_state.clone()
-        } else {
-            end.clone()
+        let tets = &self.model.mesh.tets;
+        let end = ThermalPoint {
+            time: t1,
+            fraction: link.element_fractions(&self.state.temperature, tets),
+            temperature: link.element_temperatures(&self.state.temperature, tets),
         };
+        let mut start = end.clone();
+        start.time = t0;
+        if t1 > t0 && self.state.history.freeze_state.len() == end.fraction.len() {
+            start.fraction.clone_from(&self.state.history.freeze_state);
+        }
+        if let Some(before) = before {
+            start.temperature = link.element_temperatures(before, tets);
+        }
         if self.model.freezing.is_some() {
-            self.thermal_schedule = Some(Schedule::Thermal {
-                start: (t0, start),
-                end: (t1, end),
-            });
+            self.thermal_schedule = Some(Schedule::Thermal { start, end });
         }
         self.set_time(t0);
     }

@@ -96,8 +96,11 @@ impl Simulation {
             Some(link) => {
                 link.heat.set_temperature(&self.state.temperature);
                 let report = link.heat.step(self.settings.dt, t_end)?;
-                self.state.temperature = link.heat.temperature().to_vec();
-                self.set_thermal_schedule(t0, t_end);
+                let before = std::mem::replace(
+                    &mut self.state.temperature,
+                    link.heat.temperature().to_vec(),
+                );
+                self.set_thermal_schedule(t0, t_end, Some(&before));
                 Some(report)
             }
             None => None,

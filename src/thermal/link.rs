@@ -9,6 +9,13 @@ use super::Heat;
 use crate::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
 
+/// The mean of `nodal` over each element's four nodes.
+pub fn element_means(nodal: &[f64], tets: &[[usize; 4]]) -> Vec<f64> {
+    tets.iter()
+        .map(|tet| tet.iter().map(|&i| nodal[i]).sum::<f64>() / 4.0)
+        .collect()
+}
+
 /// Where a mechanics node reads its temperature.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum NodeSource {
@@ -67,9 +74,13 @@ impl HeatLink {
             .iter()
             .map(|&x| phases.ice_fraction(x))
             .collect();
-        tets.iter()
-            .map(|tet| tet.iter().map(|&i| nodal[i]).sum::<f64>() / 4.0)
-            .collect()
+        element_means(&nodal, tets)
+    }
+
+    /// Temperature of every mechanics element (of nodes `tets`, °C) at the scene-mesh
+    /// temperatures `t`: the mean of its nodes' (the temperature at its centroid).
+    pub fn element_temperatures(&self, t: &[f64], tets: &[[usize; 4]]) -> Vec<f64> {
+        element_means(&self.node_temperatures(t), tets)
     }
 
     /// The link to a mechanics mesh made by splitting the current one: element `e` of nodes
