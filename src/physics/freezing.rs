@@ -391,3 +391,56 @@ impl Freezing {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::thermal_strain::{Expansion, ThermalStrain};
+
+    #[test]
+    fn ice_from_the_start_keeps_its_shape_and_ice_formed_later_expands_and_contracts() {
+        // Element 0 starts as ice at −5 °C, element 1 as water at +1 °C.
+        let at = ThermalPoint {
+            time: 0.0,
+            fraction: vec![1.0, 0.0],
+            temperature: vec![-5.0, 1.0],
+        };
+        let alpha = 5e-5;
+        let mut freezing = Freezing::thermal(at.clone(), 1.09, Water::Inactive);
+        freezing.thermal_strain = Some(ThermalStrain::new(
+            Expansion::Constant(alpha),
+            &at.fraction,
+            &at.temperature,
+            0.0,
+        ));
+        // A step of 10 s to both at −10 °C, element 1 half frozen.
+        let end = ThermalPoint {
+            time: 10.0,
+            fraction: vec![1.0, 0.5],
+            temperature: vec![-10.0, -10.0],
+        };
+        let schedule = Schedule::Thermal { start: at, end };
+        let mut history = ElementHistory::initial(&[0.0, 0.0], false);
+        let e_max = freezing.expansion;
+        freezing.apply(&schedule, 10.0, &mut history);
+        // Element 0: no expansion, α (−10 − (−5)); element 1: half its ice formed, born at 0 °C.
+        let expected = [alpha * -5.0, 0.5 * e_max + 0.5 * alpha * -10.0];
+        for (e, x) in history.eigenstrain.iter().zip(expected) {
+            assert!((e - x).abs() < 1e-17, "{e} vs {x}");
+        }
+        // Halfway through the step: fractions and temperatures halfway.
+        freezing.apply(&schedule, 5.0, &mut history);
+        let halfway = [alpha * (-7.5 + 5.0), 0.25 * e_max + 0.25 * alpha * -4.5];
+        for (e, x) in history.eigenstrain.iter().zip(halfway) {
+            assert!((e - x).abs() < 1e-17, "{e} vs {x}");
+        }
+        // Split: new element 2 copies element 0, element 3 element 1.
+        let parent = [0, 1, 0, 1];
+        let (split, schedule) = (freezing.inherit(&parent), schedule.inherit(&parent));
+        let mut history = ElementHistory::initial(&[0.0; 4], false);
+        split.apply(&schedule, 10.0, &mut history);
+        for (e, &p) in parent.iter().enumerate() {
+            assert_eq!(history.eigenstrain[e].to_bits(), expected[p].to_bits());
+        }
+    }
+}
