@@ -315,8 +315,9 @@ impl Freezing {
         }
     }
 
-    /// Freezing driven by a heat solve, every element at ice fraction `fraction` at time `t`
-    /// (s) until the first step sets the next; the expansion and water as [`Self::from_front`].
+    /// Freezing driven by a heat solve, every element as `at` gives it (ice fraction and
+    /// temperature at its time) until the first step sets the next; the ice it holds there is
+    /// the initial ice; the expansion and water as [`Self::from_front`].
     pub fn thermal(at: ThermalPoint, expansion_ratio: f64, water: Water) -> Self {
         let n = at.fraction.len();
         Freezing {
