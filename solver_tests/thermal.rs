@@ -400,33 +400,33 @@ end_time = 7200.0
 output_every = 12
 "#;
 
-#[test]
-fn ice_cooled_freely_contracts_by_its_thermal_strain_without_stress() {
-    let dir = tempfile::tempdir().unwrap();
-    let scene = load(dir.path(), COOLED_ICE_CUBE).unwrap();
+/// Runs the scene `text` in `dir` to its end and reads the rest positions (m, 3 per node)
+/// and `fields` of its last frame.
+fn last_frame(dir: &std::path::Path, text: &str, fields: &[&str]) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let scene = load(dir, text).unwrap();
     let never = std::sync::atomic::AtomicBool::new(false);
-    let out = dir.path().join("cube.h5");
+    let out = dir.join("run.h5");
     icefem::run::run(&scene, &options(&out, None, false), &never, |_| {}).unwrap();
     let file = hdf5::File::open(&out).unwrap();
     let mut names = file.group("frames").unwrap().member_names().unwrap();
     names.sort();
-    let read = |field: &str| {
-        let path = format!("frames/{}/{field}", names.last().unwrap());
-        file.dataset(&path).unwrap().read_raw::<f64>().unwrap()
+    let read = |path: &str| file.dataset(path).unwrap().read_raw::<f64>().unwrap();
+    let last = names.last().unwrap();
+    let values = fields
+        .iter()
+        .map(|f| read(&format!("frames/{last}/{f}")))
+        .collect();
+    (read("mesh/rest_positions"), values)
+}
+
+#[test]
+fn ice_cooled_freely_contracts_by_its_thermal_strain_without_stress() {
+    let dir = tempfile::tempdir().unwrap();
+    let fields = ["temperature", "displacement", "stress"];
+    let (rest, values) = last_frame(dir.path(), COOLED_ICE_CUBE, &fields);
+    let [temperature, displacement, stress] = &values[..] else {
+        unreachable!()
     };
-    let (temperature, displacement, stress) =
-        (read("temperature"), read("displacement"), read("stress"));
-    let rest = file
-        .dataset("mesh/rest")
-        .map(|d| d.read_raw::<f64>().unwrap());
-    let positions = read("positions");
-    let rest = rest.unwrap_or_else(|_| {
-        positions
-            .iter()
-            .zip(&displacement)
-            .map(|(p, u)| p - u)
-            .collect()
-    });
     // At the bath's temperature, to the heat solve's tolerance (measured 4e-11 K).
     assert!(
         temperature.iter().all(|t| (t + 21.0).abs() < 1e-9),
@@ -439,7 +439,7 @@ fn ice_cooled_freely_contracts_by_its_thermal_strain_without_stress() {
     let strain = 5e-5 * -20.0;
     let worst = rest
         .iter()
-        .zip(&displacement)
+        .zip(displacement)
         .map(|(x, u)| (u - strain * x).abs())
         .fold(0.0f64, f64::max);
     assert!(
@@ -505,15 +505,8 @@ fn ice_cooled_inside_rigid_walls_takes_the_thermal_stress_of_its_bulk_modulus() 
         )
         .replace("[time]", &format!("{walls}[time]"));
     let dir = tempfile::tempdir().unwrap();
-    let scene = load(dir.path(), &text).unwrap();
-    let never = std::sync::atomic::AtomicBool::new(false);
-    let out = dir.path().join("walls.h5");
-    icefem::run::run(&scene, &options(&out, None, false), &never, |_| {}).unwrap();
-    let file = hdf5::File::open(&out).unwrap();
-    let mut names = file.group("frames").unwrap().member_names().unwrap();
-    names.sort();
-    let path = format!("frames/{}/stress", names.last().unwrap());
-    let stress = file.dataset(&path).unwrap().read_raw::<f64>().unwrap();
+    let (_, values) = last_frame(dir.path(), &text, &["stress"]);
+    let stress = &values[0];
     let expected = 9e9 * (5e-5 * 20.0) / (1.0 - 2.0 * 0.33);
     for s in stress.chunks(6) {
         // Linear in the temperatures, which are at the bath's to 1e-9 K (5e-14 of strain):
@@ -598,23 +591,8 @@ fn a_hollow_ice_sphere_takes_the_closed_form_thermal_displacement() {
         dir.path().join("hollow_sphere_octant.msh"),
     )
     .unwrap();
-    let scene = load(dir.path(), HOLLOW_SPHERE).unwrap();
-    let never = std::sync::atomic::AtomicBool::new(false);
-    let out = dir.path().join("sphere.h5");
-    icefem::run::run(&scene, &options(&out, None, false), &never, |_| {}).unwrap();
-    let file = hdf5::File::open(&out).unwrap();
-    let mut names = file.group("frames").unwrap().member_names().unwrap();
-    names.sort();
-    let read = |field: &str| {
-        let path = format!("frames/{}/{field}", names.last().unwrap());
-        file.dataset(&path).unwrap().read_raw::<f64>().unwrap()
-    };
-    let rest = file
-        .dataset("mesh/rest_positions")
-        .unwrap()
-        .read_raw::<f64>()
-        .unwrap();
-    let (temperature, displacement) = (read("temperature"), read("displacement"));
+    let (rest, values) = last_frame(dir.path(), HOLLOW_SPHERE, &["temperature", "displacement"]);
+    let (temperature, displacement) = (&values[0], &values[1]);
     let radius: Vec<f64> = rest
         .chunks(3)
         .map(|x| (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt())
@@ -623,7 +601,7 @@ fn a_hollow_ice_sphere_takes_the_closed_form_thermal_displacement() {
     // squares, so the mechanics is checked on the heat field icefem has (within 0.27 K of
     // A + B/r on this mesh; validation/thermoelastic_sphere.md).
     let (mut s, mut s1, mut s2, mut t0, mut t1) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for (&r, &t) in radius.iter().zip(&temperature) {
+    for (&r, &t) in radius.iter().zip(temperature) {
         let q = 1.0 / r;
         (s, s1, s2, t0, t1) = (s + 1.0, s1 + q, s2 + q * q, t0 + t, t1 + t * q);
     }
