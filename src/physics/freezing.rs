@@ -381,10 +381,9 @@ impl Freezing {
         history.freeze_state.resize(n, 0.0);
         for e in 0..n {
             let s = schedule.state(e, t);
-            let thermal = match (&self.thermal_strain, schedule.temperature(e, t)) {
-                (Some(strain), Some(temperature)) => strain.strain(e, temperature),
-                _ => 0.0,
-            };
+            let thermal = (self.thermal_strain.as_ref())
+                .and_then(|strain| Some(strain.strain(e, schedule.temperature(e, t)?)))
+                .unwrap_or(0.0);
             history.freeze_state[e] = s;
             let formed = s - self.initial_ice.get(e).copied().unwrap_or(0.0);
             history.eigenstrain[e] =

@@ -52,20 +52,20 @@ impl Expansion {
         match self {
             Expansion::Constant(alpha) => alpha * t,
             Expansion::Table(points) => {
-                // ∫ over [a, b] of the piecewise-linear α, by the trapezoid rule on each piece
-                // (exact: α is linear there), α's kinks being the table's points.
-                let integral = |a: f64, b: f64| -> f64 {
-                    let (lo, hi, sign) = if a <= b { (a, b, 1.0) } else { (b, a, -1.0) };
-                    let mut knots = vec![lo];
-                    knots.extend(points.iter().map(|p| p.0).filter(|&x| x > lo && x < hi));
-                    knots.push(hi);
-                    let sum: f64 = knots
-                        .windows(2)
-                        .map(|w| 0.5 * (w[1] - w[0]) * (self.at(w[0]) + self.at(w[1])))
-                        .sum();
-                    sign * sum
+                // ∫₀ᵗ of the piecewise-linear α by the trapezoid rule on each piece between
+                // the table's points (exact: α is linear there).
+                let (lo, hi, sign) = if t >= 0.0 {
+                    (0.0, t, 1.0)
+                } else {
+                    (t, 0.0, -1.0)
                 };
-                integral(0.0, t)
+                let (mut x, mut sum) = (lo, 0.0);
+                for &(knot, _) in points.iter().filter(|p| p.0 > lo && p.0 < hi) {
+                    sum += 0.5 * (knot - x) * (self.at(x) + self.at(knot));
+                    x = knot;
+                }
+                sum += 0.5 * (hi - x) * (self.at(x) + self.at(hi));
+                sign * sum
             }
         }
     }

@@ -105,15 +105,12 @@ impl Validator<'_> {
                 for (i, &[t, a]) in rows.iter().enumerate() {
                     let row = format!("{field}[{i}]");
                     let t = self.finite(&row, t)?;
-                    if points
-                        .last()
-                        .is_some_and(|&(last, _): &(f64, f64)| t <= last)
-                    {
+                    let previous: Option<&(f64, f64)> = points.last();
+                    if let Some(&(last, _)) = previous.filter(|&&(last, _)| t <= last) {
                         return Err(self.invalid(
                             &row,
                             format!(
-                                "temperatures must increase row by row, got {t} °C after {} °C",
-                                points.last().map_or(0.0, |p: &(f64, f64)| p.0)
+                                "temperatures must increase row by row, got {t} °C after {last} °C"
                             ),
                         ));
                     }

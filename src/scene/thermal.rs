@@ -277,7 +277,7 @@ impl Validator<'_> {
         for &(i, t) in &setup.boundary.fixed {
             fixed[i] = t;
         }
-        // As `HeatLink::element_fractions` and `element_temperatures`: means over the nodes.
+        // As `HeatLink::element_states`: means over the nodes.
         let nodal: Vec<f64> = fixed
             .iter()
             .map(|&t| setup.phases.ice_fraction(t))

@@ -560,10 +560,11 @@ impl Simulation {
     fn set_thermal_schedule(&mut self, t0: f64, t1: f64, before: Option<&[f64]>) {
         let Some(link) = &self.heat else { return };
         let tets = &self.model.mesh.tets;
+        let (fraction, temperature) = link.element_states(&self.state.temperature, tets);
         let end = ThermalPoint {
             time: t1,
-            fraction: link.element_fractions(&self.state.temperature, tets),
-            temperature: link.element_temperatures(&self.state.temperature, tets),
+            fraction,
+            temperature,
         };
         let mut start = end.clone();
         start.time = t0;

@@ -62,19 +62,16 @@ impl HeatLink {
             .collect()
     }
 
-    /// Ice fraction of every mechanics element (of nodes `tets`) at the scene-mesh
-    /// temperatures `t`: the mean of its nodes' ice fractions. With lumped capacity each node
+    /// Ice fraction and temperature (°C) of every mechanics element (of nodes `tets`) at the
+    /// scene-mesh temperatures `t`: the means of its nodes'. With lumped capacity each node
     /// holds a quarter of the mass of each of its elements and freezes it by giving up its
-    /// latent heat, so this is the share of the element's mass the heat model has frozen (on
-    /// the unsplit mesh: exactly the heat model's element fraction).
-    pub fn element_fractions(&self, t: &[f64], tets: &[[usize; 4]]) -> Vec<f64> {
+    /// latent heat, so the fraction is the share of the element's mass the heat model has
+    /// frozen (on the unsplit mesh: exactly the heat model's element fraction).
+    pub fn element_states(&self, t: &[f64], tets: &[[usize; 4]]) -> (Vec<f64>, Vec<f64>) {
         let phases = self.heat.phases();
-        let nodal: Vec<f64> = self
-            .node_temperatures(t)
-            .iter()
-            .map(|&x| phases.ice_fraction(x))
-            .collect();
-        element_means(&nodal, tets)
+        let nodal = self.node_temperatures(t);
+        let ice: Vec<f64> = nodal.iter().map(|&x| phases.ice_fraction(x)).collect();
+        (element_means(&ice, tets), element_means(&nodal, tets))
     }
 
     /// Temperature of every mechanics element (of nodes `tets`, °C) at the scene-mesh
