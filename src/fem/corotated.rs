@@ -9,7 +9,7 @@ use super::kinematics::{
 use super::law::ElasticLaw;
 use super::material::Material;
 use super::offset::{offset_elastic_gradient, StrainOffset};
-use super::response::{solid_response, SolidResponse};
+use super::response::{solid_response, Flow, SolidResponse};
 use super::tensor::Tangent;
 use super::volume::VolumeChange;
 use nalgebra::{Matrix3, SMatrix, Vector3};
@@ -52,7 +52,7 @@ impl ElasticLaw for Corotated {
     fn solid(
         &self,
         mat: &Material,
-        yield_limit: Option<f64>,
+        flow: Option<Flow>,
         He: &Matrix3<f64>,
         tangent: Option<&mut Tangent>,
         project: bool,
@@ -61,7 +61,7 @@ impl ElasticLaw for Corotated {
         let newton_rotation = polar_rotation_newton(&F);
         let R = newton_rotation.unwrap_or_else(|| svd_rotation(&F));
         let strain = corotated_strain(&R, He);
-        let response = solid_response(mat, yield_limit, &strain);
+        let response = solid_response(mat, flow, &strain);
         // For this energy P = 2μ(F − R) + λ tr(S − I) R = R σ(S − I).
         let P = R * response.sigma;
         if let Some(t) = tangent {

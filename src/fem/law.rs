@@ -8,7 +8,7 @@ use super::element::{add_stiffness, offset_grads, ElementEval, ElementRest};
 use super::forces::StressForces;
 use super::material::Material;
 use super::offset::StrainOffset;
-use super::response::solid_response;
+use super::response::{solid_response, Flow};
 use super::tensor::{to_voigt, Tangent};
 use super::volume::VolumeChange;
 use nalgebra::{Matrix3, Vector3};
@@ -40,14 +40,14 @@ pub trait ElasticLaw: std::fmt::Debug + Send + Sync {
     ) -> (Matrix3<f64>, Option<Matrix3<f64>>);
 
     /// The solid's energy density Ψ (J/m³) and first Piola–Kirchhoff stress P (Pa) for the
-    /// elastic displacement gradient `He`, of the material `material` that yields with elastic
-    /// limit `yield_limit` (see [`solid_response`]); if `tangent` is given, dP/dFe is written
+    /// elastic displacement gradient `He`, of the material `material` that flows by `flow`,
+    /// if given (see [`solid_response`]); if `tangent` is given, dP/dFe is written
     /// into it (every entry). With `project` the tangent is made positive semi-definite where
     /// the model's exact tangent can be indefinite.
     fn solid(
         &self,
         material: &Material,
-        yield_limit: Option<f64>,
+        flow: Option<Flow>,
         He: &Matrix3<f64>,
         tangent: Option<&mut Tangent>,
         project: bool,
@@ -136,13 +136,7 @@ pub trait ElasticLaw: std::fmt::Debug + Send + Sync {
         let (He, factor) = self.elastic_gradient(&H, offset);
         let (psi, P) = {
             let mut t = tangent.as_mut();
-            let (psi, P) = self.solid(
-                &law.material,
-                law.yield_limit,
-                &He,
-                t.as_deref_mut(),
-                project,
-            );
+            let (psi, P) = self.solid(&law.material, law.flow, &He, t.as_deref_mut(), project);
             if law.water_bulk > 0.0 {
                 let (psi_w, P_w) = self.water(law.water_bulk, &He, t, project);
                 (psi + psi_w, P + P_w)
@@ -180,7 +174,7 @@ pub trait ElasticLaw: std::fmt::Debug + Send + Sync {
     ) -> [f64; 6] {
         let H = rest.displacement_gradient(u);
         let (strain, R) = self.elastic_strain(&H, offset);
-        let solid = solid_response(&law.material, law.yield_limit, &strain).sigma;
+        let solid = solid_response(&law.material, law.flow, &strain).sigma;
         let mut sigma = R * solid * R.transpose();
         if law.water_bulk > 0.0 {
             let volume_change = self.water_volume_change(&H, offset, &strain);
@@ -204,7 +198,7 @@ pub trait ElasticLaw: std::fmt::Debug + Send + Sync {
     ) -> StressForces {
         let (strain, rotation) = self.elastic_strain(&rest.displacement_gradient(u), offset);
         let frame = self.force_frame(&rotation, offset);
-        let mut stress = solid_response(&law.material, law.yield_limit, &strain).sigma;
+        let mut stress = solid_response(&law.material, law.flow, &strain).sigma;
         if let Some(p) = pressure {
             stress += self.pressure_stress(&strain, p);
         }
@@ -227,8 +221,9 @@ pub struct Law {
     pub material: Material,
     /// Bulk modulus of the element's water part (Pa; 0 for none).
     pub water_bulk: f64,
-    /// Elastic limit γ (dimensionless) if the element yields (see [`solid_response`]).
-    pub yield_limit: Option<f64>,
+    /// How the element's deviatoric strain flows within the solve, if it does: its elastic
+    /// limit or its creep over the step (see [`solid_response`]).
+    pub flow: Option<Flow>,
 }
 
 impl Law {
@@ -238,7 +233,7 @@ impl Law {
             model,
             material,
             water_bulk: 0.0,
-            yield_limit: None,
+            flow: None,
         }
     }
 }

@@ -4,7 +4,7 @@
 use super::law::ElasticLaw;
 use super::material::Material;
 use super::offset::StrainOffset;
-use super::response::solid_response;
+use super::response::{solid_response, Flow};
 use super::tensor::Tangent;
 use super::volume::VolumeChange;
 use nalgebra::{Matrix3, SMatrix};
@@ -33,13 +33,13 @@ impl ElasticLaw for Linear {
     fn solid(
         &self,
         mat: &Material,
-        yield_limit: Option<f64>,
+        flow: Option<Flow>,
         He: &Matrix3<f64>,
         tangent: Option<&mut Tangent>,
         _project: bool,
     ) -> (f64, Matrix3<f64>) {
         let eps = 0.5 * (He + He.transpose());
-        let response = solid_response(mat, yield_limit, &eps);
+        let response = solid_response(mat, flow, &eps);
         if let Some(t) = tangent {
             *t = linear_tangent(response.mu, response.lambda);
             if response.flow_drop != 0.0 {

@@ -6,8 +6,8 @@
 //! major (entry `F[a][k]` at `a + 3k`); energies in J, forces in N, stiffness in N/m.
 //!
 //! - `material`: Lamé constants and Hooke's law ([`Material`]).
-//! - `response`: the solid's stress response to an elastic strain, with the smoothed yield
-//!   ([`solid_response`]).
+//! - `response`: the solid's stress response to an elastic strain, with a flow rule: the
+//!   smoothed yield or creep ([`solid_response`], [`Flow`]).
 //! - `kinematics`: signed SVD, polar rotation, the determinant and its derivatives.
 //! - `offset`: strain offsets ε* and the natural shape's inverse A = F*⁻¹ ([`StrainOffset`]).
 //! - `law`: the elastic model interface ([`ElasticLaw`]), one element's [`Law`], and the
@@ -47,7 +47,9 @@ pub use law::{element_eval, element_stress, stress_forces, ElasticLaw, Law};
 pub use linear::Linear;
 pub use material::Material;
 pub use offset::StrainOffset;
-pub use response::{deviatoric_stress_norm, solid_response, SolidResponse, YIELD_SMOOTHING};
+pub use response::{
+    creep_stress_norm, deviatoric_stress_norm, solid_response, Flow, SolidResponse, YIELD_SMOOTHING,
+};
 pub use tensor::{from_voigt, max_principal, to_voigt, von_mises, Tangent};
 pub use volume::VolumeChange;
 

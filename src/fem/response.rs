@@ -1,8 +1,28 @@
-//! The solid's stress response to an elastic strain: Hooke's law, and with an elastic limit
-//! the incremental potential of the return mapping with a smoothed yield.
+//! The solid's stress response to an elastic strain: Hooke's law, and with a flow rule the
+//! incremental potential of its return mapping: perfect plasticity with a smoothed yield, or
+//! Glen's creep over one step.
 
 use super::material::Material;
 use nalgebra::Matrix3;
+
+/// How an element's deviatoric strain flows within a step (the element's inelastic strain
+/// takes what flows; see [`solid_response`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Flow {
+    /// Perfect plasticity with elastic limit γ (dimensionless): ‖ε'‖ of the elastic strain
+    /// stays at or below γ.
+    Yield(f64),
+    /// Power-law creep over one step of length h, integrated by backward Euler: the inelastic
+    /// strain grows by x n with x = `compliance` ‖σ'‖ⁿ at the step's end stress, where
+    /// `compliance` = h B (Pa⁻ⁿ), B the rate factor in Frobenius norms (‖ε̇_c‖ = B ‖σ'‖ⁿ),
+    /// and n = `exponent`.
+    Creep {
+        /// h B (Pa⁻ⁿ).
+        compliance: f64,
+        /// Stress exponent n (dimensionless, ≥ 1).
+        exponent: f64,
+    },
+}
 
 /// The solid's response to an elastic strain ε (trial strain, with the plastic strain of the
 /// start of the step): energy density, stress, and what the tangent needs.
@@ -12,12 +32,14 @@ pub struct SolidResponse {
     pub psi: f64,
     /// Stress σ (Pa), on or inside the yield surface.
     pub sigma: Matrix3<f64>,
-    /// Shear modulus acting on deviatoric strain (Pa): μ, or μ γφ/‖ε'‖ while yielding.
+    /// Shear modulus acting on deviatoric strain (Pa): μ, or S/(2‖ε'‖) while flowing
+    /// (μ γφ/‖ε'‖ while yielding).
     pub mu: f64,
     /// The matching first Lamé constant K − 2μ_eff/3 (Pa).
     pub lambda: f64,
-    /// Stiffness the flow direction n = ε'/‖ε'‖ loses while yielding (Pa):
-    /// 2 (μ_eff − μ φ′), 0 while elastic. The tangent is C_eff − flow_drop n⊗n.
+    /// Stiffness the flow direction n = ε'/‖ε'‖ loses while flowing (Pa): 2μ_eff − dS/dr
+    /// (2 (μ_eff − μ φ′) while yielding), 0 while elastic. The tangent is
+    /// C_eff − flow_drop n⊗n.
     pub flow_drop: f64,
 }
 
@@ -51,59 +73,106 @@ pub fn deviatoric_stress_norm(r: f64, gamma: f64) -> (f64, f64) {
     }
 }
 
-/// The solid's response to the elastic strain `eps` (the return mapping of O'Brien et al.
-/// 2002, the paper's eqs. (3)–(5), as an incremental potential; see
-/// docs/numerics.md#plasticity). Elastic: σ = C:ε, Ψ = ½ σ:ε. With an elastic limit γ and a
-/// deviator ε' whose norm r = ‖ε'‖ exceeds it, the return mapping Δε_p = (r − γ)/r ε' leaves
-/// the deviator at γ ε'/r; that is the minimiser over Δε_p of the elastic energy plus the
-/// plastic dissipation 2μγ ‖Δε_p‖, and the minimum is the convex
+/// The deviatoric stress norm S = ‖σ'‖ (Pa) after a creep step of an element whose trial
+/// deviatoric elastic strain norm is `r`, for shear modulus `mu`, and dS/dr: the root of
+/// S/(2μ) + c Sⁿ = r (the elastic strain left is S/2μ, the rest, c Sⁿ, crept), with
+/// c = `compliance` and n = `exponent`.
 ///
-/// ```text
-/// Ψ = K/2 tr(ε)² + μ γ (2r − γ),   σ = K tr(ε) I + 2μγ ε'/r,
-/// ```
-///
-/// so Newton minimises it like an elastic energy, its converged stress is the returned one
-/// (‖σ'‖ = 2μγ: von Mises = √(3/2)·2μγ), and its Hessian is the consistent tangent
-/// K 1⊗1 + 2μγ/r (I_dev − n⊗n), n = ε'/r. Within δγ of the limit the deviatoric stress is
-/// 2μγφ(r/γ) n ([`deviatoric_stress_norm`]), whose energy is μr² − μγ²y³/(6δ) with y = r/γ − 1 + δ.
+/// The left side is convex and increasing in S, and both 2μr and (r/c)^{1/n} bound the root
+/// from above, so Newton from the smaller of them decreases monotonically to it.
 #[inline]
-pub fn solid_response(
-    mat: &Material,
-    yield_limit: Option<f64>,
-    eps: &Matrix3<f64>,
-) -> SolidResponse {
-    if let Some(gamma) = yield_limit {
-        let tr = eps.trace();
-        let dev = eps - Matrix3::identity() * (tr / 3.0);
-        let r = dev.norm();
-        let d = YIELD_SMOOTHING;
-        if r > (1.0 - d) * gamma {
-            let k = mat.bulk();
+pub fn creep_stress_norm(r: f64, mu: f64, compliance: f64, exponent: f64) -> (f64, f64) {
+    let two_mu = 2.0 * mu;
+    let mut s = (two_mu * r).min((r / compliance).powf(1.0 / exponent));
+    for _ in 0..100 {
+        let crept = compliance * s.powf(exponent);
+        let f = s / two_mu + crept - r;
+        if f <= 0.0 {
+            break;
+        }
+        let slope = 1.0 / two_mu + exponent * crept / s;
+        let next = s - f / slope;
+        // Monotone from above: a step that no longer decreases S is round-off (NaN included).
+        if next.is_nan() || next >= s || s - next <= 1e-15 * s {
+            s = next.min(s);
+            break;
+        }
+        s = next;
+    }
+    let crept_slope = exponent * compliance * s.powf(exponent - 1.0);
+    (s, two_mu / (1.0 + two_mu * crept_slope))
+}
+
+/// The solid's response to the elastic strain `eps` with the flow rule `flow`, if any: Hooke's
+/// law σ = C:ε, Ψ = ½ σ:ε, or, with a flow rule, the incremental potential of its return
+/// mapping (see docs/numerics.md#plasticity and docs/ice.md#creep), a convex energy whose
+/// stress is the returned one and whose Hessian is the consistent tangent. Only the deviator
+/// ε' (norm r = ‖ε'‖, direction n = ε'/r) flows; σ' = S n with S a function of r alone, so
+/// the tangent is K 1⊗1 + (S/r) (I_dev − n⊗n) + (dS/dr) n⊗n.
+///
+/// - [`Flow::Yield`] (O'Brien et al. 2002, the paper's eqs. (3)–(5)): with an elastic limit γ
+///   and r above it, the return mapping Δε_p = (r − γ)/r ε' leaves the deviator at γ ε'/r;
+///   that is the minimiser over Δε_p of the elastic energy plus the plastic dissipation
+///   2μγ ‖Δε_p‖, and the minimum is Ψ = K/2 tr(ε)² + μ γ (2r − γ), σ = K tr(ε) I + 2μγ ε'/r
+///   (‖σ'‖ = 2μγ: von Mises = √(3/2)·2μγ). Within δγ of the limit the deviatoric stress is
+///   2μγφ(r/γ) n ([`deviatoric_stress_norm`]), whose energy is μr² − μγ²y³/(6δ) with
+///   y = r/γ − 1 + δ.
+/// - [`Flow::Creep`] (Glen's law over one step by backward Euler): the crept strain x along n
+///   minimises μ(r − x)² + n/(n+1) x S(x) with S(x) = (x/c)^{1/n}, whose stationarity is
+///   2μ(r − x) = S: the stress the creep rate of the step's end belongs to. The minimum is
+///   Ψ = K/2 tr(ε)² + S²/(4μ) + n/(n+1) c S^{n+1} with S from [`creep_stress_norm`].
+#[inline]
+pub fn solid_response(mat: &Material, flow: Option<Flow>, eps: &Matrix3<f64>) -> SolidResponse {
+    let tr = eps.trace();
+    let dev = eps - Matrix3::identity() * (tr / 3.0);
+    let r = dev.norm();
+    let deviatoric = match flow {
+        Some(Flow::Yield(gamma)) if r > (1.0 - YIELD_SMOOTHING) * gamma => {
+            let d = YIELD_SMOOTHING;
             let (kept, slope) = deviatoric_stress_norm(r, gamma);
-            let mu = mat.mu * kept / r;
             let x = r / gamma;
-            let deviatoric = if x >= 1.0 + d {
+            let psi = if x >= 1.0 + d {
                 let at_end = (1.0 + d) * (1.0 + d) - 4.0 * d * d / 3.0;
                 mat.mu * gamma * gamma * at_end + 2.0 * mat.mu * gamma * (r - gamma * (1.0 + d))
             } else {
                 let y = x - (1.0 - d);
                 mat.mu * r * r - mat.mu * gamma * gamma * y * y * y / (6.0 * d)
             };
-            return SolidResponse {
-                psi: 0.5 * k * tr * tr + deviatoric,
+            let mu = mat.mu * kept / r;
+            Some((psi, mu, 2.0 * (mu - mat.mu * slope)))
+        }
+        Some(Flow::Creep {
+            compliance,
+            exponent,
+        }) if r > 0.0 && compliance > 0.0 && mat.mu > 0.0 => {
+            let (s, slope) = creep_stress_norm(r, mat.mu, compliance, exponent);
+            let psi = s * s / (4.0 * mat.mu)
+                + exponent / (exponent + 1.0) * compliance * s.powf(exponent + 1.0);
+            let mu = 0.5 * s / r;
+            Some((psi, mu, 2.0 * mu - slope))
+        }
+        _ => None,
+    };
+    match deviatoric {
+        Some((psi, mu, flow_drop)) => {
+            let k = mat.bulk();
+            SolidResponse {
+                psi: 0.5 * k * tr * tr + psi,
                 sigma: Matrix3::identity() * (k * tr) + 2.0 * mu * dev,
                 mu,
                 lambda: k - 2.0 * mu / 3.0,
-                flow_drop: 2.0 * (mu - mat.mu * slope),
-            };
+                flow_drop,
+            }
         }
-    }
-    let sigma = mat.hooke(eps);
-    SolidResponse {
-        psi: 0.5 * sigma.dot(eps),
-        sigma,
-        mu: mat.mu,
-        lambda: mat.lambda,
-        flow_drop: 0.0,
+        None => {
+            let sigma = mat.hooke(eps);
+            SolidResponse {
+                psi: 0.5 * sigma.dot(eps),
+                sigma,
+                mu: mat.mu,
+                lambda: mat.lambda,
+                flow_drop: 0.0,
+            }
+        }
     }
 }

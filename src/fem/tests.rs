@@ -43,7 +43,7 @@ fn check_law_derivatives(
     model: ElasticModel,
     mat: &Material,
     water: f64,
-    yield_limit: Option<f64>,
+    flow: Option<Flow>,
     offset: Matrix3<f64>,
     strain: f64,
 ) {
@@ -57,7 +57,7 @@ fn check_law_derivatives(
         model: model.law(),
         material: *mat,
         water_bulk: water,
-        yield_limit,
+        flow,
     };
     let mut e = ElementEval::default();
     element_eval(
@@ -184,7 +184,7 @@ fn corotated_tangent_without_singular_vectors_is_the_svd_one() {
         R * 1.02,
     ];
     for F in cases {
-        for limit in [None, Some(1e-5)] {
+        for limit in [None, Some(Flow::Yield(1e-5)), Some(CREEP)] {
             let strain = corotated_strain(&polar_rotation(&F), &(F - Matrix3::identity()));
             let response = solid_response(&ICE, limit, &strain);
             let (mut closed, mut svd) = (Tangent::zeros(), Tangent::zeros());
@@ -237,7 +237,7 @@ fn stress_forces_are_the_element_forces() {
             model: model.law(),
             material: ICE,
             water_bulk: 0.0,
-            yield_limit: Some(1e-4),
+            flow: Some(Flow::Yield(1e-4)),
         };
         let mut e = ElementEval::default();
         element_eval(&law, &rest, &u, &offset, false, false, &mut e);
@@ -268,10 +268,17 @@ fn yielding_derivatives_match_finite_differences() {
     let half = half_frozen();
     let plastic = Matrix3::new(0.01, 0.002, 0.0, 0.002, -0.004, 0.001, 0.0, 0.001, -0.006);
     for model in [ElasticModel::Linear, ElasticModel::Corotated] {
-        check_law_derivatives(model, &ICE, 0.0, Some(1e-3), Matrix3::zeros(), 0.02);
-        check_law_derivatives(model, &ICE, 0.0, Some(1e-4), plastic, 0.01);
+        check_law_derivatives(
+            model,
+            &ICE,
+            0.0,
+            Some(Flow::Yield(1e-3)),
+            Matrix3::zeros(),
+            0.02,
+        );
+        check_law_derivatives(model, &ICE, 0.0, Some(Flow::Yield(1e-4)), plastic, 0.01);
         let offset = Matrix3::identity() * 0.0145;
-        check_law_derivatives(model, &half, 1.1e9, Some(1e-4), offset, 0.02);
+        check_law_derivatives(model, &half, 1.1e9, Some(Flow::Yield(1e-4)), offset, 0.02);
     }
 }
 
@@ -279,7 +286,7 @@ fn yielding_derivatives_match_finite_differences() {
 fn yielding_stress_is_on_the_yield_surface_and_keeps_the_volume_response() {
     let gamma = 1e-4;
     let eps = Matrix3::new(3e-3, 1e-3, 0.0, 1e-3, -1e-3, 2e-4, 0.0, 2e-4, 5e-4);
-    let r = solid_response(&ICE, Some(gamma), &eps);
+    let r = solid_response(&ICE, Some(Flow::Yield(gamma)), &eps);
     assert!(r.flow_drop > 0.0);
     let dev = r.sigma - Matrix3::identity() * (r.sigma.trace() / 3.0);
     // ‖σ'‖ = 2μγ to round-off; the pressure is the elastic one, K tr ε.
@@ -293,8 +300,76 @@ fn yielding_stress_is_on_the_yield_surface_and_keeps_the_volume_response() {
     // Below the limit: Hooke's law, bit for bit.
     let small = eps * 1e-3;
     assert_eq!(
-        solid_response(&ICE, Some(gamma), &small).sigma,
+        solid_response(&ICE, Some(Flow::Yield(gamma)), &small).sigma,
         ICE.hooke(&small)
+    );
+}
+
+/// Creep of ice at −10 °C over a 100 s step: h B = 100 s × 3.5e-25 Pa⁻³ s⁻¹ / 2, so a
+/// deviatoric stress of 1 MPa creeps 1.75e-5 in the step, comparable to its elastic strain
+/// (1e6 Pa / 2μ ≈ 1.5e-4 for the test ice): the response is far from both limits.
+const CREEP: Flow = Flow::Creep {
+    compliance: 100.0 * 3.5e-25 / 2.0,
+    exponent: 3.0,
+};
+
+#[test]
+fn creeping_derivatives_match_finite_differences() {
+    // Strains of 1e-3 … 2e-2 on the test ice (μ ≈ 3.4 GPa): deviatoric stresses of
+    // 7–140 MPa, where a step creeps from a small share of the strain to most of it.
+    let half = half_frozen();
+    let inelastic = Matrix3::new(0.01, 0.002, 0.0, 0.002, -0.004, 0.001, 0.0, 0.001, -0.006);
+    let offset = Matrix3::identity() * 0.0145;
+    for model in [ElasticModel::Linear, ElasticModel::Corotated] {
+        for strain in [1e-3, 2e-2] {
+            check_law_derivatives(model, &ICE, 0.0, Some(CREEP), Matrix3::zeros(), strain);
+            check_law_derivatives(model, &ICE, 0.0, Some(CREEP), inelastic, strain);
+            check_law_derivatives(model, &half, 1.1e9, Some(CREEP), offset, strain);
+        }
+    }
+}
+
+#[test]
+fn creeping_stress_meets_the_backward_euler_flow_rule() {
+    // The crept strain x = r − S/2μ is the step's creep at its end stress, c Sⁿ, and the
+    // pressure keeps its elastic response.
+    let Flow::Creep {
+        compliance,
+        exponent,
+    } = CREEP
+    else {
+        unreachable!()
+    };
+    for scale in [1e-6, 1e-4, 1e-3, 1e-2] {
+        let eps = Matrix3::new(3.0, 1.0, 0.0, 1.0, -1.0, 0.2, 0.0, 0.2, 0.5) * scale;
+        let r = solid_response(&ICE, Some(CREEP), &eps);
+        let dev = eps - Matrix3::identity() * (eps.trace() / 3.0);
+        let sdev = r.sigma - Matrix3::identity() * (r.sigma.trace() / 3.0);
+        let s = sdev.norm();
+        let crept = dev.norm() - s / (2.0 * ICE.mu);
+        // The root is found to ~1e-15 of S; x is a difference of r and S/2μ, so its error
+        // is ~1e-15 r, relative to x at least 1e-15 r / x.
+        let tol = 1e-13 * dev.norm();
+        assert!(
+            (crept - compliance * s.powf(exponent)).abs() <= tol,
+            "scale {scale}: {crept:e} vs {:e}",
+            compliance * s.powf(exponent)
+        );
+        // The stress is along the strain's deviator: σ' is formed here by taking off a mean
+        // stress up to ~15 × S (at 1e-2 most of the deviator has crept), so ~1e-15 × 15.
+        let along = (sdev / s - dev / dev.norm()).norm();
+        assert!(along < 1e-13, "scale {scale}: {along:e}");
+        assert!((r.sigma.trace() / 3.0 - ICE.bulk() * eps.trace()).abs() <= 1e-9 * s);
+    }
+    // Without creep over the step (c = 0): Hooke's law, bit for bit.
+    let none = Flow::Creep {
+        compliance: 0.0,
+        exponent: 3.0,
+    };
+    let eps = Matrix3::new(3e-3, 1e-3, 0.0, 1e-3, -1e-3, 0.0, 0.0, 0.0, 5e-4);
+    assert_eq!(
+        solid_response(&ICE, Some(none), &eps).sigma,
+        ICE.hooke(&eps)
     );
 }
 

@@ -2,20 +2,22 @@
 //!
 //! Each element's stress is σ = C : (ε − ε*) with the strain offset ε* = e I + ε_p: an
 //! isotropic eigenstrain e (a scene's `[[eigenstrain]]` plus the freezing expansion) and, with
-//! plasticity on, the element's plastic strain ε_p. With plasticity an element containing ice
-//! yields inside the solve: its energy is the incremental potential of the return mapping
-//! (`fem::solid_response`), so the converged stress is on the yield surface. While freezing,
+//! plasticity or creep on, the element's inelastic strain ε_p. With plasticity an element
+//! containing ice yields inside the solve, with creep it creeps over the solve: its energy is
+//! the incremental potential of the return mapping (`fem::solid_response`), so the converged
+//! stress is on the yield surface, or has crept. While freezing,
 //! an element's material blends from water to ice with its freeze state. The strain offsets
 //! and freeze states are per-element history and live in the simulation state
 //! ([`ElementHistory`]).
 
+use super::creep::{Creep, CreepStep};
 use super::history::ElementHistory;
 use super::plasticity::Plasticity;
 use super::term::StepTerm;
 use super::volumetric::NodalVolume;
 use crate::assembly::{Assembly, ElementSubset};
 use crate::fem::{
-    element_eval, element_stress, ElasticLaw, ElasticModel, ElementEval, ElementRest, Law,
+    element_eval, element_stress, ElasticLaw, ElasticModel, ElementEval, ElementRest, Flow, Law,
     Material, StrainOffset, VolumeChange,
 };
 use crate::mesh::TetMesh;
@@ -58,6 +60,11 @@ pub struct Elasticity {
     pub water_shear: f64,
     /// Plasticity, if on (none: no plastic state at all).
     pub plasticity: Option<Plasticity>,
+    /// Creep, if on (exclusive with plasticity: the inelastic strain is the crept one).
+    pub creep: Option<Creep>,
+    /// Whether water freezes into ice that grows (`[freezing] expansion = "growth"`, see
+    /// `ice_growth`): the inelastic strain then also carries what the ice was born with.
+    pub ice_growth: bool,
     /// The nodal averaging of the volumetric energy, if on (`[material] volumetric =
     /// "nodal"`; none: per element).
     pub nodal: Option<NodalVolume>,
@@ -76,6 +83,8 @@ impl Elasticity {
             water_bulk: 0.0,
             water_shear: 0.0,
             plasticity: None,
+            creep: None,
+            ice_growth: false,
             nodal: None,
         }
     }
@@ -129,15 +138,23 @@ impl Elasticity {
             water_bulk: self.water_bulk,
             water_shear: self.water_shear,
             plasticity: self.plasticity,
+            creep: self.creep,
+            ice_growth: self.ice_growth,
         };
         el.set_volumetric(mesh, self.volumetric());
         el
     }
 
+    /// Whether the elements carry an inelastic strain: with plasticity, creep or ice that
+    /// grows.
+    pub fn inelastic(&self) -> bool {
+        self.plasticity.is_some() || self.creep.is_some() || self.ice_growth
+    }
+
     /// The history of these elements at the start of a run without freezing: the prescribed
-    /// eigenstrain, and zero plastic strain with plasticity.
+    /// eigenstrain, and zero inelastic strain with plasticity or creep.
     pub fn initial_history(&self) -> ElementHistory {
-        ElementHistory::initial(&self.eigenstrain, self.plasticity.is_some())
+        ElementHistory::initial(&self.eigenstrain, self.inelastic())
     }
 
     /// The law of the elastic model (strain measure and response), resolved from
@@ -193,18 +210,38 @@ impl Elasticity {
             material.lambda = -2.0 * material.mu / 3.0;
             water_bulk = 0.0;
         }
-        let yield_limit = self.plasticity.and_then(|p| {
+        let flow = self.plasticity.and_then(|p| {
             let plastic = history.plastic_strain.get(e)?;
-            let ice = history.freeze_state.get(e).is_none_or(|&s| s > 0.0);
             let below_cap = p.cap.is_none_or(|cap| plastic.norm() < cap);
-            (ice && below_cap).then_some(p.elastic_limit)
+            (history.holds_ice(e) && below_cap).then_some(Flow::Yield(p.elastic_limit))
         });
         Law {
             model: self.law(),
             material,
             water_bulk,
-            yield_limit,
+            flow,
         }
+    }
+
+    /// The law of element `e` inside a solve: [`Elasticity::law_of`], and with creep, if the
+    /// element holds ice of `[material]` (other materials do not creep), its creep over the
+    /// solve `creep` (none: a solve without creep, as for the stiffness of Rayleigh damping).
+    /// Creep acts only inside a solve: after it, [`Elasticity::update_inelastic_strain`]
+    /// moves the crept strain into the history.
+    pub fn law_in_solve(
+        &self,
+        history: &ElementHistory,
+        e: usize,
+        creep: Option<&CreepStep>,
+    ) -> Law {
+        let mut law = self.law_of(history, e);
+        if let (Some(c), Some(step)) = (&self.creep, creep) {
+            let ice = self.material_index.get(e).is_none_or(|&k| k == 0);
+            if ice && history.holds_ice(e) {
+                law.flow = Some(c.flow(step, e));
+            }
+        }
+        law
     }
 
     /// The bulk modulus of element `e` (Pa): its solid's K = λ + 2μ/3 plus its water's.
@@ -261,17 +298,18 @@ impl Elasticity {
         out: &mut ElementEval,
     ) {
         let offset = history.offset_of(e);
-        self.element_with(tets, history, u, e, &offset, with_hessian, false, out);
+        let law = self.law_of(history, e);
+        self.element_with(tets, &law, u, e, &offset, with_hessian, false, out);
     }
 
-    /// As [`Elasticity::element`], with the element's strain `offset` given; with `project`
-    /// the stiffness is made positive semi-definite (see `fem::ElasticLaw::solid`).
-    // The element's inputs: mesh, history, state, which element and what to compute.
+    /// As [`Elasticity::element`], with the element's `law` and strain `offset` given; with
+    /// `project` the stiffness is made positive semi-definite (see `fem::ElasticLaw::solid`).
+    // The element's inputs: mesh, law, state, which element and what to compute.
     #[allow(clippy::too_many_arguments)]
     pub fn element_with(
         &self,
         tets: &[[usize; 4]],
-        history: &ElementHistory,
+        law: &Law,
         u: &[f64],
         e: usize,
         offset: &StrainOffset,
@@ -280,7 +318,7 @@ impl Elasticity {
         out: &mut ElementEval,
     ) {
         element_eval(
-            &self.law_of(history, e),
+            law,
             &self.rest[e],
             &Self::local(u, &tets[e]),
             offset,
@@ -310,30 +348,35 @@ impl Elasticity {
             .fold(0.0, f64::max)
     }
 
-    /// Return mapping of the plastic strain in `history` of every element that yields (see
-    /// [`Elasticity::law_of`]) for the converged displacements `u` (m) of the elements
-    /// `tets`, with the strain `offsets` of `history`; returns the largest ‖ε_p‖ afterwards
-    /// (0 without plasticity).
-    pub fn update_plastic_strain(
+    /// The inelastic strain in `history` of every element that flows (see
+    /// [`Elasticity::law_in_solve`]) brought to the end of the solve with the converged
+    /// displacements `u` (m) of the elements `tets`, the strain `offsets` of `history` and
+    /// the solve's `creep`: plasticity's return mapping, or the solve's creep. Returns the
+    /// largest ‖ε_p‖ afterwards (0 without plasticity or creep).
+    pub fn update_inelastic_strain(
         &self,
         (history, offsets): (&mut ElementHistory, &[StrainOffset]),
         tets: &[[usize; 4]],
         u: &[f64],
+        creep: Option<&CreepStep>,
     ) -> f64 {
-        let Some(plasticity) = &self.plasticity else {
+        if !self.inelastic() {
             return 0.0;
-        };
+        }
         let n = tets.len();
         if history.plastic_strain.len() != n {
             history.plastic_strain = vec![Matrix3::zeros(); n];
         }
         let h = &*history;
         let updated: Vec<Matrix3<f64>> = crate::parallel::map_range(n, |e| {
-            if self.law_of(h, e).yield_limit.is_some() {
-                let elastic = self.elastic_strain(tets, u, e, &offsets[e]);
-                plasticity.return_map(&elastic, &h.plastic_strain[e])
-            } else {
-                h.plastic_strain[e]
+            let law = self.law_in_solve(h, e, creep);
+            let (Some(flow), Some(inelastic)) = (law.flow, h.plastic_strain.get(e)) else {
+                return h.plastic_strain[e];
+            };
+            let elastic = self.elastic_strain(tets, u, e, &offsets[e]);
+            match (flow, &self.plasticity) {
+                (Flow::Yield(_), Some(plasticity)) => plasticity.return_map(&elastic, inelastic),
+                _ => Creep::advance(&law.material, flow, &elastic, inelastic),
             }
         });
         let largest = updated.iter().map(|p| p.norm()).fold(0.0, f64::max);
@@ -383,16 +426,20 @@ impl Elasticity {
     }
 
     /// Elastic energy Σ Wₑ (J) at `u`, with the elements' strain `offsets`
-    /// (`history.offsets()`) and each element's energy written to `element_energy`.
+    /// (`history.offsets()`) and the creep of the solve `creep`, if any, and each element's
+    /// energy written to `element_energy`.
     pub fn energy(
         &self,
         assembly: &Assembly,
         (tets, history, offsets): (&[[usize; 4]], &ElementHistory, &[StrainOffset]),
-        u: &[f64],
+        (u, creep): (&[f64], Option<&CreepStep>),
         element_energy: &mut [f64],
     ) -> f64 {
         assembly.energies(
-            |e, out| self.element_with(tets, history, u, e, &offsets[e], false, false, out),
+            |e, out| {
+                let law = self.law_in_solve(history, e, creep);
+                self.element_with(tets, &law, u, e, &offsets[e], false, false, out)
+            },
             element_energy,
         );
         let volumetric = self
@@ -431,6 +478,8 @@ pub struct ElasticStep<'a> {
     /// 3n): the energy, gradient and Hessian are then those of its elements, plus the nodal
     /// volumetric energy and Hessian of its nodes.
     pub subset: Option<(&'a ElementSubset, &'a [bool])>,
+    /// The solve's creep, with creep on (none: the elements do not creep in this term).
+    pub creep: Option<CreepStep<'a>>,
 }
 
 impl<'a> ElasticStep<'a> {
@@ -452,6 +501,7 @@ impl<'a> ElasticStep<'a> {
             project,
             offsets,
             subset: None,
+            creep: None,
         }
     }
 }
@@ -469,6 +519,7 @@ impl StepTerm for ElasticStep<'_> {
         hessian: Option<&mut [f64]>,
     ) {
         let (el, tets, history, offsets) = (self.elasticity, self.tets, self.history, self.offsets);
+        let creep = self.creep.as_ref();
         let (subset, owned) = self.subset.unzip();
         match gradient {
             Some(gradient) => {
@@ -477,7 +528,8 @@ impl StepTerm for ElasticStep<'_> {
                     self.assembly.assemble_in(
                         subset,
                         |e, with_h, out| {
-                            el.element_with(tets, history, u, e, &offsets[e], with_h, project, out)
+                            let law = el.law_in_solve(history, e, creep);
+                            el.element_with(tets, &law, u, e, &offsets[e], with_h, project, out)
                         },
                         self.element_energy,
                         gradient,
@@ -500,7 +552,8 @@ impl StepTerm for ElasticStep<'_> {
                 self.assembly.assemble_in(
                     subset,
                     |e, with_h, out| {
-                        el.element_with(tets, history, u, e, &offsets[e], with_h, project, out);
+                        let law = el.law_in_solve(history, e, creep);
+                        el.element_with(tets, &law, u, e, &offsets[e], with_h, project, out);
                         change[e].add_pressure(&el.rest[e], pressure[e], out, with_h);
                     },
                     self.element_energy,
@@ -517,7 +570,8 @@ impl StepTerm for ElasticStep<'_> {
                     self.assembly.energies_in(
                         Some(subset),
                         |e, out| {
-                            el.element_with(tets, history, u, e, &offsets[e], false, false, out)
+                            let law = el.law_in_solve(history, e, creep);
+                            el.element_with(tets, &law, u, e, &offsets[e], false, false, out)
                         },
                         self.element_energy,
                     );
@@ -530,7 +584,7 @@ impl StepTerm for ElasticStep<'_> {
                     *energy += el.energy(
                         self.assembly,
                         (tets, history, offsets),
-                        u,
+                        (u, creep),
                         self.element_energy,
                     );
                 }
@@ -548,7 +602,7 @@ impl StepTerm for ElasticStep<'_> {
     fn hessian_is_fixed(&self) -> bool {
         let e = self.elasticity;
         e.law().constant_tangent()
-            && e.plasticity.is_none()
+            && !e.inelastic()
             && e.volumetric() == Volumetric::Element
             && self.history.freeze_state.is_empty()
     }

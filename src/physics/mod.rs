@@ -8,6 +8,7 @@ pub mod amplitude;
 pub mod contact;
 pub mod contact_forces;
 pub mod crack_sides;
+pub mod creep;
 pub mod dirichlet;
 pub mod distance;
 pub mod elasticity;
@@ -15,6 +16,7 @@ pub mod freezing;
 pub mod grid;
 pub mod history;
 pub mod ice_contact;
+pub mod ice_growth;
 pub mod inertia;
 pub mod loads;
 pub mod motion;
@@ -305,17 +307,19 @@ impl Model {
         }
     }
 
-    /// Return mapping of the plastic strains in `history` for converged displacements `u`
-    /// (m), with the strain `offsets` of `history` (those of the solve); returns the largest
-    /// plastic strain norm (0 without plasticity).
-    pub fn update_plastic_strain(
+    /// The inelastic strains in `history` brought to the end of a solve with converged
+    /// displacements `u` (m), the strain `offsets` of `history` (those of the solve) and the
+    /// solve's `creep`: plasticity's return mapping or the solve's creep; returns the largest
+    /// inelastic strain norm (0 without plasticity or creep).
+    pub fn update_inelastic_strain(
         &self,
         history: &mut ElementHistory,
         offsets: &[crate::fem::StrainOffset],
         u: &[f64],
+        creep: Option<&creep::CreepStep>,
     ) -> f64 {
         self.elasticity
-            .update_plastic_strain((history, offsets), &self.mesh.tets, u)
+            .update_inelastic_strain((history, offsets), &self.mesh.tets, u, creep)
     }
 
     /// Number of nodes.

@@ -135,9 +135,12 @@ impl ColorField {
                 .freeze_state()
                 .ok_or_else(|| missing("freeze_state", "the scene has no [freezing]"))?
                 .to_vec(),
-            ColorField::Plastic => frame
-                .plastic_strain_norm()
-                .ok_or_else(|| missing("plastic_strain", "the scene has no [plasticity]"))?,
+            ColorField::Plastic => frame.plastic_strain_norm().ok_or_else(|| {
+                missing(
+                    "plastic_strain",
+                    "the scene has neither [plasticity] nor [creep]",
+                )
+            })?,
             ColorField::VonMises => frame
                 .von_mises()
                 .ok_or_else(|| missing("stress", "malformed file"))?,

@@ -130,7 +130,7 @@ pub(super) fn restore(
         }
     }
     sim.set_time(frame.time);
-    if sim.model.elasticity.plasticity.is_some() {
+    if sim.model.elasticity.inelastic() {
         let p = frame
             .element_fields
             .iter()

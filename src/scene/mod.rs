@@ -41,6 +41,7 @@ use std::sync::Arc;
 
 mod bodies;
 mod checks;
+mod creep;
 mod freezing;
 mod materials;
 mod obstacles;
@@ -135,6 +136,8 @@ pub struct SceneFile {
     pub thermal: Option<ThermalSection>,
     /// Plasticity (off if absent).
     pub plasticity: Option<PlasticitySection>,
+    /// Creep (off if absent).
+    pub creep: Option<creep::CreepSection>,
     /// Brittle fracture (off if absent).
     pub fracture: Option<FractureSection>,
     /// Time stepping.
@@ -551,8 +554,18 @@ impl Validator<'_> {
         if let Some(freezing) = self.model_freezing(&raw, thermal.as_ref(), &model, &material)? {
             model.freezing = Some(freezing);
         }
+        model.elasticity.ice_growth = self.ice_growth(&raw)?;
         if let Some(p) = &raw.plasticity {
             model.elasticity.plasticity = Some(self.plasticity(p)?);
+        }
+        if let Some(c) = &raw.creep {
+            if raw.plasticity.is_some() {
+                return Err(self.invalid(
+                    "creep",
+                    "[creep] and [plasticity] are two flow rules for the same strain; a scene takes one (remove one section)",
+                ));
+            }
+            model.elasticity.creep = Some(self.creep(c, raw.thermal.is_some())?);
         }
         let fracture = raw
             .fracture

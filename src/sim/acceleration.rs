@@ -36,6 +36,8 @@ impl Simulation {
             offsets: &offsets,
             element_energy: &mut self.element_energy,
             subset,
+            // The acceleration of the state's stress: nothing creeps in no time.
+            creep: None,
         };
         let (elastic, terms) = solve_terms(model, &self.assembly, elastic, &self.loads, &solve);
         let mut potential = StepPotential::new(elastic, terms);

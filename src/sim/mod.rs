@@ -678,6 +678,8 @@ impl Simulation {
             offsets: &offsets,
             element_energy: &mut self.element_energy,
             subset,
+            // The stored energy: creep acts only inside a solve.
+            creep: None,
         };
         let state = &self.state;
         let parts = energies_of(

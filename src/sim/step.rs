@@ -13,6 +13,7 @@ use super::{
 use crate::assembly::Assembly;
 use crate::fem::StrainOffset;
 use crate::physics::contact::ContactForces;
+use crate::physics::creep::CreepStep;
 use crate::physics::elasticity::ElasticStep;
 use crate::physics::inertia::{Inertia, StiffnessDamping};
 use crate::physics::term::{Solve, StepStartView, StepTerm};
@@ -50,6 +51,19 @@ struct SolveSetup {
     /// Newton's other start where a part turns (see `rigid_start`): the solve starts from
     /// whichever of it and the predictor has the lower potential.
     turned_start: Option<Vec<f64>>,
+    /// With creep and a heat solve, the temperature of each element at the solve's end (°C),
+    /// which sets its creep rate; empty otherwise.
+    creep_temperature: Vec<f64>,
+}
+
+impl SolveSetup {
+    /// The solve's creep, with creep on in `model`.
+    fn creep(&self, model: &Model) -> Option<CreepStep<'_>> {
+        model.elasticity.creep.map(|_| CreepStep {
+            h: self.h,
+            temperature: &self.creep_temperature,
+        })
+    }
 }
 
 /// The elastic energy at a solve's solution (J).
@@ -123,7 +137,7 @@ impl Simulation {
         report.t_contact_broad += t_contact_broad;
         // The energies the balance check measured at the solution hold unless the plastic
         // strain was updated after it.
-        if self.model.elasticity.plasticity.is_some() {
+        if self.model.elasticity.inelastic() {
             report.energies = self.energies();
         }
         Ok(report)
@@ -229,7 +243,11 @@ impl Simulation {
             self.integrator
                 .start_from_acceleration(&mut self.state.carried, a);
         }
+        let before = (self.model.elasticity.ice_growth).then(|| self.state.history.clone());
         self.set_time(t_new);
+        if let Some(before) = before {
+            self.form_ice(&before);
+        }
         self.previous.copy_from_slice(&self.state.u);
         let mut offsets = std::mem::take(&mut self.offsets);
         self.state.history.update_offsets(&mut offsets);
@@ -281,6 +299,12 @@ impl Simulation {
         } else {
             h
         };
+        let creep_temperature = match (&self.model.elasticity.creep, &self.thermal_schedule) {
+            (Some(_), Some(schedule)) => (0..self.model.mesh.num_tets())
+                .map(|e| schedule.temperature(e, t_new).unwrap_or(0.0))
+                .collect(),
+            _ => Vec::new(),
+        };
         let setup = SolveSetup {
             h,
             t_new,
@@ -293,6 +317,7 @@ impl Simulation {
             damping,
             order: self.integrator.order(&self.state, h),
             turned_start,
+            creep_temperature,
         };
         (setup, u)
     }
@@ -349,6 +374,7 @@ impl Simulation {
             offsets: &setup.offsets,
             element_energy,
             subset,
+            creep: setup.creep(model),
         };
         let (mut elastic, mut terms) = solve_terms(model, assembly, elastic, loads, &solve);
         if setup.dynamic {
@@ -399,6 +425,7 @@ impl Simulation {
                     offsets: &setup.offsets,
                     element_energy: &mut balance_scratch,
                     subset,
+                    creep: setup.creep(model),
                 };
                 let (at, before) = ((previous, &state.v[..], setup.t_new, loads), &mut before);
                 scope.spawn(move |_| *before = Some(energies_of(model, assembly, elastic, at)));
@@ -526,8 +553,13 @@ impl Simulation {
         } = finished;
         self.state.v = end.velocity;
         self.state.carried = end.carried;
-        self.model
-            .update_plastic_strain(&mut self.state.history, &setup.offsets, &u);
+        let creep = setup.creep(&self.model);
+        (self.model).update_inelastic_strain(
+            &mut self.state.history,
+            &setup.offsets,
+            &u,
+            creep.as_ref(),
+        );
         self.offsets = setup.offsets;
         self.state.u = u;
         self.state.time = setup.t_new;
@@ -544,6 +576,23 @@ impl Simulation {
             element_passes: solved.element_passes,
             ..Default::default()
         }
+    }
+
+    /// With ice that grows: the inelastic strains of the state's history (at the solve's end
+    /// time) take what the ice formed since `before` (the history at the solve's start) was
+    /// born with (`physics::ice_growth`), at the state's displacements and temperatures.
+    fn form_ice(&mut self, before: &crate::physics::history::ElementHistory) {
+        let (Some(freezing), Some(temperature)) = (&self.model.freezing, self.node_temperatures())
+        else {
+            return;
+        };
+        crate::physics::ice_growth::form_ice(
+            &self.model.elasticity,
+            freezing,
+            (before, &mut self.state.history),
+            (&self.model.mesh.tets, &self.state.u),
+            &temperature,
+        );
     }
 
     /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.

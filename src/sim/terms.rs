@@ -3,6 +3,7 @@
 
 use crate::assembly::{Assembly, ElementSubset};
 use crate::fem::StrainOffset;
+use crate::physics::creep::CreepStep;
 use crate::physics::elasticity::ElasticStep;
 use crate::physics::history::ElementHistory;
 use crate::physics::loads::DeadLoads;
@@ -19,6 +20,8 @@ pub(super) struct ElasticInputs<'a> {
     pub element_energy: &'a mut [f64],
     /// A process's elements and owned dofs, in a distributed run.
     pub subset: Option<(&'a ElementSubset, &'a [bool])>,
+    /// The solve's creep, with creep on (none outside a solve: the state's stored energy).
+    pub creep: Option<CreepStep<'a>>,
 }
 
 /// The elastic energy of `model` as a term (exact tangents), on a process's elements and
@@ -36,6 +39,7 @@ pub(super) fn elastic_term<'a>(
         false,
     );
     elastic.subset = inputs.subset;
+    elastic.creep = inputs.creep;
     elastic
 }
 
