@@ -62,9 +62,10 @@ pub struct Elasticity {
     pub plasticity: Option<Plasticity>,
     /// Creep, if on (exclusive with plasticity: the inelastic strain is the crept one).
     pub creep: Option<Creep>,
-    /// Whether water freezes into ice that grows (`[freezing] expansion = "growth"`, see
-    /// `ice_growth`): the inelastic strain then also carries what the ice was born with.
-    pub ice_growth: bool,
+    /// Whether ice forms in water (`[freezing] expansion = "displaces_water"`, see
+    /// `ice_formation`): the inelastic strain then also carries what the ice was born with
+    /// and the water's swelling.
+    pub ice_formation: bool,
     /// The nodal averaging of the volumetric energy, if on (`[material] volumetric =
     /// "nodal"`; none: per element).
     pub nodal: Option<NodalVolume>,
@@ -84,7 +85,7 @@ impl Elasticity {
             water_shear: 0.0,
             plasticity: None,
             creep: None,
-            ice_growth: false,
+            ice_formation: false,
             nodal: None,
         }
     }
@@ -139,16 +140,16 @@ impl Elasticity {
             water_shear: self.water_shear,
             plasticity: self.plasticity,
             creep: self.creep,
-            ice_growth: self.ice_growth,
+            ice_formation: self.ice_formation,
         };
         el.set_volumetric(mesh, self.volumetric());
         el
     }
 
     /// Whether the elements carry an inelastic strain: with plasticity, creep or ice that
-    /// grows.
+    /// forms in water.
     pub fn inelastic(&self) -> bool {
-        self.plasticity.is_some() || self.creep.is_some() || self.ice_growth
+        self.plasticity.is_some() || self.creep.is_some() || self.ice_formation
     }
 
     /// The history of these elements at the start of a run without freezing: the prescribed

@@ -210,6 +210,9 @@ pub struct Freezing {
     /// the shape of the material it starts as: ice present at the start does not expand, ice
     /// formed later does, and ice that melts shrinks back (expansion (s − s₀) e_max).
     pub initial_ice: Vec<f64>,
+    /// Whether the ice's expansion goes into the water (`ice_formation`) rather than into
+    /// each freezing element's eigenstrain.
+    pub displaces_water: bool,
 }
 
 impl Freezing {
@@ -312,6 +315,7 @@ impl Freezing {
             base_eigenstrain: vec![0.0; mesh.num_tets()],
             thermal_strain: None,
             initial_ice: Vec::new(),
+            displaces_water: false,
         }
     }
 
@@ -331,6 +335,7 @@ impl Freezing {
             water_shear: 0.0,
             base_eigenstrain: vec![0.0; n],
             thermal_strain: None,
+            displaces_water: false,
         }
     }
 
@@ -375,7 +380,8 @@ impl Freezing {
     /// freeze states (and temperatures) those of `schedule` (this freezing's own, or a heat
     /// solve's over the current step). The eigenstrain of an element whose ice fraction is s
     /// (s₀ at the start) is its base eigenstrain plus (s − s₀) e_max + s ε_th: the water's
-    /// share neither expands nor contracts with temperature.
+    /// share neither expands nor contracts with temperature. Where the ice displaces water
+    /// the expansion is left out here (`ice_formation` gives it to the water).
     pub fn apply(&self, schedule: &Schedule, t: f64, history: &mut ElementHistory) {
         let n = self.base_eigenstrain.len();
         history.freeze_state.resize(n, 0.0);
@@ -386,8 +392,12 @@ impl Freezing {
                 .unwrap_or(0.0);
             history.freeze_state[e] = s;
             let formed = s - self.initial_ice.get(e).copied().unwrap_or(0.0);
-            history.eigenstrain[e] =
-                self.base_eigenstrain[e] + formed * self.expansion + s * thermal;
+            let expansion = if self.displaces_water {
+                0.0
+            } else {
+                formed * self.expansion
+            };
+            history.eigenstrain[e] = self.base_eigenstrain[e] + expansion + s * thermal;
         }
     }
 }

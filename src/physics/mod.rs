@@ -16,7 +16,7 @@ pub mod freezing;
 pub mod grid;
 pub mod history;
 pub mod ice_contact;
-pub mod ice_growth;
+pub mod ice_formation;
 pub mod inertia;
 pub mod loads;
 pub mod motion;

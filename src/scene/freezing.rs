@@ -26,9 +26,8 @@ pub struct FreezingSection {
     /// Volume ratio ice / water. Default 1.09.
     pub expansion_ratio: Option<f64>,
     /// How freezing ice expands: "isotropic" (default, the paper's: each element grows by the
-    /// ratio in every direction as it freezes) or "growth" (ice born at the water's stress, its
-    /// expansion along the temperature gradient; needs `[thermal]`; see
-    /// `physics::ice_growth`).
+    /// ratio in every direction as it freezes) or "displaces_water" (ice born at the water's
+    /// stress, its expansion into the water it touches; see `physics::ice_formation`).
     pub expansion: Option<String>,
     /// "bulk" (default: pressure only, bulk modulus `water_bulk_modulus`) or "inactive".
     pub water: Option<String>,
@@ -61,20 +60,15 @@ pub(super) fn box_face_indices(name: &str) -> &'static [usize] {
 }
 
 impl Validator<'_> {
-    /// Whether the scene's ice grows (`[freezing] expansion = "growth"`), checked: only with
-    /// `[thermal]`, whose temperature gradient gives the direction.
-    pub(super) fn ice_growth(&self, raw: &super::SceneFile) -> Result<bool, SceneError> {
-        let field = "freezing.expansion";
-        match raw.freezing.as_ref().and_then(|f| f.expansion.as_deref()) {
+    /// Whether the scene's ice displaces water (`[freezing] expansion = "displaces_water"`)
+    /// rather than expanding isotropically (the default).
+    pub(super) fn displaces_water(&self, f: &FreezingSection) -> Result<bool, SceneError> {
+        match f.expansion.as_deref() {
             None | Some("isotropic") => Ok(false),
-            Some("growth") if raw.thermal.is_some() => Ok(true),
-            Some("growth") => Err(self.invalid(
-                field,
-                "\"growth\" expands the ice along the temperature gradient: it needs a [thermal] section",
-            )),
+            Some("displaces_water") => Ok(true),
             Some(other) => Err(self.invalid(
-                field,
-                format!("must be \"isotropic\" or \"growth\", got {other:?}"),
+                "freezing.expansion",
+                format!("must be \"isotropic\" or \"displaces_water\", got {other:?}"),
             )),
         }
     }

@@ -551,10 +551,15 @@ impl Validator<'_> {
             .as_ref()
             .map(|t| self.thermal(t, &model.mesh))
             .transpose()?;
-        if let Some(freezing) = self.model_freezing(&raw, thermal.as_ref(), &model, &material)? {
+        if let Some(mut freezing) =
+            self.model_freezing(&raw, thermal.as_ref(), &model, &material)?
+        {
+            let section = raw.freezing.as_ref();
+            freezing.displaces_water =
+                section.map(|f| self.displaces_water(f)).transpose()? == Some(true);
+            model.elasticity.ice_formation = freezing.displaces_water;
             model.freezing = Some(freezing);
         }
-        model.elasticity.ice_growth = self.ice_growth(&raw)?;
         if let Some(p) = &raw.plasticity {
             model.elasticity.plasticity = Some(self.plasticity(p)?);
         }

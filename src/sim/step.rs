@@ -243,7 +243,7 @@ impl Simulation {
             self.integrator
                 .start_from_acceleration(&mut self.state.carried, a);
         }
-        let before = (self.model.elasticity.ice_growth).then(|| self.state.history.clone());
+        let before = (self.model.elasticity.ice_formation).then(|| self.state.history.clone());
         self.set_time(t_new);
         if let Some(before) = before {
             self.form_ice(&before);
@@ -578,20 +578,20 @@ impl Simulation {
         }
     }
 
-    /// With ice that grows: the inelastic strains of the state's history (at the solve's end
-    /// time) take what the ice formed since `before` (the history at the solve's start) was
-    /// born with (`physics::ice_growth`), at the state's displacements and temperatures.
+    /// With ice that forms in water: the inelastic strains of the state's history (at the
+    /// solve's end time) take what the ice formed since `before` (the history at the solve's
+    /// start) was born with, and the water its expansion (`physics::ice_formation`), at the
+    /// state's displacements.
     fn form_ice(&mut self, before: &crate::physics::history::ElementHistory) {
-        let (Some(freezing), Some(temperature)) = (&self.model.freezing, self.node_temperatures())
-        else {
+        let Some(freezing) = &self.model.freezing else {
             return;
         };
-        crate::physics::ice_growth::form_ice(
+        let mesh = &self.model.mesh;
+        crate::physics::ice_formation::form_ice(
             &self.model.elasticity,
             freezing,
             (before, &mut self.state.history),
-            (&self.model.mesh.tets, &self.state.u),
-            &temperature,
+            (&mesh.tets, mesh.num_nodes(), &self.state.u),
         );
     }
 
