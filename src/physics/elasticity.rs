@@ -153,7 +153,7 @@ impl Elasticity {
     }
 
     /// The history of these elements at the start of a run without freezing: the prescribed
-    /// eigenstrain, and zero inelastic strain with plasticity or creep.
+    /// eigenstrain, and zero inelastic strain with plasticity, creep or ice formation.
     pub fn initial_history(&self) -> ElementHistory {
         ElementHistory::initial(&self.eigenstrain, self.inelastic())
     }
