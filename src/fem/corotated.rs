@@ -201,10 +201,14 @@ pub(super) fn corotated_tangent_svd(
     let (U, s, V) = signed_svd(F);
     let tr = s.sum() - 3.0;
     let psi = s.map(|si| 2.0 * mu * (si - 1.0) + lambda * tr);
-    // Yielding: the flow direction (deviator of the strain in singular values) loses
-    // stiffness, − flow_drop n nᵀ.
+    // Flowing: the flow direction (deviator of the strain in singular values) loses
+    // stiffness, − flow_drop n nᵀ. A creeping element at rest has a zero deviator here while
+    // its response, from the strain formed otherwise, may carry a round-off flow_drop: no
+    // direction, nothing to drop (normalising zero gave NaN in projected tangents).
     let flow = if response.flow_drop != 0.0 {
-        s.map(|si| si - 1.0 - tr / 3.0).normalize()
+        s.map(|si| si - 1.0 - tr / 3.0)
+            .try_normalize(0.0)
+            .unwrap_or_else(Vector3::zeros)
     } else {
         Vector3::zeros()
     };
@@ -265,7 +269,9 @@ pub(super) fn corotated_tangent(
     let twist = (Matrix3::identity() * sigma.trace() - sigma) * stretch_inv;
     let twist = 0.5 * (twist + twist.transpose());
     let flow = if response.flow_drop != 0.0 {
-        (strain - Matrix3::identity() * (tr / 3.0)).normalize()
+        (strain - Matrix3::identity() * (tr / 3.0))
+            .try_normalize(0.0)
+            .unwrap_or_else(Matrix3::zeros)
     } else {
         Matrix3::zeros()
     };

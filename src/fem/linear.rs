@@ -45,7 +45,9 @@ impl ElasticLaw for Linear {
             if response.flow_drop != 0.0 {
                 // − flow_drop n⊗n with n = ε'/‖ε'‖ (symmetric, so n : dF = n : sym(dF)).
                 let dev = response.sigma - Matrix3::identity() * (response.sigma.trace() / 3.0);
-                let n = SMatrix::<f64, 9, 1>::from_column_slice(dev.normalize().as_slice());
+                // A zero deviator (creep at rest) has no flow direction: nothing to drop.
+                let dev = dev.try_normalize(0.0).unwrap_or_else(Matrix3::zeros);
+                let n = SMatrix::<f64, 9, 1>::from_column_slice(dev.as_slice());
                 *t -= response.flow_drop * n * n.transpose();
             }
         }

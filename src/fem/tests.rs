@@ -330,6 +330,36 @@ fn creeping_derivatives_match_finite_differences() {
 }
 
 #[test]
+fn a_flowing_element_at_rest_has_a_finite_tangent() {
+    // A creeping element whose deviator is zero where the tangent forms its flow direction
+    // (at rest, while its response carries a round-off flow_drop) drops nothing: the
+    // projected SVD tangent was NaN there and stopped the first step of a freezing scene.
+    let response = SolidResponse {
+        psi: 0.0,
+        sigma: Matrix3::zeros(),
+        mu: ICE.mu,
+        lambda: ICE.lambda,
+        flow_drop: 1e-3 * ICE.mu,
+    };
+    let rotation = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.9).into_inner();
+    for F in [Matrix3::identity(), rotation] {
+        for project in [false, true] {
+            let mut svd = Tangent::zeros();
+            corotated_tangent_svd(&F, &response, project, &mut svd);
+            assert!(svd.iter().all(|v| v.is_finite()), "{F} project {project}");
+        }
+        let mut closed = Tangent::zeros();
+        assert!(corotated_tangent(
+            &polar_rotation(&F),
+            &Matrix3::zeros(),
+            &response,
+            &mut closed
+        ));
+        assert!(closed.iter().all(|v| v.is_finite()), "{F}");
+    }
+}
+
+#[test]
 fn creeping_stress_meets_the_backward_euler_flow_rule() {
     // The crept strain x = r − S/2μ is the step's creep at its end stress, c Sⁿ, and the
     // pressure keeps its elastic response.

@@ -26,10 +26,14 @@
 //!   and within a pocket spread evenly over its elements of water alone (s₁ = 0) as an
 //!   isotropic strain — over all its elements by their water volume (1 − s) V where it has
 //!   none: the water of a partly frozen element shares its strain with the element's ice,
-//!   which the swelling would load (in a column freezing from one end, 10–20 MPa in its ice
-//!   against 0.4 MPa). Water open to a free surface swells into it at no cost; trapped water is
-//!   compressed. An element that borders no water keeps its expansion itself, isotropically.
-//!   Melting (s₁ < s₀) takes the volume back the same way.
+//!   which the swelling would load (in a column freezing from one end, with the mean of the
+//!   phases' moduli, 10–20 MPa in its ice against 0.4 MPa). Water open to a free surface
+//!   swells into it at no cost; trapped water is compressed. An element that borders no water
+//!   keeps its expansion itself, isotropically. Melting (s₁ < s₀) takes the volume back the
+//!   same way.
+//! - **Slush** (`Elasticity::material_of`): a partly frozen element is ice and water in
+//!   series, the harmonic means of their moduli, so it carries no shear to speak of until it
+//!   is nearly all ice.
 //!
 //! Both go into the element's inelastic strain (the history's plastic strain), which the offset
 //! of every later solve carries; the element's eigenstrain then holds no freezing expansion.
