@@ -48,7 +48,7 @@ use nalgebra::Matrix3;
 
 /// Brings the inelastic strains in `after` (the history at a solve's end time, its freeze
 /// states and eigenstrains set) to what the ice formed since `before` (the history at the
-/// solve's start) was born with and to the water's added, for the displacements `u` (m) of
+/// solve's start) was born with and the water's swelling, for the displacements `u` (m) of
 /// the solve's start on the elements `tets` of `nodes` nodes, with `freezing`'s expansion.
 pub fn form_ice(
     elasticity: &Elasticity,
@@ -96,7 +96,7 @@ pub fn form_ice(
 /// element `e` of `history`: ΔV/(3V) in the small-strain model, whose volume change is
 /// tr ε; in the corotated one, whose natural shape grows by (1 + e)³ for an isotropic offset
 /// e, the δ with (1 + e + δ)³ = (1 + e)³ + ΔV/V (the sum of the ΔV/(3V) of the steps would
-/// overshoot by 3e², 4 % of the added where the last water has taken e = 0.036).
+/// overshoot by 3e², 4 % of the swelling where the last water has taken e = 0.036).
 fn isotropic_strain(
     elasticity: &Elasticity,
     history: &ElementHistory,
