@@ -59,13 +59,13 @@ pub struct Creep {
     pub temperature: Option<f64>,
 }
 
-/// A solve's creep: its length and the elements' temperatures at its end.
+/// A solve's creep: each element's compliance h B over it ([`Creep::compliance`]), formed
+/// once per solve rather than at every evaluation of the element (an exponential and a power
+/// each).
 #[derive(Clone, Copy, Debug)]
 pub struct CreepStep<'a> {
-    /// The solve's length h (s).
-    pub h: f64,
-    /// Temperature per element (°C) at the solve's end; empty without a heat solve.
-    pub temperature: &'a [f64],
+    /// h B per element (Pa⁻ⁿ).
+    pub compliance: &'a [f64],
 }
 
 impl Creep {
@@ -88,18 +88,19 @@ impl Creep {
         }
     }
 
-    /// The flow rule of element `e` over the solve `step`: its creep over h at its
-    /// temperature (the step's, else the scene's).
-    pub fn flow(&self, step: &CreepStep, e: usize) -> Flow {
-        let celsius = step
-            .temperature
-            .get(e)
-            .copied()
-            .or(self.temperature)
-            .unwrap_or(0.0);
+    /// The compliance h B (Pa⁻ⁿ) of ice over a solve of length `h` (s) at `celsius` (°C; the
+    /// scene's temperature where none is given): B = A 2^{(1−n)/2}, Glen's rate in Frobenius
+    /// norms.
+    pub fn compliance(&self, h: f64, celsius: Option<f64>) -> f64 {
+        let celsius = celsius.or(self.temperature).unwrap_or(0.0);
         let frobenius_rate = self.rate_factor(celsius) * 2f64.powf(0.5 * (1.0 - self.exponent));
+        h * frobenius_rate
+    }
+
+    /// The flow rule of an element of `compliance` h B over its solve.
+    pub fn flow(&self, compliance: f64) -> Flow {
         Flow::Creep {
-            compliance: step.h * frobenius_rate,
+            compliance,
             exponent: self.exponent,
         }
     }
@@ -186,13 +187,7 @@ mod tests {
             ..glen()
         };
         let h = 50.0;
-        let flow = creep.flow(
-            &CreepStep {
-                h,
-                temperature: &[],
-            },
-            0,
-        );
+        let flow = creep.flow(creep.compliance(h, None));
         let a = creep.rate_factor(-10.0);
         // The elastic strain whose crept stress is a uniaxial σ: the trial deviator
         // σ'/2μ + h ε̇ (creep changes only the deviator).

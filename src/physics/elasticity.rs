@@ -264,7 +264,7 @@ impl Elasticity {
         if let (Some(c), Some(step)) = (&self.creep, creep) {
             let ice = self.material_index.get(e).is_none_or(|&k| k == 0);
             if ice && history.holds_ice(e) {
-                law.flow = Some(c.flow(step, e));
+                law.flow = Some(c.flow(step.compliance[e]));
             }
         }
         law

@@ -69,11 +69,11 @@ pub fn form_ice(
         let elastic = elasticity.elastic_strain(tets, u, e, &before.offset_of(e));
         let mean = elastic.trace() / 3.0;
         let deviator = elastic - Matrix3::identity() * mean;
-        let (k0, k1) = (elasticity.bulk_of(before, e), elasticity.bulk_of(after, e));
-        let (mu0, mu1) = (
-            elasticity.material_of(before, e).0.mu,
-            elasticity.material_of(after, e).0.mu,
-        );
+        let moduli = |history: &ElementHistory| {
+            let (material, water) = elasticity.material_of(history, e);
+            (material.bulk() + water, material.mu)
+        };
+        let ((k0, mu0), (k1, mu1)) = (moduli(before), moduli(after));
         let born = Matrix3::identity() * (mean * (1.0 - k0 / k1)) + deviator * (1.0 - mu0 / mu1);
         Some(0.5 * (born + born.transpose()))
     };

@@ -51,17 +51,16 @@ struct SolveSetup {
     /// Newton's other start where a part turns (see `rigid_start`): the solve starts from
     /// whichever of it and the predictor has the lower potential.
     turned_start: Option<Vec<f64>>,
-    /// With creep and a heat solve, the temperature of each element at the solve's end (°C),
-    /// which sets its creep rate; empty otherwise.
-    creep_temperature: Vec<f64>,
+    /// With creep, each element's compliance h B over the solve (Pa⁻ⁿ), at its temperature at
+    /// the solve's end; empty otherwise.
+    creep_compliance: Vec<f64>,
 }
 
 impl SolveSetup {
     /// The solve's creep, with creep on in `model`.
     fn creep(&self, model: &Model) -> Option<CreepStep<'_>> {
         model.elasticity.creep.map(|_| CreepStep {
-            h: self.h,
-            temperature: &self.creep_temperature,
+            compliance: &self.creep_compliance,
         })
     }
 }
@@ -299,11 +298,14 @@ impl Simulation {
         } else {
             h
         };
-        let creep_temperature = match (&self.model.elasticity.creep, &self.thermal_schedule) {
-            (Some(_), Some(schedule)) => (0..self.model.mesh.num_tets())
-                .map(|e| schedule.temperature(e, t_new).unwrap_or(0.0))
-                .collect(),
-            _ => Vec::new(),
+        let creep_compliance = match &self.model.elasticity.creep {
+            Some(creep) => {
+                let schedule = self.thermal_schedule.as_ref();
+                (0..self.model.mesh.num_tets())
+                    .map(|e| creep.compliance(h, schedule.and_then(|s| s.temperature(e, t_new))))
+                    .collect()
+            }
+            None => Vec::new(),
         };
         let setup = SolveSetup {
             h,
@@ -317,7 +319,7 @@ impl Simulation {
             damping,
             order: self.integrator.order(&self.state, h),
             turned_start,
-            creep_temperature,
+            creep_compliance,
         };
         (setup, u)
     }
