@@ -285,16 +285,23 @@ fn a_killed_run_leaves_a_sidecar_of_its_committed_frames() {
     child.wait().unwrap();
     assert!(frames(&out) >= 50);
     assert_sidecar_matches(&out);
-    // A run killed before it took its target's place leaves its hidden file; the next run on
-    // that target removes it.
+    // A run killed before it took its target's place leaves its hidden file; the next run
+    // that writes in that directory removes it, whatever its target, while the hidden file of
+    // a process that still exists (this test's) stays.
     let early = dir.path().join("early.h5");
     let stale = dir.path().join(".early.h5.4000000.partial");
-    std::fs::copy(&out, &stale).unwrap();
+    let other = dir.path().join(".other.h5.4000001.partial");
+    let alive = dir
+        .path()
+        .join(format!(".alive.h5.{}.partial", std::process::id()));
+    for file in [&stale, &other, &alive] {
+        std::fs::copy(&out, file).unwrap();
+    }
     assert!(run(&write_scene(dir.path(), "bar.toml", BAR), &early, &[])
         .status
         .success());
-    assert!(!stale.exists());
-    assert!(!listing(dir.path()).iter().any(|n| n.ends_with(".partial")));
+    assert!(!stale.exists() && !other.exists());
+    assert!(alive.exists());
 }
 
 #[test]

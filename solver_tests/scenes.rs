@@ -290,16 +290,22 @@ fn mesh_obstacle_errors_name_field_and_file() {
     .unwrap();
     let e = err(&with("type = \"mesh\"\nfile = \"tri.obj\"\nscale = -1.0"));
     assert!(e.contains("obstacle[0].scale"), "{e}");
-    // A closed surface with inward normals (a tetrahedron wound the wrong way) is refused.
+    // A closed surface with inward normals (a tetrahedron wound the wrong way) is turned to
+    // face out, with a notice.
     std::fs::write(
         dir.path().join("inward.obj"),
         "v 0 0 -1\nv 1 0 -1\nv 0 1 -1\nv 0 0 0\nf 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
     )
     .unwrap();
-    let e = err(&with("type = \"mesh\"\nfile = \"inward.obj\""));
+    let scene = Scene::parse(&with("type = \"mesh\"\nfile = \"inward.obj\""), &scene_path)
+        .unwrap();
     assert!(
-        e.contains("obstacle[0].file") && e.contains("inward"),
-        "{e}"
+        scene
+            .notices
+            .iter()
+            .any(|n| n.contains("inward.obj") && n.contains("4 of 4 triangles")),
+        "{:?}",
+        scene.notices
     );
     // An open floor under the bar whose normal points down, away from the ice: the error
     // says which side the ice must be on.

@@ -11,6 +11,7 @@ pub mod eta;
 pub mod export;
 pub mod fem;
 pub mod fracture;
+pub mod launch;
 pub mod mesh;
 pub mod output;
 pub mod parallel;

@@ -595,9 +595,20 @@ impl From<OrderingArg> for FillOrdering {
     }
 }
 
-/// `icefem run` (a build without the `mpi` feature runs on one process).
+/// `icefem run` (a build without the `mpi` feature runs on one process). Started as one of
+/// several processes by `mpirun`, it refuses: the copies would each run the whole scene and
+/// write the same file. Process 0 alone says so.
 #[cfg(not(feature = "mpi"))]
 fn run_scene(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> Result<()> {
+    if let Some(launched) = icefem::launch::launched_processes() {
+        if launched.rank == 0 {
+            eprintln!(
+                "error: this icefem was built without MPI, and {} processes were started (mpirun): each would run the whole scene alone and write the same output. Build with the feature (`make mpi`, or `cargo build --release --features mpi`) and start target/release/icefem with mpirun, or run icefem without mpirun on one process",
+                launched.size
+            );
+        }
+        std::process::exit(1);
+    }
     exit_if_interrupted(&run_command(scene_path, options, None, verbosity)?);
     Ok(())
 }

@@ -21,8 +21,9 @@ use super::gmsh::{self, GmshError};
 /// A triangle surface mesh (m): a rigid obstacle's boundary. Triangles are oriented with
 /// outward normals by the right-hand rule (counter-clockwise seen from outside).
 ///
-/// The orientation is the file's: it is not checked (an open surface has no inside), but
-/// [`TriSurface::enclosed_volume`] tells it for a closed surface.
+/// The orientation is the file's as read; [`TriSurface::orient_outward`] makes a closed
+/// surface's consistent and outward (an open surface has no inside: its orientation says on
+/// which side the ice is).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TriSurface {
     /// Vertex positions (m).
@@ -83,6 +84,16 @@ pub enum InvalidSurface {
         /// The largest area taken as zero (m²).
         tolerance: f64,
     },
+    /// A closed surface whose triangles cannot be oriented consistently (a one-sided surface).
+    #[error(
+        "the surface is closed but one-sided: triangle {triangle} cannot face the same side as \
+         its neighbours whichever way it is turned; an obstacle's closed surface must bound a \
+         solid"
+    )]
+    NotOrientable {
+        /// A triangle where the orientation runs into itself.
+        triangle: usize,
+    },
 }
 
 impl InvalidSurface {
@@ -90,7 +101,8 @@ impl InvalidSurface {
     pub fn triangle(&self) -> Option<usize> {
         match self {
             InvalidSurface::BadIndex { triangle, .. }
-            | InvalidSurface::Degenerate { triangle, .. } => Some(*triangle),
+            | InvalidSurface::Degenerate { triangle, .. }
+            | InvalidSurface::NotOrientable { triangle } => Some(*triangle),
             InvalidSurface::NoTriangles { .. } | InvalidSurface::NonFinite { .. } => None,
         }
     }
@@ -285,19 +297,159 @@ impl TriSurface {
         uses.values().all(|&n| n == 2)
     }
 
+    /// The generalised winding number of the surface at `x` (Jacobson et al. 2013): the
+    /// signed solid angle of its triangles at `x` over 4π. For a closed, consistently oriented
+    /// surface it is ±1 inside (+1 with outward normals) and 0 outside, whichever way the
+    /// surface is oriented as a whole; on the surface it is not defined.
+    pub fn winding_number(&self, x: &Vector3<f64>) -> f64 {
+        winding_number(&self.vertices, &self.triangles, x)
+    }
+
+    /// Orients a closed surface consistently and outward: every edge is then traversed in
+    /// opposite directions by its two triangles, and each connected piece encloses a positive
+    /// volume — or a negative one when it lies inside an odd number of the other pieces (the
+    /// inner wall of a hollow shell faces its cavity). Returns how many triangles were
+    /// reversed. A surface that is not closed is left as it is (its orientation is the
+    /// ice's side). Gmsh writes each surface of a solid in its own parametrisation, so its
+    /// boundary meshes come out partly reversed.
+    pub fn orient_outward(&mut self) -> Result<usize, InvalidSurface> {
+        if !self.is_closed() {
+            return Ok(0);
+        }
+        let (reversed, piece, pieces) = consistent_orientation(&self.triangles)?;
+        let mut oriented = self.clone();
+        for (t, &r) in reversed.iter().enumerate() {
+            if r {
+                oriented.triangles[t].swap(1, 2);
+            }
+        }
+        let piece_of = |p: usize| -> Vec<[usize; 3]> {
+            (0..oriented.triangles.len())
+                .filter(|&t| piece[t] == p)
+                .map(|t| oriented.triangles[t])
+                .collect()
+        };
+        let triangles: Vec<Vec<[usize; 3]>> = (0..pieces).map(piece_of).collect();
+        let mut flip_piece = vec![false; pieces];
+        for (p, own) in triangles.iter().enumerate() {
+            // A piece inside an odd number of others bounds a cavity: it faces into it.
+            let probe = self.vertices[own[0][0]];
+            let depth = (0..pieces)
+                .filter(|&q| q != p)
+                .filter(|&q| winding_number(&self.vertices, &triangles[q], &probe).abs() > 0.5)
+                .count();
+            let volume = enclosed_volume(&self.vertices, own);
+            flip_piece[p] = (volume < 0.0) == depth.is_multiple_of(2);
+        }
+        let mut count = 0;
+        for (t, triangle) in self.triangles.iter_mut().enumerate() {
+            if reversed[t] != flip_piece[piece[t]] {
+                triangle.swap(1, 2);
+                count += 1;
+            }
+        }
+        Ok(count)
+    }
+
     /// Volume enclosed by the surface (m³), by the divergence theorem: positive for a closed
     /// surface with outward normals, negative if its normals point inward. For an open
     /// surface the value depends on the origin and means nothing.
     pub fn enclosed_volume(&self) -> f64 {
-        self.triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|v| self.vertices[v]);
-                a.dot(&b.cross(&c))
-            })
-            .sum::<f64>()
-            / 6.0
+        enclosed_volume(&self.vertices, &self.triangles)
     }
+}
+
+/// Volume enclosed by `triangles` (m³), by the divergence theorem (see
+/// [`TriSurface::enclosed_volume`]).
+fn enclosed_volume(vertices: &[Vector3<f64>], triangles: &[[usize; 3]]) -> f64 {
+    triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| vertices[v]);
+            a.dot(&b.cross(&c))
+        })
+        .sum::<f64>()
+        / 6.0
+}
+
+/// The signed solid angle (sr) triangle (a, b, c) subtends at `x`: positive when `x` is on
+/// the side its right-hand normal points away from (Van Oosterom & Strackee 1983).
+pub fn solid_angle(x: &Vector3<f64>, [a, b, c]: [Vector3<f64>; 3]) -> f64 {
+    let (a, b, c) = (a - x, b - x, c - x);
+    let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
+    let numerator = a.dot(&b.cross(&c));
+    let denominator = la * lb * lc + a.dot(&b) * lc + b.dot(&c) * la + c.dot(&a) * lb;
+    2.0 * numerator.atan2(denominator)
+}
+
+/// The generalised winding number of `triangles` at `x` (see [`TriSurface::winding_number`]).
+pub fn winding_number(
+    vertices: &[Vector3<f64>],
+    triangles: &[[usize; 3]],
+    x: &Vector3<f64>,
+) -> f64 {
+    let total: f64 = triangles
+        .iter()
+        .map(|t| solid_angle(x, t.map(|v| vertices[v])))
+        .sum();
+    total / (4.0 * std::f64::consts::PI)
+}
+
+/// For a closed surface (every edge in exactly two triangles): which triangles to reverse so
+/// that each edge's two triangles traverse it in opposite directions (the first triangle of
+/// each connected piece keeps its orientation), each triangle's piece and the number of
+/// pieces. A piece that cannot be oriented (a Klein bottle) is an error.
+fn consistent_orientation(
+    triangles: &[[usize; 3]],
+) -> Result<(Vec<bool>, Vec<usize>, usize), InvalidSurface> {
+    let mut by_edge: std::collections::HashMap<(usize, usize), Vec<usize>> = Default::default();
+    for (t, c) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (c[k], c[(k + 1) % 3]);
+            by_edge.entry((a.min(b), a.max(b))).or_default().push(t);
+        }
+    }
+    // Whether triangle t, as given, runs from a to b along one of its edges.
+    let runs = |t: usize, a: usize, b: usize| {
+        let c = triangles[t];
+        (0..3).any(|k| c[k] == a && c[(k + 1) % 3] == b)
+    };
+    let mut reversed = vec![false; triangles.len()];
+    let mut piece = vec![usize::MAX; triangles.len()];
+    let mut pieces = 0;
+    for seed in 0..triangles.len() {
+        if piece[seed] != usize::MAX {
+            continue;
+        }
+        piece[seed] = pieces;
+        let mut stack = vec![seed];
+        while let Some(t) = stack.pop() {
+            let c = triangles[t];
+            for k in 0..3 {
+                // The edge as t runs it once oriented.
+                let (mut a, mut b) = (c[k], c[(k + 1) % 3]);
+                if reversed[t] {
+                    std::mem::swap(&mut a, &mut b);
+                }
+                for &u in &by_edge[&(a.min(b), a.max(b))] {
+                    if u == t {
+                        continue;
+                    }
+                    // u must run the edge from b to a: reversed if it runs a to b as given.
+                    let flip = runs(u, a, b);
+                    if piece[u] == usize::MAX {
+                        piece[u] = pieces;
+                        reversed[u] = flip;
+                        stack.push(u);
+                    } else if reversed[u] != flip {
+                        return Err(InvalidSurface::NotOrientable { triangle: u });
+                    }
+                }
+            }
+        }
+        pieces += 1;
+    }
+    Ok((reversed, piece, pieces))
 }
 
 impl SurfaceError {
@@ -330,7 +482,9 @@ fn read_gmsh(path: &Path, scale: f64) -> Result<TriSurface, SurfaceError> {
             InvalidSurface::NonFinite { .. } => " (vertices are numbered from 0 in ascending \
                 node tag order, among the nodes of triangles)"
                 .to_string(),
-            InvalidSurface::BadIndex { .. } | InvalidSurface::Degenerate { .. } => {
+            InvalidSurface::BadIndex { .. }
+            | InvalidSurface::Degenerate { .. }
+            | InvalidSurface::NotOrientable { .. } => {
                 " (triangles are numbered from 0 in the file's order of its triangle \
                 elements, type 2)"
                     .to_string()
@@ -904,5 +1058,124 @@ mod tests {
         // The same shapes scaled down to micrometres are judged alike.
         let tiny: Vec<_> = square.iter().map(|p| p * 1e-6).collect();
         assert!(TriSurface::new(tiny, vec![[0, 1, 2], [0, 2, 3]]).is_ok());
+    }
+}
+
+#[cfg(test)]
+mod orientation_tests {
+    use super::*;
+
+    /// The closed surface of the box [lo, hi] (two triangles a face, outward).
+    fn box_surface(lo: f64, hi: f64, offset: usize) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
+        let vertices = (0..8)
+            .map(|i| {
+                let c = |bit: usize| if i & bit == 0 { lo } else { hi };
+                Vector3::new(c(1), c(2), c(4))
+            })
+            .collect();
+        let quads = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        let triangles = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .map(|t| t.map(|v| v + offset))
+            .collect();
+        (vertices, triangles)
+    }
+
+    /// Whether every edge is run in opposite directions by its two triangles.
+    fn consistent(triangles: &[[usize; 3]]) -> bool {
+        let mut directed = std::collections::HashSet::new();
+        triangles
+            .iter()
+            .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+            .all(|edge| directed.insert(edge))
+    }
+
+    #[test]
+    fn a_box_with_reversed_triangles_is_turned_outward() {
+        let (vertices, mut triangles) = box_surface(0.0, 1.0, 0);
+        for t in [1, 4, 5, 9] {
+            triangles[t].swap(1, 2);
+        }
+        let mut surface = TriSurface::new(vertices, triangles).unwrap();
+        assert!(!consistent(&surface.triangles));
+        assert_eq!(surface.orient_outward().unwrap(), 4);
+        assert!(consistent(&surface.triangles));
+        assert!((surface.enclosed_volume() - 1.0).abs() < 1e-15);
+        // All of them reversed: all turned back.
+        for t in &mut surface.triangles {
+            t.swap(1, 2);
+        }
+        assert_eq!(surface.orient_outward().unwrap(), 12);
+        assert!((surface.enclosed_volume() - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_inner_wall_of_a_hollow_box_faces_its_cavity() {
+        // Outer box [0, 3]³ and inner box [1, 2]³, both written outward.
+        let (mut vertices, mut triangles) = box_surface(0.0, 3.0, 0);
+        let (inner_vertices, inner_triangles) = box_surface(1.0, 2.0, 8);
+        vertices.extend(inner_vertices);
+        triangles.extend(inner_triangles);
+        let mut surface = TriSurface::new(vertices, triangles).unwrap();
+        assert_eq!(surface.orient_outward().unwrap(), 12);
+        assert!((surface.enclosed_volume() - 26.0).abs() < 1e-13);
+        // Inside the wall, in the cavity, outside.
+        let w = |x: f64| surface.winding_number(&Vector3::new(x, 1.5, 1.5));
+        assert!((w(0.5) - 1.0).abs() < 1e-12 && w(1.5).abs() < 1e-12 && w(3.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_winding_number_does_not_depend_on_the_orientation() {
+        let (vertices, triangles) = box_surface(0.0, 1.0, 0);
+        let mut surface = TriSurface::new(vertices, triangles).unwrap();
+        let (inside, outside) = (Vector3::new(0.3, 0.6, 0.2), Vector3::new(1.3, 0.6, 0.2));
+        assert!((surface.winding_number(&inside) - 1.0).abs() < 1e-12);
+        assert!(surface.winding_number(&outside).abs() < 1e-12);
+        for t in &mut surface.triangles {
+            t.swap(1, 2);
+        }
+        assert!((surface.winding_number(&inside) + 1.0).abs() < 1e-12);
+        assert!(surface.winding_number(&outside).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_one_sided_closed_surface_is_refused_and_an_open_one_kept() {
+        // The six-vertex projective plane: every edge in two triangles, no orientation.
+        let projective_plane = [
+            [0, 1, 2],
+            [0, 2, 3],
+            [0, 3, 4],
+            [0, 4, 5],
+            [0, 5, 1],
+            [1, 2, 4],
+            [2, 3, 5],
+            [3, 4, 1],
+            [4, 5, 2],
+            [5, 1, 3],
+        ];
+        let vertices = (0..6)
+            .map(|i| {
+                let a = i as f64;
+                Vector3::new(a.cos(), a.sin(), (2.0 * a).sin() + 0.1 * a)
+            })
+            .collect();
+        let mut surface = TriSurface::new(vertices, projective_plane.to_vec()).unwrap();
+        assert!(surface.is_closed());
+        let error = surface.orient_outward().unwrap_err();
+        assert!(matches!(error, InvalidSurface::NotOrientable { .. }), "{error}");
+        // One face of a box, reversed, is open and kept as written.
+        let (vertices, triangles) = box_surface(0.0, 1.0, 0);
+        let mut open = TriSurface::new(vertices, vec![triangles[0], [0, 3, 2]]).unwrap();
+        let before = open.triangles.clone();
+        assert_eq!(open.orient_outward().unwrap(), 0);
+        assert_eq!(open.triangles, before);
     }
 }

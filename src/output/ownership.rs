@@ -150,33 +150,44 @@ pub(super) fn partial_path(target: &Path) -> PathBuf {
     target.with_file_name(format!(".{name}.{}.partial", std::process::id()))
 }
 
-/// Removes the hidden files that runs killed before taking `target`'s place left beside it
-/// (`.NAME.PID.partial` that no run holds the lock of). Best effort.
+/// Removes the hidden files that killed runs left in `target`'s directory: any
+/// `.NAME.PID.partial` (whatever its target) whose process no longer exists and that no run
+/// holds the lock of. A process that still exists may be a run about to take its place, so its
+/// file stays even when unlocked. Best effort.
 pub(super) fn remove_stale_partials(target: &Path) {
-    let (Some(dir), Some(name)) = (target.parent(), target.file_name()) else {
-        return;
+    let dir = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
     };
-    let dir = if dir.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        dir
-    };
-    let prefix = format!(".{}.", name.to_string_lossy());
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
     for entry in entries.flatten() {
         let file = entry.file_name().to_string_lossy().into_owned();
-        let Some(pid) = file
-            .strip_prefix(&prefix)
-            .and_then(|rest| rest.strip_suffix(".partial"))
-        else {
+        let Some(pid) = partial_owner(&file) else {
             continue;
         };
-        if pid.chars().all(|c| c.is_ascii_digit()) && !is_written(&entry.path()) {
+        if !process_exists(pid) && !is_written(&entry.path()) {
             let _ = std::fs::remove_file(entry.path());
         }
     }
+}
+
+/// The process id in a hidden run file's name `.NAME.PID.partial`, if `file` is one.
+fn partial_owner(file: &str) -> Option<libc::pid_t> {
+    let stem = file.strip_prefix('.')?.strip_suffix(".partial")?;
+    let (name, pid) = stem.rsplit_once('.')?;
+    if name.is_empty() || !pid.chars().all(|c| c.is_ascii_digit()) {
+        return None;
+    }
+    pid.parse().ok().filter(|&p| p > 0)
+}
+
+/// Whether a process with id `pid` exists (signal 0 reaches it or is refused permission).
+fn process_exists(pid: libc::pid_t) -> bool {
+    // SAFETY: signal 0 only checks that the process exists; nothing is sent.
+    let status = unsafe { libc::kill(pid, 0) };
+    status == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
 }
 
 /// Puts the finished-enough `partial` file in `target`'s place (atomically), unless a run has
@@ -189,4 +200,20 @@ pub(super) fn take_place(partial: &Path, target: &Path) -> Result<(), OutputErro
     }
     std::fs::rename(partial, target)
         .map_err(|e| io_error(target, "moving the new run's file into place", e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hidden_run_files_name_their_process() {
+        assert_eq!(partial_owner(".out.h5.1234.partial"), Some(1234));
+        assert_eq!(partial_owner(".a.b.usda.77.partial"), Some(77));
+        assert_eq!(partial_owner("out.h5.1234.partial"), None);
+        assert_eq!(partial_owner(".out.h5.12a4.partial"), None);
+        assert_eq!(partial_owner("..1234.partial"), None);
+        assert_eq!(partial_owner(".out.h5.0.partial"), None);
+        assert!(process_exists(std::process::id() as libc::pid_t));
+    }
 }

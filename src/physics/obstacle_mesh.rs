@@ -13,7 +13,7 @@
 //! the search radius.
 
 use super::grid::BoxGrid;
-use crate::mesh::surface::TriSurface;
+use crate::mesh::surface::{winding_number, TriSurface};
 use nalgebra::Vector3;
 use std::collections::HashMap;
 
@@ -163,13 +163,24 @@ impl ObstacleSurface {
         self.closed
     }
 
-    /// Signed distance from `x` (body frame, m) to the surface, however far: negative inside
-    /// (meaningful for a closed surface). Visits every triangle of a far point's reach.
+    /// Signed distance from `x` (body frame, m) to the surface, however far: negative inside.
+    /// For a closed surface inside is told by the winding number (whatever the triangles'
+    /// orientation); for an open one it is the side its normals point away from. Visits every
+    /// triangle of a far point's reach (and every triangle for the winding number).
     pub fn signed_distance(&self, x: Vector3<f64>) -> f64 {
         let (lo, hi) = self.bounds;
         // The farthest corner of the bounding box bounds the distance to every vertex.
         let reach = (x - lo).abs().sup(&(x - hi).abs()).norm() * (1.0 + 1e-12);
-        self.closest(x, reach).map_or(f64::INFINITY, |c| c.gap)
+        let gap = self.closest(x, reach).map_or(f64::INFINITY, |c| c.gap);
+        if !self.closed {
+            return gap;
+        }
+        let inside = winding_number(&self.vertices, &self.triangles, &x).abs() > 0.5;
+        if inside {
+            -gap.abs()
+        } else {
+            gap.abs()
+        }
     }
 
     /// The plane of the surface point closest to `x` (body frame, m), if one lies within

@@ -145,7 +145,7 @@ impl Validator<'_> {
     }
 
     /// `type = "mesh"`: the triangle surface of `file` (relative to the scene file), times
-    /// `scale`, moved by `translate`; a closed one must face outward.
+    /// `scale`, moved by `translate`; a closed one is turned to face outward.
     fn mesh_obstacle(&self, field: &str, o: &ObstacleSection) -> Result<Shape, SceneError> {
         let f = |name: &str| format!("{field}.{name}");
         let file = o
@@ -164,10 +164,14 @@ impl Validator<'_> {
         for v in &mut surface.vertices {
             *v += shift;
         }
-        if surface.is_closed() && surface.enclosed_volume() < 0.0 {
-            return Err(self.invalid(
-                &f("file"),
-                format!("{}: the surface is closed but its triangles face inward (negative enclosed volume {:e} m³); reverse their order so normals point out of the obstacle", file.display(), surface.enclosed_volume()),
+        let reversed = surface
+            .orient_outward()
+            .map_err(|problem| self.invalid(&f("file"), format!("{}: {problem}", file.display())))?;
+        if reversed > 0 {
+            self.notices.borrow_mut().push(format!(
+                "{}: {reversed} of {} triangles faced into the obstacle and are used reversed (the surface is closed: its triangles are turned to face out of it)",
+                file.display(),
+                surface.triangles.len()
             ));
         }
         Ok(Shape::Mesh {
