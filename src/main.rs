@@ -726,6 +726,9 @@ fn run_command(
         for notice in &scene.notices {
             eprintln!("note: {notice}");
         }
+        for warning in &scene.warnings {
+            eprintln!("warning: {warning}");
+        }
     }
     // A bar on a terminal; lines (every 2 s, or every step with -v) in a log.
     let bar_shown = talk && verbosity != Verbosity::Verbose && std::io::stderr().is_terminal();
@@ -787,6 +790,12 @@ fn run_command(
         summary.frames,
         summary.output.display()
     );
+    for line in summary.outcome.lines() {
+        eprintln!("  {line}");
+    }
+    for warning in scene.warnings.iter().chain(&summary.outcome.warnings) {
+        eprintln!("warning: {warning}");
+    }
     if summary.interrupted {
         let launcher = processes.map_or(String::new(), |p| format!("mpirun -n {} ", p.count()));
         let mut again = format!(

@@ -157,6 +157,11 @@ impl ObstacleSurface {
         }
     }
 
+    /// The bounding box of its vertices at t = 0 (min, max; m).
+    pub fn bounds(&self) -> (Vector3<f64>, Vector3<f64>) {
+        self.bounds
+    }
+
     /// Whether the surface is closed (every edge shared by exactly two triangles), so that
     /// it has an inside.
     pub fn is_closed(&self) -> bool {

@@ -1,7 +1,10 @@
 //! A whole run: scene → simulation → HDF5 frames, with resume and clean interruption.
 
 mod frame;
+mod outcome;
 mod restore;
+
+pub use outcome::{FractureOutcome, Outcome};
 
 use crate::fracture::{Fracture, FractureReport};
 use crate::mesh::TetMesh;
@@ -77,6 +80,9 @@ pub struct RunSummary {
     pub max_residual: f64,
     /// Whether the run stopped early because it was interrupted.
     pub interrupted: bool,
+    /// What happened physically (on one process, or where every process holds the whole
+    /// mesh; empty for a run shared among parts).
+    pub outcome: Outcome,
 }
 
 /// Progress reported after every step.
@@ -382,6 +388,16 @@ impl Run<'_> {
         };
         // Whether the mesh changed since the last frame written.
         let mut topology_changed = false;
+        let mut fracture_outcome = self.fracture.as_ref().map(|f| FractureOutcome {
+            toughness: f.settings.toughness,
+            yield_stress: self
+                .sim
+                .model
+                .elasticity
+                .plasticity
+                .map(|p| 2.0 * self.sim.model.elasticity.material.mu * p.elastic_limit),
+            ..Default::default()
+        });
         while self.time_left(total_steps) {
             if self.interrupted(interrupt) {
                 summary.interrupted = true;
@@ -389,6 +405,9 @@ impl Run<'_> {
             }
             let (report, cracked, due) = self.step(&mut total_steps)?;
             topology_changed |= !cracked.events.is_empty();
+            if let Some(f) = &mut fracture_outcome {
+                f.add_step(cracked.largest_stress, cracked.events.len());
+            }
             summary.steps += 1;
             summary.newton_iterations += report.newton.iterations as u64;
             summary.max_residual = summary.max_residual.max(report.newton.residual);
@@ -426,6 +445,12 @@ impl Run<'_> {
         }
         summary.final_step = self.sim.state.step;
         summary.final_time = self.sim.state.time;
+        if self.shared.is_none() {
+            if let Some(f) = (&mut fracture_outcome).as_mut().zip(self.fracture.as_ref()) {
+                f.0.crack_area = f.1.crack_area(&self.sim.model.mesh.rest);
+            }
+            summary.outcome = Outcome::at_end(&self.sim, fracture_outcome);
+        }
         if let Some(writer) = self.writer {
             summary.frames = writer.frame_count();
             writer.finish()?;

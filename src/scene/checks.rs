@@ -215,6 +215,39 @@ impl Validator<'_> {
         Ok(())
     }
 
+    /// A body far larger or far smaller than the obstacles that hold it was most likely
+    /// written in other units: a warning names the scale key. Half-spaces have no size; only
+    /// containers and mesh obstacles are compared, by the diagonals of their boxes.
+    pub(super) fn check_sizes(&self, mesh: &TetMesh, obstacles: &[Obstacle], scale_key: &str) {
+        let (lo, hi) = mesh.bounding_box();
+        let body = (hi - lo).norm();
+        let largest = obstacles
+            .iter()
+            .filter_map(|o| match &o.shape {
+                Shape::Container { inner } => Some((inner.max - inner.min).norm()),
+                Shape::Mesh { surface } => {
+                    let (lo, hi) = surface.bounds();
+                    Some((hi - lo).norm())
+                }
+                Shape::HalfSpace { .. } => None,
+            })
+            .fold(None, |m: Option<f64>, d| Some(m.map_or(d, |m| m.max(d))));
+        let Some(largest) = largest else {
+            return;
+        };
+        let ratio = body / largest;
+        let advice = if ratio > SIZE_RATIO_LIMIT {
+            format!("if the mesh file is in millimetres, set {scale_key} = 0.001")
+        } else if ratio < 1.0 / SIZE_RATIO_LIMIT.powi(2) {
+            "if an obstacle's surface file is in millimetres, set its `scale` = 0.001; if the mesh is in metres and meant to be larger, set the scale of the mesh".to_string()
+        } else {
+            return;
+        };
+        self.warnings.borrow_mut().push(format!(
+            "the ice is {body:.3e} m across and the largest container or mesh obstacle {largest:.3e} m ({ratio:.3e} times): {advice}"
+        ));
+    }
+
     /// The connected parts of a mesh (bodies of a Gmsh file, or boxes) must start apart: a
     /// node of one part inside a tet of another (by more than 1e-9 in barycentric
     /// coordinates), or an element centroid inside or on one, is refused — overlapping bodies are pushed apart by contact in the first
@@ -314,6 +347,11 @@ impl Validator<'_> {
 
 /// A length of the mesh's elements (m): the edge of a cube holding the bounding box's volume
 /// over the tet count.
+/// How many times larger than its largest sized obstacle a body may be before its units are
+/// in doubt (a body in millimetres in a glass in metres is 1 000 times larger; an ice cube
+/// dropped into a bath is some 10 times smaller); a body smaller by this squared is in doubt.
+const SIZE_RATIO_LIMIT: f64 = 30.0;
+
 fn element_size(mesh: &TetMesh) -> f64 {
     let (lo, hi) = mesh.bounding_box();
     let extent = hi - lo;

@@ -73,8 +73,15 @@ impl Validator<'_> {
         }
     }
 
+    /// Whether the mesh files define a physical group `name`.
+    pub(super) fn is_group(&self, name: &str) -> bool {
+        self.groups.borrow().iter().any(|g| g.name == name)
+    }
+
     /// The boundary faces on the named surfaces `names` (physical surfaces of the mesh file),
-    /// for the entry `field`.
+    /// for the entry `field`. A name the mesh defines means its group even where it is also a
+    /// word (a box face, "surface", "obstacles"); a word the mesh does not define cannot be
+    /// mixed with named surfaces.
     pub(super) fn named_faces(
         &self,
         field: &str,
@@ -83,17 +90,23 @@ impl Validator<'_> {
     ) -> Result<Vec<[usize; 3]>, SceneError> {
         let mut selections = Vec::with_capacity(names.len());
         for name in names {
-            if BOX_FACES.contains(&name.as_str()) {
+            let known = self.is_group(name);
+            let word = BOX_FACES.contains(&name.as_str()) || name == "surface" || name == "obstacles";
+            if !known && word {
                 return Err(self.invalid(
                     field,
-                    format!("box face {name:?} and named surfaces cannot be mixed"),
+                    format!("{name:?} (a box face, \"surface\" or \"obstacles\") and named surfaces of the mesh file cannot be mixed"),
                 ));
             }
-            let known = self.groups.borrow().iter().any(|g| &g.name == name);
             if !known {
                 return Err(self.invalid(
                     field,
                     format!("unknown face {name:?}: use \"surface\", \"obstacles\", box faces {}, or a physical surface of the mesh file", BOX_FACES.map(|f| format!("{f:?}")).join(", ")),
+                ));
+            }
+            if word {
+                self.notices.borrow_mut().push(format!(
+                    "{field}: {name:?} is the mesh file's physical surface of that name (a physical group's name wins over the word)"
                 ));
             }
             let keys = SelectionKeys {
@@ -190,6 +203,10 @@ impl Validator<'_> {
             .front_speed
             .ok_or_else(|| required("freezing.front_speed"))?;
         let surface = match cooling.as_slice() {
+            // A physical surface of the mesh file wins over a word of the same name.
+            list if list.iter().any(|n| self.is_group(n)) => {
+                Some(self.named_faces("freezing.cooling", list, mesh)?)
+            }
             [one] if one == "surface" => Some(
                 mesh.boundary_faces()
                     .iter()

@@ -400,6 +400,9 @@ pub struct Scene {
     /// What the user should know about the input that is not an error (one line each), such
     /// as mesh elements that were reoriented.
     pub notices: Vec<String>,
+    /// What looks like a mistake in the input but is not certainly one (one line each), such
+    /// as a body a thousand times larger than its container: repeated after the run.
+    pub warnings: Vec<String>,
 }
 
 impl Scene {
@@ -421,6 +424,7 @@ impl Scene {
         Validator {
             path,
             notices: Default::default(),
+            warnings: Default::default(),
             groups: Default::default(),
         }
         .scene(raw, text)
@@ -431,6 +435,8 @@ struct Validator<'a> {
     path: &'a Path,
     /// What the user should know about the input that is not an error.
     notices: std::cell::RefCell<Vec<String>>,
+    /// What looks like a mistake in the input (see [`Scene::warnings`]).
+    warnings: std::cell::RefCell<Vec<String>>,
     /// The mesh files' named physical groups, placed as the scene places the mesh.
     groups: std::cell::RefCell<Vec<Arc<Group>>>,
 }
@@ -527,6 +533,12 @@ impl Validator<'_> {
             .map(|(i, o)| self.obstacle(i, o, &mesh, &material))
             .collect::<Result<Vec<_>, _>>()?;
         self.check_outside_obstacles(&mesh, &obstacles)?;
+        let scale_key = if raw.mesh.is_some() {
+            "[mesh] scale"
+        } else {
+            "[[body]] scale"
+        };
+        self.check_sizes(&mesh, &obstacles, scale_key);
         let smoothing = self.positive(
             "physics.friction_smoothing_velocity",
             raw.physics.friction_smoothing_velocity.unwrap_or(1e-4),
@@ -596,6 +608,7 @@ impl Validator<'_> {
             fracture,
             thermal,
             notices: self.notices.take(),
+            warnings: self.warnings.take(),
         })
     }
 

@@ -103,6 +103,8 @@ impl Validator<'_> {
         let boundary: Vec<[usize; 3]> = mesh.boundary_faces().iter().map(|f| f.nodes).collect();
         match names {
             [] => Err(self.invalid(field, "name at least one face")),
+            // A physical surface of the mesh file wins over a word of the same name.
+            list if list.iter().any(|n| self.is_group(n)) => self.named_faces(field, list, mesh),
             [one] if one == "surface" => Ok(boundary),
             list if list.iter().all(|n| BOX_FACES.contains(&n.as_str())) => {
                 let (lo, hi) = mesh.bounding_box();
