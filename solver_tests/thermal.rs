@@ -750,3 +750,85 @@ fn ice_formed_in_water_with_creep_resumes_bit_identically() {
     assert_eq!(s_full, s_half, "freeze states");
     assert_eq!(t_full, t_half, "temperatures");
 }
+
+/// The largest rise of the warmest and fall of the coldest temperature over a step (K) of
+/// `heat` cooled for `steps` steps of `dt` (s) towards an ambient colder than every node
+/// and warmer than none (no heat source of its own above or below the range).
+fn new_extremum(heat: &mut Heat, steps: usize, dt: f64, ambient: f64) -> f64 {
+    let range = |t: &[f64]| {
+        t.iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+    };
+    let mut worst = 0.0f64;
+    for k in 1..=steps {
+        let (lo, hi) = range(heat.temperature());
+        heat.step(dt, k as f64 * dt).unwrap();
+        let (new_lo, new_hi) = range(heat.temperature());
+        worst = worst.max(new_hi - hi).max(lo.min(ambient) - new_lo);
+    }
+    worst
+}
+
+#[test]
+fn heat_on_obtuse_meshes_makes_no_new_extremum() {
+    // The gallery's Gmsh ball (969 tets) at 1 °C in −20 °C air, and a box of moved nodes with
+    // a warm core.
+    // Lumped capacities and an M-matrix conduction operator make every step's temperatures a
+    // mean of the step's start and the air: nothing may get warmer than the warmest node or
+    // colder than the coldest one or the air (round-off: 1e-12 K).
+    let scene = icefem::scene::Scene::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/gallery/water_sphere_thermal.toml"),
+    )
+    .unwrap();
+    let thermal = scene.thermal.as_ref().unwrap();
+    let mesh = &scene.model.mesh;
+    let mut ball = Heat::new(
+        mesh,
+        scene.model.mass.clone(),
+        thermal.phases,
+        &thermal.boundary,
+        thermal.initial.clone(),
+    )
+    .unwrap();
+    assert!(ball.obtuse_edges() > 0);
+    let worst = new_extremum(&mut ball, 30, 60.0, -20.0);
+    assert!(worst <= 1e-12, "the ball: a new extremum by {worst:.3e} K");
+
+    // The box generator's tets are orthoschemes, never obtuse: its interior nodes moved by up
+    // to 0.15 of a cell (a fixed pseudo-random pattern) make a mesh with obtuse angles.
+    let h = 0.005;
+    let regular = box_mesh([0.0; 3], [0.03; 3], [6, 6, 6], 6).unwrap();
+    let nodes: Vec<[f64; 3]> = regular
+        .rest
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            let interior = x.iter().all(|&c| c > 1e-9 && c < 0.03 - 1e-9);
+            let shift = |k: f64| 0.15 * h * (12.9898 * i as f64 + 78.233 * k).sin();
+            let s = if interior { [shift(1.0), shift(2.0), shift(3.0)] } else { [0.0; 3] };
+            [x.x + s[0], x.y + s[1], x.z + s[2]]
+        })
+        .collect();
+    let flat = TetMesh::from_arrays(&nodes, regular.tets.clone()).unwrap();
+    let convection = flat
+        .boundary_faces()
+        .iter()
+        .map(|f| (f.nodes, 200.0, -20.0))
+        .collect();
+    let boundary = HeatBoundary {
+        fixed: Vec::new(),
+        convection,
+    };
+    // A warm core in cool water.
+    let initial = flat
+        .rest
+        .iter()
+        .map(|x| if (x - nalgebra::Vector3::repeat(0.015)).norm() < 0.008 { 5.0 } else { 0.5 })
+        .collect();
+    let mass = lumped_mass(&flat, 916.0);
+    let mut moved_heat = Heat::new(&flat, mass, Phases::WATER_ICE, &boundary, initial).unwrap();
+    assert!(moved_heat.obtuse_edges() > 0);
+    let worst = new_extremum(&mut moved_heat, 30, 2.0, -20.0);
+    assert!(worst <= 1e-12, "the moved box: a new extremum by {worst:.3e} K");
+}

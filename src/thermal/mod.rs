@@ -23,6 +23,7 @@
 
 pub mod enthalpy;
 pub mod link;
+pub mod monotone;
 pub mod neumann;
 pub mod system;
 
@@ -31,6 +32,7 @@ pub use link::HeatLink;
 
 use crate::mesh::TetMesh;
 use nalgebra::Matrix3;
+use monotone::{add_corrected_conduction, EdgeCorrection, ObtuseEdges};
 use system::{ScalarSystem, PAIRS};
 
 /// Failures of the heat model.
@@ -94,6 +96,8 @@ pub struct Heat {
     tets: Vec<[usize; 4]>,
     /// V ∇λ_a · ∇λ_b per element for the [`PAIRS`] (m).
     geometry: Vec<[f64; 10]>,
+    /// The edges whose coupling can be positive (see `monotone`).
+    obtuse: ObtuseEdges,
     /// Free number of each node (`None`: fixed temperature).
     free: Vec<Option<usize>>,
     /// Lumped convection coefficient H_i (W/K) and H_i T_air,i (W) per node.
@@ -166,7 +170,7 @@ impl Heat {
                 convection[i].1 += h * area / 3.0 * t_air;
             }
         }
-        let geometry = mesh
+        let geometry: Vec<[f64; 10]> = mesh
             .tets
             .iter()
             .map(|t| {
@@ -183,11 +187,13 @@ impl Heat {
             })
             .collect();
         let system = ScalarSystem::new(&mesh.tets, &free, count).map_err(setup)?;
+        let obtuse = ObtuseEdges::new(&mesh.tets, &geometry);
         Ok(Heat {
             phases,
             mass,
             tets: mesh.tets.clone(),
             geometry,
+            obtuse,
             free,
             convection,
             temperature,
@@ -258,9 +264,16 @@ impl Heat {
             .collect()
     }
 
-    /// (K T) per node for element conductivities `k`.
-    fn conduction(&self, k: &[f64], t: &[f64]) -> Vec<f64> {
+    /// Number of edges whose conduction coupling can be positive (obtuse angles), which get
+    /// a cancelling conductance where it is (see `monotone`).
+    pub fn obtuse_edges(&self) -> usize {
+        self.obtuse.len()
+    }
+
+    /// (K T) per node for element conductivities `k`, with the step's edge `corrections`.
+    fn conduction(&self, k: &[f64], corrections: &[EdgeCorrection], t: &[f64]) -> Vec<f64> {
         let mut out = vec![0.0; t.len()];
+        add_corrected_conduction(corrections, t, &mut out);
         for ((tet, g), ke) in self.tets.iter().zip(&self.geometry).zip(k) {
             for (p, &(a, b)) in PAIRS.iter().enumerate() {
                 let v = ke * g[p];
@@ -281,15 +294,17 @@ impl Heat {
         let h0: Vec<f64> = self.temperature.iter().map(|&t| p.enthalpy(t)).collect();
         let frozen0 = self.frozen_mass();
         let k = self.conductivities();
+        let corrections = self.obtuse.corrections(&k, &self.geometry);
         let residual = StepResidual {
             k: &k,
+            corrections: &corrections,
             h0: &h0,
             dt,
             n_free: self.free.iter().flatten().count(),
         };
         let solve = self.solve_step(&residual, time)?;
         let t = solve.temperature;
-        let heat_in = self.heat_in(&k, &t, dt);
+        let heat_in = self.heat_in(&residual, &t);
         let enthalpy_change = self
             .mass
             .iter()
@@ -361,6 +376,16 @@ impl Heat {
         for (e, g) in self.geometry.iter().enumerate() {
             self.system.add_element(e, &g.map(|v| k[e] * v));
         }
+        for c in residual.corrections {
+            let (a, b) = c.nodes;
+            let (e, pair) = c.part;
+            for i in [a, b] {
+                if let Some(j) = self.free[i] {
+                    self.system.add_diagonal(j, c.conductance);
+                }
+            }
+            self.system.add_element_entry(e, pair, -c.conductance);
+        }
         for (i, free) in self.free.iter().enumerate() {
             if let Some(j) = free {
                 let d = self.mass[i] / dt * self.phases.capacity(t[i]) + self.convection[i].0;
@@ -427,10 +452,11 @@ impl Heat {
         next
     }
 
-    /// Heat that came in over a step of `dt` (s) ending at temperatures `t` (J), element
-    /// conductivities `k`: convection at the free nodes, (K T) at the fixed ones.
-    fn heat_in(&self, k: &[f64], t: &[f64], dt: f64) -> f64 {
-        let kt = self.conduction(k, t);
+    /// Heat that came in over the step of `residual` ending at temperatures `t` (J):
+    /// convection at the free nodes, (K T) at the fixed ones.
+    fn heat_in(&self, residual: &StepResidual, t: &[f64]) -> f64 {
+        let dt = residual.dt;
+        let kt = self.conduction(residual.k, residual.corrections, t);
         dt * (0..t.len())
             .map(|i| match self.free[i] {
                 Some(_) => self.convection[i].1 - self.convection[i].0 * t[i],
@@ -445,6 +471,8 @@ impl Heat {
 struct StepResidual<'a> {
     /// Element conductivities at the step's start (W/(m K)).
     k: &'a [f64],
+    /// The conductances that cancel positive couplings (see `monotone`).
+    corrections: &'a [EdgeCorrection],
     /// Each node's specific enthalpy at the step's start, h(T_iⁿ) (J/kg).
     h0: &'a [f64],
     /// Step (s).
@@ -457,7 +485,7 @@ impl StepResidual<'_> {
     /// r (W) of `heat`'s nodes at temperatures `t`, by free number.
     fn of(&self, heat: &Heat, t: &[f64]) -> Vec<f64> {
         let (p, dt, h0) = (heat.phases, self.dt, self.h0);
-        let kt = heat.conduction(self.k, t);
+        let kt = heat.conduction(self.k, self.corrections, t);
         let mut r = vec![0.0; self.n_free];
         for (i, free) in heat.free.iter().enumerate() {
             if let Some(j) = free {

@@ -117,6 +117,14 @@ impl ScalarSystem {
         }
     }
 
+    /// Adds `v` to entry `pair` (of [`PAIRS`]) of element `e`, if both its nodes are free.
+    pub fn add_element_entry(&mut self, e: usize, pair: usize, v: f64) {
+        let slot = self.slots[e][pair];
+        if slot != usize::MAX {
+            self.values[slot] += v;
+        }
+    }
+
     /// Adds `v` to free node `i`'s diagonal entry.
     pub fn add_diagonal(&mut self, i: usize, v: f64) {
         self.values[self.diagonal[i]] += v;
