@@ -16,12 +16,30 @@
 
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: deps demo test figures mpi-deps mpi test-mpi
+.PHONY: deps gmsh demo test figures mpi-deps mpi test-mpi
 
 deps:
 	@pkg-config --exists hdf5 2>/dev/null || { \
 		echo "installing libhdf5-dev (HDF5 C library for the hdf5-metno crate)"; \
 		$(SUDO) apt-get update -qq && $(SUDO) DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libhdf5-dev pkg-config; }
+
+# Gmsh for `icefem mesh` (and the walkthrough of docs/first_scene.md): the gmsh wheel in its
+# own venv, target/gmsh-venv, where `icefem mesh` finds it (target/gmsh-venv/bin/gmsh).
+GMSH_VENV := target/gmsh-venv
+GMSH_LIBS := libglu1-mesa libgl1 libxrender1 libxcursor1 libxfixes3 libxext6 libxft2 libfontconfig1 libxinerama1 libx11-6 libgomp1
+gmsh: $(GMSH_VENV)/.installed
+$(GMSH_VENV)/.installed: validation/requirements-gmsh.txt
+	@python3 -c "import ensurepip, venv" 2>/dev/null || { \
+		echo "installing python3-venv"; \
+		$(SUDO) apt-get update -qq && $(SUDO) DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv; }
+	rm -rf $(GMSH_VENV)
+	python3 -m venv $(GMSH_VENV)
+	$(GMSH_VENV)/bin/python -m pip install --quiet --only-binary=:all: -r validation/requirements-gmsh.txt
+	@$(GMSH_VENV)/bin/python -c "import gmsh" 2>/dev/null || { \
+		echo "installing $(GMSH_LIBS) (the libraries the gmsh wheel links)"; \
+		$(SUDO) apt-get update -qq && $(SUDO) DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(GMSH_LIBS); }
+	$(GMSH_VENV)/bin/python -c "import gmsh"
+	touch $@
 
 # PETSc 3.18 (with hypre), OpenMPI 4.1 and HDF5 built for MPI from Debian; libclang for
 # bindgen, which generates the PETSc declarations at build time.
@@ -59,6 +77,6 @@ figures: deps
 	./target/release/icefem run scenes/freezing_container_thermal.toml --output $(FIG)/freezing_container_thermal.h5 --force
 	./target/release/icefem figure $(FIG)/freezing_container_thermal.h5 --size 400x400 --frames 0,12,23,96 --cut y=0.05 --color-by temperature --style solid --output docs/freezing_container_thermal_figure.png
 
-test: deps
+test: deps gmsh
 	cargo test --release
 	validation/check_readers.sh

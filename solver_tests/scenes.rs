@@ -297,8 +297,7 @@ fn mesh_obstacle_errors_name_field_and_file() {
         "v 0 0 -1\nv 1 0 -1\nv 0 1 -1\nv 0 0 0\nf 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
     )
     .unwrap();
-    let scene = Scene::parse(&with("type = \"mesh\"\nfile = \"inward.obj\""), &scene_path)
-        .unwrap();
+    let scene = Scene::parse(&with("type = \"mesh\"\nfile = \"inward.obj\""), &scene_path).unwrap();
     assert!(
         scene
             .notices

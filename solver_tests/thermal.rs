@@ -757,7 +757,9 @@ fn ice_formed_in_water_with_creep_resumes_bit_identically() {
 fn new_extremum(heat: &mut Heat, steps: usize, dt: f64, ambient: f64) -> f64 {
     let range = |t: &[f64]| {
         t.iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            })
     };
     let mut worst = 0.0f64;
     for k in 1..=steps {
@@ -806,7 +808,11 @@ fn heat_on_obtuse_meshes_makes_no_new_extremum() {
         .map(|(i, x)| {
             let interior = x.iter().all(|&c| c > 1e-9 && c < 0.03 - 1e-9);
             let shift = |k: f64| 0.15 * h * (12.9898 * i as f64 + 78.233 * k).sin();
-            let s = if interior { [shift(1.0), shift(2.0), shift(3.0)] } else { [0.0; 3] };
+            let s = if interior {
+                [shift(1.0), shift(2.0), shift(3.0)]
+            } else {
+                [0.0; 3]
+            };
             [x.x + s[0], x.y + s[1], x.z + s[2]]
         })
         .collect();
@@ -824,11 +830,20 @@ fn heat_on_obtuse_meshes_makes_no_new_extremum() {
     let initial = flat
         .rest
         .iter()
-        .map(|x| if (x - nalgebra::Vector3::repeat(0.015)).norm() < 0.008 { 5.0 } else { 0.5 })
+        .map(|x| {
+            if (x - nalgebra::Vector3::repeat(0.015)).norm() < 0.008 {
+                5.0
+            } else {
+                0.5
+            }
+        })
         .collect();
     let mass = lumped_mass(&flat, 916.0);
     let mut moved_heat = Heat::new(&flat, mass, Phases::WATER_ICE, &boundary, initial).unwrap();
     assert!(moved_heat.obtuse_edges() > 0);
     let worst = new_extremum(&mut moved_heat, 30, 2.0, -20.0);
-    assert!(worst <= 1e-12, "the moved box: a new extremum by {worst:.3e} K");
+    assert!(
+        worst <= 1e-12,
+        "the moved box: a new extremum by {worst:.3e} K"
+    );
 }

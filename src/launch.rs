@@ -59,7 +59,10 @@ mod tests {
             Some(Launched { rank: 1, size: 2 })
         );
         let hydra = [("PMI_SIZE", "4"), ("PMI_RANK", "0")];
-        assert_eq!(launched_by(env(&hydra)), Some(Launched { rank: 0, size: 4 }));
+        assert_eq!(
+            launched_by(env(&hydra)),
+            Some(Launched { rank: 0, size: 4 })
+        );
         assert_eq!(launched_by(env(&[("SLURM_NTASKS", "3")])), None);
     }
 }

@@ -167,6 +167,30 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Fill a closed triangle surface (OBJ, STL, PLY or a Gmsh surface) with tetrahedra,
+    /// through Gmsh: a mesh for a scene's [mesh] or [[body]] file.
+    Mesh {
+        /// The closed surface (.obj, .stl, .ply or .msh); turned to face outward if needed.
+        surface: PathBuf,
+        /// Largest element size, in the surface file's units (the mesh keeps them: set the
+        /// scene's `scale` for a file in millimetres).
+        #[arg(long)]
+        size: f64,
+        /// Output Gmsh file (default: SURFACE with the extension .msh).
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+        /// Keep the surface's triangles as the mesh's boundary (default: remesh the surface at
+        /// SIZE, so that the size holds everywhere).
+        #[arg(long)]
+        keep_surface: bool,
+        /// The Gmsh program (default: $GMSH, gmsh on PATH, or target/gmsh-venv/bin/gmsh from
+        /// `make gmsh`); the `gmsh` script of a Python environment is run with its Python.
+        #[arg(long)]
+        gmsh: Option<PathBuf>,
+        /// Replace an existing output file.
+        #[arg(long)]
+        force: bool,
+    },
 }
 
 fn main() {
@@ -276,6 +300,24 @@ fn main() {
             },
             verbosity,
         ),
+        Command::Mesh {
+            surface,
+            size,
+            output,
+            keep_surface,
+            gmsh,
+            force,
+        } => mesh_command(
+            &surface,
+            output,
+            &icefem::mesh::tetrahedralise::TetrahedraliseOptions {
+                size,
+                keep_surface,
+                gmsh,
+                force,
+            },
+            verbosity,
+        ),
         Command::Info { file, json: false } => icefem::output::describe(&file)
             .map(|text| print!("{text}"))
             .map_err(Into::into),
@@ -288,6 +330,40 @@ fn main() {
         eprintln!("error: {}", message(&e));
         std::process::exit(1);
     }
+}
+
+/// `icefem mesh`: the surface's tet mesh, and what it is.
+fn mesh_command(
+    surface: &Path,
+    output: Option<PathBuf>,
+    options: &icefem::mesh::tetrahedralise::TetrahedraliseOptions,
+    verbosity: Verbosity,
+) -> Result<()> {
+    let output = output.unwrap_or_else(|| surface.with_extension("msh"));
+    let start = Instant::now();
+    let made = icefem::mesh::tetrahedralise::tetrahedralise(surface, &output, options)?;
+    if verbosity != Verbosity::Quiet {
+        if made.reversed > 0 {
+            eprintln!(
+                "note: {}: {} of {} triangles faced inward and were turned outward",
+                surface.display(),
+                made.reversed,
+                made.surface_triangles
+            );
+        }
+        eprintln!(
+            "{}: {} tets, {} nodes in {:.2} s ({}); volume {:.4e}, the surface encloses {:.4e} ({:+.2} %); physical volume \"body\", surface \"boundary\"",
+            output.display(),
+            made.tets,
+            made.nodes,
+            start.elapsed().as_secs_f64(),
+            made.gmsh,
+            made.mesh_volume,
+            made.surface_volume,
+            100.0 * (made.mesh_volume / made.surface_volume - 1.0)
+        );
+    }
+    Ok(())
 }
 
 /// An error and its causes on one line, each cause once: a cause whose text its error already

@@ -8,6 +8,8 @@ pub mod generate;
 pub mod gmsh;
 pub mod parts;
 pub mod surface;
+mod surface_formats;
+pub mod tetrahedralise;
 
 pub use generate::box_mesh;
 pub use parts::{parts, parts_of};

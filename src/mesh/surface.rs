@@ -121,10 +121,10 @@ pub enum SurfaceError {
         #[source]
         source: std::io::Error,
     },
-    /// The file name ends neither in `.obj` nor in `.msh`.
+    /// The file name ends in none of the extensions read.
     #[error(
-        "obstacle surface file {path} has an unsupported extension: expected .obj (Wavefront \
-         OBJ) or .msh (Gmsh 2.2 or 4.1), in any letter case"
+        "surface file {path} has an unsupported extension: expected .obj (Wavefront OBJ), \
+         .stl (STL, ASCII or binary), .ply (PLY) or .msh (Gmsh 2.2 or 4.1), in any letter case"
     )]
     UnknownExtension {
         /// The file.
@@ -168,6 +168,16 @@ pub enum SurfaceError {
         /// The file.
         path: PathBuf,
     },
+    /// An STL or PLY file is malformed.
+    #[error("{format} file {path}: {message}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// "STL" or "PLY".
+        format: &'static str,
+        /// What is wrong.
+        message: String,
+    },
     /// A Gmsh file is malformed or has no linear triangles (the message names the file).
     #[error(transparent)]
     Gmsh(GmshError),
@@ -197,8 +207,9 @@ impl TriSurface {
         Ok(surface)
     }
 
-    /// Reads `.obj` (Wavefront OBJ) or `.msh` (Gmsh 2.2 or 4.1, ASCII or binary) by the
-    /// extension, in any letter case, multiplies the coordinates by `scale` (finite, > 0; the
+    /// Reads `.obj` (Wavefront OBJ), `.stl` (STL, ASCII or binary), `.ply` (PLY, ASCII or
+    /// binary) or `.msh` (Gmsh 2.2 or 4.1, ASCII or binary) by the extension, in any letter
+    /// case, multiplies the coordinates by `scale` (finite, > 0; the
     /// file's unit in m, e.g. 1e-3 for millimetres) and [checks](TriSurface::check) the
     /// result. OBJ: all faces of all objects and groups form the surface, polygons split into
     /// triangles. Gmsh: the linear triangles (element type 2), volume elements ignored.
@@ -217,6 +228,8 @@ impl TriSurface {
         match extension.as_deref() {
             Some("obj") => read_obj(path, scale),
             Some("msh") => read_gmsh(path, scale),
+            Some("stl") => read_indexed(path, super::surface_formats::read_stl(path, scale)?),
+            Some("ply") => read_indexed(path, super::surface_formats::read_ply(path, scale)?),
             _ => Err(SurfaceError::UnknownExtension {
                 path: path.to_path_buf(),
             }),
@@ -466,6 +479,16 @@ impl SurfaceError {
             problem: Box::new(problem),
         }
     }
+}
+
+/// The checked surface of an STL or PLY file's geometry (triangles numbered in the file's face
+/// order, polygons split).
+fn read_indexed(
+    path: &Path,
+    (vertices, triangles): super::surface_formats::Geometry,
+) -> Result<TriSurface, SurfaceError> {
+    TriSurface::new(vertices, triangles)
+        .map_err(|problem| SurfaceError::invalid(path, problem, |_| String::new()))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1170,7 +1193,10 @@ mod orientation_tests {
         let mut surface = TriSurface::new(vertices, projective_plane.to_vec()).unwrap();
         assert!(surface.is_closed());
         let error = surface.orient_outward().unwrap_err();
-        assert!(matches!(error, InvalidSurface::NotOrientable { .. }), "{error}");
+        assert!(
+            matches!(error, InvalidSurface::NotOrientable { .. }),
+            "{error}"
+        );
         // One face of a box, reversed, is open and kept as written.
         let (vertices, triangles) = box_surface(0.0, 1.0, 0);
         let mut open = TriSurface::new(vertices, vec![triangles[0], [0, 3, 2]]).unwrap();

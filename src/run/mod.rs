@@ -446,8 +446,8 @@ impl Run<'_> {
         summary.final_step = self.sim.state.step;
         summary.final_time = self.sim.state.time;
         if self.shared.is_none() {
-            if let Some(f) = (&mut fracture_outcome).as_mut().zip(self.fracture.as_ref()) {
-                f.0.crack_area = f.1.crack_area(&self.sim.model.mesh.rest);
+            if let (Some(outcome), Some(fracture)) = (&mut fracture_outcome, &self.fracture) {
+                outcome.crack_area = fracture.crack_area(&self.sim.model.mesh.rest);
             }
             summary.outcome = Outcome::at_end(&self.sim, fracture_outcome);
         }

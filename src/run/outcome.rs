@@ -56,8 +56,14 @@ impl Outcome {
         let history = &sim.state.history;
         let mesh = &model.mesh;
         let frozen_fraction = (!history.freeze_state.is_empty()).then(|| {
-            let volumes: Vec<f64> = (0..mesh.num_tets()).map(|e| mesh.signed_volume(e)).collect();
-            let frozen: f64 = volumes.iter().zip(&history.freeze_state).map(|(v, s)| v * s).sum();
+            let volumes: Vec<f64> = (0..mesh.num_tets())
+                .map(|e| mesh.signed_volume(e))
+                .collect();
+            let frozen: f64 = volumes
+                .iter()
+                .zip(&history.freeze_state)
+                .map(|(v, s)| v * s)
+                .sum();
             frozen / volumes.iter().sum::<f64>()
         });
         let largest_inelastic_strain = (!history.plastic_strain.is_empty()).then(|| {
@@ -100,7 +106,8 @@ fn fall_out_of_reach(sim: &Simulation) -> Option<(f64, f64)> {
         .map(|i| model.mass[i] * displacement(i).dot(&down))
         .sum::<f64>()
         / mass;
-    if !(drop > FALL_LIMIT * size) {
+    // A NaN drop (a body with no mass) is no fall either.
+    if drop.is_nan() || drop <= FALL_LIMIT * size {
         return None;
     }
     let t = sim.state.time;
@@ -117,7 +124,9 @@ fn within(o: &Obstacle, t: f64, x: &Vector3<f64>, reach: f64) -> bool {
     match &o.shape {
         Shape::HalfSpace { point, normal } => (x0 - point).dot(normal) <= reach,
         Shape::Container { inner } => {
-            let outside = (inner.min - x0).sup(&(x0 - inner.max)).sup(&Vector3::zeros());
+            let outside = (inner.min - x0)
+                .sup(&(x0 - inner.max))
+                .sup(&Vector3::zeros());
             outside.norm() <= reach
         }
         Shape::Mesh { surface } => surface.closest(x0, reach).is_some(),
@@ -139,9 +148,12 @@ impl Outcome {
                     mpa(f.toughness)
                 ));
             } else {
-                let capped = f
-                    .yield_stress
-                    .map_or(String::new(), |s| format!("; [plasticity] caps ice's deviatoric stress near 2 μ γ = {:.3} MPa", mpa(s)));
+                let capped = f.yield_stress.map_or(String::new(), |s| {
+                    format!(
+                        "; [plasticity] caps ice's deviatoric stress near 2 μ γ = {:.3} MPa",
+                        mpa(s)
+                    )
+                });
                 lines.push(format!(
                     "no cracks: the largest separation stress {:.3} MPa stayed below the toughness {:.3} MPa{capped}",
                     mpa(f.largest_stress),

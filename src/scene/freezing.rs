@@ -91,7 +91,8 @@ impl Validator<'_> {
         let mut selections = Vec::with_capacity(names.len());
         for name in names {
             let known = self.is_group(name);
-            let word = BOX_FACES.contains(&name.as_str()) || name == "surface" || name == "obstacles";
+            let word =
+                BOX_FACES.contains(&name.as_str()) || name == "surface" || name == "obstacles";
             if !known && word {
                 return Err(self.invalid(
                     field,

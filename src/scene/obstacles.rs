@@ -164,9 +164,9 @@ impl Validator<'_> {
         for v in &mut surface.vertices {
             *v += shift;
         }
-        let reversed = surface
-            .orient_outward()
-            .map_err(|problem| self.invalid(&f("file"), format!("{}: {problem}", file.display())))?;
+        let reversed = surface.orient_outward().map_err(|problem| {
+            self.invalid(&f("file"), format!("{}: {problem}", file.display()))
+        })?;
         if reversed > 0 {
             self.notices.borrow_mut().push(format!(
                 "{}: {reversed} of {} triangles faced into the obstacle and are used reversed (the surface is closed: its triangles are turned to face out of it)",

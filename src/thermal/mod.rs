@@ -31,8 +31,8 @@ pub use enthalpy::{Phase, Phases};
 pub use link::HeatLink;
 
 use crate::mesh::TetMesh;
-use nalgebra::Matrix3;
 use monotone::{add_corrected_conduction, EdgeCorrection, ObtuseEdges};
+use nalgebra::Matrix3;
 use system::{ScalarSystem, PAIRS};
 
 /// Failures of the heat model.

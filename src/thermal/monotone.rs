@@ -56,7 +56,11 @@ impl ObtuseEdges {
         let mut obtuse: Vec<(usize, usize)> = geometry
             .iter()
             .enumerate()
-            .flat_map(|(e, g)| (0..10).filter(move |&p| off_diagonal(p) && g[p] > 0.0).map(move |p| (e, p)))
+            .flat_map(|(e, g)| {
+                (0..10)
+                    .filter(move |&p| off_diagonal(p) && g[p] > 0.0)
+                    .map(move |p| (e, p))
+            })
             .map(|(e, p)| key(e, p))
             .collect();
         obtuse.sort_unstable();
