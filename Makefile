@@ -5,14 +5,17 @@
 #                 (freezing_container_fracture_figure.png)
 #   make test   — runs the whole test suite (cargo test --release), then reads icefem's files
 #                 with readers that are not icefem's (validation/check_readers.sh: the Python
-#                 reader's tests, the XDMF through VTK, the exports through pxr.Usd, meshio, VTK)
+#                 reader's tests, the XDMF through VTK, the exports through pxr.Usd, meshio, VTK),
+#                 then runs docs/first_scene.md as written (validation/first_scene.py); it
+#                 installs Gmsh first (make gmsh), which `icefem mesh` and that page use
 # and, for runs on several processes (the `mpi` feature):
 #   make mpi      — installs OpenMPI, PETSc, parallel HDF5 and libclang (apt-get), builds
 #                   target/release/icefem with the feature: `mpirun -n N target/release/icefem run SCENE`
 #   make test-mpi — the distributed tests (2 processes against 1) and the scikit-fem
 #                   validation on 2 processes
-# The only system library needed is HDF5 (libhdf5-dev), installed with apt-get when missing;
-# the readers' Python venv (wheels only) is created in target/readers-venv.
+# The only system library the build needs is HDF5 (libhdf5-dev), installed with apt-get when
+# missing; the readers' Python venv (wheels only) is created in target/readers-venv, and
+# Gmsh's (the gmsh wheel, with the X and GL libraries it links, apt-get) in target/gmsh-venv.
 
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
@@ -66,8 +69,10 @@ demo: deps
 # The README's figures (docs/*.png) from the paper's scene without and with fracture and
 # frozen by conduction (~30 s).
 FIG := target/figures
-figures: deps
+figures: deps gmsh
 	cargo build --release
+	$(GMSH_VENV)/bin/python validation/first_scene.py --keep $(FIG)/first_scene
+	./target/release/icefem figure $(FIG)/first_scene/glass_of_water.h5 --size 400x400 --output docs/first_scene_figure.png
 	mkdir -p $(FIG) docs
 	./target/release/icefem run scenes/freezing_container.toml --output $(FIG)/freezing_container.h5 --force
 	./target/release/icefem figure $(FIG)/freezing_container.h5 --size 400x400 --cut y=0.05 --color-by freeze --style solid --output docs/freezing_container_figure.png
@@ -80,3 +85,4 @@ figures: deps
 test: deps gmsh
 	cargo test --release
 	validation/check_readers.sh
+	$(GMSH_VENV)/bin/python validation/first_scene.py
