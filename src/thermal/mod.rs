@@ -69,6 +69,11 @@ pub struct HeatStep {
     /// Numeric factorisations: one per iteration, less those whose matrix was the one already
     /// factored (no node changed its segment of h, same step and conductivities).
     pub factorizations: usize,
+    /// Solves of the step: 1, plus one for each round of cancelled couplings (see
+    /// `monotone`).
+    pub passes: usize,
+    /// Edges whose positive coupling the step cancelled.
+    pub cancelled_edges: usize,
     /// Heat that came in through the boundary over the step (J): convection and the
     /// fixed-temperature nodes.
     pub heat_in: f64,
@@ -294,7 +299,33 @@ impl Heat {
         let h0: Vec<f64> = self.temperature.iter().map(|&t| p.enthalpy(t)).collect();
         let frozen0 = self.frozen_mass();
         let k = self.conductivities();
-        let corrections = self.obtuse.corrections(&k, &self.geometry);
+        // Plain P1 first; nodes that end the step as new extrema get their positive couplings
+        // cancelled and the step is solved again (see `monotone`).
+        let mut cancel = vec![false; self.obtuse.len()];
+        let (mut iterations, mut factorizations, mut passes) = (0, 0, 0);
+        let (t, corrections) = loop {
+            let corrections = self.obtuse.corrections(&k, &self.geometry, &cancel);
+            let residual = StepResidual {
+                k: &k,
+                corrections: &corrections,
+                h0: &h0,
+                dt,
+                n_free: self.free.iter().flatten().count(),
+            };
+            let solve = self.solve_step(&residual, time)?;
+            iterations += solve.iterations;
+            factorizations += solve.factorizations;
+            passes += 1;
+            let air = |i: usize| {
+                let (h, ht) = self.convection[i];
+                (h > 0.0).then(|| ht / h)
+            };
+            let free = |i: usize| self.free[i].is_some();
+            let t = solve.temperature;
+            if self.obtuse.mark_extrema(&self.temperature, &t, air, free, &mut cancel) == 0 {
+                break (t, corrections);
+            }
+        };
         let residual = StepResidual {
             k: &k,
             corrections: &corrections,
@@ -302,8 +333,6 @@ impl Heat {
             dt,
             n_free: self.free.iter().flatten().count(),
         };
-        let solve = self.solve_step(&residual, time)?;
-        let t = solve.temperature;
         let heat_in = self.heat_in(&residual, &t);
         let enthalpy_change = self
             .mass
@@ -315,8 +344,10 @@ impl Heat {
         self.temperature = t;
         let latent_change = -p.latent_heat * (self.frozen_mass() - frozen0);
         Ok(HeatStep {
-            newton_iterations: solve.iterations,
-            factorizations: solve.factorizations,
+            newton_iterations: iterations,
+            factorizations,
+            passes,
+            cancelled_edges: corrections.len(),
             heat_in,
             enthalpy_change,
             latent_change,
