@@ -4,8 +4,8 @@
 mod common;
 use common::{load_scene as load, reference_file, run_options as options};
 use icefem::mesh::{box_mesh, TetMesh};
-use icefem::thermal::neumann::Neumann;
 use icefem::thermal::monotone::EXTREMUM_TOLERANCE;
+use icefem::thermal::neumann::Neumann;
 use icefem::thermal::{Heat, HeatBoundary, Phase, Phases};
 
 /// Lumped nodal masses ρ V / 4 per element (kg).
@@ -802,7 +802,10 @@ fn heat_on_obtuse_meshes_makes_no_new_extremum() {
     // coupling kept): the step cancels 10 couplings there and none after.
     let (worst, cancelled) = new_extremum(&mut ball, 30, 60.0, -20.0);
     assert!(cancelled > 0);
-    assert!(worst <= EXTREMUM_TOLERANCE, "the ball: a new extremum by {worst:.3e} K");
+    assert!(
+        worst <= EXTREMUM_TOLERANCE,
+        "the ball: a new extremum by {worst:.3e} K"
+    );
 
     // The box generator's tets are orthoschemes, never obtuse: its interior nodes moved by up
     // to 0.15 of a cell (a fixed pseudo-random pattern) make a mesh with obtuse angles.

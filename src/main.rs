@@ -730,6 +730,17 @@ fn run_scene(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> R
     let summary = match run_command(scene_path, options, Some(&processes), verbosity) {
         Ok(summary) => summary,
         Err(e) => {
+            // Every process reads the same scene and options: an error in them is everyone's,
+            // and process 0 says it once (its abort ends the others while they wait). Any
+            // other error is the process's own.
+            let everyones = e.downcast_ref::<icefem::scene::SceneError>().is_some()
+                || matches!(
+                    e.downcast_ref::<icefem::run::RunError>(),
+                    Some(icefem::run::RunError::Scene(_) | icefem::run::RunError::Setup { .. })
+                );
+            if everyones && rank != 0 {
+                std::thread::sleep(std::time::Duration::from_secs(10));
+            }
             eprintln!(
                 "error (process {rank} of {}): {}",
                 processes.size(),

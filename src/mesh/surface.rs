@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 
 use super::gmsh::{self, GmshError};
+use super::surface_formats::{read_ply, read_stl, Geometry, ReadFailure};
 
 /// A triangle surface mesh (m): a rigid obstacle's boundary. Triangles are oriented with
 /// outward normals by the right-hand rule (counter-clockwise seen from outside).
@@ -228,8 +229,8 @@ impl TriSurface {
         match extension.as_deref() {
             Some("obj") => read_obj(path, scale),
             Some("msh") => read_gmsh(path, scale),
-            Some("stl") => read_indexed(path, super::surface_formats::read_stl(path, scale)?),
-            Some("ply") => read_indexed(path, super::surface_formats::read_ply(path, scale)?),
+            Some("stl") => read_indexed(path, "STL", read_stl(path, scale)),
+            Some("ply") => read_indexed(path, "PLY", read_ply(path, scale)),
             _ => Err(SurfaceError::UnknownExtension {
                 path: path.to_path_buf(),
             }),
@@ -485,8 +486,20 @@ impl SurfaceError {
 /// order, polygons split).
 fn read_indexed(
     path: &Path,
-    (vertices, triangles): super::surface_formats::Geometry,
+    format: &'static str,
+    read: Result<Geometry, ReadFailure>,
 ) -> Result<TriSurface, SurfaceError> {
+    let (vertices, triangles) = read.map_err(|failure| match failure {
+        ReadFailure::Io(source) => SurfaceError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+        ReadFailure::Format(message) => SurfaceError::Format {
+            path: path.to_path_buf(),
+            format,
+            message,
+        },
+    })?;
     TriSurface::new(vertices, triangles)
         .map_err(|problem| SurfaceError::invalid(path, problem, |_| String::new()))
 }
@@ -1203,5 +1216,51 @@ mod orientation_tests {
         let before = open.triangles.clone();
         assert_eq!(open.orient_outward().unwrap(), 0);
         assert_eq!(open.triangles, before);
+    }
+}
+
+#[cfg(test)]
+mod format_tests {
+    use super::*;
+
+    #[test]
+    fn stl_and_ply_surfaces_read_closed_and_bad_files_name_themselves() {
+        let dir = tempfile::tempdir().unwrap();
+        // A tetrahedron in ASCII STL: each triangle lists its corners again; equal corners
+        // become one vertex, so the surface reads closed.
+        let corners = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let faces = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]];
+        let mut stl = String::from("solid t\n");
+        for f in faces {
+            stl += "facet normal 0 0 0\nouter loop\n";
+            for v in f {
+                let p = corners[v];
+                stl += &format!("vertex {} {} {}\n", p[0], p[1], p[2]);
+            }
+            stl += "endloop\nendfacet\n";
+        }
+        stl += "endsolid t\n";
+        let path = dir.path().join("t.STL");
+        std::fs::write(&path, stl).unwrap();
+        let surface = TriSurface::read(&path, 2.0).unwrap();
+        assert_eq!((surface.vertices.len(), surface.triangles.len()), (4, 4));
+        assert!(surface.is_closed());
+        assert!((surface.enclosed_volume() - 8.0 / 6.0).abs() < 1e-12);
+        // A PLY file whose faces have no index list.
+        let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty float area\nend_header\n0 0 0\n1 0 0\n0 1 0\n0.5\n";
+        let path = dir.path().join("bad.ply");
+        std::fs::write(&path, ply).unwrap();
+        let message = TriSurface::read(&path, 1.0).unwrap_err().to_string();
+        assert!(
+            message.contains("PLY file")
+                && message.contains("bad.ply")
+                && message.contains("vertex_indices"),
+            "{message}"
+        );
     }
 }

@@ -9,32 +9,22 @@ use nalgebra::Vector3;
 use ply_rs::parser::Parser;
 use ply_rs::ply::{DefaultElement, Property};
 
-use super::surface::SurfaceError;
-
 /// Vertices (times `scale`) and triangles of a surface file.
 pub(super) type Geometry = (Vec<Vector3<f64>>, Vec<[usize; 3]>);
 
-fn io_error(path: &Path, source: std::io::Error) -> SurfaceError {
-    SurfaceError::Io {
-        path: path.to_path_buf(),
-        source,
-    }
-}
-
-fn format_error(path: &Path, format: &'static str, message: String) -> SurfaceError {
-    SurfaceError::Format {
-        path: path.to_path_buf(),
-        format,
-        message,
-    }
+/// Why a file could not be read: the file system, or its content (what is wrong).
+#[derive(Debug)]
+pub(super) enum ReadFailure {
+    Io(std::io::Error),
+    Format(String),
 }
 
 /// Reads an STL file.
-pub(super) fn read_stl(path: &Path, scale: f64) -> Result<Geometry, SurfaceError> {
-    let mut file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
+pub(super) fn read_stl(path: &Path, scale: f64) -> Result<Geometry, ReadFailure> {
+    let mut file = std::fs::File::open(path).map_err(ReadFailure::Io)?;
     let mesh = stl_io::read_stl(&mut file).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound | std::io::ErrorKind::PermissionDenied => io_error(path, e),
-        _ => format_error(path, "STL", e.to_string()),
+        std::io::ErrorKind::NotFound | std::io::ErrorKind::PermissionDenied => ReadFailure::Io(e),
+        _ => ReadFailure::Format(e.to_string()),
     })?;
     let vertices = mesh
         .vertices
@@ -47,13 +37,13 @@ pub(super) fn read_stl(path: &Path, scale: f64) -> Result<Geometry, SurfaceError
 
 /// Reads a PLY file: the `vertex` element's `x`, `y`, `z` and the `face` element's
 /// `vertex_indices` (or `vertex_index`) lists.
-pub(super) fn read_ply(path: &Path, scale: f64) -> Result<Geometry, SurfaceError> {
-    let file = std::fs::File::open(path).map_err(|e| io_error(path, e))?;
+pub(super) fn read_ply(path: &Path, scale: f64) -> Result<Geometry, ReadFailure> {
+    let file = std::fs::File::open(path).map_err(ReadFailure::Io)?;
     let mut reader = std::io::BufReader::new(file);
     let ply = Parser::<DefaultElement>::new()
         .read_ply(&mut reader)
-        .map_err(|e| format_error(path, "PLY", e.to_string()))?;
-    let missing = |what: &str| format_error(path, "PLY", format!("no {what}"));
+        .map_err(|e| ReadFailure::Format(e.to_string()))?;
+    let missing = |what: &str| ReadFailure::Format(format!("no {what}"));
     let elements = |name: &str| {
         ply.payload
             .get(name)
@@ -62,9 +52,10 @@ pub(super) fn read_ply(path: &Path, scale: f64) -> Result<Geometry, SurfaceError
     let mut vertices = Vec::new();
     for (i, vertex) in elements("vertex")?.iter().enumerate() {
         let coordinate = |axis: &str| {
-            vertex.get(axis).and_then(number).ok_or_else(|| {
-                format_error(path, "PLY", format!("vertex {i} has no number `{axis}`"))
-            })
+            vertex
+                .get(axis)
+                .and_then(number)
+                .ok_or_else(|| ReadFailure::Format(format!("vertex {i} has no number `{axis}`")))
         };
         vertices.push(Vector3::new(coordinate("x")?, coordinate("y")?, coordinate("z")?) * scale);
     }
@@ -75,21 +66,13 @@ pub(super) fn read_ply(path: &Path, scale: f64) -> Result<Geometry, SurfaceError
             .or_else(|| face.get("vertex_index"))
             .and_then(indices)
             .ok_or_else(|| {
-                format_error(
-                    path,
-                    "PLY",
-                    format!("face {f} has no integer list `vertex_indices`"),
-                )
+                ReadFailure::Format(format!("face {f} has no integer list `vertex_indices`"))
             })?;
         if corners.len() < 3 {
-            return Err(format_error(
-                path,
-                "PLY",
-                format!(
-                    "face {f} has {} corners: a face needs at least 3",
-                    corners.len()
-                ),
-            ));
+            return Err(ReadFailure::Format(format!(
+                "face {f} has {} corners: a face needs at least 3",
+                corners.len()
+            )));
         }
         for k in 1..corners.len() - 1 {
             triangles.push([corners[0], corners[k], corners[k + 1]]);

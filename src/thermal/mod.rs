@@ -322,7 +322,11 @@ impl Heat {
             };
             let free = |i: usize| self.free[i].is_some();
             let t = solve.temperature;
-            if self.obtuse.mark_extrema(&self.temperature, &t, air, free, &mut cancel) == 0 {
+            if self
+                .obtuse
+                .mark_extrema(&self.temperature, &t, air, free, &mut cancel)
+                == 0
+            {
                 break (t, corrections);
             }
         };
