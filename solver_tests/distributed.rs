@@ -259,6 +259,30 @@ fn a_fracture_scene_is_refused_on_two_processes_with_the_reason() {
     assert!(!out.status.success());
     assert!(stderr.contains("does not support fracture"), "{stderr}");
     assert!(!output.exists(), "no output file for a refused run");
+    // Every process refuses alike: process 0 says it once.
+    assert_eq!(
+        stderr.matches("does not support fracture").count(),
+        1,
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_scene_error_on_two_processes_is_said_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    let text = std::fs::read_to_string(scene("static_block.toml"))
+        .unwrap()
+        .replace("[material]", "[material]\nyoung = 1e9");
+    std::fs::write(&bad, text).unwrap();
+    let out = launch(2, &bad, &dir.path().join("bad.h5"), &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_eq!(stderr.matches("error (process").count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("error (process 0 of 2)") && stderr.contains("bad.toml"),
+        "{stderr}"
+    );
 }
 
 #[test]

@@ -424,6 +424,9 @@ fn a_gmsh_ball_cooled_in_air_makes_no_warmer_node() {
         .collect();
     assert_eq!(warmest.len(), 121);
     for pair in warmest.windows(2) {
-        assert!(pair[1] <= pair[0] + 1e-9, "the warmest node warmed: {pair:?}");
+        assert!(
+            pair[1] <= pair[0] + 1e-9,
+            "the warmest node warmed: {pair:?}"
+        );
     }
 }
