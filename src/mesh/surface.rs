@@ -1097,33 +1097,35 @@ mod tests {
     }
 }
 
+/// The closed surface of the box [lo, hi]³ (two triangles a face, outward), its vertices
+/// numbered from `offset`: a test fixture.
+#[cfg(test)]
+pub(crate) fn box_surface(lo: f64, hi: f64, offset: usize) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
+    let vertices = (0..8)
+        .map(|i| {
+            let c = |bit: usize| if i & bit == 0 { lo } else { hi };
+            Vector3::new(c(1), c(2), c(4))
+        })
+        .collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let triangles = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .map(|t| t.map(|v| v + offset))
+        .collect();
+    (vertices, triangles)
+}
+
 #[cfg(test)]
 mod orientation_tests {
     use super::*;
-
-    /// The closed surface of the box [lo, hi] (two triangles a face, outward).
-    fn box_surface(lo: f64, hi: f64, offset: usize) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
-        let vertices = (0..8)
-            .map(|i| {
-                let c = |bit: usize| if i & bit == 0 { lo } else { hi };
-                Vector3::new(c(1), c(2), c(4))
-            })
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let triangles = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .map(|t| t.map(|v| v + offset))
-            .collect();
-        (vertices, triangles)
-    }
 
     /// Whether every edge is run in opposite directions by its two triangles.
     fn consistent(triangles: &[[usize; 3]]) -> bool {

@@ -235,21 +235,7 @@ mod tests {
 
     fn cube() -> ObstacleSurface {
         // Unit cube [0, 1]³, two outward triangles per face.
-        let vertices: Vec<Vector3<f64>> = (0..8)
-            .map(|i| Vector3::new((i & 1) as f64, ((i >> 1) & 1) as f64, (i >> 2) as f64))
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let triangles = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
+        let (vertices, triangles) = crate::mesh::surface::box_surface(0.0, 1.0, 0);
         ObstacleSurface::new(&TriSurface {
             vertices,
             triangles,

@@ -303,41 +303,25 @@ impl Heat {
         // cancelled and the step is solved again (see `monotone`).
         let mut cancel = vec![false; self.obtuse.len()];
         let (mut iterations, mut factorizations, mut passes) = (0, 0, 0);
-        let (t, corrections) = loop {
+        let n_free = self.free.iter().flatten().count();
+        let (t, heat_in, cancelled_edges) = loop {
             let corrections = self.obtuse.corrections(&k, &self.geometry, &cancel);
             let residual = StepResidual {
                 k: &k,
                 corrections: &corrections,
                 h0: &h0,
                 dt,
-                n_free: self.free.iter().flatten().count(),
+                n_free,
             };
             let solve = self.solve_step(&residual, time)?;
             iterations += solve.iterations;
             factorizations += solve.factorizations;
             passes += 1;
-            let air = |i: usize| {
-                let (h, ht) = self.convection[i];
-                (h > 0.0).then(|| ht / h)
-            };
-            let free = |i: usize| self.free[i].is_some();
-            let t = solve.temperature;
-            if self
-                .obtuse
-                .mark_extrema(&self.temperature, &t, air, free, &mut cancel)
-                == 0
-            {
-                break (t, corrections);
+            if self.mark_extrema(&solve.temperature, &mut cancel) == 0 {
+                let heat_in = self.heat_in(&residual, &solve.temperature);
+                break (solve.temperature, heat_in, corrections.len());
             }
         };
-        let residual = StepResidual {
-            k: &k,
-            corrections: &corrections,
-            h0: &h0,
-            dt,
-            n_free: self.free.iter().flatten().count(),
-        };
-        let heat_in = self.heat_in(&residual, &t);
         let enthalpy_change = self
             .mass
             .iter()
@@ -351,12 +335,25 @@ impl Heat {
             newton_iterations: iterations,
             factorizations,
             passes,
-            cancelled_edges: corrections.len(),
+            cancelled_edges,
             heat_in,
             enthalpy_change,
             latent_change,
             t_step: start.elapsed().as_secs_f64(),
         })
+    }
+
+    /// Marks in `cancel` the positive couplings of the nodes that end the step at
+    /// temperatures `t` as new local extrema (against the step's start, their neighbours and
+    /// their air); how many were newly marked.
+    fn mark_extrema(&self, t: &[f64], cancel: &mut [bool]) -> usize {
+        let air = |i: usize| {
+            let (h, ht) = self.convection[i];
+            (h > 0.0).then(|| ht / h)
+        };
+        let free = |i: usize| self.free[i].is_some();
+        self.obtuse
+            .mark_extrema(&self.temperature, t, air, free, cancel)
     }
 
     /// Newton on the step's `residual` from the current temperatures, with an exact line
