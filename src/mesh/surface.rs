@@ -908,12 +908,15 @@ mod tests {
 
     #[test]
     fn unknown_extension_and_bad_scale() {
-        let (error, message) = error_of("cube.stl", "solid cube\n");
+        let (error, message) = error_of("cube.step", "ISO-10303-21;\n");
         assert!(matches!(error, SurfaceError::UnknownExtension { .. }));
         assert!(
-            message.contains(".obj") && message.contains(".msh"),
+            [".obj", ".stl", ".ply", ".msh"].iter().all(|e| message.contains(e)),
             "{message}"
         );
+        // An STL file that is not one names itself.
+        let (error, _) = error_of("cube.stl", "solid cube\n");
+        assert!(matches!(error, SurfaceError::Format { .. }), "{error:?}");
         let (_dir, path) = write("noext", b"v 0 0 0\n");
         assert!(matches!(
             TriSurface::read(&path, 1.0),
