@@ -3,6 +3,8 @@
 //! in millimetres, named surfaces that are also box-face words, a plain build under mpirun,
 //! and a run's summary of what happened physically.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -427,6 +429,114 @@ fn a_gmsh_ball_cooled_in_air_makes_no_warmer_node() {
         assert!(
             pair[1] <= pair[0] + 1e-9,
             "the warmest node warmed: {pair:?}"
+        );
+    }
+}
+
+#[test]
+fn a_deliberately_obtuse_mesh_heated_in_the_middle_makes_no_new_extremum() {
+    // A 3 cm box of 6³ cells (the generator's orthoschemes) with its interior nodes moved
+    // randomly by up to 0.15 of a cell: obtuse angles everywhere inside. Written as a Gmsh file, a warm
+    // core in cold water cooled in −20 °C air: no node may end a frame warmer than the
+    // warmest or colder than the coldest node (or the air) of the frame before.
+    let dir = tempfile::tempdir().unwrap();
+    let moved = common::irregular_box([6, 6, 6], [0.03; 3], 0.15, 23);
+    let mut msh = String::from("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n");
+    msh += &format!("{}\n", moved.rest.len());
+    // The warm core: 5 °C at the nodes within 8 mm of the centre (an irregular set on the
+    // moved nodes, one 0.2 µm box each), 0.5 °C elsewhere.
+    let mut warm = String::new();
+    for (i, x) in moved.rest.iter().enumerate() {
+        msh += &format!("{} {} {} {}\n", i + 1, x.x, x.y, x.z);
+        if x.iter().map(|c| (c - 0.015).powi(2)).sum::<f64>() < 0.008f64.powi(2) {
+            let corner = |d: f64| format!("[{}, {}, {}]", x[0] + d, x[1] + d, x[2] + d);
+            warm += &format!(
+                "[[thermal.initial]]\nmin = {}\nmax = {}\ntemperature = 5.0\n",
+                corner(-1e-7),
+                corner(1e-7)
+            );
+        }
+    }
+    msh += &format!("$EndNodes\n$Elements\n{}\n", moved.tets.len());
+    for (e, t) in moved.tets.iter().enumerate() {
+        msh += &format!(
+            "{} 4 2 1 1 {} {} {} {}\n",
+            e + 1,
+            t[0] + 1,
+            t[1] + 1,
+            t[2] + 1,
+            t[3] + 1
+        );
+    }
+    msh += "$EndElements\n";
+    let mesh = write_scene(dir.path(), "moved.msh", &msh);
+    let scene = format!(
+        r#"[mesh]
+file = "{}"
+
+[material]
+density = 916.0
+lambda = 8.64e10
+mu = 3.70e10
+volumetric = "nodal"
+
+[[dirichlet]]
+min = [-0.001, -0.001, -0.001]
+max = [0.031, 0.031, 0.0001]
+displacement = [0.0, 0.0, 0.0]
+
+[thermal]
+initial_temperature = 0.5
+{}[[thermal.convection]]
+faces = ["surface"]
+h = 200.0
+ambient_temperature = -20.0
+
+[time]
+analysis = "static"
+dt = 2.0
+end_time = 60.0
+"#,
+        mesh.display(),
+        warm
+    );
+    let scene = write_scene(dir.path(), "moved.toml", &scene);
+    let o = run(&scene, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let reader = icefem::output::FrameReader::open(&scene.with_extension("h5")).unwrap();
+    let ranges: Vec<(f64, f64)> = reader
+        .frame_indices()
+        .into_iter()
+        .map(|i| {
+            let frame = reader.read(i).unwrap();
+            let (_, t) = frame.node_field("temperature").unwrap();
+            t.iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                    (lo.min(v), hi.max(v))
+                })
+        })
+        .collect();
+    assert_eq!(ranges.len(), 31);
+    drop(reader);
+    // The mesh provokes new extrema: some steps cancel couplings and solve again.
+    let stats = hdf5::File::open(scene.with_extension("h5")).unwrap();
+    let passes: Vec<u32> = stats
+        .dataset("stats/heat_passes")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    let cancelled: Vec<u64> = stats
+        .dataset("stats/heat_cancelled_edges")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    assert!(passes.iter().any(|&p| p > 1), "{passes:?}");
+    assert!(cancelled.iter().sum::<u64>() > 0);
+    for pair in ranges.windows(2) {
+        let ((lo, hi), (new_lo, new_hi)) = (pair[0], pair[1]);
+        assert!(
+            new_hi <= hi + 1e-9 && new_lo >= lo.min(-20.0) - 1e-9,
+            "{pair:?}"
         );
     }
 }

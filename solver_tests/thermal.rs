@@ -807,26 +807,9 @@ fn heat_on_obtuse_meshes_makes_no_new_extremum() {
         "the ball: a new extremum by {worst:.3e} K"
     );
 
-    // The box generator's tets are orthoschemes, never obtuse: its interior nodes moved by up
-    // to 0.15 of a cell (a fixed pseudo-random pattern) make a mesh with obtuse angles.
-    let h = 0.005;
-    let regular = box_mesh([0.0; 3], [0.03; 3], [6, 6, 6], 6).unwrap();
-    let nodes: Vec<[f64; 3]> = regular
-        .rest
-        .iter()
-        .enumerate()
-        .map(|(i, x)| {
-            let interior = x.iter().all(|&c| c > 1e-9 && c < 0.03 - 1e-9);
-            let shift = |k: f64| 0.15 * h * (12.9898 * i as f64 + 78.233 * k).sin();
-            let s = if interior {
-                [shift(1.0), shift(2.0), shift(3.0)]
-            } else {
-                [0.0; 3]
-            };
-            [x.x + s[0], x.y + s[1], x.z + s[2]]
-        })
-        .collect();
-    let flat = TetMesh::from_arrays(&nodes, regular.tets.clone()).unwrap();
+    // The box generator's tets are orthoschemes, never obtuse: its interior nodes moved
+    // randomly by up to 0.15 of a cell make a mesh with obtuse angles.
+    let flat = common::irregular_box([6, 6, 6], [0.03; 3], 0.15, 23);
     let convection = flat
         .boundary_faces()
         .iter()

@@ -911,7 +911,9 @@ mod tests {
         let (error, message) = error_of("cube.step", "ISO-10303-21;\n");
         assert!(matches!(error, SurfaceError::UnknownExtension { .. }));
         assert!(
-            [".obj", ".stl", ".ply", ".msh"].iter().all(|e| message.contains(e)),
+            [".obj", ".stl", ".ply", ".msh"]
+                .iter()
+                .all(|e| message.contains(e)),
             "{message}"
         );
         // An STL file that is not one names itself.

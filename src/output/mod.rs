@@ -288,6 +288,12 @@ pub struct StepStats {
     /// |enthalpy change − heat in through the boundary| of the heat step (J; 0 without
     /// `[thermal]`).
     pub heat_imbalance: f64,
+    /// Solves of the heat step: 1, plus one per round of cancelled conduction couplings at
+    /// nodes that would otherwise end the step as new local extrema (0 without `[thermal]`).
+    pub heat_passes: u32,
+    /// Mesh edges whose positive conduction coupling the heat step cancelled (0 without
+    /// `[thermal]` and on meshes without obtuse tetrahedra).
+    pub heat_cancelled_edges: u64,
     /// Wall-clock time of the heat step (s).
     pub t_heat: f64,
     /// Estimated local displacement error of the step (m; 0 in a static analysis).

@@ -92,6 +92,8 @@ pub(super) fn stats(step: u64) -> StepStats {
         t_remesh: 0.0,
         t_resolve: 0.0,
         heat_newton_iterations: 2,
+        heat_passes: 1,
+        heat_cancelled_edges: 0,
         heat_imbalance: 1e-12,
         t_heat: 0.001,
         local_error: 1e-9,

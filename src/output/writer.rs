@@ -34,7 +34,7 @@ pub(super) enum StatsColumn {
 
 /// The `/stats` columns, named exactly as the `StepStats` fields. `step` must
 /// stay first: `resume` reads it to decide where to truncate.
-pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 38] = [
+pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 40] = [
     ("step", StatsColumn::U64(|s| s.step)),
     ("time", StatsColumn::F64(|s| s.time)),
     ("dt", StatsColumn::F64(|s| s.dt)),
@@ -84,6 +84,11 @@ pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 38] = [
         StatsColumn::U32(|s| s.heat_newton_iterations),
     ),
     ("heat_imbalance", StatsColumn::F64(|s| s.heat_imbalance)),
+    ("heat_passes", StatsColumn::U32(|s| s.heat_passes)),
+    (
+        "heat_cancelled_edges",
+        StatsColumn::U64(|s| s.heat_cancelled_edges),
+    ),
     ("t_heat", StatsColumn::F64(|s| s.t_heat)),
     ("local_error", StatsColumn::F64(|s| s.local_error)),
     ("error_ratio", StatsColumn::F64(|s| s.error_ratio)),

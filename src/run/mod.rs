@@ -574,6 +574,8 @@ fn stats_row(
         t_resolve: cracked.t_resolve,
         heat_newton_iterations: report.heat.map_or(0, |h| h.newton_iterations as u32),
         heat_imbalance: report.heat.map_or(0.0, |h| h.imbalance()),
+        heat_passes: report.heat.map_or(0, |h| h.passes as u32),
+        heat_cancelled_edges: report.heat.map_or(0, |h| h.cancelled_edges as u64),
         t_heat: report.heat.map_or(0.0, |h| h.t_step),
         local_error: report.local_error,
         error_ratio: report.error_ratio,
