@@ -85,7 +85,10 @@ const MEASURED: &[Measured] = &[
     Measured {
         scene: "scenes/gallery/bottle_thermal.toml",
         median: 6.0,
-        largest: 23,
+        // Heat without new extrema changes the temperatures of 125 of the 360 steps (plain P1
+        // took at most 23); three steps then meet an indefinite Hessian and finish on its
+        // projection (`/stats/projections`) in 27, 29 and 42.
+        largest: 42,
     },
 ];
 

@@ -291,21 +291,33 @@ fn mesh_obstacle_errors_name_field_and_file() {
     let e = err(&with("type = \"mesh\"\nfile = \"tri.obj\"\nscale = -1.0"));
     assert!(e.contains("obstacle[0].scale"), "{e}");
     // A closed surface with inward normals (a tetrahedron wound the wrong way) is turned to
-    // face out, with a notice.
-    std::fs::write(
-        dir.path().join("inward.obj"),
-        "v 0 0 -1\nv 1 0 -1\nv 0 1 -1\nv 0 0 0\nf 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
-    )
-    .unwrap();
-    let scene = Scene::parse(&with("type = \"mesh\"\nfile = \"inward.obj\""), &scene_path).unwrap();
-    assert!(
-        scene
-            .notices
-            .iter()
-            .any(|n| n.contains("inward.obj") && n.contains("4 of 4 triangles")),
-        "{:?}",
-        scene.notices
-    );
+    // face out, with a notice; so is one whose triangles disagree (the first of these faces
+    // in, the other three out).
+    for (name, faces, reversed) in [
+        (
+            "inward.obj",
+            "f 1 2 3\nf 1 4 2\nf 2 4 3\nf 3 4 1\n",
+            "4 of 4 triangles",
+        ),
+        (
+            "mixed.obj",
+            "f 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
+            "1 of 4 triangles",
+        ),
+    ] {
+        let vertices = "v 0 0 -1\nv 1 0 -1\nv 0 1 -1\nv 0 0 0\n";
+        std::fs::write(dir.path().join(name), format!("{vertices}{faces}")).unwrap();
+        let text = with(&format!("type = \"mesh\"\nfile = \"{name}\""));
+        let scene = Scene::parse(&text, &scene_path).unwrap();
+        assert!(
+            scene
+                .notices
+                .iter()
+                .any(|n| n.contains(name) && n.contains(reversed)),
+            "{:?}",
+            scene.notices
+        );
+    }
     // An open floor under the bar whose normal points down, away from the ice: the error
     // says which side the ice must be on.
     std::fs::write(

@@ -123,22 +123,8 @@ mod tests {
 
     /// A unit cube's surface, two triangles per face, outward.
     fn cube() -> (Surface, Vec<Vector3<f64>>) {
-        let x: Vec<Vector3<f64>> = (0..8)
-            .map(|k| Vector3::new((k & 1) as f64, ((k >> 1) & 1) as f64, ((k >> 2) & 1) as f64))
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let tris = quads
-            .iter()
-            .flat_map(|q| [([q[0], q[1], q[2]], 0), ([q[0], q[2], q[3]], 0)])
-            .collect();
-        (tris, x)
+        let (x, triangles) = crate::mesh::surface::box_surface(0.0, 1.0, 0);
+        (triangles.into_iter().map(|t| (t, 0)).collect(), x)
     }
 
     #[test]
