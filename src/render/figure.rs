@@ -164,7 +164,8 @@ pub fn figure(
         let centre = (x + panel.width / 2) as f64;
         let below = (title_row + panel.height) as f64;
         let letter = (b'a' + (k % 26) as u8) as char;
-        let line1 = format!("({letter}) step {}, t = {:.1} s", p.step, p.time);
+        let t = super::overlay::clock_time(p.time, 1);
+        let line1 = format!("({letter}) step {}, t = {t}", p.step);
         let line2 = format!(
             "{} elements, {} crack polygons",
             p.elements, p.crack_polygons

@@ -507,7 +507,8 @@ impl Renderer {
             self.color_bar(&mut picture, field, scene.width, 0, height);
         }
         if label {
-            let text = format!("frame {}   t = {:.3} s", frame.index, frame.state.time);
+            let t = overlay::clock_time(frame.state.time, 3);
+            let text = format!("frame {}   t = {t}", frame.index);
             let m = overlay.margin();
             overlay.text(&mut picture, &text, m, 0.75 * m, Align::Left);
         }

@@ -232,9 +232,43 @@ fn tick_label(value: f64, step: f64) -> String {
     }
 }
 
+/// A simulation time `t` (s) as a label reads it: seconds under a minute (`decimals` of
+/// them), minutes and seconds under an hour ("12 min 05.3 s"), hours and minutes beyond
+/// ("2 h 05 min"): an hour-long freezing run's frame reads "t = 2 h 05 min", not
+/// "t = 7500.000 s". Rounding never shows 60 of a unit.
+pub fn clock_time(t: f64, decimals: usize) -> String {
+    let sign = if t < 0.0 { "-" } else { "" };
+    let t = t.abs();
+    let tenths = |x: f64| (x * 10.0).round() / 10.0;
+    if format!("{t:.decimals$}").parse::<f64>().unwrap_or(t) < 60.0 {
+        format!("{sign}{t:.decimals$} s")
+    } else if tenths(t) < 3600.0 {
+        let t = tenths(t);
+        let minutes = (t / 60.0).floor();
+        format!("{sign}{minutes} min {:04.1} s", t - 60.0 * minutes)
+    } else {
+        let minutes = (t / 60.0).round();
+        let hours = (minutes / 60.0).floor();
+        format!("{sign}{hours} h {:02} min", minutes - 60.0 * hours)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn times_read_in_the_unit_that_fits() {
+        assert_eq!(clock_time(0.0, 3), "0.000 s");
+        assert_eq!(clock_time(2.5, 1), "2.5 s");
+        assert_eq!(clock_time(59.96, 1), "1 min 00.0 s");
+        assert_eq!(clock_time(59.96, 2), "59.96 s");
+        assert_eq!(clock_time(125.34, 3), "2 min 05.3 s");
+        assert_eq!(clock_time(3599.97, 3), "1 h 00 min");
+        assert_eq!(clock_time(7500.0, 3), "2 h 05 min");
+        assert_eq!(clock_time(7199.0, 1), "2 h 00 min");
+        assert_eq!(clock_time(-1.25, 2), "-1.25 s");
+    }
 
     #[test]
     fn ticks_are_round_and_cover_the_range() {
