@@ -72,15 +72,15 @@ FIG := target/figures
 figures: deps gmsh
 	cargo build --release
 	$(GMSH_VENV)/bin/python validation/first_scene.py --keep $(FIG)/first_scene
-	./target/release/icefem figure $(FIG)/first_scene/glass_of_water.h5 --size 400x400 --output docs/first_scene_figure.png
+	./target/release/icefem figure $(FIG)/first_scene/glass_of_water.h5 --size 1650x476 --output docs/first_scene_figure.png
 	mkdir -p $(FIG) docs
 	./target/release/icefem run scenes/freezing_container.toml --output $(FIG)/freezing_container.h5 --force
-	./target/release/icefem figure $(FIG)/freezing_container.h5 --size 400x400 --cut y=0.05 --color-by freeze --style solid --output docs/freezing_container_figure.png
+	./target/release/icefem figure $(FIG)/freezing_container.h5 --size 1800x476 --cut y=0.05 --color-by freeze --style solid --output docs/freezing_container_figure.png
 	./target/release/icefem run scenes/freezing_container_fracture.toml --output $(FIG)/freezing_container_fracture.h5 --force
-	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 400x400 --output docs/freezing_container_fracture_figure.png
-	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 400x400 --cut y=0.05 --color-by plastic --style solid --output docs/freezing_container_fracture_plastic.png
+	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 1650x476 --output docs/freezing_container_fracture_figure.png
+	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 1800x476 --cut y=0.05 --color-by plastic --style solid --output docs/freezing_container_fracture_plastic.png
 	./target/release/icefem run scenes/freezing_container_thermal.toml --output $(FIG)/freezing_container_thermal.h5 --force
-	./target/release/icefem figure $(FIG)/freezing_container_thermal.h5 --size 400x400 --frames 0,12,23,96 --cut y=0.05 --color-by temperature --style solid --output docs/freezing_container_thermal_figure.png
+	./target/release/icefem figure $(FIG)/freezing_container_thermal.h5 --size 1800x476 --frames 0,12,23,96 --cut y=0.05 --color-by temperature --style solid --output docs/freezing_container_thermal_figure.png
 
 test: deps gmsh
 	cargo test --release

@@ -317,6 +317,7 @@ fn sequences_gifs_and_figures_from_a_file() {
         &FigureOptions {
             frames: Vec::new(),
             panel: options,
+            size: None,
         },
     )
     .unwrap();
@@ -328,6 +329,37 @@ fn sequences_gifs_and_figures_from_a_file() {
         .iter()
         .all(|p| p.elements == 36 && p.crack_polygons == 0));
     assert!(picture.width > 4 * 160 && picture.height > 120);
+
+    // A whole-figure size is the picture's size, with or without a colour bar; one too small
+    // for four panels is refused.
+    for (size, color_by) in [
+        ((1920, 1080), None),
+        ((1000, 301), Some(ColorField::VonMises)),
+    ] {
+        let (picture, _) = render::figure(
+            &reader,
+            &FigureOptions {
+                frames: Vec::new(),
+                panel: RenderOptions {
+                    color_by,
+                    ..options
+                },
+                size: Some(size),
+            },
+        )
+        .unwrap();
+        assert_eq!((picture.width, picture.height), size);
+    }
+    let tiny = FigureOptions {
+        frames: Vec::new(),
+        panel: options,
+        size: Some((90, 60)),
+    };
+    let message = render::figure(&reader, &tiny).unwrap_err().to_string();
+    assert!(
+        message.contains("90x60") && message.contains("--size"),
+        "{message}"
+    );
 }
 
 #[test]
@@ -443,6 +475,17 @@ fn outputs_are_png_gif_or_mp4_and_mp4_goes_through_ffmpeg() {
     assert!(!dir.path().join("x.jpg").exists());
     let (ok, err) = icefem(&["figure", run_arg, "-o", &out("f.gif")], "");
     assert!(!ok && err.contains("give a .png output"), "{err}");
+    // `figure --size` is the whole figure's.
+    let (ok, err) = icefem(
+        &["figure", run_arg, "--size", "1280x360", "-o", &out("f.png")],
+        "",
+    );
+    assert!(ok, "{err}");
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(out("f.png")).unwrap(),
+    ));
+    let info = decoder.read_info().unwrap();
+    assert_eq!((info.info().width, info.info().height), (1280, 360));
     // Without ffmpeg on the PATH: a clear error, nothing left behind.
     let (ok, err) = icefem(
         &["render", run_arg, "--frames", "0:2", "-o", &out("v.mp4")],

@@ -382,12 +382,16 @@ fn message(e: &anyhow::Error) -> String {
     text
 }
 
+/// A picture's size without `--size` (for `figure`: each panel's), pixels.
+const DEFAULT_SIZE: (usize, usize) = (800, 600);
+
 /// How pictures look (`render` and `figure`).
 #[derive(clap::Args)]
 struct LookArgs {
-    /// Picture size WIDTHxHEIGHT in pixels (for `figure`: of each panel).
-    #[arg(long, default_value = "800x600", value_parser = parse_size)]
-    size: (usize, usize),
+    /// Picture size WIDTHxHEIGHT in pixels (default 800x600; for `figure`: the whole figure,
+    /// the panels sized to fill it; without it each panel is 800x600).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(usize, usize)>,
     /// Camera: iso, front, side, top, or AZIMUTH,ELEVATION in degrees (z up).
     #[arg(long, default_value = "iso")]
     view: View,
@@ -426,9 +430,10 @@ struct LookArgs {
 
 impl LookArgs {
     fn options(&self) -> RenderOptions {
+        let (width, height) = self.size.unwrap_or(DEFAULT_SIZE);
         RenderOptions {
-            width: self.size.0,
-            height: self.size.1,
+            width,
+            height,
             view: self.view,
             lens: Lens {
                 target: self.target.map(Into::into),
@@ -518,7 +523,8 @@ fn render_command(
     let reader = FrameReader::open(file)?;
     let list = render::select_frames(file, &reader, frame, frames)?;
     let output = output.unwrap_or_else(|| render::default_output(file, &list));
-    let summary = render::render_frames(&reader, &list, look.options(), &output, fps)?;
+    let options = look.options();
+    let summary = render::render_frames(&reader, &list, options, &output, fps)?;
     if verbosity == Verbosity::Quiet {
         return Ok(());
     }
@@ -535,8 +541,8 @@ fn render_command(
     println!(
         "{} frames ({}x{}): per frame {:.1} ms reading, {:.1} ms drawing, {:.1} ms encoding",
         summary.frames,
-        look.size.0,
-        look.size.1,
+        options.width,
+        options.height,
         1e3 * summary.t_read / n,
         1e3 * summary.t_draw / n,
         1e3 * summary.t_encode / n
@@ -566,6 +572,7 @@ fn figure_command(
         &render::FigureOptions {
             frames,
             panel: look.options(),
+            size: look.size,
         },
     )?;
     render::save_png(&picture, &output)?;

@@ -19,8 +19,93 @@ pub struct FigureOptions {
     /// Frame indices, one panel each; empty: the frames written at [`PAPER_STEPS`] if the
     /// file has them all, else four frames evenly spaced up to its last (a cut-off run).
     pub frames: Vec<usize>,
-    /// Size, view, style and colouring of each panel (`width × height` is one panel's scene).
+    /// View, style and colouring of each panel, and, without `size`, its size
+    /// (`width × height` is one panel's scene).
     pub panel: RenderOptions,
+    /// The whole figure's size, width × height in pixels: the panels are sized to fill it
+    /// (title, captions, margins and colour bar included). `None`: the panels are
+    /// `panel.width × panel.height`.
+    pub size: Option<(usize, usize)>,
+}
+
+/// Margins, title and caption rows and the colour-bar strip of a figure with panels `panel`
+/// (pixels), and the figure's width and height for `n` panels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Layout {
+    margin: usize,
+    title_row: usize,
+    caption_row: usize,
+    strip: usize,
+    width: usize,
+    height: usize,
+}
+
+impl Layout {
+    fn of(panel: &RenderOptions, n: usize) -> Layout {
+        let overlay = panel.overlay();
+        // Margins, title and caption rows at 10, 26 and 40 pixels for scale 1.
+        let scaled = |v: f64| (v * overlay.scale).round() as usize;
+        let (margin, title_row, caption_row) = (scaled(10.0), scaled(26.0), scaled(40.0));
+        let strip = panel.bar_strip();
+        Layout {
+            margin,
+            title_row,
+            caption_row,
+            strip,
+            width: margin + n * (panel.width + margin) + strip,
+            height: title_row + panel.height + caption_row + margin,
+        }
+    }
+}
+
+/// Smallest panel side a figure accepts (pixels).
+const MIN_PANEL: usize = 16;
+
+/// `panel` resized so that `n` panels with their title, captions, margins and colour bar fit
+/// in `width × height` as fully as whole pixels allow; `None` when the panels would be
+/// smaller than [`MIN_PANEL`]. The text scale follows the panel height, and the rows follow
+/// the scale, so the height is found by a few fixed-point passes and then stepped down until
+/// the figure fits.
+fn fit_panels(
+    panel: &RenderOptions,
+    n: usize,
+    width: usize,
+    height: usize,
+) -> Option<RenderOptions> {
+    let n = n.max(1);
+    let resized = |panel_height: usize| {
+        let tall = RenderOptions {
+            height: panel_height,
+            ..*panel
+        };
+        let l = Layout::of(&tall, n);
+        let free = width.checked_sub(l.margin + n * l.margin + l.strip)?;
+        Some(RenderOptions {
+            width: free / n,
+            ..tall
+        })
+    };
+    let mut panel_height = height;
+    for _ in 0..8 {
+        let l = Layout::of(
+            &RenderOptions {
+                height: panel_height,
+                ..*panel
+            },
+            n,
+        );
+        panel_height = height.saturating_sub(l.title_row + l.caption_row + l.margin);
+    }
+    while panel_height >= MIN_PANEL {
+        if let Some(p) = resized(panel_height) {
+            let l = Layout::of(&p, n);
+            if p.width >= MIN_PANEL && l.width <= width && l.height <= height {
+                return Some(p);
+            }
+        }
+        panel_height -= 1;
+    }
+    None
 }
 
 /// One panel's caption data.
@@ -108,14 +193,30 @@ pub fn figure(
         .iter()
         .map(|&i| reader.read(i))
         .collect::<Result<Vec<_>, _>>()?;
-    let panel = options.panel;
+    let n = frames.len();
+    let panel = match options.size {
+        None => options.panel,
+        Some((width, height)) => {
+            fit_panels(&options.panel, n, width, height).ok_or_else(|| RenderError::Invalid {
+                path: reader.path().to_path_buf(),
+                message: format!(
+                    "a figure of {width}x{height} pixels has no room for {n} panels of at least \
+                     {MIN_PANEL}x{MIN_PANEL} with their captions: give a larger --size"
+                ),
+            })?
+        }
+    };
     // The renderer leaves a colour-bar strip beside its scene; widen it by the strip so each
     // panel's scene is `panel.width` wide, and draw one shared bar instead.
-    let strip = panel.bar_strip();
     let overlay = panel.overlay();
-    // Margins, title and caption rows at 10, 26 and 40 pixels for scale 1.
-    let scaled = |v: f64| (v * overlay.scale).round() as usize;
-    let (margin, title_row, caption_row) = (scaled(10.0), scaled(26.0), scaled(40.0));
+    let Layout {
+        margin,
+        title_row,
+        caption_row,
+        strip,
+        width,
+        height,
+    } = Layout::of(&panel, n);
     let mut renderer = Renderer::new(
         reader,
         RenderOptions {
@@ -131,9 +232,6 @@ pub fn figure(
         renderer.fit_range(values.into_iter().flatten());
     }
 
-    let n = frames.len();
-    let width = margin + n * (panel.width + margin) + strip;
-    let height = title_row + panel.height + caption_row + margin;
     let mut picture = panel.background.picture(width, height);
     let file = reader
         .path()
@@ -189,6 +287,16 @@ pub fn figure(
     }
     if let Some(field) = panel.color_by {
         renderer.color_bar(&mut picture, field, width - strip, title_row, panel.height);
+    }
+    if let Some((full_width, full_height)) = options.size {
+        // Whole pixels leave up to n − 1 columns (and a row or so) over: centred.
+        let mut full = panel.background.picture(full_width, full_height);
+        full.blit(
+            &picture,
+            (full_width - width) / 2,
+            (full_height - height) / 2,
+        );
+        picture = full;
     }
     Ok((picture, panels))
 }
