@@ -8,7 +8,7 @@ mod common;
 
 use base64::Engine as _;
 use common::listing;
-use icefem::export::{export, ExportError, ExportFormat, ExportOptions};
+use icefem::export::{export, ExportError, ExportFormat, ExportOptions, DEFAULT_FPS};
 use icefem::mesh::TetMesh;
 use icefem::output::{FrameReader, StoredFrame};
 use icefem::run::{run, RunOptions};
@@ -33,12 +33,25 @@ fn run_scene(dir: &Path, name: &str, end_time: Option<f64>) -> PathBuf {
 }
 
 fn export_to(run: &Path, format: ExportFormat, frames: &str, output: &Path) -> Vec<PathBuf> {
+    export_at(run, format, frames, output, 1.0)
+}
+
+/// `export_to` with USD time codes at `speed` simulated seconds per second of animation.
+fn export_at(
+    run: &Path,
+    format: ExportFormat,
+    frames: &str,
+    output: &Path,
+    speed: f64,
+) -> Vec<PathBuf> {
     let reader = FrameReader::open(run).unwrap();
     let options = ExportOptions {
         format,
         frames: Some(frames.into()),
         output: Some(output.to_path_buf()),
-        force: false,
+        force: true,
+        fps: DEFAULT_FPS,
+        speed,
     };
     export(&reader, &options).unwrap().files
 }
@@ -211,7 +224,7 @@ fn read_ply(path: &Path) -> Ply {
 
 /// The sample lines of `attribute` (e.g. `point3f[] points`) of the prim `prim` in a USDA
 /// text: (time code, the text between the sample's brackets).
-fn usd_samples<'a>(text: &'a str, prim: &str, attribute: &str) -> Vec<(usize, &'a str)> {
+fn usd_samples<'a>(text: &'a str, prim: &str, attribute: &str) -> Vec<(f64, &'a str)> {
     let start = text.find(&format!("def Mesh \"{prim}\"")).unwrap();
     let block = &text[start..];
     let block = &block[..block[1..].find("def Mesh").map_or(block.len(), |e| e + 1)];
@@ -356,13 +369,16 @@ fn every_format_holds_each_frames_surfaces_and_their_attributes() {
     export_to(&run, ExportFormat::Usd, spec, &stage);
     let text = std::fs::read_to_string(&stage).unwrap();
     assert!(text.starts_with("#usda 1.0\n"));
+    // 30 steps per second, a frame every 10 steps, every 8th frame exported: frames 8/3 s
+    // apart, 80 time codes at 30 fps in real time.
     for line in [
         "upAxis = \"Z\"",
         "metersPerUnit = 1",
         "startTimeCode = 0",
-        &format!("endTimeCode = {}", n - 1),
-        // 30 steps per second, a frame every 10 steps, every 8th frame exported.
-        "timeCodesPerSecond = 0.375",
+        &format!("endTimeCode = {}", 80 * (n - 1)),
+        "framesPerSecond = 30",
+        "timeCodesPerSecond = 30",
+        "double icefem_speed = 1",
     ] {
         assert!(text.contains(line), "{line}");
     }
@@ -373,8 +389,9 @@ fn every_format_holds_each_frames_surfaces_and_their_attributes() {
         let velocities = usd_samples(&text, prim, "vector3f[] velocities");
         let von_mises = usd_samples(&text, prim, "float[] primvars:von_mises");
         for samples in [&points, &counts, &indices, &velocities, &von_mises] {
-            let codes: Vec<usize> = samples.iter().map(|s| s.0).collect();
-            assert_eq!(codes, (0..n).collect::<Vec<_>>(), "{prim}");
+            let codes: Vec<f64> = samples.iter().map(|s| s.0).collect();
+            let want: Vec<f64> = (0..n).map(|k| 80.0 * k as f64).collect();
+            assert_eq!(codes, want, "{prim}");
         }
         for (k, e) in expect.iter().enumerate() {
             let faces = [e.outer, e.cracks][e_faces];
@@ -395,6 +412,15 @@ fn every_format_holds_each_frames_surfaces_and_their_attributes() {
         assert!(text
             .contains("float[] primvars:freeze_state (\n            interpolation = \"vertex\""));
     }
+    // A time-lapse of 8/3 simulated seconds per second: one frame a second, 30 codes apart.
+    export_at(&run, ExportFormat::Usd, spec, &stage, 8.0 / 3.0);
+    let text = std::fs::read_to_string(&stage).unwrap();
+    let codes: Vec<f64> = usd_samples(&text, "Ice", "point3f[] points")
+        .iter()
+        .map(|s| s.0)
+        .collect();
+    assert_eq!(codes, (0..n).map(|k| 30.0 * k as f64).collect::<Vec<_>>());
+    assert!(text.contains(&format!("endTimeCode = {}", 30 * (n - 1))));
 }
 
 #[test]
@@ -447,6 +473,8 @@ fn an_earlier_export_is_replaced_only_when_forced_and_bad_options_name_file_and_
         frames: None,
         output: Some(out.clone()),
         force: false,
+        fps: DEFAULT_FPS,
+        speed: 1.0,
     };
     assert_eq!(export(&reader, &options).unwrap().files.len(), 8);
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
@@ -486,6 +514,8 @@ fn an_earlier_export_is_replaced_only_when_forced_and_bad_options_name_file_and_
         frames: None,
         output: Some(foreign.clone()),
         force: true,
+        fps: DEFAULT_FPS,
+        speed: 1.0,
     };
     let refused = export(&reader, &usd).unwrap_err().to_string();
     assert!(refused.contains("not a USDA file"), "{refused}");
@@ -528,6 +558,18 @@ fn the_command_prints_one_line_and_its_errors_name_the_file_and_the_option() {
         ),
         (vec!["--format", "usd", "-o", "x.obj"], "--output x.obj"),
         (vec!["--format", "stl"], "--format"),
+        (
+            vec!["--format", "usd", "--force", "--fps", "0"],
+            "--fps 0: an animation's frames per second must be in (0, 1000]",
+        ),
+        (
+            vec!["--format", "usd", "--force", "--speed", "-1"],
+            "--speed -1: simulated seconds per second",
+        ),
+        (
+            vec!["--format", "usd", "--force", "--speed", "1e12"],
+            "fall on the same time code",
+        ),
     ];
     for (args, message) in failures {
         let args = [&["export", file][..], &args].concat();

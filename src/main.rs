@@ -158,6 +158,13 @@ enum Command {
         /// write); other files are never touched.
         #[arg(long)]
         force: bool,
+        /// USD: the animation's frames per second (the stage's framesPerSecond).
+        #[arg(long, default_value_t = icefem::export::DEFAULT_FPS)]
+        fps: f64,
+        /// USD: simulated seconds per second of animation (1: real time; 600 plays six hours
+        /// in 36 s). A frame at time t sits at time code (t − t0) × fps / speed.
+        #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+        speed: f64,
     },
     /// Print what an icefem HDF5 file holds.
     Info {
@@ -290,6 +297,8 @@ fn main() {
             frames,
             output,
             force,
+            fps,
+            speed,
         } => export_command(
             &file,
             &ExportOptions {
@@ -297,6 +306,8 @@ fn main() {
                 frames,
                 output,
                 force,
+                fps,
+                speed,
             },
             verbosity,
         ),

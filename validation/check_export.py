@@ -237,10 +237,13 @@ def check_usd(path, expected, vtu):
     n = len(expected)
     check(UsdGeom.GetStageUpAxis(stage) == "Z", "USD: up axis")
     check(UsdGeom.GetStageMetersPerUnit(stage) == 1.0, "USD: metres per unit")
-    check((stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0, n - 1), "USD: time codes")
-    if n > 1:
-        fps = (n - 1) / (expected[-1]["time"] - expected[0]["time"])
-        check(abs(stage.GetTimeCodesPerSecond() - fps) <= 1e-6 * fps, f"USD: {stage.GetTimeCodesPerSecond()} time codes per second, frames at {fps}/s")
+    # Time code of a frame: (t - t0) * fps / speed, rounded to 1e-6 (docs/output.md).
+    fps = stage.GetFramesPerSecond()
+    speed = stage.GetRootLayer().customLayerData["icefem_speed"]
+    t0 = expected[0]["time"]
+    codes = [round((e["time"] - t0) * fps / speed, 6) for e in expected]
+    check(stage.GetTimeCodesPerSecond() == fps, f"USD: {stage.GetTimeCodesPerSecond()} time codes per second, {fps} frames per second")
+    check((stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0, codes[-1]), f"USD: time codes {stage.GetStartTimeCode()} … {stage.GetEndTimeCode()}, expected 0 … {codes[-1]}")
     for prim_path, obj in [("/World/Ice", "ice"), ("/World/Cracks", "cracks")]:
         mesh = UsdGeom.Mesh(stage.GetPrimAtPath(prim_path))
         if not check(bool(mesh), f"USD: no Mesh {prim_path}"):
@@ -250,20 +253,21 @@ def check_usd(path, expected, vtu):
         attrs = [mesh.GetPointsAttr(), mesh.GetFaceVertexCountsAttr(), mesh.GetFaceVertexIndicesAttr(), mesh.GetVelocitiesAttr()]
         attrs += [pv.GetAttr() for pv in primvars.values()]
         for a in attrs:
-            check(a.GetTimeSamples() == [float(k) for k in range(n)], f"USD {a.GetPath()}: time samples")
+            samples = a.GetTimeSamples()
+            check(len(samples) == n and all(abs(x - c) <= 1e-6 for x, c in zip(samples, codes)), f"USD {a.GetPath()}: time samples {samples[:4]}…, expected {codes[:4]}…")
         for k, e in enumerate(expected):
             faces = e["outer"] if obj == "ice" else e["cracks"]
-            counts = mesh.GetFaceVertexCountsAttr().Get(k)
-            points = np.array(mesh.GetPointsAttr().Get(k)).reshape(-1, 3)
+            counts = mesh.GetFaceVertexCountsAttr().Get(codes[k])
+            points = np.array(mesh.GetPointsAttr().Get(codes[k])).reshape(-1, 3)
             check(len(counts) == faces and all(c == 3 for c in counts), f"USD {prim_path} @{k}: {len(counts)} faces, expected {faces}")
-            check(len(mesh.GetFaceVertexIndicesAttr().Get(k)) == 3 * faces, f"USD {prim_path} @{k}: indices")
-            check(len(mesh.GetVelocitiesAttr().Get(k)) == len(points), f"USD {prim_path} @{k}: velocities")
+            check(len(mesh.GetFaceVertexIndicesAttr().Get(codes[k])) == 3 * faces, f"USD {prim_path} @{k}: indices")
+            check(len(mesh.GetVelocitiesAttr().Get(codes[k])) == len(points), f"USD {prim_path} @{k}: velocities")
             if vtu and vtu.get((k, obj)):
                 vpoints, data = vtu[(k, obj)]
                 same = np.allclose(points, vpoints, rtol=1e-6, atol=1e-9)
-                same &= np.allclose(np.array(mesh.GetVelocitiesAttr().Get(k)), data["velocity"], rtol=1e-6, atol=1e-30)
+                same &= np.allclose(np.array(mesh.GetVelocitiesAttr().Get(codes[k])), data["velocity"], rtol=1e-6, atol=1e-30)
                 for name, pv in primvars.items():
-                    same &= np.allclose(np.array(pv.Get(k)), data[name][:, 0], rtol=1e-6, atol=1e-30)
+                    same &= np.allclose(np.array(pv.Get(codes[k])), data[name][:, 0], rtol=1e-6, atol=1e-30)
                 check(same, f"USD {prim_path} @{k}: values differ from the VTU's")
 
 

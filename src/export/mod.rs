@@ -63,7 +63,20 @@ pub struct ExportOptions {
     pub output: Option<PathBuf>,
     /// Replace an earlier export's files.
     pub force: bool,
+    /// USD: the animation's frames per second, the stage's `framesPerSecond` and
+    /// `timeCodesPerSecond` ([`DEFAULT_FPS`] from the command line).
+    pub fps: f64,
+    /// USD: simulated seconds per second of animation — 1 plays the run in real time, 600 a
+    /// six-hour freezing run in 36 s. A frame at simulated time t is at time code
+    /// (t − t₀) × fps / speed, t₀ the first exported frame's time.
+    pub speed: f64,
 }
+
+/// An animation's frames per second unless `--fps` says otherwise.
+pub const DEFAULT_FPS: f64 = 30.0;
+
+/// Largest `fps` accepted: beyond any player's rate.
+pub const MAX_FPS: f64 = 1000.0;
 
 /// What an export wrote and where its time went (s, summed over the frames).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -151,6 +164,18 @@ pub fn export(reader: &FrameReader, options: &ExportOptions) -> Result<ExportSum
             )));
         }
     }
+    if !(options.fps > 0.0 && options.fps <= MAX_FPS) {
+        return Err(invalid(format!(
+            "--fps {}: an animation's frames per second must be in (0, {MAX_FPS}]",
+            options.fps
+        )));
+    }
+    if !(options.speed.is_finite() && options.speed > 0.0) {
+        return Err(invalid(format!(
+            "--speed {}: simulated seconds per second of animation must be a number > 0",
+            options.speed
+        )));
+    }
     let target = Target::new(path, options.format, options.output.as_deref());
     target.prepare(
         &planned_files(&target, options.format, frames.len()),
@@ -163,7 +188,7 @@ pub fn export(reader: &FrameReader, options: &ExportOptions) -> Result<ExportSum
         ..Default::default()
     };
     let mut sink: Box<dyn Sink> = match options.format {
-        ExportFormat::Usd => Box::new(usd::UsdSink::new(&target, path)),
+        ExportFormat::Usd => Box::new(usd::UsdSink::new(&target, path, options.fps, options.speed)),
         ExportFormat::Obj => Box::new(obj::ObjSink::new(&target, path)),
         ExportFormat::Ply => Box::new(ply::PlySink::new(&target, path)),
         ExportFormat::Vtu => Box::new(vtu::VtuSink::new(&target)),

@@ -1,14 +1,16 @@
 //! USD: one text stage, `RUN.usda`, for Blender, Houdini and usdview.
 //!
-//! The stage: `upAxis = "Z"`, `metersPerUnit = 1`, time codes 0 … N−1 (the exported frames'
-//! numbers), `timeCodesPerSecond` (and `framesPerSecond`) the exported frames per simulated
-//! second, (N − 1) / (t_last − t_first) — the run's output rate divided by the stride; 24, USD's
-//! default, for a single frame. Two `Mesh` prims, `/World/Ice` and `/World/Cracks`, whose
+//! The stage: `upAxis = "Z"`, `metersPerUnit = 1`, `framesPerSecond` = `timeCodesPerSecond` =
+//! the animation's rate (`--fps`, 30 by default), and a frame at simulated time t at time code
+//! (t − t₀) × fps / speed, t₀ the first exported frame's time and speed the simulated seconds
+//! per second of animation (`--speed`: 1 plays the run in real time); codes rounded to 1e-6, so
+//! that a run written every 1/3 s lands on codes 0, 10, 20, … at 30 fps. A player then holds
+//! each sample until the next: the run plays at its own pace whatever its output rate. Two `Mesh` prims, `/World/Ice` and `/World/Cracks`, whose
 //! `points` (`point3f[]`, m), `faceVertexCounts`, `faceVertexIndices` and `extent` are
 //! time-sampled at every frame, since fracture changes the topology; `velocities`
 //! (`vector3f[]`, m/s) and the primvars `freeze_state`, `plastic_strain` and `von_mises` (Pa)
 //! (`float[]`, `interpolation = "vertex"`, where the run has them) likewise. The layer's
-//! `customLayerData` keeps the run's file name, frame indices and frame times (s).
+//! `customLayerData` keeps the run's file name, frame indices, frame times (s) and the speed.
 //!
 //! Floats are f32 written in the shortest form that reads back to the same f32. An attribute's
 //! samples must sit together in the text, so the stage is kept in memory as text and written
@@ -31,9 +33,13 @@ const PRIMS: [(&str, [f32; 3]); 2] = [("Ice", [0.84, 0.92, 1.0]), ("Cracks", [0.
 pub(super) struct UsdSink {
     file: PathBuf,
     run: String,
-    /// (run frame index, time in s) of each exported frame.
-    frames: Vec<(usize, f64)>,
+    /// (run frame index, time in s, time code) of each exported frame.
+    frames: Vec<(usize, f64, f64)>,
     prims: [PrimSamples; 2],
+    /// The animation's frames per second.
+    fps: f64,
+    /// Simulated seconds per second of animation.
+    speed: f64,
 }
 
 /// The time samples of one `Mesh` prim's attributes, as USDA text: one line per frame each.
@@ -49,22 +55,45 @@ struct PrimSamples {
 }
 
 impl UsdSink {
-    /// The stage of the run `run` at `target`'s USD file.
-    pub fn new(target: &Target, run: &Path) -> Self {
+    /// The stage of the run `run` at `target`'s USD file, played at `fps` frames per second,
+    /// `speed` simulated seconds per second of animation.
+    pub fn new(target: &Target, run: &Path, fps: f64, speed: f64) -> Self {
         UsdSink {
             file: target.usd_file(),
             run: run_name(run),
             frames: Vec::new(),
             prims: Default::default(),
+            fps,
+            speed,
         }
+    }
+
+    /// The time code of simulated time `t` (s): (t − t₀) × fps / speed, rounded to 1e-6 so
+    /// that the last bits of the times' sums (30.000000000000004) do not show.
+    fn time_code(&self, t: f64) -> f64 {
+        let t0 = self.frames.first().map_or(t, |f| f.1);
+        ((t - t0) * self.fps / self.speed * 1e6).round() / 1e6
     }
 }
 
 impl Sink for UsdSink {
     fn frame(&mut self, frame: &ExportFrame) -> Result<(), ExportError> {
-        self.frames.push((frame.index, frame.time));
+        let code = self.time_code(frame.time);
+        if let Some(&(index, _, previous)) = self.frames.last() {
+            if code <= previous {
+                return Err(ExportError::Invalid {
+                    path: self.file.clone(),
+                    message: format!(
+                        "frames {index} and {} fall on the same time code at --fps {} and \
+                         --speed {}: lower the speed or export fewer frames (--frames)",
+                        frame.index, self.fps, self.speed
+                    ),
+                });
+            }
+        }
+        self.frames.push((frame.index, frame.time, code));
         for (prim, (_, mesh)) in self.prims.iter_mut().zip(objects(frame)) {
-            prim.push(frame.number, mesh);
+            prim.push(code, mesh);
         }
         Ok(())
     }
@@ -100,27 +129,12 @@ impl UsdSink {
         text
     }
 
-    /// The exported frames per simulated second: (N − 1) / (t_last − t_first), rounded to
-    /// 1e-6; 24 for a single frame.
-    fn frames_per_second(&self) -> f64 {
-        let n = self.frames.len();
-        match (self.frames.first(), self.frames.last()) {
-            (Some((_, t0)), Some((_, t1))) if n > 1 && t1 > t0 => {
-                // Round off the last bits of the times' sums (30.000000000000004).
-                let fps = (n - 1) as f64 / (t1 - t0);
-                (fps * 1e6).round() / 1e6
-            }
-            _ => 24.0,
-        }
-    }
-
     /// The layer's header: its metadata, the run's frames and the time codes.
     fn layer_header(&self) -> String {
-        let n = self.frames.len();
-        let fps = self.frames_per_second();
         let list = |values: Vec<String>| values.join(", ");
-        let indices = list(self.frames.iter().map(|(i, _)| i.to_string()).collect());
-        let times = list(self.frames.iter().map(|(_, t)| t.to_string()).collect());
+        let indices = list(self.frames.iter().map(|f| f.0.to_string()).collect());
+        let times = list(self.frames.iter().map(|f| f.1.to_string()).collect());
+        let (fps, speed) = (self.fps, self.speed);
         format!(
             r#"#usda 1.0
 (
@@ -128,6 +142,7 @@ impl UsdSink {
         string icefem_run = "{run}"
         int[] icefem_frames = [{indices}]
         double[] icefem_times = [{times}]
+        double icefem_speed = {speed}
     }}
     defaultPrim = "World"
     doc = "icefem export of {run}: the ice's outer surface and its cracks; metres, z up"
@@ -141,7 +156,7 @@ impl UsdSink {
 
 "#,
             run = escape(&self.run),
-            end = n.saturating_sub(1),
+            end = self.frames.last().map_or(0.0, |f| f.2),
         )
     }
 }
@@ -165,7 +180,7 @@ fn write_mesh_prim(text: &mut String, name: &str, [r, g, b]: [f32; 3], prim: &Pr
 
 impl PrimSamples {
     /// Adds `mesh` as the samples at time code `k`.
-    fn push(&mut self, k: usize, mesh: &SurfaceMesh) {
+    fn push(&mut self, k: f64, mesh: &SurfaceMesh) {
         let (lo, hi) = extent(&mesh.points);
         sample(&mut self.extent, k, [lo, hi].iter(), push_vec3);
         sample(&mut self.counts, k, mesh.triangles.iter(), |s, _| {
@@ -225,7 +240,7 @@ fn time_samples(text: &mut String, declaration: &str, samples: &str) {
 /// Appends the sample line `k: [item, item, …],` to `samples`.
 fn sample<T>(
     samples: &mut String,
-    k: usize,
+    k: f64,
     items: impl Iterator<Item = T>,
     mut item: impl FnMut(&mut String, T),
 ) {
@@ -300,8 +315,16 @@ mod tests {
     #[test]
     fn samples_are_one_line_per_frame() {
         let mut samples = String::new();
-        sample(&mut samples, 0, [[0.0, 1.0, 2.0]].iter(), push_vec3);
-        sample(&mut samples, 1, std::iter::empty::<&[f64; 3]>(), push_vec3);
-        assert_eq!(samples, "            0: [(0, 1, 2)],\n            1: [],\n");
+        sample(&mut samples, 0.0, [[0.0, 1.0, 2.0]].iter(), push_vec3);
+        sample(
+            &mut samples,
+            12.5,
+            std::iter::empty::<&[f64; 3]>(),
+            push_vec3,
+        );
+        assert_eq!(
+            samples,
+            "            0: [(0, 1, 2)],\n            12.5: [],\n"
+        );
     }
 }
