@@ -588,3 +588,44 @@ fn the_command_prints_one_line_and_its_errors_name_the_file_and_the_option() {
     assert_eq!(code, Some(0));
     assert!(stdout.is_empty() && stderr.is_empty(), "{stdout}{stderr}");
 }
+
+#[test]
+fn a_thermal_run_exports_each_points_temperature() {
+    // The container frozen by conduction, 10 minutes: its last frame's ice points carry the
+    // temperatures of the nodes they sit on, exactly in VTU (Float64) and as f32 in PLY.
+    let dir = tempfile::tempdir().unwrap();
+    let run = run_scene(dir.path(), "freezing_container_thermal", Some(600.0));
+    let reader = FrameReader::open(&run).unwrap();
+    let last = *reader.frame_indices().last().unwrap();
+    let frame = reader.read(last).unwrap();
+    let (_, temperature) = frame.node_field("temperature").unwrap();
+    let node_at: HashMap<[u64; 3], usize> = frame
+        .state
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, x)| (x.map(f64::to_bits), i))
+        .collect();
+    let out = dir.path().join("out");
+    export_to(&run, ExportFormat::Vtu, &format!("{last}:{last}"), &out);
+    let vtu = read_vtu(&out.join("run_ice_000000.vtu"));
+    let points = &vtu.arrays["Points"];
+    let exported = &vtu.arrays["temperature"];
+    assert_eq!(exported.len(), vtu.points);
+    for (k, t) in exported.iter().enumerate() {
+        let p = [points[3 * k], points[3 * k + 1], points[3 * k + 2]];
+        assert_eq!(*t, temperature[node_at[&p.map(f64::to_bits)]], "point {k}");
+    }
+    // The surface is not at one temperature: the test sees the field, not a constant.
+    assert!(exported.iter().any(|&t| t != exported[0]));
+    export_to(&run, ExportFormat::Ply, &format!("{last}:{last}"), &out);
+    let ply = read_ply(&out.join("run_ice_000000.ply"));
+    let at = ply
+        .properties
+        .iter()
+        .position(|p| p == "temperature")
+        .unwrap();
+    for (vertex, t) in ply.vertices.iter().zip(exported) {
+        assert_eq!(vertex[at], *t as f32);
+    }
+}

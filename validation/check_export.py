@@ -7,10 +7,12 @@ For each exported frame, h5py reads the run's frame and numpy recomputes what th
 should hold: the boundary faces of the frame's tets (faces of one tet only), the crack
 triangles (``cracks/triangles``), hence the outer faces (boundary less crack), and every
 node's volume-weighted average of the element fields (von Mises stress from ``stress``,
-the Frobenius norm of ``plastic_strain``, ``freeze_state``; weights the tets' rest volumes).
+the Frobenius norm of ``plastic_strain``, ``freeze_state``; weights the tets' rest volumes)
+and the nodes' ``temperature`` where the run has it.
 
-* USD (``RUN.usda``): ``pxr.Usd`` opens the stage; up axis Z, metres, time codes 0 … N−1
-  at the exported frames per second; ``/World/Ice`` and ``/World/Cracks`` have one time
+* USD (``RUN.usda``): ``pxr.Usd`` opens the stage; up axis Z, metres, time codes
+  (t − t0) × fps / speed (fps the stage's framesPerSecond = timeCodesPerSecond, speed its
+  ``icefem_speed``); ``/World/Ice`` and ``/World/Cracks`` have one time
   sample per frame of points, face counts and indices, velocities and each primvar (vertex
   interpolation), with the counts above; attribute values equal the VTU's (f32).
 * VTU (``RUN_export/RUN_{ice,cracks}_NNNNNN.vtu`` and ``RUN.pvd``): meshio reads each file;
@@ -49,7 +51,7 @@ import numpy as np
 
 RESULTS = {"passed": 0, "failed": 0}
 
-SCALARS = ["freeze_state", "plastic_strain", "von_mises"]
+SCALARS = ["freeze_state", "plastic_strain", "von_mises", "temperature"]
 TET_FACES = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
 
 
@@ -103,6 +105,8 @@ def expected_frame(g):
         total = np.zeros(n)
         np.add.at(total, tets, (volume * values)[:, None])
         nodal[name] = total / np.where(weight > 0, weight, 1)
+    if "temperature" in g:
+        nodal["temperature"] = g["temperature"][:].reshape(-1)
     return {
         "time": float(g.attrs["time"]),
         "outer": boundary - cracks,

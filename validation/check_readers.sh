@@ -3,7 +3,7 @@
 #   - the Python reader's tests (python/tests, against runs of the built binary);
 #   - check_xdmf.py: a fractured run's XDMF sidecars through VTK's XDMF reader;
 #   - check_export.py: that run exported to USD, OBJ, PLY and VTU, read with pxr.Usd, meshio
-#     and VTK's XML reader.
+#     and VTK's XML reader; and a run frozen by conduction (temperatures, a time-lapse stage).
 # Needs target/release/icefem (`cargo test --release` builds it). Creates target/readers-venv
 # from validation/requirements-readers.txt (wheels only) the first time.
 #
@@ -45,3 +45,11 @@ for format in usd obj ply vtu; do
     "$ICEFEM" -q export "$WORK/paper.h5" --format "$format" --frames 0::5
 done
 "$PY" "$ROOT/validation/check_export.py" "$WORK/paper.h5" --frames 0::5
+
+echo "== a run frozen by conduction (the thermal container to 30 min): temperatures in every export, a time-lapse stage"
+"$ICEFEM" -q run "$ROOT/scenes/freezing_container_thermal.toml" --end-time 1800 --output "$WORK/thermal.h5"
+for format in obj ply vtu; do
+    "$ICEFEM" -q export "$WORK/thermal.h5" --format "$format"
+done
+"$ICEFEM" -q export "$WORK/thermal.h5" --format usd --speed 60
+"$PY" "$ROOT/validation/check_export.py" "$WORK/thermal.h5"

@@ -3,7 +3,7 @@
 //!
 //! Element fields become point fields by averaging over the elements around each node,
 //! weighted by their rest volumes: v(i) = Σ_e |V_e| v_e / Σ_e |V_e| over the tets e that
-//! contain node i. Velocities are the nodes' own.
+//! contain node i. Velocities and temperatures are the nodes' own.
 
 use std::path::Path;
 
@@ -16,13 +16,15 @@ pub const FREEZE_STATE: &str = "freeze_state";
 pub const PLASTIC_STRAIN: &str = "plastic_strain";
 /// Name of the von Mises stress attribute (Pa).
 pub const VON_MISES: &str = "von_mises";
+/// Name of the temperature attribute (°C; runs with `[thermal]`).
+pub const TEMPERATURE: &str = "temperature";
 /// Name of the velocity attribute (m/s, three components).
 pub const VELOCITY: &str = "velocity";
 
 /// A scalar attribute, one value per point.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointScalar {
-    /// [`FREEZE_STATE`], [`PLASTIC_STRAIN`] or [`VON_MISES`].
+    /// [`FREEZE_STATE`], [`PLASTIC_STRAIN`], [`VON_MISES`] or [`TEMPERATURE`].
     pub name: &'static str,
     /// One value per point.
     pub values: Vec<f64>,
@@ -36,8 +38,8 @@ pub struct SurfaceMesh {
     /// Triangles, 0-based point indices, counter-clockwise seen from outside the ice.
     pub triangles: Vec<[usize; 3]>,
     /// The scalar attributes the run has (a run without freezing has no freeze state, one
-    /// without plasticity no plastic strain), in the order freeze state, plastic strain, von
-    /// Mises.
+    /// without plasticity no plastic strain, one without `[thermal]` no temperature), in the
+    /// order freeze state, plastic strain, von Mises, temperature.
     pub scalars: Vec<PointScalar>,
     /// Velocity of each point (m/s).
     pub velocity: Vec<[f64; 3]>,
@@ -84,7 +86,8 @@ impl ExportFrame {
     }
 }
 
-/// Every node's attributes: element fields averaged to the nodes, and velocities.
+/// Every node's attributes: element fields averaged to the nodes, the nodes' temperatures,
+/// and velocities.
 struct NodeFields<'a> {
     scalars: Vec<(&'static str, Vec<f64>)>,
     velocity: &'a [[f64; 3]],
@@ -106,7 +109,7 @@ impl<'a> NodeFields<'a> {
                 total[i] += w;
             }
         }
-        let scalars = element_fields
+        let mut scalars: Vec<(&'static str, Vec<f64>)> = element_fields
             .into_iter()
             .filter_map(|(name, values)| {
                 let values = values?;
@@ -122,6 +125,11 @@ impl<'a> NodeFields<'a> {
                 Some((name, sum))
             })
             .collect();
+        if let Some((1, temperature)) = frame.node_field(TEMPERATURE) {
+            if temperature.len() == mesh.num_nodes() {
+                scalars.push((TEMPERATURE, temperature.to_vec()));
+            }
+        }
         NodeFields {
             scalars,
             velocity: &frame.state.velocities,

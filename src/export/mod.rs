@@ -2,8 +2,8 @@
 //! Houdini), OBJ, PLY or VTU files (ParaView).
 //!
 //! Every format gets the same two objects per frame ([`ExportFrame`], `frame.rs`): the ice's
-//! outer surface and the crack surfaces, with per-point freeze state, ‖ε_p‖, von Mises stress
-//! and velocity where the format holds attributes. Metres, z up. One file per format
+//! outer surface and the crack surfaces, with per-point freeze state, ‖ε_p‖, von Mises stress,
+//! temperature and velocity where the format holds attributes. Metres, z up. One file per format
 //! (`usd.rs`, `obj.rs`, `ply.rs`, `vtu.rs`), all written by hand: the formats are small, and
 //! the crates for them are old, heavy or need a newer compiler (each file says which and why).
 //! `target.rs` says where the files go and when existing ones are replaced.
@@ -16,7 +16,8 @@ mod usd;
 mod vtu;
 
 pub use frame::{
-    ExportFrame, PointScalar, SurfaceMesh, FREEZE_STATE, PLASTIC_STRAIN, VELOCITY, VON_MISES,
+    ExportFrame, PointScalar, SurfaceMesh, FREEZE_STATE, PLASTIC_STRAIN, TEMPERATURE, VELOCITY,
+    VON_MISES,
 };
 
 use std::io::Write;

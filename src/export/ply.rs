@@ -2,7 +2,8 @@
 //! endian, with the point attributes as vertex properties.
 //!
 //! Vertex properties, all `float` (f32): `x y z` (m, z up), `vx vy vz` (velocity, m/s), then
-//! `freeze_state`, `plastic_strain`, `von_mises` (Pa) where the run has them. Faces:
+//! `freeze_state`, `plastic_strain`, `von_mises` (Pa), `temperature` (°C) where the run has
+//! them. Faces:
 //! `list uchar int vertex_indices`. Written by hand: `ply-rs` 0.1.3 is unmaintained, and its
 //! maintained fork `ply-rs-bw` holds each vertex as a map from property name to value (an
 //! allocation per vertex) where the format is a text header and packed records.

@@ -8,7 +8,8 @@
 //! each sample until the next: the run plays at its own pace whatever its output rate. Two `Mesh` prims, `/World/Ice` and `/World/Cracks`, whose
 //! `points` (`point3f[]`, m), `faceVertexCounts`, `faceVertexIndices` and `extent` are
 //! time-sampled at every frame, since fracture changes the topology; `velocities`
-//! (`vector3f[]`, m/s) and the primvars `freeze_state`, `plastic_strain` and `von_mises` (Pa)
+//! (`vector3f[]`, m/s) and the primvars `freeze_state`, `plastic_strain`, `von_mises` (Pa) and
+//! `temperature` (°C)
 //! (`float[]`, `interpolation = "vertex"`, where the run has them) likewise. The layer's
 //! `customLayerData` keeps the run's file name, frame indices, frame times (s) and the speed.
 //!

@@ -6,7 +6,7 @@
 //! objects are files of their own rather than one multiblock per frame).
 //!
 //! Point data: `velocity` (m/s, 3 components), `freeze_state`, `plastic_strain`, `von_mises`
-//! (Pa) where the run has them; Float64, like the points (m, z up). Arrays are inline binary
+//! (Pa), `temperature` (°C) where the run has them; Float64, like the points (m, z up). Arrays are inline binary
 //! (base64 of a UInt64 byte count and the little-endian values), uncompressed.
 //!
 //! Written by hand rather than with `vtkio` 0.6.3: it builds with our compiler, but through
