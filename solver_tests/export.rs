@@ -279,7 +279,29 @@ fn every_format_holds_each_frames_surfaces_and_their_attributes() {
 
     // VTU: every object of every frame at its time, values equal to the nodes' averages.
     let files = export_to(&run, ExportFormat::Vtu, spec, &out);
-    assert_eq!(files.len(), 2 * n + 1);
+    assert_eq!(files.len(), 3 * n + 1);
+    // The container (min 0, max (0.1, 0.1, 0.12)): its floor and four walls, still.
+    for k in 0..n {
+        let container = read_vtu(&out.join(format!("run_obstacles_{k:06}.vtu")));
+        assert_eq!((container.points, container.cells), (8, 10), "frame {k}");
+        let mut corners: Vec<[f64; 3]> = container.arrays["Points"]
+            .chunks(3)
+            .map(|x| [x[0], x[1], x[2]])
+            .collect();
+        corners.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        let mut want: Vec<[f64; 3]> = (0..8)
+            .map(|i| {
+                [
+                    0.1 * (i & 1) as f64,
+                    0.1 * (i >> 1 & 1) as f64,
+                    0.12 * (i >> 2) as f64,
+                ]
+            })
+            .collect();
+        want.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        assert_eq!(corners, want);
+        assert!(container.arrays["velocity"].iter().all(|&v| v == 0.0));
+    }
     let mut vtu_frames = Vec::new();
     for (k, e) in expect.iter().enumerate() {
         let ice = read_vtu(&out.join(format!("run_ice_{k:06}.vtu")));
@@ -318,8 +340,8 @@ fn every_format_holds_each_frames_surfaces_and_their_attributes() {
     }
     let pvd = std::fs::read_to_string(out.join("run.pvd")).unwrap();
     let sets: Vec<&str> = pvd.lines().filter(|l| l.starts_with("<DataSet")).collect();
-    assert_eq!(sets.len(), 2 * n);
-    assert!(sets[2 * n - 1].contains(&format!("timestep=\"{}\"", expect[n - 1].time)));
+    assert_eq!(sets.len(), 3 * n);
+    assert!(sets[3 * n - 1].contains(&format!("timestep=\"{}\"", expect[n - 1].time)));
 
     // PLY: the same counts and, to f32, the same values as the VTU files.
     export_to(&run, ExportFormat::Ply, spec, &out);
@@ -351,7 +373,16 @@ fn every_format_holds_each_frames_surfaces_and_their_attributes() {
             .iter()
             .map(|m| (m.name.clone(), m.mesh.indices.len() / 3))
             .collect();
-        let want = [("ice".to_string(), e.outer), ("cracks".into(), e.cracks)];
+        // tobj leaves out an object with no faces before another one (the cracks before the
+        // first crack).
+        let want: Vec<(String, usize)> = [
+            ("ice".to_string(), e.outer),
+            ("cracks".into(), e.cracks),
+            ("obstacles".into(), 10),
+        ]
+        .into_iter()
+        .filter(|(name, faces)| *faces > 0 || name != "cracks")
+        .collect();
         assert_eq!(faces, want, "frame {k}");
     }
     let obj: Vec<String> = listing(&out)
@@ -627,5 +658,55 @@ fn a_thermal_run_exports_each_points_temperature() {
         .unwrap();
     for (vertex, t) in ply.vertices.iter().zip(exported) {
         assert_eq!(vertex[at], *t as f32);
+    }
+}
+
+#[test]
+fn obstacles_are_exported_where_they_are_at_each_frame() {
+    // The gallery's paddle (a Gmsh mesh turning once a second about z) over a floor plane:
+    // each frame's obstacles are the floor's square at z = 0, still, and the paddle's stored
+    // surface turned by 2π t, its points moving at ω × x.
+    let dir = tempfile::tempdir().unwrap();
+    let run = run_scene(dir.path(), "gallery/thrown_cube_paddle", Some(0.1));
+    let reader = FrameReader::open(&run).unwrap();
+    let paddle = reader.obstacle_meshes().unwrap();
+    assert_eq!(paddle.len(), 1);
+    let paddle = &paddle[0];
+    let out = dir.path().join("out");
+    export_to(&run, ExportFormat::Vtu, "::", &out);
+    let times: Vec<f64> = reader
+        .frame_indices()
+        .iter()
+        .map(|&i| reader.read(i).unwrap().state.time)
+        .collect();
+    assert!(times.len() >= 3);
+    for (k, t) in times.iter().enumerate() {
+        let o = read_vtu(&out.join(format!("run_obstacles_{k:06}.vtu")));
+        assert_eq!(o.cells, 2 + paddle.triangles.len(), "frame {k}");
+        let points: Vec<&[f64]> = o.arrays["Points"].chunks(3).collect();
+        let velocity: Vec<&[f64]> = o.arrays["velocity"].chunks(3).collect();
+        // The floor first (scene order): four corners on z = 0, at rest.
+        for p in 0..4 {
+            assert_eq!(points[p][2], 0.0);
+            assert_eq!(velocity[p], [0.0; 3]);
+        }
+        let (c, s) = (
+            (2.0 * std::f64::consts::PI * t).cos(),
+            (2.0 * std::f64::consts::PI * t).sin(),
+        );
+        for (j, x0) in paddle.vertices.iter().enumerate() {
+            let (p, v) = (points[4 + j], velocity[4 + j]);
+            let want = [c * x0[0] - s * x0[1], s * x0[0] + c * x0[1], x0[2]];
+            let speed = [
+                -2.0 * std::f64::consts::PI * want[1],
+                2.0 * std::f64::consts::PI * want[0],
+                0.0,
+            ];
+            for a in 0..3 {
+                // Rotation matrices from nalgebra against cos/sin here: round-off of 1e-15 m.
+                assert!((p[a] - want[a]).abs() < 1e-14, "frame {k} vertex {j}");
+                assert!((v[a] - speed[a]).abs() < 1e-13, "frame {k} vertex {j}");
+            }
+        }
     }
 }

@@ -8,7 +8,8 @@ should hold: the boundary faces of the frame's tets (faces of one tet only), the
 triangles (``cracks/triangles``), hence the outer faces (boundary less crack), and every
 node's volume-weighted average of the element fields (von Mises stress from ``stress``,
 the Frobenius norm of ``plastic_strain``, ``freeze_state``; weights the tets' rest volumes)
-and the nodes' ``temperature`` where the run has it.
+and the nodes' ``temperature`` where the run has it; the rigid obstacles' triangles from the
+stored scene (a container 10, a plane 2, a mesh obstacle its ``/obstacles`` surface).
 
 * USD (``RUN.usda``): ``pxr.Usd`` opens the stage; up axis Z, metres, time codes
   (t − t0) × fps / speed (fps the stage's framesPerSecond = timeCodesPerSecond, speed its
@@ -16,7 +17,7 @@ and the nodes' ``temperature`` where the run has it.
   sample per frame of points, face counts and indices, velocities and each primvar (vertex
   interpolation), with the counts above; attribute values equal the VTU's (f32).
 * VTU (``RUN_export/RUN_{ice,cracks}_NNNNNN.vtu`` and ``RUN.pvd``): meshio reads each file;
-  the ``.pvd`` (xml.etree) lists both objects of every frame at the frame's time. Ice
+  the ``.pvd`` (xml.etree) lists every object of every frame at the frame's time. Ice
   points sit exactly on nodes, and each point's attributes equal that node's averages and
   velocity (1e-12 relative). meshio 5.3.5 cannot read a grid with no cells (an IndexError in
   ``vtk_cells_from_data``), so empty crack files are checked with xml.etree instead. VTK's
@@ -75,6 +76,35 @@ def frame_range(spec, available):
     return list(range(first, last + 1, step))
 
 
+def obstacle_triangles(f):
+    """Triangles of the run's rigid obstacles as the export writes them (docs/output.md): a
+    container's floor and walls (10), a plane's square (2), a mesh obstacle's stored surface;
+    None for a run without obstacles."""
+    import tomllib
+
+    scene = tomllib.loads(f.attrs["scene"])
+    total = 0
+    for index, o in enumerate(scene.get("obstacle", [])):
+        kind = o["type"]
+        if kind == "container":
+            total += 10
+        elif kind == "halfspace":
+            total += 2
+        else:
+            total += f[f"obstacles/{index}/triangles"].shape[0]
+    return total if scene.get("obstacle") else None
+
+
+def objects_of(e):
+    """The export's objects for expected frame ``e``: ice, cracks and, where the run had
+    them, the obstacles."""
+    return ["ice", "cracks"] + (["obstacles"] if e["obstacles"] is not None else [])
+
+
+def faces_of(e, obj):
+    return {"ice": e["outer"], "cracks": e["cracks"], "obstacles": e["obstacles"]}[obj]
+
+
 def expected_frame(g):
     """What the export of HDF5 frame group ``g`` should hold, computed with numpy."""
     tets = g["tets"][:]
@@ -128,10 +158,10 @@ def check_vtu(folder, stem, expected):
         print(f"note: {pvd} not found, VTU skipped")
         return None
     datasets = ET.parse(pvd).getroot().find("Collection").findall("DataSet")
-    check(len(datasets) == 2 * len(expected), f"{pvd}: {len(datasets)} data sets for {len(expected)} frames")
+    check(len(datasets) == len(objects_of(expected[0])) * len(expected), f"{pvd}: {len(datasets)} data sets for {len(expected)} frames")
     out = {}
     for k, e in enumerate(expected):
-        for part, obj in enumerate(["ice", "cracks"]):
+        for part, obj in enumerate(objects_of(e)):
             name = f"{stem}_{obj}_{k:06d}.vtu"
             d = [x for x in datasets if x.get("file") == name]
             if not check(len(d) == 1, f"{pvd}: no data set {name}"):
@@ -139,20 +169,21 @@ def check_vtu(folder, stem, expected):
             check(int(d[0].get("part")) == part, f"{name}: part {d[0].get('part')}")
             check(abs(float(d[0].get("timestep")) - e["time"]) <= 1e-12 * max(1, e["time"]), f"{name}: time")
             path = os.path.join(folder, name)
-            faces = e["outer"] if obj == "ice" else e["cracks"]
+            faces = faces_of(e, obj)
+            fields = set() if obj == "obstacles" else set(e["nodal"])
             if faces == 0:
-                check_with_vtk(path, 0, 0, set(e["nodal"]))
+                check_with_vtk(path, 0, 0, fields)
                 piece = ET.parse(path).getroot().find("UnstructuredGrid/Piece")
                 check(piece.get("NumberOfCells") == "0" and piece.get("NumberOfPoints") == "0", f"{name}: not empty")
                 out[(k, obj)] = None
                 continue
-            check_with_vtk(path, faces, 3 * faces if obj == "cracks" else None, set(e["nodal"]))
+            check_with_vtk(path, faces, 3 * faces if obj == "cracks" else None, fields)
             m = meshio.read(path)
             check(triangles_of(m) == faces, f"{name}: {triangles_of(m)} triangles, expected {faces}")
             if obj == "cracks":
                 check(len(m.points) == 3 * faces, f"{name}: {len(m.points)} points for {faces} triangles")
             data = {key: np.asarray(v).reshape(len(m.points), -1) for key, v in m.point_data.items()}
-            check(set(data) == {"velocity"} | set(e["nodal"]), f"{name}: point data {sorted(data)}")
+            check(set(data) == {"velocity"} | fields, f"{name}: point data {sorted(data)}")
             if obj == "ice":
                 check_ice_values(name, m.points, data, e)
             out[(k, obj)] = (m.points, data)
@@ -201,18 +232,19 @@ def check_ply(folder, stem, expected, vtu):
         print(f"note: {first} not found, PLY skipped")
         return
     for k, e in enumerate(expected):
-        for obj in ["ice", "cracks"]:
+        for obj in objects_of(e):
             name = f"{stem}_{obj}_{k:06d}.ply"
             m = meshio.read(os.path.join(folder, name))
-            faces = e["outer"] if obj == "ice" else e["cracks"]
+            faces = faces_of(e, obj)
+            fields = set() if obj == "obstacles" else set(e["nodal"])
             check(triangles_of(m) == faces, f"{name}: {triangles_of(m)} triangles, expected {faces}")
-            check(set(m.point_data) == {"vx", "vy", "vz"} | set(e["nodal"]), f"{name}: properties {sorted(m.point_data)}")
+            check(set(m.point_data) == {"vx", "vy", "vz"} | fields, f"{name}: properties {sorted(m.point_data)}")
             if vtu and vtu.get((k, obj)):
                 points, data = vtu[(k, obj)]
                 check(np.allclose(m.points, points, rtol=1e-6, atol=1e-9), f"{name}: points differ from the VTU's")
                 velocity = np.stack([m.point_data[c] for c in ["vx", "vy", "vz"]], axis=1)
                 same = np.allclose(velocity, data["velocity"], rtol=1e-6, atol=1e-30)
-                for key in e["nodal"]:
+                for key in fields:
                     same &= np.allclose(m.point_data[key], data[key][:, 0], rtol=1e-6, atol=1e-30)
                 check(same, f"{name}: attributes differ from the VTU's")
 
@@ -225,10 +257,11 @@ def check_obj(folder, stem, expected):
     for k, e in enumerate(expected):
         path = os.path.join(folder, f"{stem}_{k:06d}.obj")
         m = meshio.read(path)
-        check(triangles_of(m) == e["outer"] + e["cracks"], f"{path}: {triangles_of(m)} triangles")
+        total = sum(faces_of(e, obj) for obj in objects_of(e))
+        check(triangles_of(m) == total, f"{path}: {triangles_of(m)} triangles, expected {total}")
         with open(path) as f:
             objects = [line.split()[1] for line in f if line.startswith("o ")]
-        check(objects == ["ice", "cracks"], f"{path}: objects {objects}")
+        check(objects == objects_of(e), f"{path}: objects {objects}")
 
 
 def check_usd(path, expected, vtu):
@@ -248,19 +281,22 @@ def check_usd(path, expected, vtu):
     codes = [round((e["time"] - t0) * fps / speed, 6) for e in expected]
     check(stage.GetTimeCodesPerSecond() == fps, f"USD: {stage.GetTimeCodesPerSecond()} time codes per second, {fps} frames per second")
     check((stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0, codes[-1]), f"USD: time codes {stage.GetStartTimeCode()} … {stage.GetEndTimeCode()}, expected 0 … {codes[-1]}")
-    for prim_path, obj in [("/World/Ice", "ice"), ("/World/Cracks", "cracks")]:
+    check(bool(stage.GetPrimAtPath("/World/Obstacles")) == (expected[0]["obstacles"] is not None), "USD: /World/Obstacles where the run had obstacles")
+    for obj in objects_of(expected[0]):
+        prim_path = "/World/" + obj.capitalize()
         mesh = UsdGeom.Mesh(stage.GetPrimAtPath(prim_path))
         if not check(bool(mesh), f"USD: no Mesh {prim_path}"):
             continue
         primvars = {pv.GetPrimvarName(): pv for pv in UsdGeom.PrimvarsAPI(mesh).GetPrimvars() if pv.GetInterpolation() == "vertex"}
-        check(set(primvars) == set(expected[0]["nodal"]), f"USD {prim_path}: primvars {sorted(primvars)}")
+        fields = set() if obj == "obstacles" else set(expected[0]["nodal"])
+        check(set(primvars) == fields, f"USD {prim_path}: primvars {sorted(primvars)}")
         attrs = [mesh.GetPointsAttr(), mesh.GetFaceVertexCountsAttr(), mesh.GetFaceVertexIndicesAttr(), mesh.GetVelocitiesAttr()]
         attrs += [pv.GetAttr() for pv in primvars.values()]
         for a in attrs:
             samples = a.GetTimeSamples()
             check(len(samples) == n and all(abs(x - c) <= 1e-6 for x, c in zip(samples, codes)), f"USD {a.GetPath()}: time samples {samples[:4]}…, expected {codes[:4]}…")
         for k, e in enumerate(expected):
-            faces = e["outer"] if obj == "ice" else e["cracks"]
+            faces = faces_of(e, obj)
             counts = mesh.GetFaceVertexCountsAttr().Get(codes[k])
             points = np.array(mesh.GetPointsAttr().Get(codes[k])).reshape(-1, 3)
             check(len(counts) == faces and all(c == 3 for c in counts), f"USD {prim_path} @{k}: {len(counts)} faces, expected {faces}")
@@ -289,6 +325,9 @@ def main():
         available = sorted(int(k) for k in frames if int(frames[k].attrs.get("complete", 0)) == 1)
         names = {int(k): k for k in frames}
         expected = [expected_frame(frames[names[i]]) for i in frame_range(args.frames, available)]
+        obstacles = obstacle_triangles(f)
+    for e in expected:
+        e["obstacles"] = obstacles
     folder = args.folder or base + "_export"
     vtu = check_vtu(folder, stem, expected)
     check_ply(folder, stem, expected, vtu)

@@ -9,6 +9,7 @@ use std::path::Path;
 
 use crate::mesh::TetMesh;
 use crate::output::{FrameMesh, OutputError, StoredFrame, SurfaceExtractor};
+use crate::render::obstacles::StoredObstacle;
 
 /// Name of the freeze-state attribute: 0 (water) … 1 (ice).
 pub const FREEZE_STATE: &str = "freeze_state";
@@ -61,16 +62,21 @@ pub struct ExportFrame {
     /// drew them (pulled apart by the rendering gap where a crack is closed); each point
     /// takes the attributes of the node it is a copy of. Empty before the first crack.
     pub cracks: SurfaceMesh,
+    /// The rigid obstacles' surfaces where they are at the frame's time, one mesh (a
+    /// container's floor and walls, a plane's square, a mesh obstacle's triangles), with the
+    /// points' velocities and no scalars; `None` for a run without obstacles.
+    pub obstacles: Option<SurfaceMesh>,
 }
 
 impl ExportFrame {
     /// Builds frame `number` of the export from `frame`, read from the file `path` whose
-    /// surfaces `extractor` finds.
+    /// surfaces `extractor` finds and whose run had the rigid `obstacles`.
     pub fn new(
         extractor: &SurfaceExtractor,
         path: &Path,
         frame: &StoredFrame,
         number: usize,
+        obstacles: &[StoredObstacle],
     ) -> Result<Self, OutputError> {
         let mesh = extractor.mesh(path, frame)?;
         let fields = NodeFields::new(&mesh.rest, frame);
@@ -82,8 +88,29 @@ impl ExportFrame {
             time: frame.state.time,
             ice,
             cracks,
+            obstacles: (!obstacles.is_empty())
+                .then(|| obstacle_surface(obstacles, frame.state.time)),
         })
     }
+}
+
+/// The surfaces of `obstacles` at time `t` (s) as one mesh, with their points' velocities.
+fn obstacle_surface(obstacles: &[StoredObstacle], t: f64) -> SurfaceMesh {
+    let mut mesh = SurfaceMesh::default();
+    for o in obstacles {
+        let offset = mesh.points.len();
+        mesh.points
+            .extend(o.vertices_at(t).iter().map(|x| [x.x, x.y, x.z]));
+        mesh.velocity
+            .extend(o.velocities_at(t).iter().map(|v| [v.x, v.y, v.z]));
+        mesh.triangles.extend(
+            o.surface
+                .triangles
+                .iter()
+                .map(|tri| tri.map(|i| i + offset)),
+        );
+    }
+    mesh
 }
 
 /// Every node's attributes: element fields averaged to the nodes, the nodes' temperatures,

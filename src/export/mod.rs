@@ -1,9 +1,10 @@
 //! `icefem export`: a run's frames as surfaces for other programs — a USD stage (Blender,
 //! Houdini), OBJ, PLY or VTU files (ParaView).
 //!
-//! Every format gets the same two objects per frame ([`ExportFrame`], `frame.rs`): the ice's
+//! Every format gets the same objects per frame ([`ExportFrame`], `frame.rs`): the ice's
 //! outer surface and the crack surfaces, with per-point freeze state, ‖ε_p‖, von Mises stress,
-//! temperature and velocity where the format holds attributes. Metres, z up. One file per format
+//! temperature and velocity where the format holds attributes, and the rigid obstacles where
+//! they are at the frame's time. Metres, z up. One file per format
 //! (`usd.rs`, `obj.rs`, `ply.rs`, `vtu.rs`), all written by hand: the formats are small, and
 //! the crates for them are old, heavy or need a newer compiler (each file says which and why).
 //! `target.rs` says where the files go and when existing ones are replaced.
@@ -25,6 +26,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::output::{parse_frame_range, FrameReader, OutputError, SurfaceExtractor};
+use crate::render::obstacles::{stored_obstacles, StoredObstacle};
+use nalgebra::Vector3;
 use target::Target;
 
 /// An export format.
@@ -177,9 +180,10 @@ pub fn export(reader: &FrameReader, options: &ExportOptions) -> Result<ExportSum
             options.speed
         )));
     }
+    let obstacles = run_obstacles(reader)?;
     let target = Target::new(path, options.format, options.output.as_deref());
     target.prepare(
-        &planned_files(&target, options.format, frames.len()),
+        &planned_files(&target, options.format, frames.len(), !obstacles.is_empty()),
         options.force,
     )?;
 
@@ -203,7 +207,7 @@ pub fn export(reader: &FrameReader, options: &ExportOptions) -> Result<ExportSum
             Some(e) => e,
             None => extractor.insert(SurfaceExtractor::new(reader, &stored)?),
         };
-        let frame = ExportFrame::new(extractor, path, &stored, number)?;
+        let frame = ExportFrame::new(extractor, path, &stored, number, &obstacles)?;
         let built = Instant::now();
         sink.frame(&frame)?;
         summary.t_read += (read - start).as_secs_f64();
@@ -216,14 +220,21 @@ pub fn export(reader: &FrameReader, options: &ExportOptions) -> Result<ExportSum
     Ok(summary)
 }
 
-/// Every file an export of `frames` frames to `target` writes.
-fn planned_files(target: &Target, format: ExportFormat, frames: usize) -> Vec<PathBuf> {
+/// Every file an export of `frames` frames to `target` writes (with the obstacles' where
+/// `obstacles`).
+fn planned_files(
+    target: &Target,
+    format: ExportFormat,
+    frames: usize,
+    obstacles: bool,
+) -> Vec<PathBuf> {
+    let objects = &OBJECTS[..if obstacles { 3 } else { 2 }];
     match format {
         ExportFormat::Usd => vec![target.usd_file()],
         ExportFormat::Obj => (0..frames).map(|k| target.frame_file(None, k)).collect(),
         ExportFormat::Ply | ExportFormat::Vtu => {
             let mut files: Vec<PathBuf> = (0..frames)
-                .flat_map(|k| OBJECTS.map(|o| target.frame_file(Some(o), k)))
+                .flat_map(|k| objects.iter().map(move |o| target.frame_file(Some(o), k)))
                 .collect();
             if format == ExportFormat::Vtu {
                 files.push(vtu::collection_file(target));
@@ -233,13 +244,28 @@ fn planned_files(target: &Target, format: ExportFormat, frames: usize) -> Vec<Pa
     }
 }
 
-/// The two objects' names, as the files and prims are named: the ice's outer surface and the
-/// crack surfaces.
-const OBJECTS: [&str; 2] = ["ice", "cracks"];
+/// The objects' names, as the files and prims are named: the ice's outer surface, the crack
+/// surfaces and the rigid obstacles.
+const OBJECTS: [&str; 3] = ["ice", "cracks", "obstacles"];
 
-/// The two objects of `frame`, in the order of [`OBJECTS`].
-fn objects(frame: &ExportFrame) -> [(&'static str, &SurfaceMesh); 2] {
-    [(OBJECTS[0], &frame.ice), (OBJECTS[1], &frame.cracks)]
+/// The objects of `frame`, in the order of [`OBJECTS`] (obstacles where the run had them).
+fn objects(frame: &ExportFrame) -> Vec<(&'static str, &SurfaceMesh)> {
+    let mut objects = vec![(OBJECTS[0], &frame.ice), (OBJECTS[1], &frame.cracks)];
+    if let Some(obstacles) = &frame.obstacles {
+        objects.push((OBJECTS[2], obstacles));
+    }
+    objects
+}
+
+/// The rigid obstacles of `reader`'s run, planes sized to the ice's box in its first frame
+/// (as `icefem render` draws them).
+fn run_obstacles(reader: &FrameReader) -> Result<Vec<StoredObstacle>, ExportError> {
+    let first = reader.read(reader.frame_indices()[0])?;
+    let (lo, hi) = first.state.positions.iter().fold(
+        (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN)),
+        |(lo, hi), p| (lo.inf(&Vector3::from(*p)), hi.sup(&Vector3::from(*p))),
+    );
+    Ok(stored_obstacles(reader, lo, hi)?)
 }
 
 /// Writes `bytes` to `path` (created or truncated).

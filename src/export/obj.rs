@@ -1,4 +1,5 @@
-//! Wavefront OBJ: one `RUN_NNNNNN.obj` per frame holding two objects, `o ice` and `o cracks`.
+//! Wavefront OBJ: one `RUN_NNNNNN.obj` per frame holding the objects `o ice`, `o cracks` and,
+//! for a run with rigid obstacles, `o obstacles`.
 //!
 //! OBJ holds geometry only: the attributes (freeze state, plastic strain, von Mises, velocity)
 //! cannot live in it — export PLY, VTU or USD for them. Coordinates in metres with z up (in

@@ -1,5 +1,6 @@
-//! PLY: per frame and object, `RUN_ice_NNNNNN.ply` and `RUN_cracks_NNNNNN.ply`, binary little
-//! endian, with the point attributes as vertex properties.
+//! PLY: per frame and object, `RUN_ice_NNNNNN.ply`, `RUN_cracks_NNNNNN.ply` and (rigid
+//! obstacles) `RUN_obstacles_NNNNNN.ply`, binary little endian, with the point attributes as
+//! vertex properties.
 //!
 //! Vertex properties, all `float` (f32): `x y z` (m, z up), `vx vy vz` (velocity, m/s), then
 //! `freeze_state`, `plastic_strain`, `von_mises` (Pa), `temperature` (°C) where the run has

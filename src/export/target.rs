@@ -139,7 +139,7 @@ impl Target {
         let number = match self.format {
             ExportFormat::Obj => rest,
             _ => match rest.split_once('_') {
-                Some(("ice" | "cracks", number)) => number,
+                Some(("ice" | "cracks" | "obstacles", number)) => number,
                 _ => return false,
             },
         };

@@ -5,7 +5,8 @@
 //! (t − t₀) × fps / speed, t₀ the first exported frame's time and speed the simulated seconds
 //! per second of animation (`--speed`: 1 plays the run in real time); codes rounded to 1e-6, so
 //! that a run written every 1/3 s lands on codes 0, 10, 20, … at 30 fps. A player then holds
-//! each sample until the next: the run plays at its own pace whatever its output rate. Two `Mesh` prims, `/World/Ice` and `/World/Cracks`, whose
+//! each sample until the next: the run plays at its own pace whatever its output rate. Three
+//! `Mesh` prims, `/World/Ice`, `/World/Cracks` and `/World/Obstacles`, whose
 //! `points` (`point3f[]`, m), `faceVertexCounts`, `faceVertexIndices` and `extent` are
 //! time-sampled at every frame, since fracture changes the topology; `velocities`
 //! (`vector3f[]`, m/s) and the primvars `freeze_state`, `plastic_strain`, `von_mises` (Pa) and
@@ -26,9 +27,13 @@ use std::path::{Path, PathBuf};
 use super::target::Target;
 use super::{objects, run_name, write_file, ExportError, ExportFrame, Sink, SurfaceMesh};
 
-/// The prims' names, in the order of the export's objects (ice, cracks), and their display
-/// colours (linear RGB).
-const PRIMS: [(&str, [f32; 3]); 2] = [("Ice", [0.84, 0.92, 1.0]), ("Cracks", [0.86, 0.12, 0.1])];
+/// The prims' names, in the order of the export's objects (ice, cracks, obstacles), and their
+/// display colours (linear RGB).
+const PRIMS: [(&str, [f32; 3]); 3] = [
+    ("Ice", [0.84, 0.92, 1.0]),
+    ("Cracks", [0.86, 0.12, 0.1]),
+    ("Obstacles", [0.55, 0.58, 0.62]),
+];
 
 /// Collects the frames' samples and writes the stage at the end.
 pub(super) struct UsdSink {
@@ -36,7 +41,7 @@ pub(super) struct UsdSink {
     run: String,
     /// (run frame index, time in s, time code) of each exported frame.
     frames: Vec<(usize, f64, f64)>,
-    prims: [PrimSamples; 2],
+    prims: [PrimSamples; 3],
     /// The animation's frames per second.
     fps: f64,
     /// Simulated seconds per second of animation.
@@ -123,8 +128,11 @@ impl UsdSink {
     fn stage(&self) -> String {
         let mut text = self.layer_header();
         text += "def Xform \"World\"\n{\n";
+        // A run without obstacles has no samples for them, and no prim.
         for ((name, colour), prim) in PRIMS.iter().zip(&self.prims) {
-            write_mesh_prim(&mut text, name, *colour, prim);
+            if !prim.points.is_empty() {
+                write_mesh_prim(&mut text, name, *colour, prim);
+            }
         }
         text += "}\n";
         text
@@ -164,7 +172,8 @@ impl UsdSink {
 
 /// Appends the `Mesh` prim `name` of display colour `[r, g, b]` with the samples of `prim`.
 fn write_mesh_prim(text: &mut String, name: &str, [r, g, b]: [f32; 3], prim: &PrimSamples) {
-    let double_sided = (name == "Cracks") as u8;
+    // Cracks and open obstacles (a container, a plane) are seen from both sides.
+    let double_sided = (name != "Ice") as u8;
     let _ = write!(text, "    def Mesh \"{name}\"\n    {{\n");
     let _ = write!(
         text,

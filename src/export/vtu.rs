@@ -1,7 +1,8 @@
 //! VTK XML for ParaView: per frame and object an unstructured grid of triangles,
-//! `RUN_ice_NNNNNN.vtu` and `RUN_cracks_NNNNNN.vtu`, and `RUN.pvd`, the collection that lists
-//! them with the frames' times (s) as time steps and the objects as parts 0 (ice) and 1
-//! (cracks). ParaView opens the `.pvd` as one time series of two blocks; each `.vtu` stands on
+//! `RUN_ice_NNNNNN.vtu`, `RUN_cracks_NNNNNN.vtu` and, for a run with rigid obstacles,
+//! `RUN_obstacles_NNNNNN.vtu`, and `RUN.pvd`, the collection that lists them with the frames'
+//! times (s) as time steps and the objects as parts 0 (ice), 1 (cracks) and 2 (obstacles).
+//! ParaView opens the `.pvd` as one time series of blocks; each `.vtu` stands on
 //! its own for other readers (meshio reads `.vtu`, not `.vtm` multiblocks, which is why the
 //! objects are files of their own rather than one multiblock per frame).
 //!
@@ -209,6 +210,7 @@ mod tests {
                 time,
                 ice: SurfaceMesh::default(),
                 cracks: SurfaceMesh::default(),
+                obstacles: None,
             };
             sink.frame(&frame).unwrap();
         }

@@ -15,6 +15,7 @@ pub mod camera;
 mod draw;
 mod encode;
 mod figure;
+pub mod obstacles;
 pub mod overlay;
 pub mod raster;
 mod sequence;
@@ -29,18 +30,13 @@ pub use sequence::{
     default_output, numbered_path, render_frames, select_frames, sibling, RenderSummary, Target,
 };
 
-use crate::mesh::surface::TriSurface;
-use crate::output::{
-    FrameMesh, FrameReader, ObstacleMesh, OutputError, StoredFrame, SurfaceExtractor,
-};
-use crate::physics::contact::Shape;
-use crate::physics::{Amplitude, Motion, Region};
-use crate::scene::{ObstacleSection, SceneFile};
+use crate::output::{FrameMesh, FrameReader, OutputError, StoredFrame, SurfaceExtractor};
+use crate::physics::Motion;
 use nalgebra::Vector3;
 use overlay::Overlay;
 use raster::{Canvas, Rgb};
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::str::FromStr;
 use text::Align;
 
@@ -421,11 +417,7 @@ impl Renderer {
             )
         };
         let (ice_lo, ice_hi) = bounds(&mut first.state.positions.iter().map(|p| Vector3::from(*p)));
-        let surfaces = ObstacleSurfaces {
-            stored: reader.obstacle_meshes()?,
-            scene_dirs: scene_dirs(reader),
-        };
-        let outlines = obstacle_outlines(reader.scene_text(), &surfaces, ice_lo, ice_hi);
+        let outlines = obstacle_outlines(&obstacles::stored_obstacles(reader, ice_lo, ice_hi)?);
         let (lo, hi) = bounds(
             &mut [ice_lo, ice_hi].into_iter().chain(
                 outlines
@@ -605,154 +597,20 @@ fn feature_edges(
         .collect()
 }
 
-/// Where the triangle surfaces of a file's mesh obstacles come from.
-struct ObstacleSurfaces {
-    /// The surfaces stored in the file (`/obstacles`), as the run placed them.
-    stored: Vec<ObstacleMesh>,
-    /// Folders to look for a surface file in, for a file that stores none (written before
-    /// they were stored): the scene's folder, and for a scene path relative to where that run
-    /// was started, that folder from the HDF5 file's.
-    scene_dirs: Vec<PathBuf>,
-}
-
-impl ObstacleSurfaces {
-    /// The surface of obstacle `index` at t = 0 (m): the stored one, or the scene's `file`
-    /// (times `scale`, moved by `translate`) where it is found.
-    fn surface(&self, index: usize, o: &ObstacleSection) -> Option<TriSurface> {
-        if let Some(m) = self.stored.iter().find(|m| m.index == index) {
-            return Some(TriSurface {
-                vertices: m.vertices.iter().map(|&v| Vector3::from(v)).collect(),
-                triangles: m.triangles.clone(),
-            });
-        }
-        let file = o.file.as_ref()?;
-        let mut surface = self
-            .scene_dirs
-            .iter()
-            .find_map(|dir| TriSurface::read(&dir.join(file), o.scale.unwrap_or(1.0)).ok())?;
-        let shift = o.translate.map(Vector3::from).unwrap_or_default();
-        for v in &mut surface.vertices {
-            *v += shift;
-        }
-        Some(surface)
-    }
-}
-
-/// The folders a file's scene may be in (see [`ObstacleSurfaces::scene_dirs`]).
-fn scene_dirs(reader: &FrameReader) -> Vec<PathBuf> {
-    let scene = Path::new(reader.scene_path());
-    let Some(dir) = scene.parent() else {
-        return Vec::new();
-    };
-    let mut dirs = vec![dir.to_path_buf()];
-    if scene.is_relative() {
-        if let Some(h5_dir) = reader.path().parent() {
-            dirs.push(h5_dir.join(dir));
-        }
-    }
-    dirs
-}
-
-/// Outline segments of the scene's rigid obstacles: containers' floor, rim and wall edges;
-/// half-spaces as a square on the plane around the ice's box `[lo, hi]`; triangle meshes by
-/// their feature edges, from the surface the file stores (or, in a file that stores none, the
-/// surface file where the scene names it).
-fn obstacle_outlines(
-    scene_text: &str,
-    surfaces: &ObstacleSurfaces,
-    lo: Vector3<f64>,
-    hi: Vector3<f64>,
-) -> Vec<Outline> {
-    // The scene was validated when the run started; a text that no longer parses (another
-    // version) just draws no obstacles.
-    let Ok(scene) = toml::from_str::<SceneFile>(scene_text) else {
-        return Vec::new();
-    };
-    scene
-        .obstacle
+/// Outline segments of `obstacles`: their surfaces' feature edges and borders (a
+/// container's floor, rim and wall edges; a plane's square).
+fn obstacle_outlines(obstacles: &[obstacles::StoredObstacle]) -> Vec<Outline> {
+    obstacles
         .iter()
-        .enumerate()
-        .filter_map(|(index, o)| {
-            let v3 = |v: Option<[f64; 3]>| v.map(Vector3::from);
-            let segments = match o.kind.as_str() {
-                "container" => shape_outline(
-                    &Shape::Container {
-                        inner: Region {
-                            min: v3(o.min)?,
-                            max: v3(o.max)?,
-                        },
-                    },
-                    lo,
-                    hi,
-                ),
-                "halfspace" => shape_outline(
-                    &Shape::HalfSpace {
-                        point: v3(o.point)?,
-                        normal: v3(o.normal)?.try_normalize(0.0)?,
-                    },
-                    lo,
-                    hi,
-                ),
-                "mesh" => {
-                    let surface = surfaces.surface(index, o)?;
-                    let triangles: Vec<([usize; 3], usize)> =
-                        surface.triangles.iter().map(|&t| (t, 0)).collect();
-                    feature_edges(&triangles, &surface.vertices)
-                }
-                _ => return None,
-            };
-            Some(Outline {
-                segments,
-                motion: Motion {
-                    velocity: v3(o.velocity).unwrap_or_default(),
-                    angular_velocity: v3(o.angular_velocity).unwrap_or_default(),
-                    centre: v3(o.centre).unwrap_or_default(),
-                    amplitude: o
-                        .amplitude
-                        .as_ref()
-                        .and_then(|p| Amplitude::new(p.iter().map(|&[t, a]| (t, a)).collect()).ok())
-                        .unwrap_or_default(),
-                },
-            })
+        .map(|o| {
+            let triangles: Vec<([usize; 3], usize)> =
+                o.surface.triangles.iter().map(|&t| (t, 0)).collect();
+            Outline {
+                segments: feature_edges(&triangles, &o.surface.vertices),
+                motion: o.motion.clone(),
+            }
         })
         .collect()
-}
-
-fn shape_outline(shape: &Shape, lo: Vector3<f64>, hi: Vector3<f64>) -> Vec<[Vector3<f64>; 2]> {
-    match shape {
-        Shape::Container { inner } => {
-            let (a, b) = (inner.min, inner.max);
-            let corner = |i: usize, z: f64| {
-                let (x, y) = [(a.x, a.y), (b.x, a.y), (b.x, b.y), (a.x, b.y)][i % 4];
-                Vector3::new(x, y, z)
-            };
-            (0..4)
-                .flat_map(|i| {
-                    [
-                        [corner(i, a.z), corner(i + 1, a.z)], // floor
-                        [corner(i, b.z), corner(i + 1, b.z)], // rim
-                        [corner(i, a.z), corner(i, b.z)],     // wall edge
-                    ]
-                })
-                .collect()
-        }
-        Shape::HalfSpace { point, normal } => {
-            let centre = (lo + hi) / 2.0;
-            let c = centre - normal * (centre - point).dot(normal);
-            let t = normal.cross(&if normal.x.abs() < 0.9 {
-                Vector3::x()
-            } else {
-                Vector3::y()
-            });
-            let (t, s) = (t.normalize(), normal.cross(&t).normalize());
-            let r = 0.75 * (hi - lo).norm().max(1e-9);
-            let corner = |i: usize| {
-                c + t * r * [1.0, -1.0, -1.0, 1.0][i % 4] + s * r * [1.0, 1.0, -1.0, -1.0][i % 4]
-            };
-            (0..4).map(|i| [corner(i), corner(i + 1)]).collect()
-        }
-        Shape::Mesh { .. } => Vec::new(), // drawn from its file (see `obstacle_outlines`)
-    }
 }
 
 /// Viridis colour of `v` in `range` (clamped).
@@ -772,15 +630,14 @@ mod tests {
 
     #[test]
     fn container_outline_has_floor_rim_and_wall_edges() {
-        let inner = Region {
-            min: Vector3::zeros(),
-            max: Vector3::repeat(0.1),
+        let container = obstacles::StoredObstacle {
+            index: 0,
+            kind: "container".into(),
+            surface: obstacles::container(Vector3::zeros(), Vector3::repeat(0.1)),
+            motion: Motion::default(),
         };
-        let segments = shape_outline(
-            &Shape::Container { inner },
-            Vector3::zeros(),
-            Vector3::repeat(0.1),
-        );
+        let outlines = obstacle_outlines(&[container]);
+        let segments = &outlines[0].segments;
         assert_eq!(segments.len(), 12);
         let length: f64 = segments.iter().map(|[a, b]| (b - a).norm()).sum();
         assert!((length - 1.2).abs() < 1e-12, "12 edges of 0.1 m");
