@@ -6,8 +6,10 @@
 #   make test   — runs the whole test suite (cargo test --release), then reads icefem's files
 #                 with readers that are not icefem's (validation/check_readers.sh: the Python
 #                 reader's tests, the XDMF through VTK, the exports through pxr.Usd, meshio, VTK),
-#                 then runs docs/first_scene.md as written (validation/first_scene.py); it
-#                 installs Gmsh first (make gmsh), which `icefem mesh` and that page use
+#                 then runs docs/first_scene.md as written (validation/first_scene.py) and opens
+#                 USD exports in Blender (validation/blender_import.py); it installs Gmsh first
+#                 (make gmsh), which `icefem mesh` and that page use, and Blender's bpy wheel
+#                 (make blender)
 # and, for runs on several processes (the `mpi` feature):
 #   make mpi      — installs OpenMPI, PETSc, parallel HDF5 and libclang (apt-get), builds
 #                   target/release/icefem with the feature: `mpirun -n N target/release/icefem run SCENE`
@@ -15,11 +17,12 @@
 #                   validation on 2 processes
 # The only system library the build needs is HDF5 (libhdf5-dev), installed with apt-get when
 # missing; the readers' Python venv (wheels only) is created in target/readers-venv, and
-# Gmsh's (the gmsh wheel, with the X and GL libraries it links, apt-get) in target/gmsh-venv.
+# Gmsh's (the gmsh wheel, with the X and GL libraries it links, apt-get) in target/gmsh-venv,
+# Blender's (the bpy wheel) in target/blender-venv.
 
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: deps gmsh demo test figures mpi-deps mpi test-mpi
+.PHONY: deps gmsh blender demo test figures mpi-deps mpi test-mpi
 
 deps:
 	@pkg-config --exists hdf5 2>/dev/null || { \
@@ -43,6 +46,17 @@ $(GMSH_VENV)/.installed: validation/requirements-gmsh.txt
 		$(SUDO) apt-get update -qq && $(SUDO) DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(GMSH_LIBS); }
 	$(GMSH_VENV)/bin/python -c "import gmsh"
 	touch $@
+
+# Blender as a Python module (the bpy wheel, Python 3.11 only) in target/blender-venv, for
+# validation/blender_import.py; on another Python the venv is not made and the check is skipped.
+BLENDER_VENV := target/blender-venv
+blender: $(BLENDER_VENV)/.installed
+$(BLENDER_VENV)/.installed: validation/requirements-blender.txt
+	@if python3 -c "import sys; sys.exit(sys.version_info[:2] != (3, 11))"; then \
+		rm -rf $(BLENDER_VENV) && python3 -m venv $(BLENDER_VENV) && \
+		$(BLENDER_VENV)/bin/python -m pip install --quiet --only-binary=:all: -r validation/requirements-blender.txt && \
+		$(BLENDER_VENV)/bin/python -c "import bpy" && touch $@; \
+	else echo "python3 is not 3.11: no bpy wheel, the Blender check is skipped"; fi
 
 # PETSc 3.18 (with hypre), OpenMPI 4.1 and HDF5 built for MPI from Debian; libclang for
 # bindgen, which generates the PETSc declarations at build time.
@@ -69,7 +83,7 @@ demo: deps
 # The README's figures (docs/*.png) from the paper's scene without and with fracture and
 # frozen by conduction (~30 s).
 FIG := target/figures
-figures: deps gmsh
+figures: deps gmsh blender
 	cargo build --release
 	$(GMSH_VENV)/bin/python validation/first_scene.py --keep $(FIG)/first_scene
 	./target/release/icefem figure $(FIG)/first_scene/glass_of_water.h5 --size 1650x476 --output docs/first_scene_figure.png
@@ -79,10 +93,14 @@ figures: deps gmsh
 	./target/release/icefem run scenes/freezing_container_fracture.toml --output $(FIG)/freezing_container_fracture.h5 --force
 	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 1650x476 --output docs/freezing_container_fracture_figure.png
 	./target/release/icefem figure $(FIG)/freezing_container_fracture.h5 --size 1800x476 --cut y=0.05 --color-by plastic --style solid --output docs/freezing_container_fracture_plastic.png
+	./target/release/icefem -q export $(FIG)/freezing_container_fracture.h5 --format usd --force --output $(FIG)/freezing_container_fracture.usda
+	$(BLENDER_VENV)/bin/python python/blender/icefem_blender.py $(FIG)/freezing_container_fracture.usda --render docs/export_blender.png --size 640x480 --samples 64
 	./target/release/icefem run scenes/freezing_container_thermal.toml --output $(FIG)/freezing_container_thermal.h5 --force
 	./target/release/icefem figure $(FIG)/freezing_container_thermal.h5 --size 1800x476 --frames 0,12,23,96 --cut y=0.05 --color-by temperature --style solid --output docs/freezing_container_thermal_figure.png
 
-test: deps gmsh
+test: deps gmsh blender
 	cargo test --release
 	validation/check_readers.sh
 	$(GMSH_VENV)/bin/python validation/first_scene.py
+	@if [ -x $(BLENDER_VENV)/bin/python ]; then $(BLENDER_VENV)/bin/python validation/blender_import.py; \
+	else echo "skipped validation/blender_import.py: the bpy wheel needs Python 3.11"; fi

@@ -154,7 +154,7 @@ impl UsdSink {
         double icefem_speed = {speed}
     }}
     defaultPrim = "World"
-    doc = "icefem export of {run}: the ice's outer surface and its cracks; metres, z up"
+    doc = "icefem export of {run}: the ice's outer surface, its cracks and the rigid obstacles; metres, z up"
     endTimeCode = {end}
     framesPerSecond = {fps}
     metersPerUnit = 1
