@@ -258,14 +258,15 @@ fn objects(frame: &ExportFrame) -> Vec<(&'static str, &SurfaceMesh)> {
 }
 
 /// The rigid obstacles of `reader`'s run, planes sized to the ice's box in its first frame
-/// (as `icefem render` draws them).
+/// (as `icefem render` draws them; that frame is read only for a scene with a plane).
 fn run_obstacles(reader: &FrameReader) -> Result<Vec<StoredObstacle>, ExportError> {
-    let first = reader.read(reader.frame_indices()[0])?;
-    let (lo, hi) = first.state.positions.iter().fold(
-        (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN)),
-        |(lo, hi), p| (lo.inf(&Vector3::from(*p)), hi.sup(&Vector3::from(*p))),
-    );
-    Ok(stored_obstacles(reader, lo, hi)?)
+    Ok(stored_obstacles(reader, || {
+        let first = reader.read(reader.frame_indices()[0])?;
+        Ok(first.state.positions.iter().fold(
+            (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN)),
+            |(lo, hi), p| (lo.inf(&Vector3::from(*p)), hi.sup(&Vector3::from(*p))),
+        ))
+    })?)
 }
 
 /// Writes `bytes` to `path` (created or truncated).

@@ -417,7 +417,9 @@ impl Renderer {
             )
         };
         let (ice_lo, ice_hi) = bounds(&mut first.state.positions.iter().map(|p| Vector3::from(*p)));
-        let outlines = obstacle_outlines(&obstacles::stored_obstacles(reader, ice_lo, ice_hi)?);
+        let outlines = obstacle_outlines(&obstacles::stored_obstacles(reader, || {
+            Ok((ice_lo, ice_hi))
+        })?);
         let (lo, hi) = bounds(
             &mut [ice_lo, ice_hi].into_iter().chain(
                 outlines

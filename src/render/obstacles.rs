@@ -51,13 +51,13 @@ impl StoredObstacle {
     }
 }
 
-/// The rigid obstacles of `reader`'s run, half-spaces sized to the ice's box `[lo, hi]` (m).
-/// A scene text that no longer parses (another version) or an obstacle whose surface file is
-/// gone gives no obstacle: the run's own output does not depend on them.
+/// The rigid obstacles of `reader`'s run, half-spaces sized to the ice's box `ice_box()`
+/// (lo, hi in m; asked for only when the scene has a half-space). A scene text that no longer
+/// parses (another version) or an obstacle whose surface file is gone gives no obstacle: the
+/// run's own output does not depend on them.
 pub fn stored_obstacles(
     reader: &FrameReader,
-    lo: Vector3<f64>,
-    hi: Vector3<f64>,
+    ice_box: impl FnOnce() -> Result<(Vector3<f64>, Vector3<f64>), OutputError>,
 ) -> Result<Vec<StoredObstacle>, OutputError> {
     let surfaces = ObstacleSurfaces {
         stored: reader.obstacle_meshes()?,
@@ -65,6 +65,11 @@ pub fn stored_obstacles(
     };
     let Ok(scene) = toml::from_str::<SceneFile>(reader.scene_text()) else {
         return Ok(Vec::new());
+    };
+    let (lo, hi) = if scene.obstacle.iter().any(|o| o.kind == "halfspace") {
+        ice_box()?
+    } else {
+        (Vector3::zeros(), Vector3::zeros())
     };
     Ok(scene
         .obstacle
