@@ -17,8 +17,9 @@ Each stage is opened with ``python/blender/icefem_blender.py`` and checked:
 - the objects ``Ice``, ``Cracks`` and ``Obstacles`` are there with their materials (the ice's
   index of refraction 1.31);
 - at three frames, each object's evaluated mesh has the points and triangles of the stage's
-  sample at that time code (read from the ``.usda`` text independently of Blender), with the
-  same coordinates to f32 precision — which is where the paddle is at that time;
+  sample at that time code (read from the ``.usda`` text independently of Blender; a still
+  container's one value), with the same coordinates to f32 precision — which is where the
+  paddle is at that time;
 - a Cycles render of the last frame (160 × 120, 8 samples) shows the ice: at least 20 of its
   pixels differ from a render with the ice hidden.
 
@@ -49,20 +50,38 @@ def check(cond, message):
     return cond
 
 
-def usd_samples(text, prim, attribute):
-    """{time code: list of numbers} of ``prim``'s ``attribute`` time samples in USDA text."""
+NUMBER = r"[-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?"
+
+
+def usd_values(text, prim, attribute, code):
+    """The numbers of ``prim``'s ``attribute`` at time code ``code`` in USDA text: its sample
+    there, or its value where it is written once (obstacles that do not move)."""
     start = text.index(f'def Mesh "{prim}"')
     end = text.find("def Mesh", start + 1)
     block = text[start : end if end > 0 else len(text)]
+    constant = re.search(rf"^ *{re.escape(attribute)} = \[(.*)\]$", block, re.M)
+    if constant:
+        return [float(x) for x in re.findall(NUMBER, constant.group(1))]
     at = block.index(f"{attribute}.timeSamples = {{\n")
-    samples = {}
     for line in block[at:].splitlines()[1:]:
         if line.strip() == "}":
             break
-        code, rest = line.strip().split(": [", 1)
-        numbers = re.findall(r"[-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?", rest)
-        samples[float(code)] = [float(x) for x in numbers]
-    return samples
+        sample, rest = line.strip().split(": [", 1)
+        if float(sample) == code:
+            return [float(x) for x in re.findall(NUMBER, rest)]
+    raise KeyError(f"{prim} {attribute} has no sample at {code}")
+
+
+def sample_codes(text):
+    """The time codes of the ice's samples in USDA text."""
+    start = text.index('def Mesh "Ice"')
+    at = text.index("point3f[] points.timeSamples = {\n", start)
+    codes = []
+    for line in text[at:].splitlines()[1:]:
+        if line.strip() == "}":
+            break
+        codes.append(float(line.strip().split(":", 1)[0]))
+    return codes
 
 
 def evaluated(ob):
@@ -88,13 +107,13 @@ def check_stage(usda, png):
     check(set(objects) == {"Ice", "Cracks", "Obstacles"}, f"{name}: objects {sorted(objects)}")
     ice_ior = objects["Ice"].material_slots[0].material.node_tree.nodes["Principled BSDF"].inputs["IOR"].default_value
     check(abs(ice_ior - 1.31) < 1e-6, f"{name}: ice IOR {ice_ior}")
-    codes = sorted(usd_samples(text, "Ice", "point3f[] points"))
+    codes = sample_codes(text)
     compared = 0
     for code in [codes[0], codes[len(codes) // 2], codes[-1]]:
         scene.frame_set(int(code))
         for prim, ob in objects.items():
-            points = usd_samples(text, prim, "point3f[] points")[code]
-            counts = usd_samples(text, prim, "int[] faceVertexCounts")[code]
+            points = usd_values(text, prim, "point3f[] points", code)
+            counts = usd_values(text, prim, "int[] faceVertexCounts", code)
             coords, triangles = evaluated(ob)
             if not check(len(coords) == len(points) and triangles == len(counts), f"{name} {prim} @{code}: {len(coords) // 3} points, {triangles} triangles; stage {len(points) // 3}, {len(counts)}"):
                 continue

@@ -8,7 +8,8 @@
 //! each sample until the next: the run plays at its own pace whatever its output rate. Three
 //! `Mesh` prims, `/World/Ice`, `/World/Cracks` and `/World/Obstacles`, whose
 //! `points` (`point3f[]`, m), `faceVertexCounts`, `faceVertexIndices` and `extent` are
-//! time-sampled at every frame, since fracture changes the topology; `velocities`
+//! time-sampled at every frame, since fracture changes the topology (an obstacles attribute
+//! that does not change is written once, as its value); `velocities`
 //! (`vector3f[]`, m/s) and the primvars `freeze_state`, `plastic_strain`, `von_mises` (Pa) and
 //! `temperature` (°C)
 //! (`float[]`, `interpolation = "vertex"`, where the run has them) likewise. The layer's
@@ -184,7 +185,8 @@ fn write_mesh_prim(text: &mut String, name: &str, [r, g, b]: [f32; 3], prim: &Pr
         )
 "#
     );
-    prim.write(text);
+    // Obstacles that do not move are written once, not once per frame.
+    prim.write(text, name == "Obstacles");
     *text += "    }\n";
 }
 
@@ -217,7 +219,9 @@ impl PrimSamples {
     }
 
     /// Appends the attributes' declarations with their samples.
-    fn write(&self, text: &mut String) {
+    /// Appends the attributes' declarations with their samples; with `constant_if_unchanged`,
+    /// an attribute whose samples are all the same is written once, as its value.
+    fn write(&self, text: &mut String, constant_if_unchanged: bool) {
         let attributes = [
             ("float3[] extent", &self.extent),
             ("int[] faceVertexCounts", &self.counts),
@@ -226,7 +230,7 @@ impl PrimSamples {
             ("vector3f[] velocities", &self.velocities),
         ];
         for (declaration, samples) in attributes {
-            time_samples(text, declaration, samples);
+            time_samples(text, declaration, samples, constant_if_unchanged);
         }
         for (name, samples) in &self.primvars {
             let declaration = format!("float[] primvars:{name}");
@@ -234,13 +238,26 @@ impl PrimSamples {
                 text,
                 "        {declaration} (\n            interpolation = \"vertex\"\n        )\n"
             );
-            time_samples(text, &declaration, samples);
+            time_samples(text, &declaration, samples, constant_if_unchanged);
         }
     }
 }
 
-/// Appends `declaration.timeSamples = { samples }`.
-fn time_samples(text: &mut String, declaration: &str, samples: &str) {
+/// Appends `declaration.timeSamples = { samples }`, or, with `constant_if_unchanged` and
+/// every sample the same, `declaration = value`.
+fn time_samples(text: &mut String, declaration: &str, samples: &str, constant_if_unchanged: bool) {
+    // A sample line is `            CODE: VALUE,`.
+    let mut values = samples
+        .lines()
+        .map(|line| line.split_once(": ").map(|(_, v)| v.trim_end_matches(',')));
+    if constant_if_unchanged {
+        if let Some(Some(first)) = values.next() {
+            if values.all(|v| v == Some(first)) {
+                let _ = writeln!(text, "        {declaration} = {first}");
+                return;
+            }
+        }
+    }
     let _ = write!(
         text,
         "        {declaration}.timeSamples = {{\n{samples}        }}\n"
@@ -320,6 +337,25 @@ mod tests {
         let mut s = String::new();
         push_f32(&mut s, 2.5e-7);
         assert_eq!(s, "2.5e-7");
+    }
+
+    #[test]
+    fn unchanged_samples_are_one_value_where_asked() {
+        let mut samples = String::new();
+        for code in [0.0, 10.0] {
+            sample(&mut samples, code, [[0.0, 1.0, 2.0]].iter(), push_vec3);
+        }
+        let mut text = String::new();
+        time_samples(&mut text, "point3f[] points", &samples, true);
+        assert_eq!(text, "        point3f[] points = [(0, 1, 2)]\n");
+        text.clear();
+        time_samples(&mut text, "point3f[] points", &samples, false);
+        assert!(text.starts_with("        point3f[] points.timeSamples = {\n"));
+        // Samples that differ stay samples.
+        sample(&mut samples, 20.0, [[0.0, 1.0, 3.0]].iter(), push_vec3);
+        text.clear();
+        time_samples(&mut text, "point3f[] points", &samples, true);
+        assert_eq!(text.lines().count(), 5);
     }
 
     #[test]
