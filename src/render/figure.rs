@@ -58,8 +58,8 @@ impl Layout {
     }
 }
 
-/// Smallest panel side a figure accepts (pixels).
-const MIN_PANEL: usize = 16;
+/// Smallest panel side a figure accepts (pixels): a picture's smallest.
+const MIN_PANEL: usize = super::MIN_SIZE;
 
 /// `panel` resized so that `n` panels with their title, captions, margins and colour bar fit
 /// in `width × height` as fully as whole pixels allow; `None` when the panels would be
