@@ -6,6 +6,7 @@
 
 pub mod generate;
 pub mod gmsh;
+pub mod orientation;
 pub mod parts;
 pub mod surface;
 mod surface_formats;

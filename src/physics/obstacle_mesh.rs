@@ -13,7 +13,8 @@
 //! the search radius.
 
 use super::grid::BoxGrid;
-use crate::mesh::surface::{winding_number, TriSurface};
+use crate::mesh::orientation::winding_number;
+use crate::mesh::surface::TriSurface;
 use nalgebra::Vector3;
 use std::collections::HashMap;
 
