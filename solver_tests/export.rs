@@ -320,8 +320,11 @@ fn every_format_holds_each_frames_surfaces_and_their_attributes() {
             for (p, x) in ice.arrays["Points"].chunks(3).enumerate() {
                 let node = by_position[&[x[0], x[1], x[2]].map(f64::to_bits)];
                 let want = nodal[node];
+                // The run stores what is only drawn (stress, ‖ε_p‖) in single precision:
+                // a value read back is within 2⁻²⁴ ≈ 6e-8 of the double it was, and so is a
+                // volume-weighted mean of such values; 1e-6 leaves room for the sums.
                 assert!(
-                    (values[p] - want).abs() <= 1e-12 * want.abs(),
+                    (values[p] - want).abs() <= 1e-6 * want.abs(),
                     "frame {k} {name} at point {p}: {} != {want}",
                     values[p]
                 );

@@ -504,7 +504,9 @@ fn ice_cooled_inside_rigid_walls_takes_the_thermal_stress_of_its_bulk_modulus() 
             "thermal_expansion = 5e-5\n",
             "thermal_expansion = 5e-5\nmodel = \"linear\"\n",
         )
-        .replace("[time]", &format!("{walls}[time]"));
+        .replace("[time]", &format!("{walls}[time]"))
+        // The stress checked to 1e-9: stored in double precision.
+        + "[output]\ndrawn_precision = \"double\"\n";
     let dir = tempfile::tempdir().unwrap();
     let (_, values) = last_frame(dir.path(), &text, &["stress"]);
     let stress = &values[0];

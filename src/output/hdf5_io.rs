@@ -214,20 +214,20 @@ pub(super) fn read_string_attr(
     })
 }
 
-/// Datasets with fewer values than this are stored contiguous and uncompressed:
-/// for a few kilobytes, chunk indexes and deflate cost more time (and often
-/// bytes) than they save — a 200-tet run would spend most of its time in zlib.
-const COMPRESS_MIN_VALUES: usize = 4096;
+/// Datasets with fewer values than this are stored contiguous and uncompressed: below 16 kB
+/// (of doubles) the chunk index and deflate's set-up (a few hundred kilobytes of tables per
+/// dataset) cost more time than the bytes saved are worth.
+const COMPRESS_MIN_VALUES: usize = 2048;
 
-/// Writes a row-major `rows × cols` f64 matrix (1-D when `cols == 1`), chunked and
-/// compressed when it holds at least `COMPRESS_MIN_VALUES` values; returns the dataset.
-pub(super) fn write_matrix(
+/// Writes a row-major `rows × cols` matrix (1-D when `cols == 1`), chunked and compressed
+/// when it holds at least `COMPRESS_MIN_VALUES` values; returns the dataset.
+pub(super) fn write_matrix<T: H5Type>(
     path: &Path,
     g: &Group,
     name: &str,
     rows: usize,
     cols: usize,
-    data: &[f64],
+    data: &[T],
 ) -> Result<Dataset, OutputError> {
     let ctx = || format!("writing {}/{name} [{rows}, {cols}]", g.name());
     let mut b = g.new_dataset_builder();
@@ -246,6 +246,22 @@ pub(super) fn write_matrix(
         let view = ArrayView2::from_shape((rows, cols), data)
             .map_err(|e| invalid(path, format!("{name}: {e}")))?;
         b.with_data(view).create(name).ctx(path, ctx)
+    }
+}
+
+/// As [`write_matrix`] for doubles, stored as 32-bit floats when `single`.
+pub(super) fn write_values(
+    path: &Path,
+    g: &Group,
+    (name, rows, cols): (&str, usize, usize),
+    data: &[f64],
+    single: bool,
+) -> Result<Dataset, OutputError> {
+    if single {
+        let narrow: Vec<f32> = data.iter().map(|&x| x as f32).collect();
+        write_matrix(path, g, name, rows, cols, &narrow)
+    } else {
+        write_matrix(path, g, name, rows, cols, data)
     }
 }
 

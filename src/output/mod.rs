@@ -21,16 +21,18 @@
 //!     triangles          i64 [t, 3]  indices into vertices
 //! /frames/NNNNNN         one group per output frame, NNNNNN = 0-based frame index (6+ digits)
 //!     attrs: step (u64), time (f64, s), complete (u8, = 1, written last)
-//!     positions          f64 [n, 3]  (m)
+//!     positions          f64 [n, 3]  (m)   f32 with `[output] drawn_precision = "single"`
 //!     velocities         f64 [n, 3]  (m/s)
 //!     rest_positions     f64 [n, 3]  (m)   hard link to the previous frame's when topology is unchanged
 //!     tets               i64 [m, 4]        hard link to the previous frame's when topology is unchanged
-//!     stress             f64 [m, 6]  Cauchy stress, Voigt order xx yy zz yz xz xy (Pa)
-//!     <field>            f64 [rows] if cols == 1, else [rows, cols]; attr center = "Cell" | "Node"
-//!     tensors/           stress and every 6-column (Voigt) field again as 3 × 3 matrices:
+//!     stress             f64 [m, 6]  Cauchy stress, Voigt order xx yy zz yz xz xy (Pa); f32 as positions
+//!     <field>            f64 [rows] if cols == 1, else [rows, cols]; attr center = "Cell" | "Node";
+//!                        f32 as positions for the fields only drawn (`DRAWN_DATASETS`)
+//!     tensors/           with `[output] tensor_matrices`: stress and every 6-column (Voigt) field
+//!                        again as 3 × 3 matrices (f32 as positions):
 //!         <name>         f64 [rows, 9]  row-major xx xy xz yx yy yz zx zy zz; attr center
 //!     cracks/            fracture runs only: the crack faces as separate triangles
-//!         vertices       f64 [3t, 3] (m), drawn with the rendering gap where a crack is closed
+//!         vertices       f64 [3t, 3] (m), drawn with the rendering gap where a crack is closed (f32 as positions)
 //!         triangles      i64 [t, 3]  indices into vertices
 //!         crack          i64 [t]     which crack (connected crack surface) each belongs to
 //! /stats/<column>        one resizable chunked 1-D dataset per `StepStats` field, one row per step
@@ -75,6 +77,7 @@
 //! an existing file is replaced only on request ([`OutputWriter::replace`]) and only if it is
 //! an icefem file no run is writing.
 
+mod background;
 mod describe;
 mod hdf5_io;
 mod ownership;
@@ -86,6 +89,7 @@ mod test_support;
 mod writer;
 mod xdmf;
 
+pub use background::BackgroundWriter;
 pub use describe::{describe, summary, DatasetSummary, FileSummary, FrameTime};
 pub use reader::{parse_frame_range, CrackTriangle, FrameReader, StoredFrame, StoredMesh};
 pub use resume::{ResumeFrame, StoredField};
@@ -115,6 +119,58 @@ const FRAME_GROUPS: [&str; 2] = ["cracks", "tensors"];
 
 /// The group of a frame holding each symmetric tensor as 3 × 3 matrices.
 const TENSORS: &str = "tensors";
+
+/// Frame datasets that only pictures and exports use: no resumed run reads them (a resumed
+/// run continues from `displacement`, `velocities` and the state fields). With
+/// [`FrameOptions::drawn_single`] they are stored in single precision, as is everything in
+/// `tensors/` and the crack surfaces' `vertices`.
+pub const DRAWN_DATASETS: [&str; 8] = [
+    "positions",
+    "stress",
+    "von_mises",
+    "max_principal_stress",
+    "plastic_strain_norm",
+    "contact_normal_force",
+    "contact_friction_force",
+    "contact_active",
+];
+
+/// The per-element scalars a frame can store besides the stress they are computed from
+/// (readers compute them from `stress` and `plastic_strain` in a file without them).
+pub const DERIVED_SCALARS: [&str; 3] = ["von_mises", "max_principal_stress", "plastic_strain_norm"];
+
+/// What frames store beyond a resumed run's state (`[output]`): derived copies and the
+/// precision of what is only drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameOptions {
+    /// Store every symmetric tensor a second time as 3 × 3 matrices (`tensors/<name>`, the
+    /// layout VTK's XDMF readers show as tensors).
+    pub tensor_matrices: bool,
+    /// Store the [`DERIVED_SCALARS`] (von Mises, largest principal stress, ‖ε_p‖ per element).
+    pub derived_scalars: bool,
+    /// Store the [`DRAWN_DATASETS`], `tensors/` and the crack vertices as 32-bit floats (7
+    /// significant digits: 1e-8 m on a 10 cm body), halving their size.
+    pub drawn_single: bool,
+}
+
+impl Default for FrameOptions {
+    /// Everything, in double precision.
+    fn default() -> Self {
+        FrameOptions {
+            tensor_matrices: true,
+            derived_scalars: true,
+            drawn_single: false,
+        }
+    }
+}
+
+impl FrameOptions {
+    /// Whether the frame dataset `name` (a top-level dataset of the frame group) is stored in
+    /// single precision.
+    pub fn single(&self, name: &str) -> bool {
+        self.drawn_single && DRAWN_DATASETS.contains(&name)
+    }
+}
 
 /// A symmetric tensor in Voigt order xx yy zz yz xz xy as a 3 × 3 matrix, row-major:
 /// xx xy xz, yx yy yz, zx zy zz.

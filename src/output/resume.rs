@@ -278,7 +278,7 @@ impl OutputWriter {
             next_frame: last_index + 1,
             topology: format!("/frames/{last_name}"),
             unlinked_topology: None,
-            tensor_matrices: true,
+            options: super::FrameOptions::default(),
             n_nodes: rf.positions.len(),
             n_elems: rf.tets.len(),
             stats_rows,

@@ -7,13 +7,13 @@ use hdf5::{Dataset, File, Group};
 
 use super::hdf5_io::{
     check_tets, close_on_exec, link_dataset, link_object, vlen_str, write_attr, write_indices,
-    write_matrix, write_tets, write_vec3, Hdf5Context,
+    write_tets, write_values, write_vec3, Hdf5Context,
 };
 use super::ownership::{check_target, partial_path, remove_stale_partials, take_place, RunLock};
 use super::xdmf::{write_sidecars, FrameRecord};
 use super::{
-    corrupt, invalid, voigt_to_matrix, Frame, OutputError, RunHeader, StepStats, FORMAT_VERSION,
-    FRAME_GROUPS, RESERVED_FRAME_NAMES, TENSORS,
+    corrupt, invalid, voigt_to_matrix, Frame, FrameOptions, OutputError, RunHeader, StepStats,
+    FORMAT_VERSION, FRAME_GROUPS, RESERVED_FRAME_NAMES, TENSORS,
 };
 
 /// Rows appended to `/stats` per chunk; 4096 rows × 8 B = 32 KiB chunks keep
@@ -126,9 +126,8 @@ pub struct OutputWriter {
     /// group itself while that frame is not committed yet.
     pub(super) topology: String,
     pub(super) unlinked_topology: Option<Group>,
-    /// Whether frames store their symmetric tensors a second time as 3 × 3 matrices
-    /// (`tensors/<name>`, for VTK's XDMF readers).
-    pub(super) tensor_matrices: bool,
+    /// What frames store besides a resumed run's state, and in which precision.
+    pub(super) options: FrameOptions,
     /// Node / element counts of the current topology, to reject a frame that
     /// claims unchanged topology but has different sizes.
     pub(super) n_nodes: usize,
@@ -302,7 +301,7 @@ impl OutputWriter {
                 next_frame: 0,
                 topology: "/mesh".into(),
                 unlinked_topology: None,
-                tensor_matrices: true,
+                options: FrameOptions::default(),
                 n_nodes: header.rest_positions.len(),
                 n_elems: header.tets.len(),
                 stats_rows: 0,
@@ -421,7 +420,7 @@ impl OutputWriter {
             .last()
             .map(|(_, r, _)| r)
             .or(self.records.last());
-        let record = FrameRecord::of(self.next_frame, frame, self.tensor_matrices, previous);
+        let record = FrameRecord::of(self.next_frame, frame, self.options, previous);
         if frame.topology_changed {
             self.topology = format!("/frames/{name}");
             self.unlinked_topology = Some(g.clone());
@@ -458,7 +457,16 @@ impl OutputWriter {
         for (name, value) in frame.attributes {
             write_attr(&path, &g, name, value)?;
         }
-        write_vec3(&path, &g, "positions", frame.positions)?;
+        let options = self.options;
+        let n = frame.positions.len();
+        let positions = frame.positions.as_flattened();
+        write_values(
+            &path,
+            &g,
+            ("positions", n, 3),
+            positions,
+            options.single("positions"),
+        )?;
         write_vec3(&path, &g, "velocities", frame.velocities)?;
         if frame.topology_changed {
             write_vec3(&path, &g, "rest_positions", frame.rest_positions)?;
@@ -476,7 +484,14 @@ impl OutputWriter {
             link_dataset(&path, &source, &g, "tets")?;
         }
         let stress = frame.stress.as_flattened();
-        write_matrix(&path, &g, "stress", frame.stress.len(), 6, stress)?;
+        let m = frame.stress.len();
+        write_values(
+            &path,
+            &g,
+            ("stress", m, 6),
+            stress,
+            options.single("stress"),
+        )?;
         let centers = [
             (frame.element_fields, "Cell"),
             (frame.node_fields, "Node"),
@@ -484,19 +499,21 @@ impl OutputWriter {
         ];
         for (fields, center) in centers {
             for f in fields {
-                let rows = f.data.len() / f.cols;
-                let ds = write_matrix(&path, &g, f.name, rows, f.cols, f.data)?;
+                let shape = (f.name, f.data.len() / f.cols, f.cols);
+                let ds = write_values(&path, &g, shape, f.data, options.single(f.name))?;
                 write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
             }
         }
-        if self.tensor_matrices {
-            write_tensor_matrices(&path, &g, name, frame)?;
+        if options.tensor_matrices {
+            write_tensor_matrices(&path, &g, name, frame, options.drawn_single)?;
         }
         if let Some(c) = frame.cracks {
             let cg = g
                 .create_group("cracks")
                 .ctx(&path, || format!("creating the cracks of frame {name}"))?;
-            write_vec3(&path, &cg, "vertices", &c.vertices)?;
+            let vertices = c.vertices.as_flattened();
+            let shape = ("vertices", c.vertices.len(), 3);
+            write_values(&path, &cg, shape, vertices, options.drawn_single)?;
             write_indices(&path, &cg, "triangles", &c.triangles)?;
             let ids: Vec<[usize; 1]> = c.crack.iter().map(|&k| [k]).collect();
             write_indices(&path, &cg, "crack", &ids)?;
@@ -505,11 +522,16 @@ impl OutputWriter {
         Ok(g)
     }
 
-    /// Whether frames written from now on store their symmetric tensors a second time as
-    /// 3 × 3 matrices (`tensors/<name>`; on by default). Without them the XDMF sidecar has
-    /// no tensor attributes, only the scalars derived from them.
-    pub fn store_tensor_matrices(&mut self, on: bool) {
-        self.tensor_matrices = on;
+    /// What frames written from now on store besides a resumed run's state (everything, in
+    /// double precision, by default). Without tensor matrices the XDMF sidecar has no tensor
+    /// attributes, only the scalars derived from them.
+    pub fn set_frame_options(&mut self, options: FrameOptions) {
+        self.options = options;
+    }
+
+    /// What frames written from now on store.
+    pub fn frame_options(&self) -> FrameOptions {
+        self.options
     }
 
     fn validate_frame(&self, frame: &Frame) -> Result<(), OutputError> {
@@ -808,13 +830,14 @@ pub(super) fn create_stats_column(
 }
 
 /// Writes the symmetric tensors of `frame` (the stress and every 6-column field) again as
-/// 3 × 3 matrices into group `tensors` of frame group `g`: the one layout VTK's XDMF readers
-/// both read as the tensor it is (see `xdmf.rs`).
+/// 3 × 3 matrices into group `tensors` of frame group `g` (in single precision if `single`):
+/// the one layout VTK's XDMF readers both read as the tensor it is (see `xdmf.rs`).
 fn write_tensor_matrices(
     path: &Path,
     g: &Group,
     name: &str,
     frame: &Frame,
+    single: bool,
 ) -> Result<(), OutputError> {
     let stress = frame.stress.as_flattened();
     let tensors = g
@@ -829,10 +852,13 @@ fn write_tensor_matrices(
     );
     for (field, center, data) in voigt {
         let matrices: Vec<f64> = data.chunks_exact(6).flat_map(voigt_to_matrix).collect();
-        write_matrix(path, &tensors, field, data.len() / 6, 9, &matrices)?;
-        let ds = tensors
-            .dataset(field)
-            .ctx(path, || format!("reopening {TENSORS}/{field}"))?;
+        let ds = write_values(
+            path,
+            &tensors,
+            (field, data.len() / 6, 9),
+            &matrices,
+            single,
+        )?;
         write_attr(path, &ds, "center", &vlen_str(path, "center", center)?)?;
     }
     Ok(())

@@ -10,7 +10,7 @@
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::rc::Rc;
+use std::sync::Arc;
 
 use hdf5::types::{FloatSize, IntSize, TypeDescriptor};
 use hdf5::{Dataset, File, Group};
@@ -19,7 +19,7 @@ use super::hdf5_io::{
     check_hdf5_signature, check_icefem_layout, list_frames, open_2d, open_read, read_attr,
     read_string, Hdf5Context,
 };
-use super::{corrupt, invalid, Frame, OutputError, RESERVED_FRAME_NAMES, TENSORS};
+use super::{corrupt, invalid, Frame, FrameOptions, OutputError, RESERVED_FRAME_NAMES, TENSORS};
 
 /// One dataset as a sidecar describes it: shape and number type.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -75,32 +75,44 @@ pub(super) struct FrameRecord {
     positions: Item,
     tets: Item,
     /// Attributes in sidecar order; shared between consecutive frames with the same layout.
-    attributes: Rc<[AttributeRecord]>,
+    attributes: Arc<[AttributeRecord]>,
     /// `cracks/triangles`, `cracks/vertices`, `cracks/crack`, when the frame has crack faces.
     cracks: Option<[Item; 3]>,
 }
 
 impl FrameRecord {
-    /// The record of `frame`, written as group `index` with its tensors' matrices when
-    /// `tensor_matrices` (without them, no tensor is listed); `previous` (the last record)
-    /// lends its attribute list when the layout is the same.
+    /// The record of `frame`, written as group `index` with `options` (without tensor
+    /// matrices, no tensor is listed); `previous` (the last record) lends its attribute list
+    /// when the layout is the same.
     pub(super) fn of(
         index: usize,
         frame: &Frame,
-        tensor_matrices: bool,
+        options: FrameOptions,
         previous: Option<&FrameRecord>,
     ) -> Self {
         let (n, m) = (frame.positions.len(), frame.tets.len());
+        let tensor_matrices = options.tensor_matrices;
+        // The item of a dataset of doubles, or of singles where the options store it so.
+        let float = |rows, cols, single: bool| Item {
+            precision: if single { 4 } else { 8 },
+            ..float(rows, cols)
+        };
+        let tensor = float(m, 9, options.drawn_single);
         let mut attributes = vec![
-            builtin("velocity", "velocities", "Node", float(n, 3)),
-            builtin("rest_position", "rest_positions", "Node", float(n, 3)),
+            builtin("velocity", "velocities", "Node", float(n, 3, false)),
+            builtin(
+                "rest_position",
+                "rest_positions",
+                "Node",
+                float(n, 3, false),
+            ),
         ];
         if tensor_matrices {
             attributes.push(builtin(
                 "stress",
                 &format!("{TENSORS}/stress"),
                 "Cell",
-                float(m, 9),
+                tensor,
             ));
         }
         let builtins = attributes.len();
@@ -109,15 +121,16 @@ impl FrameRecord {
             (frame.node_fields, "Node", n),
         ] {
             for f in fields.iter().filter(|f| tensor_matrices || f.cols != 6) {
+                let single = options.single(f.name);
                 attributes.push(match f.cols {
                     6 => builtin(
                         f.name,
                         &format!("{TENSORS}/{}", f.name),
                         center,
-                        float(rows, 9),
+                        float(rows, 9, options.drawn_single),
                     ),
-                    1 => builtin(f.name, f.name, center, float(rows, 0)),
-                    cols => builtin(f.name, f.name, center, float(rows, cols)),
+                    1 => builtin(f.name, f.name, center, float(rows, 0, single)),
+                    cols => builtin(f.name, f.name, center, float(rows, cols, single)),
                 });
             }
         }
@@ -126,12 +139,13 @@ impl FrameRecord {
         let attributes = shared(attributes, previous);
         let cracks = frame.cracks.map(|c| {
             let t = c.triangles.len();
-            [indices(t, 3), float(c.vertices.len(), 3), indices(t, 0)]
+            let vertices = float(c.vertices.len(), 3, options.drawn_single);
+            [indices(t, 3), vertices, indices(t, 0)]
         });
         Self {
             index,
             time: frame.time,
-            positions: float(n, 3),
+            positions: float(n, 3, options.single("positions")),
             tets: indices(m, 4),
             attributes,
             cracks,
@@ -143,7 +157,7 @@ impl FrameRecord {
 fn shared(
     attributes: Vec<AttributeRecord>,
     previous: Option<&FrameRecord>,
-) -> Rc<[AttributeRecord]> {
+) -> Arc<[AttributeRecord]> {
     match previous {
         Some(p) if *p.attributes == *attributes => p.attributes.clone(),
         _ => attributes.into(),

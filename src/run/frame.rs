@@ -5,7 +5,7 @@ use super::{as_rows, rows, Processes, RunError};
 use crate::fem;
 use crate::fracture::Fracture;
 use crate::mesh::TetMesh;
-use crate::output::{Field, Frame, OutputError, OutputWriter};
+use crate::output::{BackgroundWriter, Field, Frame, OutputError};
 use crate::physics::contact::ContactForces;
 use crate::sim::part::{Part, StateShares};
 use crate::sim::{SimError, Simulation, State};
@@ -15,7 +15,7 @@ use crate::sim::{SimError, Simulation, State};
 /// one's part, the whole mesh), every process first gives its part of the state to the
 /// writing one.
 pub(super) fn emit_frame(
-    writer: Option<&mut OutputWriter>,
+    writer: Option<&mut BackgroundWriter>,
     (sim, fracture): (&Simulation, Option<&Fracture>),
     shared: Option<(&dyn Processes, &Part, &TetMesh)>,
     flags: FrameFlags,
@@ -98,7 +98,7 @@ impl<'a> FrameSource<'a> {
 pub(super) struct FrameFlags {
     /// The mesh changed since the last frame written.
     pub(super) topology_changed: bool,
-    /// The frame is on the output grid, after which the run forgets its solver memory (see
+    /// The frame is at a restart point, after which the run forgets its solver memory (see
     /// [`Simulation::forget_solver_memory`]): `--resume` continues from the last such frame.
     pub(super) restart_point: bool,
 }
@@ -113,7 +113,7 @@ struct DerivedFields {
     zero_forces: Vec<f64>,
     /// Whether each node is in contact (1) or not (0), with contact.
     contact_active: Vec<f64>,
-    /// Von Mises stress per element (Pa).
+    /// Von Mises stress per element (Pa); empty when the frames leave the derived scalars out.
     von_mises: Vec<f64>,
     /// Largest principal stress per element (Pa).
     principal: Vec<f64>,
@@ -129,7 +129,8 @@ struct DerivedFields {
 }
 
 impl DerivedFields {
-    fn of(source: &FrameSource, fracture: Option<&Fracture>) -> Self {
+    /// The fields of `source`, with the derived scalars if `scalars`.
+    fn of(source: &FrameSource, fracture: Option<&Fracture>, scalars: bool) -> Self {
         let state = source.state;
         let positions = source
             .mesh
@@ -157,8 +158,15 @@ impl DerivedFields {
             None => Vec::new(),
         };
         // What ParaView users would otherwise compute with a calculator, per element.
-        let tensors: Vec<_> = source.stress.iter().map(|s| fem::from_voigt(s)).collect();
+        let tensors: Vec<_> = match scalars {
+            true => source.stress.iter().map(|s| fem::from_voigt(s)).collect(),
+            false => Vec::new(),
+        };
         let history = &state.history;
+        let plastic_norm = match scalars {
+            true => history.plastic_strain.iter().map(|e| e.norm()).collect(),
+            false => Vec::new(),
+        };
         DerivedFields {
             positions,
             rest: rows(&source.mesh.rest),
@@ -169,7 +177,7 @@ impl DerivedFields {
             plastic: (history.plastic_strain.iter())
                 .flat_map(fem::to_voigt)
                 .collect(),
-            plastic_norm: history.plastic_strain.iter().map(|e| e.norm()).collect(),
+            plastic_norm,
             origin: fracture.map_or(Vec::new(), |f| f.origin.iter().map(|&o| o as f64).collect()),
             refused: fracture.map_or(Vec::new(), |f| f.refusals_as_rows(source.mesh.num_nodes())),
         }
@@ -235,10 +243,14 @@ fn element_fields<'a>(
     if !history.freeze_state.is_empty() {
         fields.push(field("freeze_state", 1, &history.freeze_state));
     }
-    fields.push(field("von_mises", 1, &derived.von_mises));
-    fields.push(field("max_principal_stress", 1, &derived.principal));
+    if !derived.von_mises.is_empty() {
+        fields.push(field("von_mises", 1, &derived.von_mises));
+        fields.push(field("max_principal_stress", 1, &derived.principal));
+    }
     if !derived.plastic.is_empty() {
         fields.push(field("plastic_strain", 6, &derived.plastic));
+    }
+    if !derived.plastic_norm.is_empty() {
         fields.push(field("plastic_strain_norm", 1, &derived.plastic_norm));
     }
     if fracture {
@@ -250,13 +262,14 @@ fn element_fields<'a>(
 /// Writes the state of `source` as a frame (with the crack surfaces and what a resumed run
 /// needs of `fracture`, if the run fractures).
 fn write_frame(
-    writer: &mut OutputWriter,
+    writer: &mut BackgroundWriter,
     source: &FrameSource,
     fracture: Option<(&Fracture, &Simulation)>,
     flags: FrameFlags,
 ) -> Result<(), OutputError> {
     let state = source.state;
-    let derived = DerivedFields::of(source, fracture.map(|(f, _)| f));
+    let scalars = writer.frame_options().derived_scalars;
+    let derived = DerivedFields::of(source, fracture.map(|(f, _)| f), scalars);
     let restart_point = f64::from(u8::from(flags.restart_point));
     let mut attributes = vec![("restart_point", restart_point)];
     attributes.extend(state.carried.scalars.iter().copied());

@@ -8,7 +8,9 @@ pub use outcome::{FractureOutcome, Outcome};
 
 use crate::fracture::{Fracture, FractureReport};
 use crate::mesh::TetMesh;
-use crate::output::{ObstacleMesh, OutputError, OutputWriter, ResumeFrame, RunHeader, StepStats};
+use crate::output::{
+    BackgroundWriter, ObstacleMesh, OutputError, OutputWriter, ResumeFrame, RunHeader, StepStats,
+};
 use crate::physics::contact::Shape;
 use crate::physics::Model;
 use crate::scene::{Scene, SceneError};
@@ -197,7 +199,7 @@ pub fn run_on(
         shared: shared.map(|(p, part)| (p, part, &scene.model.mesh)),
         sim,
         fracture,
-        writer,
+        writer: writer.map(BackgroundWriter::start),
         output,
     };
     if !options.resume {
@@ -291,7 +293,7 @@ fn resume_frame(
 ) -> Result<(Option<OutputWriter>, ResumeFrame), RunError> {
     if writes {
         let (mut writer, frame) = OutputWriter::resume_until(output, end_time)?;
-        writer.store_tensor_matrices(scene.tensor_matrices);
+        writer.set_frame_options(scene.frame_options);
         if let Some(processes) = processes {
             processes.broadcast_bytes(frame.to_bytes());
         }
@@ -328,7 +330,7 @@ fn new_writer(
     } else {
         OutputWriter::create(output, &header)?
     };
-    writer.store_tensor_matrices(scene.tensor_matrices);
+    writer.set_frame_options(scene.frame_options);
     Ok(writer)
 }
 
@@ -345,7 +347,7 @@ struct Run<'a> {
     sim: Simulation,
     fracture: Option<Fracture>,
     /// The output (on the writing process).
-    writer: Option<OutputWriter>,
+    writer: Option<BackgroundWriter>,
     output: PathBuf,
 }
 
@@ -426,14 +428,15 @@ impl Run<'_> {
             if due.frame || stopping {
                 self.emit_frame(FrameFlags {
                     topology_changed,
-                    restart_point: due.on_grid,
+                    restart_point: due.restart,
                 })?;
                 topology_changed = false;
-                // A run resumed from this frame starts without solver memory: so does this
-                // one.
-                if due.on_grid {
-                    self.sim.forget_solver_memory();
-                }
+            }
+            // A run resumed from a frame here starts without solver memory: so does this one,
+            // whether or not it writes a frame here, so that the frames written never change
+            // the results.
+            if due.restart {
+                self.sim.forget_solver_memory();
             }
             progress(&Progress {
                 step: self.sim.state.step,
@@ -493,8 +496,9 @@ impl Run<'_> {
             Some(f) => f.after_step(sim)?,
             None => FractureReport::default(),
         };
-        // A frame on the output grid is one every run through this time writes, wherever it
-        // ends: a restart point.
+        // Restart points are steps every run through this time takes, wherever it ends: on
+        // their own grid of steps, or (adaptive steps, which end on the frame times) on the
+        // output grid.
         let due = match self.settings.adaptive {
             Some(_) => {
                 // The step (or fracture's retake of it) ended on `limit` to round-off: it is
@@ -508,15 +512,15 @@ impl Run<'_> {
                 let on_grid = sim.state.time == next_frame;
                 let end = self.end_time - sim.state.time <= 1e-9 * self.end_time;
                 FrameDue {
-                    on_grid,
+                    restart: on_grid,
                     frame: on_grid || end,
                 }
             }
             None => {
-                let on_grid = sim.state.step.is_multiple_of(self.scene.output_every);
+                let step = sim.state.step;
                 FrameDue {
-                    on_grid,
-                    frame: on_grid || sim.state.step == *total_steps,
+                    restart: step.is_multiple_of(self.scene.restart_every),
+                    frame: step.is_multiple_of(self.scene.output_every) || step == *total_steps,
                 }
             }
         };
@@ -526,9 +530,10 @@ impl Run<'_> {
 
 /// Whether a frame is due after a step.
 struct FrameDue {
-    /// The step ended on the output grid (a restart point).
-    on_grid: bool,
-    /// A frame is written: on the grid, or at the end.
+    /// The step is a restart point: the solver forgets its memory after it, and a frame
+    /// written there is one `--resume` continues from.
+    restart: bool,
+    /// A frame is written: on the output grid, or at the end.
     frame: bool,
 }
 

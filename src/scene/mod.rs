@@ -23,6 +23,7 @@
 use crate::fem::{ElasticModel, Material};
 use crate::fracture::FractureSettings;
 use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
+use crate::output::FrameOptions;
 use crate::physics::freezing::Freezing;
 use crate::physics::ice_contact::IceContactTerm;
 use crate::physics::plasticity::Plasticity;
@@ -309,6 +310,10 @@ pub struct TimeSection {
     pub end_time: f64,
     /// Write a frame every this many steps (of `dt`). Default 1.
     pub output_every: Option<u64>,
+    /// Steps between restart points (fixed steps): the solver starts them with a fresh
+    /// factorisation, whatever the frames, and a frame written there is where `--resume`
+    /// continues from. Default 10.
+    pub restart_every: Option<u64>,
     /// Adaptive steps (dynamic analyses).
     pub adaptive: Option<AdaptiveSection>,
 }
@@ -370,7 +375,25 @@ pub struct OutputSection {
     /// the layout VTK's XDMF readers (ParaView) read as tensors. Default true; false makes
     /// files about a third smaller, and their XDMF then shows the scalars derived from the
     /// tensors (von Mises, largest principal stress, ‖ε_p‖) but not the tensors.
+    /// Default: true, but false with a frame every step (`output_every = 1`).
     pub tensor_matrices: Option<bool>,
+    /// Store von Mises stress, largest principal stress and ‖ε_p‖ per element beside the
+    /// stress they are computed from. Default: true, but false with a frame every step.
+    pub derived_scalars: Option<bool>,
+    /// Precision of what frames store only to be drawn (positions, stress, the derived
+    /// copies, contact forces, crack surfaces): "single" (default: half the bytes, 7
+    /// significant digits) or "double". What a resumed run reads is always double.
+    pub drawn_precision: Option<DrawnPrecision>,
+}
+
+/// `[output] drawn_precision`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DrawnPrecision {
+    /// 32-bit floats.
+    Single,
+    /// 64-bit floats.
+    Double,
 }
 
 /// A validated scene.
@@ -388,11 +411,13 @@ pub struct Scene {
     pub end_time: f64,
     /// Steps per output frame.
     pub output_every: u64,
+    /// Steps between restart points (`[time] restart_every`; fixed steps only: with adaptive
+    /// steps every frame on the output grid is one).
+    pub restart_every: u64,
     /// Default output file.
     pub output: PathBuf,
-    /// Whether frames store their symmetric tensors also as 3 × 3 matrices (`[output]
-    /// tensor_matrices`).
-    pub tensor_matrices: bool,
+    /// What frames store besides a resumed run's state (`[output]`).
+    pub frame_options: FrameOptions,
     /// The heat model driving the freezing (`[thermal]`).
     pub thermal: Option<HeatSetup>,
     /// Fracture, if on.
@@ -403,6 +428,18 @@ pub struct Scene {
     /// What looks like a mistake in the input but is not certainly one (one line each), such
     /// as a body a thousand times larger than its container: repeated after the run.
     pub warnings: Vec<String>,
+}
+
+/// The frame options of `[output]` for frames every `output_every` steps: the derived copies
+/// are left out by default when a frame is written every step (an animation's frames), where
+/// they would be most of the file.
+fn frame_options(output: &OutputSection, output_every: u64) -> FrameOptions {
+    let derived = output_every > 1;
+    FrameOptions {
+        tensor_matrices: output.tensor_matrices.unwrap_or(derived),
+        derived_scalars: output.derived_scalars.unwrap_or(derived),
+        drawn_single: output.drawn_precision != Some(DrawnPrecision::Double),
+    }
 }
 
 impl Scene {
@@ -603,8 +640,9 @@ impl Validator<'_> {
             settings,
             end_time: stepping.end_time,
             output_every: stepping.output_every,
+            restart_every: stepping.restart_every,
             output,
-            tensor_matrices: raw.output.tensor_matrices.unwrap_or(true),
+            frame_options: frame_options(&raw.output, stepping.output_every),
             fracture,
             thermal,
             notices: self.notices.take(),

@@ -14,6 +14,8 @@ pub(super) struct Stepping {
     pub end_time: f64,
     /// Steps per output frame.
     pub output_every: u64,
+    /// Steps between restart points.
+    pub restart_every: u64,
 }
 
 /// The checked limits of `[solver]`.
@@ -42,6 +44,7 @@ impl Validator<'_> {
         if output_every == 0 {
             return Err(self.invalid("time.output_every", "must be ≥ 1"));
         }
+        let restart_every = self.restart_every(time, output_every)?;
         let limits = self.solver_limits(solver)?;
         let (lo, hi) = mesh.bounding_box();
         let adaptive = time
@@ -72,7 +75,35 @@ impl Validator<'_> {
             settings,
             end_time,
             output_every,
+            restart_every,
         })
+    }
+
+    /// `[time] restart_every` (default 10), with a notice when restart points fall on few of
+    /// the frames (neither count divides the other).
+    fn restart_every(&self, time: &TimeSection, output_every: u64) -> Result<u64, SceneError> {
+        let restart_every = time.restart_every.unwrap_or(10);
+        if restart_every == 0 {
+            return Err(self.invalid("time.restart_every", "must be ≥ 1"));
+        }
+        let divides = |a: u64, b: u64| b.is_multiple_of(a);
+        if time.adaptive.is_none()
+            && !divides(output_every, restart_every)
+            && !divides(restart_every, output_every)
+        {
+            let (mut a, mut b) = (output_every, restart_every);
+            while b != 0 {
+                (a, b) = (b, a % b);
+            }
+            let lcm = (output_every / a).saturating_mul(restart_every);
+            self.notices.borrow_mut().push(format!(
+                "{}: [time] output_every = {output_every} and restart_every = {restart_every}: \
+                 --resume can continue only from the frames every {lcm} steps (make one a \
+                 multiple of the other for more)",
+                self.path.display()
+            ));
+        }
+        Ok(restart_every)
     }
 
     /// The tolerances and iteration caps of `[solver]`, with their defaults.
