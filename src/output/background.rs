@@ -2,8 +2,8 @@
 //! goes on while a frame is compressed and written.
 //!
 //! A frame is copied (a few hundred kilobytes at 1e4 elements: well under a millisecond) and
-//! handed over through a queue of [`QUEUED_FRAMES`] frames; when the writer falls further behind,
-//! the run waits for it, so memory stays bounded. Everything the writer does stays as on one
+//! handed over through a queue of about [`QUEUED_BYTES`] of frames; when the writer falls
+//! further behind, the run waits for it, so memory stays bounded. Everything the writer does stays as on one
 //! thread: the same frames and `/stats` rows in the same order, the same commits, and on an error
 //! or a dropped writer, the frames already handed over are written and committed first (what
 //! the writer's own drop does). A writer error reaches the run at its next frame, stats batch or
@@ -16,8 +16,22 @@ use std::thread::JoinHandle;
 use super::{invalid, Field, Frame, FrameOptions, OutputError, OutputWriter, StepStats};
 use crate::fracture::cracks::CrackSurface;
 
-/// Frames the run may be ahead of the writer before it waits.
-pub const QUEUED_FRAMES: usize = 2;
+/// Bytes of frames the run may be ahead of the writer before it waits (estimated from the
+/// mesh's size, see [`queue_length`]): enough for the writer to catch up on the other core
+/// after a commit, without holding much of the run in memory.
+pub const QUEUED_BYTES: usize = 64 << 20;
+
+/// Frames queued at most, however small.
+const MAX_QUEUED_FRAMES: usize = 256;
+
+/// Frames the run may be ahead of the writer, for `nodes` and `elements`: [`QUEUED_BYTES`]
+/// over an upper estimate of a frame's size (12 doubles a node — positions, velocities,
+/// displacement and a carried field —, 20 an element — the stress, its derived copies and
+/// the history), at least 2.
+pub fn queue_length(nodes: usize, elements: usize) -> usize {
+    let frame = 8 * (12 * nodes + 20 * elements) + 4096;
+    (QUEUED_BYTES / frame).clamp(2, MAX_QUEUED_FRAMES)
+}
 
 /// `/stats` rows handed over in one batch when no frame takes them sooner.
 const STATS_BATCH: usize = 256;
@@ -138,13 +152,16 @@ pub struct BackgroundWriter {
 impl BackgroundWriter {
     /// Moves `writer` to a thread of its own.
     pub fn start(writer: OutputWriter) -> Self {
-        let (queue, jobs) = sync_channel(QUEUED_FRAMES);
+        let (queue, jobs) = sync_channel(queue_length(writer.n_nodes, writer.n_elems));
         let frames = writer.frame_count();
         let options = writer.frame_options();
         let path = writer.path().to_path_buf();
         let thread = std::thread::Builder::new()
             .name("icefem-writer".into())
-            .spawn(move || work(writer, jobs))
+            .spawn(move || {
+                lower_priority();
+                work(writer, jobs)
+            })
             .ok();
         BackgroundWriter {
             queue: thread.is_some().then_some(queue),
@@ -172,7 +189,7 @@ impl BackgroundWriter {
     }
 
     /// Hands a copy of `frame` (and the `/stats` rows before it) to the writing thread; waits
-    /// while it is [`QUEUED_FRAMES`] frames behind. An error the thread met is returned here.
+    /// while the queue is full. An error the thread met is returned here.
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), OutputError> {
         let stats = std::mem::take(&mut self.pending_stats);
         self.send(Job::Frame(stats, Box::new(OwnedFrame::copy(frame))))?;
@@ -233,6 +250,17 @@ impl Drop for BackgroundWriter {
             drop(queue);
             let _ = self.join();
         }
+    }
+}
+
+/// Lowers the calling thread's scheduling priority (nice 10, best effort): on a machine whose
+/// cores the steps keep busy, the writer takes the time they leave, and the queue lets it
+/// catch up.
+fn lower_priority() {
+    // SAFETY: setpriority on this thread's own id; failure leaves the priority as it was.
+    unsafe {
+        let tid = libc::gettid();
+        libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, 10);
     }
 }
 

@@ -135,9 +135,15 @@ pub const DRAWN_DATASETS: [&str; 8] = [
     "contact_active",
 ];
 
-/// The per-element scalars a frame can store besides the stress they are computed from
-/// (readers compute them from `stress` and `plastic_strain` in a file without them).
-pub const DERIVED_SCALARS: [&str; 3] = ["von_mises", "max_principal_stress", "plastic_strain_norm"];
+/// The scalars a frame can store besides what they are computed from (readers compute the
+/// per-element ones from `stress` and `plastic_strain` in a file without them;
+/// `contact_active` is where `contact_normal_force` is not zero).
+pub const DERIVED_SCALARS: [&str; 4] = [
+    "von_mises",
+    "max_principal_stress",
+    "plastic_strain_norm",
+    "contact_active",
+];
 
 /// What frames store beyond a resumed run's state (`[output]`): derived copies and the
 /// precision of what is only drawn.
@@ -146,7 +152,8 @@ pub struct FrameOptions {
     /// Store every symmetric tensor a second time as 3 × 3 matrices (`tensors/<name>`, the
     /// layout VTK's XDMF readers show as tensors).
     pub tensor_matrices: bool,
-    /// Store the [`DERIVED_SCALARS`] (von Mises, largest principal stress, ‖ε_p‖ per element).
+    /// Store the [`DERIVED_SCALARS`] (von Mises, largest principal stress, ‖ε_p‖ per element,
+    /// and whether each node is in contact).
     pub derived_scalars: bool,
     /// Store the [`DRAWN_DATASETS`], `tensors/` and the crack vertices as 32-bit floats (7
     /// significant digits: 1e-8 m on a 10 cm body), halving their size.

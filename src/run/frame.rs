@@ -111,7 +111,7 @@ struct DerivedFields {
     rest: Vec<[f64; 3]>,
     /// Contact forces where the model has contact but no step has computed them yet (N).
     zero_forces: Vec<f64>,
-    /// Whether each node is in contact (1) or not (0), with contact.
+    /// Whether each node is in contact (1) or not (0), with contact and the derived scalars.
     contact_active: Vec<f64>,
     /// Von Mises stress per element (Pa); empty when the frames leave the derived scalars out.
     von_mises: Vec<f64>,
@@ -144,7 +144,7 @@ impl DerivedFields {
             _ => Vec::new(),
         };
         let contact_active = match source.contact {
-            Some(forces) => {
+            Some(forces) if scalars => {
                 let normal = if forces.normal.is_empty() {
                     &zero_forces
                 } else {
@@ -155,7 +155,7 @@ impl DerivedFields {
                     .map(|f| f64::from(u8::from(f.iter().any(|x| *x != 0.0))))
                     .collect()
             }
-            None => Vec::new(),
+            _ => Vec::new(),
         };
         // What ParaView users would otherwise compute with a calculator, per element.
         let tensors: Vec<_> = match scalars {
@@ -212,7 +212,9 @@ fn node_fields<'a>(
         };
         fields.push(field("contact_normal_force", 3, normal));
         fields.push(field("contact_friction_force", 3, friction));
-        fields.push(field("contact_active", 1, &derived.contact_active));
+        if !derived.contact_active.is_empty() {
+            fields.push(field("contact_active", 1, &derived.contact_active));
+        }
     }
     if fracture {
         fields.push(field("refused_split", 4, &derived.refused));
