@@ -174,14 +174,24 @@ impl Light {
     /// The colour of a surface of colour `color` with unit normal `normal` (either side
     /// faces the viewer: crack faces and cut faces are seen from both).
     pub fn shade(&self, color: Rgb, normal: Vector3<f32>) -> Rgb {
-        let facing = if normal.dot(&self.half) < 0.0 {
+        let diffuse = self.facing(normal).dot(&self.to_light).abs();
+        let highlight = self.highlight(normal);
+        color.map(|c| (c * (AMBIENT + (1.0 - AMBIENT) * diffuse) + highlight).min(1.0))
+    }
+
+    /// The white highlight's strength on a surface with unit normal `normal` (0 … the
+    /// light's specular strength), which [`Light::shade`] adds to the colour.
+    pub fn highlight(&self, normal: Vector3<f32>) -> f32 {
+        self.specular * self.facing(normal).dot(&self.half).max(0.0).powi(SHININESS)
+    }
+
+    /// `normal` or its opposite, whichever faces the viewer's side.
+    fn facing(&self, normal: Vector3<f32>) -> Vector3<f32> {
+        if normal.dot(&self.half) < 0.0 {
             -normal
         } else {
             normal
-        };
-        let diffuse = facing.dot(&self.to_light).abs();
-        let highlight = self.specular * facing.dot(&self.half).max(0.0).powi(SHININESS);
-        color.map(|c| (c * (AMBIENT + (1.0 - AMBIENT) * diffuse) + highlight).min(1.0))
+        }
     }
 }
 
