@@ -283,7 +283,13 @@ impl Renderer {
                 }
                 Layer::Glass(f) => {
                     let x = f.map(|v| stage.project(v.x));
-                    canvas.blend_varying(x, |w| scenery::glass(&f, w, eye, &stage.glass_light));
+                    let c = scenery::glass_corners(&f, eye, &stage.glass_light);
+                    canvas.blend_varying(x, |w| {
+                        let color = std::array::from_fn(|k| {
+                            w[0] * c[0].0[k] + w[1] * c[1].0[k] + w[2] * c[2].0[k]
+                        });
+                        (color, w[0] * c[0].1 + w[1] * c[1].1 + w[2] * c[2].1)
+                    });
                 }
             }
         }
