@@ -4,7 +4,7 @@
 use icefem::mesh::box_mesh;
 use icefem::output::{FrameReader, OutputError, OutputWriter, RunHeader};
 use icefem::render::{
-    self, Background, ColorField, FigureOptions, Picture, RenderOptions, Renderer, Style,
+    self, Background, ColorField, FigureOptions, Lens, Picture, RenderOptions, Renderer, Style,
 };
 use icefem::run::{run, RunOptions};
 use icefem::scene::Scene;
@@ -767,4 +767,131 @@ fn a_transparent_background_leaves_only_the_scene_opaque() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("transparent background needs PNG"), "{err}");
+}
+
+#[test]
+fn the_ice_shows_through_a_glass_container() {
+    let dir = tempfile::tempdir().unwrap();
+    let (boxed, bare) = (dir.path().join("boxed.h5"), dir.path().join("bare.h5"));
+    let (lo, hi) = write_box_file_with_scene(&boxed, 1, CONTAINER_SCENE);
+    write_box_file(&bare, 1);
+    let centre = (lo + hi) / 2.0;
+    // One camera for both files (a fitted one would differ: the container widens the box).
+    let picture = |path: &Path, style: Style, view: &str, background| {
+        let reader = FrameReader::open(path).unwrap();
+        let frame = reader.read(0).unwrap();
+        let options = RenderOptions {
+            width: 240,
+            height: 180,
+            style,
+            view: view.parse().unwrap(),
+            lens: Lens {
+                target: Some(centre),
+                distance: Some(0.9),
+                ..Lens::default()
+            },
+            background: Background::Color(background),
+            ..Default::default()
+        };
+        let renderer = Renderer::new(&reader, options).unwrap();
+        let picture = renderer.draw_scene(&reader, &frame).unwrap();
+        (picture, *renderer.camera())
+    };
+    let gap = |a: [u8; 3], b: [u8; 3]| (0..3).map(|k| a[k].abs_diff(b[k])).max().unwrap();
+    for style in [Style::Solid, Style::Glass] {
+        // The ice's centre seen through the container's front wall (from the front: from
+        // above, the eye would look in through the open top): the ice's colour under a faint
+        // tint, far from the walls' own colour over the background beside the ice.
+        let (with, camera) = picture(&boxed, style, "front", [0.0; 3]);
+        let (without, _) = picture(&bare, style, "front", [0.0; 3]);
+        let at = |x: Vector3<f64>| {
+            let [px, py, _] = camera.project(x);
+            (px as usize, py as usize)
+        };
+        let (x, y) = at(centre);
+        let (seen, ice) = (with.pixel(x, y), without.pixel(x, y));
+        let (bx, by) = at(Vector3::new(0.125, -0.05, centre.z));
+        let walls = with.pixel(bx, by);
+        assert!(
+            (1..=60).contains(&gap(seen, ice)),
+            "{style:?}: {seen:?} behind glass, {ice:?} bare"
+        );
+        assert!(
+            gap(seen, walls) > 2 * gap(seen, ice),
+            "{style:?}: {seen:?} behind glass, {walls:?} glass alone"
+        );
+        assert!(
+            gap(walls, [0; 3]) > 5,
+            "{style:?}: the walls are drawn: {walls:?}"
+        );
+    }
+    // From the top, the container's floor beside the ice (face-on): tinted, still light.
+    let (top, camera) = picture(&boxed, Style::Solid, "top", [1.0; 3]);
+    let [x, y, _] = camera.project(Vector3::new(-0.012, 0.195, -0.01));
+    let floor = top.pixel(x as usize, y as usize);
+    assert!(
+        floor.iter().all(|&c| c > 180) && floor.iter().any(|&c| c < 250),
+        "container floor {floor:?}"
+    );
+}
+
+const FLOOR_SCENE: &str = r#"
+[material]
+density = 916.0
+[time]
+dt = 0.1
+end_time = 0.1
+[[obstacle]]
+type = "halfspace"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+"#;
+
+#[test]
+fn a_floor_reaches_the_horizon_from_under_the_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("floor.h5");
+    write_box_file_with_scene(&path, 1, FLOOR_SCENE);
+    let reader = FrameReader::open(&path).unwrap();
+    let frame = reader.read(0).unwrap();
+    let (width, height) = (240, 180);
+    let picture = |view: &str| {
+        let options = RenderOptions {
+            width,
+            height,
+            view: view.parse().unwrap(),
+            background: Background::Transparent,
+            ..Default::default()
+        };
+        let renderer = Renderer::new(&reader, options).unwrap();
+        let picture = renderer.draw_scene(&reader, &frame).unwrap();
+        // A horizontal plane's horizon: the row of the directions at zero elevation.
+        let elevation = view.split(',').nth(1).unwrap().parse::<f64>().unwrap();
+        let camera = renderer.camera();
+        let horizon = height as f64 / 2.0 - camera.focal() * elevation.to_radians().tan();
+        (picture, horizon)
+    };
+    // From above: the ground, which runs on behind the camera, covers every pixel below the
+    // horizon up to it (opaque) and none above.
+    let (above, horizon) = picture("-60,10");
+    assert!((10.0..height as f64 - 10.0).contains(&horizon));
+    let row = |dy: f64| (horizon + dy) as usize;
+    for x in [2, width / 2, width - 3] {
+        assert_eq!(
+            above.alpha(x, row(3.0)),
+            255,
+            "ground below the horizon at x = {x}"
+        );
+        assert_eq!(
+            above.alpha(x, height - 1),
+            255,
+            "ground under the camera at x = {x}"
+        );
+    }
+    assert_eq!(above.alpha(2, row(-3.0)), 0, "sky above the horizon");
+    // From below the floor (its solid side): see-through above the horizon, nothing below.
+    let (below, horizon) = picture("-60,-8");
+    let a = below.alpha(2, (horizon - 5.0) as usize);
+    assert!((1..=200).contains(&a), "ground from below: alpha {a}");
+    assert_eq!(below.alpha(2, (horizon + 5.0) as usize), 0);
 }

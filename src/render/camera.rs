@@ -184,6 +184,40 @@ impl Camera {
         ]
     }
 
+    /// The eye's position (m).
+    pub fn eye(&self) -> Vector3<f64> {
+        self.eye
+    }
+
+    /// The focal length (pixels): the size in pixels of 1 m seen face-on from 1 m away.
+    pub fn focal(&self) -> f64 {
+        self.focal
+    }
+
+    /// The picture's width and height (pixels).
+    pub fn picture_size(&self) -> (f64, f64) {
+        (2.0 * self.centre[0], 2.0 * self.centre[1])
+    }
+
+    /// The half-spaces a·x + b ≥ 0 (x in m) whose intersection is what the picture shows:
+    /// the points at least `near` (m) in front of the eye that project within `guard` pixels
+    /// outside the picture's edges. Each side plane goes through the eye (projection is
+    /// x = centre + focal · lateral / depth, so "x ≥ −guard" is linear in the point once its
+    /// depth is positive), in the order near, left, right, top, bottom.
+    pub fn view_planes(&self, near: f64, guard: f64) -> [(Vector3<f64>, f64); 5] {
+        let (width, height) = self.picture_size();
+        let [cx, cy] = self.centre;
+        let (f, r, u) = (self.forward, self.right * self.focal, self.up * self.focal);
+        let through_eye = |a: Vector3<f64>| (a, -a.dot(&self.eye));
+        [
+            (f, -f.dot(&self.eye) - near),
+            through_eye(r + f * (cx + guard)),
+            through_eye(f * (width + guard - cx) - r),
+            through_eye(f * (cy + guard) - u),
+            through_eye(u + f * (height + guard - cy)),
+        ]
+    }
+
     /// The camera's viewing direction (unit).
     pub fn forward(&self) -> Vector3<f64> {
         self.forward

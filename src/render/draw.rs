@@ -1,42 +1,57 @@
-//! The 3-D scene of a frame on a supersampled canvas: crack faces (opaque, flat), the ice's
-//! outer surface (glass or solid, smooth or flat, coloured by a field or by the freeze state),
-//! its feature edges and the obstacles' outlines.
+//! The 3-D scene of a frame on a supersampled canvas: the ground under the scene (opaque,
+//! to the horizon), crack faces (opaque, flat), the ice's outer surface (glass or solid,
+//! smooth or flat, coloured by a field or by the freeze state), the glass-like obstacles
+//! (blended back to front together with glass ice), the ice's feature edges and the
+//! obstacles' outlines.
 
+use super::clip::{Facet, Frustum};
 use super::raster::{Canvas, Rgb};
+use super::scenery::{self, Scenery};
 use super::shading::{self, Light};
 use super::{
     colormap, feature_edges, Camera, Picture, RenderError, Renderer, Shading, Style, CRACK, EDGE,
-    FEATURE_ANGLE_DEG, GLASS_ALPHA, ICE, OBSTACLE, SPECULAR, SUPERSAMPLE, WATER,
+    FEATURE_ANGLE_DEG, GLASS_ALPHA, ICE, OBSTACLE, SKY_BOTTOM, SPECULAR, SUPERSAMPLE, WATER,
 };
 use crate::output::{FrameReader, StoredFrame};
 use nalgebra::Vector3;
 
-/// The supersampled camera of a picture and its lights.
+/// Strength of the highlight on glass obstacles: glass is shiny whatever the ice's shading.
+const GLASS_SPECULAR: f32 = 0.4;
+/// Distance of the near clipping plane in front of the eye, in scene sizes.
+const NEAR: f64 = 1e-3;
+
+/// The supersampled camera of a picture, its lights and its view.
 struct Stage {
     camera: Camera,
     /// Lights the ice (with a highlight when smooth-shaded).
     light: Light,
-    /// Lights the cracks: no highlight (each is a plane within its element).
-    crack_light: Light,
+    /// Lights the cracks and the ground: no highlight (a crack is a plane within its element,
+    /// a highlight on the ground would draw the eye away from the ice).
+    matte_light: Light,
+    /// Lights glass obstacles.
+    glass_light: Light,
+    /// What the camera can draw (for obstacles, which may reach behind the eye).
+    frustum: Frustum,
+    /// The colour the ground fades into far away.
+    horizon: Rgb,
 }
 
 impl Stage {
     /// The stage of `camera` scaled to the supersampled canvas, the light above the eye and
-    /// to its left; a highlight on the ice when `smooth`.
-    fn new(camera: &Camera, smooth: bool) -> Self {
+    /// to its left; a highlight on the ice when `smooth`. `scale` (m) is the scene's size and
+    /// `horizon` the background's colour there.
+    fn new(camera: &Camera, smooth: bool, scale: f64, horizon: Rgb) -> Self {
         let camera = camera.scaled(SUPERSAMPLE as f64);
         let (right, up) = camera.right_up();
         let to_light = -camera.forward() + 0.5 * up - 0.3 * right;
-        let light = Light::new(
-            to_light,
-            -camera.forward(),
-            if smooth { SPECULAR } else { 0.0 },
-        );
-        let crack_light = Light::new(to_light, -camera.forward(), 0.0);
+        let light_with = |specular| Light::new(to_light, -camera.forward(), specular);
         Stage {
+            light: light_with(if smooth { SPECULAR } else { 0.0 }),
+            matte_light: light_with(0.0),
+            glass_light: light_with(GLASS_SPECULAR),
+            frustum: Frustum::new(&camera, NEAR * scale),
             camera,
-            light,
-            crack_light,
+            horizon,
         }
     }
 
@@ -44,6 +59,12 @@ impl Stage {
     fn project(&self, x: Vector3<f64>) -> [f64; 3] {
         self.camera.project(x)
     }
+}
+
+/// A translucent triangle to blend: one of the ice's (by index) or a piece of glass.
+enum Layer {
+    Ice(usize),
+    Glass(Facet),
 }
 
 /// The ice surface to draw: its triangles (nodes, element) and the nodes' positions (m).
@@ -59,6 +80,16 @@ type Corners = [(Rgb, Vector3<f32>); 3];
 fn face_normal(x: [Vector3<f64>; 3]) -> Vector3<f32> {
     let n = (x[1] - x[0]).cross(&(x[2] - x[0]));
     n.try_normalize(0.0).unwrap_or_default().cast()
+}
+
+/// The shading of an ice triangle with `corners` lit by `light`, at the weights `w` of its
+/// corners: colours and normals interpolated.
+fn ice_shade(light: &Light, c: Corners) -> impl Fn([f32; 3]) -> Rgb + '_ {
+    move |w: [f32; 3]| -> Rgb {
+        let color = std::array::from_fn(|k| w[0] * c[0].0[k] + w[1] * c[1].0[k] + w[2] * c[2].0[k]);
+        let n = c[0].1 * w[0] + c[1].1 * w[1] + c[2].1 * w[2];
+        light.shade(color, n.try_normalize(0.0).unwrap_or(c[0].1))
+    }
 }
 
 impl Renderer {
@@ -80,19 +111,57 @@ impl Renderer {
             triangles: self.surface(&mesh),
             positions: state.positions.iter().map(|p| Vector3::from(*p)).collect(),
         };
-        let stage = Stage::new(&self.camera, self.options.shading == Shading::Smooth);
+        let horizon = match self.options.background.gradient() {
+            Some((top, bottom)) => std::array::from_fn(|k| 0.5 * (top[k] + bottom[k])),
+            None => SKY_BOTTOM,
+        };
+        let smooth = self.options.shading == Shading::Smooth;
+        let stage = Stage::new(&self.camera, smooth, self.scale, horizon);
         let scene_width = self.options.scene_width();
         let (w, h) = (scene_width * SUPERSAMPLE, self.options.height * SUPERSAMPLE);
         let mut canvas = Canvas::new(w, h, self.options.background.gradient());
-        // Cracks first, so that glass blends over them.
+        // Opaque surfaces first (ground, cracks, solid ice), so that glass blends over them.
+        self.draw_ground(&mut canvas, &stage, state.time);
         self.draw_cracks(&mut canvas, &stage, frame);
         // The colour of the ice: a field through the colour map, else water → ice by the
         // freeze state.
         let element_values: Option<&[f64]> = values.as_deref().or(freeze);
         let corners = self.corners(&ice, element_values, values.is_some(), &state.tets);
-        self.draw_ice(&mut canvas, &stage, &ice, &corners);
+        let glass_ice = match self.options.style {
+            Style::Solid => {
+                for ((nodes, _), c) in ice.triangles.iter().zip(&corners) {
+                    let x = nodes.map(|i| stage.project(ice.positions[i]));
+                    canvas.fill_with(x, ice_shade(&stage.light, *c));
+                }
+                None
+            }
+            Style::Glass => Some((&ice, corners.as_slice())),
+        };
+        self.draw_translucent(&mut canvas, &stage, glass_ice, state.time);
         self.draw_lines(&mut canvas, &stage, &ice, state.time);
         Ok(canvas.downsample(SUPERSAMPLE))
+    }
+
+    /// The ground planes seen from above at `time` (s), opaque, clipped to the view.
+    fn draw_ground(&self, canvas: &mut Canvas, stage: &Stage, time: f64) {
+        let (eye, focal) = (stage.camera.eye(), stage.camera.focal());
+        for scenery in &self.scenery {
+            let Scenery::Ground(ground) = scenery else {
+                continue;
+            };
+            let ground = ground.at(time);
+            if !ground.seen_from_above(eye) {
+                continue;
+            }
+            for facet in ground.facets(eye) {
+                for piece in stage.frustum.clip_triangle(facet) {
+                    canvas.fill_with(piece.map(|v| stage.project(v.x)), |w| {
+                        let x = scenery::interpolate(&piece, w.map(f64::from)).x;
+                        ground.shade(x, eye, focal, &stage.matte_light, stage.horizon)
+                    });
+                }
+            }
+        }
     }
 
     /// The crack faces of `frame` off the cut: opaque, flat.
@@ -104,7 +173,7 @@ impl Renderer {
             .filter(|x| !self.is_cut_away(&((x[0] + x[1] + x[2]) / 3.0)))
             .collect();
         for &x in &crack_triangles {
-            let colour = stage.crack_light.shade(CRACK, face_normal(x));
+            let colour = stage.matte_light.shade(CRACK, face_normal(x));
             canvas.fill(x.map(|p| stage.project(p)), colour);
         }
     }
@@ -159,40 +228,68 @@ impl Renderer {
             .collect()
     }
 
-    /// The ice surface, its triangles shaded from their `corners`: opaque (solid) or blended
-    /// back to front (glass).
-    fn draw_ice(&self, canvas: &mut Canvas, stage: &Stage, ice: &IceSurface, corners: &[Corners]) {
-        let light = &stage.light;
-        let shade_at = |c: Corners| {
-            move |w: [f32; 3]| -> Rgb {
-                let color =
-                    std::array::from_fn(|k| w[0] * c[0].0[k] + w[1] * c[1].0[k] + w[2] * c[2].0[k]);
-                let n = c[0].1 * w[0] + c[1].1 * w[1] + c[2].1 * w[2];
-                light.shade(color, n.try_normalize(0.0).unwrap_or(c[0].1))
+    /// The translucent surfaces at `time` (s), blended back to front by their centres' depth:
+    /// the glass obstacles, the ice when it is drawn as glass (`ice`, with its triangles'
+    /// corners), and ground planes seen from below (last: the eye is below them, everything
+    /// else above).
+    fn draw_translucent(
+        &self,
+        canvas: &mut Canvas,
+        stage: &Stage,
+        ice: Option<(&IceSurface, &[Corners])>,
+        time: f64,
+    ) {
+        let eye = stage.camera.eye();
+        let depth = |x: [Vector3<f64>; 3]| stage.project((x[0] + x[1] + x[2]) / 3.0)[2];
+        let mut layers: Vec<(f64, Layer)> = Vec::new();
+        let mut add_clipped = |facet: Facet, key: Option<f64>| {
+            for piece in stage.frustum.clip_triangle(facet) {
+                let d = key.unwrap_or_else(|| depth(piece.map(|v| v.x)));
+                layers.push((d, Layer::Glass(piece)));
             }
         };
-        let (surface, positions) = (&ice.triangles, &ice.positions);
-        match self.options.style {
-            Style::Solid => {
-                for ((nodes, _), c) in surface.iter().zip(corners) {
-                    let x = nodes.map(|i| stage.project(positions[i]));
-                    canvas.fill_with(x, shade_at(*c));
+        for scenery in &self.scenery {
+            match scenery {
+                Scenery::Glass(facets, motion) => {
+                    for facet in facets {
+                        add_clipped(scenery::moved(facet, motion, time), None);
+                    }
+                }
+                Scenery::Ground(ground) => {
+                    let ground = ground.at(time);
+                    if !ground.seen_from_above(eye) {
+                        for facet in ground.facets(eye) {
+                            add_clipped(facet, Some(f64::NEG_INFINITY));
+                        }
+                    }
                 }
             }
-            Style::Glass => {
-                // Back to front, so that each blend lands on what lies behind it.
-                let mut order: Vec<(f64, usize)> = surface
+        }
+        if let Some((ice, _)) = ice {
+            layers.extend(
+                ice.triangles
                     .iter()
                     .enumerate()
-                    .map(|(k, (nodes, _))| {
-                        let c = nodes.iter().map(|&i| positions[i]).sum::<Vector3<f64>>() / 3.0;
-                        (stage.project(c)[2], k)
-                    })
-                    .collect();
-                order.sort_by(|a, b| b.0.total_cmp(&a.0));
-                for (_, k) in order {
-                    let x = surface[k].0.map(|i| stage.project(positions[i]));
-                    canvas.blend_with(x, GLASS_ALPHA, shade_at(corners[k]));
+                    .map(|(k, (nodes, _))| (depth(nodes.map(|i| ice.positions[i])), Layer::Ice(k))),
+            );
+        }
+        layers.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for (_, layer) in layers {
+            match layer {
+                Layer::Ice(k) => {
+                    let Some((ice, corners)) = ice else { continue };
+                    let x = ice.triangles[k].0.map(|i| stage.project(ice.positions[i]));
+                    canvas.blend_with(x, GLASS_ALPHA, ice_shade(&stage.light, corners[k]));
+                }
+                Layer::Glass(f) => {
+                    let x = f.map(|v| stage.project(v.x));
+                    let c = scenery::glass_corners(&f, eye, &stage.glass_light);
+                    canvas.blend_varying(x, |w| {
+                        let color = std::array::from_fn(|k| {
+                            w[0] * c[0].0[k] + w[1] * c[1].0[k] + w[2] * c[2].0[k]
+                        });
+                        (color, w[0] * c[0].1 + w[1] * c[1].1 + w[2] * c[2].1)
+                    });
                 }
             }
         }
@@ -200,21 +297,19 @@ impl Renderer {
 
     /// The ice's feature edges and the obstacles' outlines where they are at `time` (s).
     fn draw_lines(&self, canvas: &mut Canvas, stage: &Stage, ice: &IceSurface, time: f64) {
-        let project = |x: Vector3<f64>| stage.project(x);
         let line_width = self.options.overlay().line_width() * SUPERSAMPLE as f64;
+        let mut line = |a: Vector3<f64>, b: Vector3<f64>, color: Rgb, width: f64| {
+            if let Some([a, b]) = stage.frustum.clip_segment(a, b) {
+                canvas.line(stage.project(a), stage.project(b), color, width, true);
+            }
+        };
         for [a, b] in feature_edges(&ice.triangles, &ice.positions) {
-            canvas.line(project(a), project(b), EDGE, line_width, true);
+            line(a, b, EDGE, line_width);
         }
         for outline in &self.outlines {
             let place = |x: &Vector3<f64>| outline.motion.position(time, x);
             for [a, b] in &outline.segments {
-                canvas.line(
-                    project(place(a)),
-                    project(place(b)),
-                    OBSTACLE,
-                    1.5 * line_width,
-                    true,
-                );
+                line(place(a), place(b), OBSTACLE, line_width);
             }
         }
     }

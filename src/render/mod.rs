@@ -6,18 +6,22 @@
 //! (the default) interpolates normals and colours from the vertices: element fields (stress,
 //! plastic strain, freeze state) are averaged to the nodes and coloured through a colour map
 //! with a colour bar; flat shading colours each face by its element and lights it by its own
-//! normal. Rigid obstacles from the stored scene are drawn as outlines. Text, lines and the
+//! normal. Rigid obstacles from the stored scene are drawn as lit glass (translucent, more
+//! opaque edge-on) with their outlines, half-spaces as ground planes to the horizon
+//! ([`scenery`]). Text, lines and the
 //! colour bar scale with the picture ([`overlay`]). Everything runs on the CPU: a z-buffered
 //! rasteriser with 2 × 2 supersampling ([`raster`]), PNG (RGBA when the background is
 //! transparent) and GIF encoders.
 
 pub mod camera;
+mod clip;
 mod draw;
 mod encode;
 mod figure;
 pub mod obstacles;
 pub mod overlay;
 pub mod raster;
+mod scenery;
 mod sequence;
 mod shading;
 pub mod text;
@@ -390,7 +394,12 @@ pub struct Renderer {
     camera: Camera,
     /// Tells crack faces from outer faces (fracture runs).
     surfaces: SurfaceExtractor,
+    /// Outlines of the obstacles other than half-spaces (a ground plane has no edge).
     outlines: Vec<Outline>,
+    /// The obstacles' surfaces as drawn.
+    scenery: Vec<scenery::Scenery>,
+    /// Diagonal of the box the camera is fitted to (m): sets the ground's checker and haze.
+    scale: f64,
     range: (f64, f64),
 }
 
@@ -417,9 +426,8 @@ impl Renderer {
             )
         };
         let (ice_lo, ice_hi) = bounds(&mut first.state.positions.iter().map(|p| Vector3::from(*p)));
-        let outlines = obstacle_outlines(&obstacles::stored_obstacles(reader, || {
-            Ok((ice_lo, ice_hi))
-        })?);
+        let stored = obstacles::stored_obstacles(reader, || Ok((ice_lo, ice_hi)))?;
+        let outlines = obstacle_outlines(&stored);
         let (lo, hi) = bounds(
             &mut [ice_lo, ice_hi].into_iter().chain(
                 outlines
@@ -444,11 +452,24 @@ impl Renderer {
             options.height as u32,
         );
         let surfaces = SurfaceExtractor::new(reader, &first)?;
+        let scale = (hi - lo).norm().max(1e-9);
+        // A half-space's square only sizes the camera's box: it is drawn as a ground plane.
+        let outlines = outlines
+            .into_iter()
+            .zip(&stored)
+            .filter(|(_, o)| o.kind != "halfspace")
+            .map(|(outline, _)| outline)
+            .collect();
         Ok(Renderer {
             options,
             camera,
             surfaces,
             outlines,
+            scenery: stored
+                .iter()
+                .filter_map(|o| scenery::Scenery::new(o, scale))
+                .collect(),
+            scale,
             range: options.range.unwrap_or((0.0, 1.0)),
         })
     }

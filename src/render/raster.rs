@@ -70,9 +70,15 @@ impl Canvas {
 
     /// [`Canvas::blend`] with the colour `shade(w)` of [`Canvas::fill_with`].
     pub fn blend_with(&mut self, p: [ScreenPoint; 3], alpha: f32, shade: impl Fn([f32; 3]) -> Rgb) {
+        self.blend_varying(p, |w| (shade(w), alpha));
+    }
+
+    /// [`Canvas::blend`] with the colour and the opacity `shade(w)` varying over the triangle
+    /// (`w` as for [`Canvas::fill_with`]): glass that is more opaque where seen edge-on.
+    pub fn blend_varying(&mut self, p: [ScreenPoint; 3], shade: impl Fn([f32; 3]) -> (Rgb, f32)) {
         self.rasterise(p, |canvas, i, inverse_depth, w| {
             if inverse_depth > canvas.inverse_depth[i] {
-                let color = shade(w);
+                let (color, alpha) = shade(w);
                 let c = &mut canvas.color[i];
                 // "Over" on premultiplied colour: the backdrop keeps 1 − alpha of itself.
                 *c = std::array::from_fn(|k| {
