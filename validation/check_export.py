@@ -118,7 +118,11 @@ def expected_frame(g):
     x = rest[tets]
     volume = np.abs(np.einsum("ij,ij->i", np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), x[:, 3] - x[:, 0])) / 6
     elements = {}
-    s = g["stress"][:]
+    # What is only drawn (stress, ‖ε_p‖) is stored in single precision: computed here in double
+    # from the values as stored, the von Mises stress is within a few f32 ulps of the stress's
+    # size (6e-8 |σ|) of the exporter's (which is from the run's double stress).
+    s = g["stress"][:].astype(np.float64)
+    scales = {"von_mises": float(np.abs(s).max(initial=0.0))}
     mean = s[:, :3].mean(axis=1, keepdims=True)
     dev = s[:, :3] - mean
     elements["von_mises"] = np.sqrt(1.5 * ((dev ** 2).sum(axis=1) + 2 * (s[:, 3:] ** 2).sum(axis=1)))
@@ -144,6 +148,7 @@ def expected_frame(g):
         "positions": positions,
         "velocities": g["velocities"][:],
         "nodal": nodal,
+        "scales": {name: max(scales.get(name, 0.0), float(np.abs(v).max(initial=0.0))) for name, v in nodal.items()},
     }
 
 
@@ -219,8 +224,11 @@ def check_ice_values(name, points, data, e):
         ok = False
         for i in nodes:
             same = np.allclose(data["velocity"][p], e["velocities"][i], rtol=1e-12, atol=0)
+            # The element values behind the averages are stored in single precision (only
+            # drawn): the exporter's and these averages agree to a few f32 ulps (6e-8) of the
+            # field's scale (see expected_frame).
             for key, values in e["nodal"].items():
-                same &= abs(data[key][p, 0] - values[i]) <= 1e-12 * max(abs(values[i]), 1e-300) + 1e-300
+                same &= abs(data[key][p, 0] - values[i]) <= 1e-6 * e["scales"][key] + 1e-300
             ok |= bool(same)
         bad += not ok
     check(bad == 0, f"{name}: {bad} of {len(points)} points off a node or with other values")

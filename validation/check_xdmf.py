@@ -144,12 +144,14 @@ def von_mises(v):
 
 
 def check_tensor(where, name, got, voigt):
-    """`got` (VTK's array) is the Voigt tensor `voigt` in VTK's 3 × 3 layout, exactly."""
+    """`got` (VTK's array) is the Voigt tensor `voigt` in VTK's 3 × 3 layout, exactly: in the
+    precision the file stores the matrices (single for what is only drawn, the default)."""
     if not check(got is not None, f"{where}: no array {name!r}"):
         return
     if not check(got.shape == (len(voigt), 9),
                  f"{where}: {name} is {got.shape[0]} x {got.shape[1]}, expected {len(voigt)} x 9"):
         return
+    voigt = voigt.astype(got.dtype)
     for k, label in enumerate(["xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"]):
         check(np.array_equal(got[:, k], voigt[:, VOIGT_OF[k]]),
               f"{where}: {name} component {label} differs from the HDF5 Voigt column {VOIGT_OF[k]}")
@@ -190,8 +192,10 @@ def check_main(kind, xdmf, frames):
                                 stress[:, VOIGT_OF].reshape(-1, 3, 3))[:, -1])]:
             got = array(cd, name)
             if check(got is not None and got.shape == (m, 1), f"{where}: {name} is not m x 1"):
+                # Stored in single precision (what is only drawn) from the double stress, and
+                # recomputed here from the stress as stored: each within a few f32 ulps (6e-8).
                 scale = max(1.0, float(np.abs(stress).max(initial=0.0)))
-                check(np.allclose(got[:, 0], value, rtol=0, atol=1e-9 * scale),
+                check(np.allclose(got[:, 0], value, rtol=0, atol=1e-6 * scale),
                       f"{where}: {name} differs from the Voigt stress's")
                 summary.append(f"{name} {got.shape}")
         if "plastic_strain" in fields:
@@ -199,7 +203,8 @@ def check_main(kind, xdmf, frames):
             norm = np.sqrt((e[:, :3] ** 2).sum(1) + 2 * (e[:, 3:] ** 2).sum(1))
             got = array(cd, "plastic_strain_norm")
             if check(got is not None, f"{where}: no plastic_strain_norm"):
-                check(np.allclose(got[:, 0], norm, rtol=1e-14, atol=0),
+                # Single precision, from the double ε_p: the norm rounded (6e-8).
+                check(np.allclose(got[:, 0], norm, rtol=1e-7, atol=0),
                       f"{where}: plastic_strain_norm differs from ‖ε_p‖ of the Voigt values")
                 summary.append(f"plastic_strain {array(cd, 'plastic_strain').shape}")
         print(f"  t={t:<10g} {m:5d} tets {data.GetNumberOfCells():5d} cells  " + ", ".join(summary))
