@@ -18,8 +18,9 @@ stored scene (a container 10, a plane 2, a mesh obstacle its ``/obstacles`` surf
   interpolation), with the counts above; attribute values equal the VTU's (f32).
 * VTU (``RUN_export/RUN_{ice,cracks}_NNNNNN.vtu`` and ``RUN.pvd``): meshio reads each file;
   the ``.pvd`` (xml.etree) lists every object of every frame at the frame's time. Ice
-  points sit exactly on nodes, and each point's attributes equal that node's averages and
-  velocity (1e-12 relative). meshio 5.3.5 cannot read a grid with no cells (an IndexError in
+  points sit exactly on nodes, and each point's attributes equal that node's velocity (1e-12
+  relative) and averages (1e-6 of the field's size: the run stores what is only drawn in
+  single precision). meshio 5.3.5 cannot read a grid with no cells (an IndexError in
   ``vtk_cells_from_data``), so empty crack files are checked with xml.etree instead. VTK's
   own ``vtkXMLUnstructuredGridReader`` (ParaView's; the ``vtk`` wheel of requirements.txt)
   reads every file too, the empty ones included: point and cell counts, triangles, arrays.
