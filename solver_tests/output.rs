@@ -86,18 +86,8 @@ fn freezing_run_with_plasticity_resumes_bit_identically() {
     // final frame (step 20) is not.
     let file = hdf5::File::open(&full).unwrap();
     for name in file.group("frames").unwrap().member_names().unwrap() {
-        let g = file.group(&format!("frames/{name}")).unwrap();
-        let step = g.attr("step").unwrap().read_scalar::<u64>().unwrap();
-        let restart = g
-            .attr("restart_point")
-            .unwrap()
-            .read_scalar::<f64>()
-            .unwrap();
-        assert_eq!(
-            restart == 1.0,
-            step.is_multiple_of(3),
-            "frame of step {step}"
-        );
+        let (step, restart) = restart_point(&file, &name);
+        assert_eq!(restart, step.is_multiple_of(3), "frame of step {step}");
     }
     // ‖ε_p‖ per element and ε_p as 3 × 3 matrices, in the file and in the sidecar.
     let mut names = file.group("frames").unwrap().member_names().unwrap();
@@ -699,15 +689,17 @@ fn the_frames_written_never_change_the_results() {
     // The frames at restart points say so: those at steps that are multiples of 10.
     let file = hdf5::File::open(&every).unwrap();
     for name in ["000009", "000010", "000011", "000650", "000720"] {
-        let g = file.group(&format!("frames/{name}")).unwrap();
-        let step = g.attr("step").unwrap().read_scalar::<u64>().unwrap();
-        let restart = g
-            .attr("restart_point")
-            .unwrap()
-            .read_scalar::<f64>()
-            .unwrap();
-        assert_eq!(restart == 1.0, step.is_multiple_of(10), "frame {name}");
+        let (step, restart) = restart_point(&file, name);
+        assert_eq!(restart, step.is_multiple_of(10), "frame {name}");
     }
+}
+
+/// Frame `name`'s step and whether it is marked a restart point.
+fn restart_point(file: &hdf5::File, name: &str) -> (u64, bool) {
+    let g = file.group(&format!("frames/{name}")).unwrap();
+    let step = g.attr("step").unwrap().read_scalar::<u64>().unwrap();
+    let restart = g.attr("restart_point").unwrap().read_scalar::<f64>();
+    (step, restart.unwrap() == 1.0)
 }
 
 #[test]

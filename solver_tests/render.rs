@@ -2,7 +2,7 @@
 //! fracture module put cracks, sequences and figures, and clear errors for bad files.
 
 use icefem::mesh::box_mesh;
-use icefem::output::{FrameReader, OutputError, OutputWriter, RunHeader};
+use icefem::output::{FrameReader, OutputError, OutputWriter, RunHeader, StoredFrame};
 use icefem::render::{
     self, Background, ColorField, FigureOptions, Lens, Picture, RenderOptions, Renderer, Style,
 };
@@ -19,6 +19,17 @@ fn write_box_file(path: &Path, frames: usize) -> (Vector3<f64>, Vector3<f64>) {
 }
 
 /// [`write_box_file`] with `scene_text` stored as the run's scene (its obstacles are drawn).
+/// A one-frame box file of `scene_text` in a temporary folder (kept while the first value
+/// lives), its reader and its frame.
+fn box_frame(scene_text: &str) -> (tempfile::TempDir, FrameReader, StoredFrame) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("box.h5");
+    write_box_file_with_scene(&path, 1, scene_text);
+    let reader = FrameReader::open(&path).unwrap();
+    let frame = reader.read(0).unwrap();
+    (dir, reader, frame)
+}
+
 fn write_box_file_with_scene(
     path: &Path,
     frames: usize,
@@ -625,25 +636,20 @@ fn boxed_options(width: usize, height: usize) -> RenderOptions {
     }
 }
 
-const CONTAINER_SCENE: &str = r#"
-[material]
-density = 916.0
-[time]
-dt = 0.1
-end_time = 0.1
-[[obstacle]]
-type = "container"
-min = [-0.02, -0.05, -0.01]
-max = [0.14, 0.21, 0.08]
-"#;
+/// A one-step scene of the box file with `obstacle` (an `[[obstacle]]` table's keys).
+fn box_scene(obstacle: &str) -> String {
+    format!(
+        "[material]\ndensity = 916.0\n[time]\ndt = 0.1\nend_time = 0.1\n[[obstacle]]\n{obstacle}"
+    )
+}
+
+/// A container around the box file's box.
+const CONTAINER: &str =
+    "type = \"container\"\nmin = [-0.02, -0.05, -0.01]\nmax = [0.14, 0.21, 0.08]\n";
 
 #[test]
 fn text_lines_and_colour_bar_scale_with_the_picture() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("box.h5");
-    write_box_file_with_scene(&path, 1, CONTAINER_SCENE);
-    let reader = FrameReader::open(&path).unwrap();
-    let frame = reader.read(0).unwrap();
+    let (_dir, reader, frame) = box_frame(&box_scene(CONTAINER));
     let luminance = |c: [u8; 3]| 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64;
     // What the picture's label, colour bar and obstacle lines measure (pixels).
     let measure = |picture: &Picture, strip: usize| {
@@ -773,7 +779,7 @@ fn a_transparent_background_leaves_only_the_scene_opaque() {
 fn the_ice_shows_through_a_glass_container() {
     let dir = tempfile::tempdir().unwrap();
     let (boxed, bare) = (dir.path().join("boxed.h5"), dir.path().join("bare.h5"));
-    let (lo, hi) = write_box_file_with_scene(&boxed, 1, CONTAINER_SCENE);
+    let (lo, hi) = write_box_file_with_scene(&boxed, 1, &box_scene(CONTAINER));
     write_box_file(&bare, 1);
     let centre = (lo + hi) / 2.0;
     // One camera for both files (a fitted one would differ: the container widens the box).
@@ -835,25 +841,12 @@ fn the_ice_shows_through_a_glass_container() {
     );
 }
 
-const FLOOR_SCENE: &str = r#"
-[material]
-density = 916.0
-[time]
-dt = 0.1
-end_time = 0.1
-[[obstacle]]
-type = "halfspace"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 0.0, 1.0]
-"#;
+/// A floor under the box file's box.
+const FLOOR: &str = "type = \"halfspace\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n";
 
 #[test]
 fn a_floor_reaches_the_horizon_from_under_the_camera() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("floor.h5");
-    write_box_file_with_scene(&path, 1, FLOOR_SCENE);
-    let reader = FrameReader::open(&path).unwrap();
-    let frame = reader.read(0).unwrap();
+    let (_dir, reader, frame) = box_frame(&box_scene(FLOOR));
     let (width, height) = (240, 180);
     let picture = |view: &str| {
         let options = RenderOptions {

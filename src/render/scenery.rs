@@ -295,22 +295,15 @@ fn checker_cell(scale: f64) -> f64 {
 mod tests {
     use super::*;
 
+    /// The unit right triangle at the origin in the xy plane, with corner normals `n`.
+    fn unit_facet(n: [Vector3<f64>; 3]) -> Facet {
+        let x = [Vector3::zeros(), Vector3::x(), Vector3::y()];
+        std::array::from_fn(|k| Vertex { x: x[k], n: n[k] })
+    }
+
     #[test]
     fn subdivision_keeps_area_orientation_and_normals() {
-        let f: Facet = [
-            Vertex {
-                x: Vector3::zeros(),
-                n: Vector3::z(),
-            },
-            Vertex {
-                x: Vector3::x(),
-                n: Vector3::x(),
-            },
-            Vertex {
-                x: Vector3::y(),
-                n: Vector3::y(),
-            },
-        ];
+        let f = unit_facet([Vector3::z(), Vector3::x(), Vector3::y()]);
         let area = |f: &Facet| (f[1].x - f[0].x).cross(&(f[2].x - f[0].x)) / 2.0;
         for n in [1, 2, 5] {
             let pieces = subdivide(&f, n);
@@ -327,20 +320,7 @@ mod tests {
     #[test]
     fn glass_is_more_opaque_edge_on() {
         let light = Light::new(Vector3::new(0.3, 0.2, 1.0), Vector3::z(), 0.0);
-        let f: Facet = [
-            Vertex {
-                x: Vector3::zeros(),
-                n: Vector3::z(),
-            },
-            Vertex {
-                x: Vector3::x(),
-                n: Vector3::z(),
-            },
-            Vertex {
-                x: Vector3::y(),
-                n: Vector3::z(),
-            },
-        ];
+        let f = unit_facet([Vector3::z(); 3]);
         let (_, face_on) = glass_corners(&f, Vector3::new(0.0, 0.0, 5.0), &light)[0];
         let (_, edge_on) = glass_corners(&f, Vector3::new(5.0, 0.0, 0.1), &light)[0];
         assert!((face_on - GLASS_FACING).abs() < 1e-3, "{face_on}");
