@@ -4,7 +4,7 @@
 use icefem::mesh::box_mesh;
 use icefem::output::{FrameReader, OutputError, OutputWriter, RunHeader, StoredFrame};
 use icefem::render::{
-    self, Background, ColorField, FigureOptions, Lens, Picture, RenderOptions, Renderer, Style,
+    self, Background, ColorField, Cut, FigureOptions, Lens, Picture, RenderOptions, Renderer, Style,
 };
 use icefem::run::{run, RunOptions};
 use icefem::scene::Scene;
@@ -783,13 +783,14 @@ fn the_ice_shows_through_a_glass_container() {
     write_box_file(&bare, 1);
     let centre = (lo + hi) / 2.0;
     // One camera for both files (a fitted one would differ: the container widens the box).
-    let picture = |path: &Path, style: Style, view: &str, background| {
+    let picture = |path: &Path, style: Style, view: &str, background, cut| {
         let reader = FrameReader::open(path).unwrap();
         let frame = reader.read(0).unwrap();
         let options = RenderOptions {
             width: 240,
             height: 180,
             style,
+            cut,
             view: view.parse().unwrap(),
             lens: Lens {
                 target: Some(centre),
@@ -808,8 +809,8 @@ fn the_ice_shows_through_a_glass_container() {
         // The ice's centre seen through the container's front wall (from the front: from
         // above, the eye would look in through the open top): the ice's colour under a faint
         // tint, far from the walls' own colour over the background beside the ice.
-        let (with, camera) = picture(&boxed, style, "front", [0.0; 3]);
-        let (without, _) = picture(&bare, style, "front", [0.0; 3]);
+        let (with, camera) = picture(&boxed, style, "front", [0.0; 3], None);
+        let (without, _) = picture(&bare, style, "front", [0.0; 3], None);
         let at = |x: Vector3<f64>| {
             let [px, py, _] = camera.project(x);
             (px as usize, py as usize)
@@ -831,8 +832,25 @@ fn the_ice_shows_through_a_glass_container() {
             "{style:?}: the walls are drawn: {walls:?}"
         );
     }
+    // A cut opens the container as it opens the ice: the cut face shows as without it, and
+    // the walls beyond the cut are still drawn.
+    let cut = Some(Cut {
+        axis: 1,
+        value: centre.y,
+    });
+    let (with, camera) = picture(&boxed, Style::Solid, "front", [0.0; 3], cut);
+    let (without, _) = picture(&bare, Style::Solid, "front", [0.0; 3], cut);
+    let [x, y, _] = camera.project(centre);
+    let (seen, ice) = (
+        with.pixel(x as usize, y as usize),
+        without.pixel(x as usize, y as usize),
+    );
+    assert!(gap(seen, ice) <= 1, "cut face {seen:?}, bare {ice:?}");
+    let [x, y, _] = camera.project(Vector3::new(0.125, 0.2, centre.z));
+    let back_wall = with.pixel(x as usize, y as usize);
+    assert!(gap(back_wall, [0; 3]) > 5, "the far wall: {back_wall:?}");
     // From the top, the container's floor beside the ice (face-on): tinted, still light.
-    let (top, camera) = picture(&boxed, Style::Solid, "top", [1.0; 3]);
+    let (top, camera) = picture(&boxed, Style::Solid, "top", [1.0; 3], None);
     let [x, y, _] = camera.project(Vector3::new(-0.012, 0.195, -0.01));
     let floor = top.pixel(x as usize, y as usize);
     assert!(

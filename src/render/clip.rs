@@ -31,9 +31,11 @@ impl Vertex {
 pub type Facet = [Vertex; 3];
 
 /// What a camera can draw: the points past a near plane that project within a guard band
-/// around the picture, as the intersection of five half-spaces a·x + b ≥ 0 (x in m).
+/// around the picture, as the intersection of five half-spaces a·x + b ≥ 0 (x in m), and of
+/// any further bounds (a cut).
+#[derive(Clone)]
 pub struct Frustum {
-    planes: [(Vector3<f64>, f64); 5],
+    planes: Vec<(Vector3<f64>, f64)>,
 }
 
 impl Frustum {
@@ -43,8 +45,15 @@ impl Frustum {
     pub fn new(camera: &Camera, near: f64) -> Self {
         let (width, height) = camera.picture_size();
         Frustum {
-            planes: camera.view_planes(near, width.max(height)),
+            planes: camera.view_planes(near, width.max(height)).to_vec(),
         }
+    }
+
+    /// This view with the half-space `a·x + b ≥ 0` (x in m) as a further bound.
+    pub fn bounded_by(&self, a: Vector3<f64>, b: f64) -> Self {
+        let mut planes = self.planes.clone();
+        planes.push((a, b));
+        Frustum { planes }
     }
 
     /// The part of `triangle` inside the view, as triangles (none when it is all outside).

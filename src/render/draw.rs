@@ -9,8 +9,8 @@ use super::raster::{Canvas, Rgb};
 use super::scenery::{self, Scenery};
 use super::shading::{self, Light};
 use super::{
-    colormap, feature_edges, Camera, Picture, RenderError, Renderer, Shading, Style, CRACK, EDGE,
-    FEATURE_ANGLE_DEG, GLASS_ALPHA, ICE, OBSTACLE, SKY_BOTTOM, SPECULAR, SUPERSAMPLE, WATER,
+    colormap, feature_edges, Camera, Cut, Picture, RenderError, Renderer, Shading, Style, CRACK,
+    EDGE, FEATURE_ANGLE_DEG, GLASS_ALPHA, ICE, OBSTACLE, SKY_BOTTOM, SPECULAR, SUPERSAMPLE, WATER,
 };
 use crate::output::{FrameReader, StoredFrame};
 use nalgebra::Vector3;
@@ -32,6 +32,9 @@ struct Stage {
     glass_light: Light,
     /// What the camera can draw (for obstacles, which may reach behind the eye).
     frustum: Frustum,
+    /// What is drawn of glass obstacles: the view, and the far side of the cut if there is one
+    /// (a cut opens the container as it opens the ice).
+    glass_view: Frustum,
     /// The colour the ground fades into far away.
     horizon: Rgb,
 }
@@ -40,8 +43,19 @@ impl Stage {
     /// The stage of `camera` scaled to the supersampled canvas, the light above the eye and
     /// to its left; a highlight on the ice when `smooth`. `scale` (m) is the scene's size and
     /// `horizon` the background's colour there.
-    fn new(camera: &Camera, smooth: bool, scale: f64, horizon: Rgb) -> Self {
+    fn new(camera: &Camera, smooth: bool, (scale, cut): (f64, Option<Cut>), horizon: Rgb) -> Self {
         let camera = camera.scaled(SUPERSAMPLE as f64);
+        let frustum = Frustum::new(&camera, NEAR * scale);
+        // The cut keeps the points x with (x[axis] − value) · (eye's side) ≤ 0.
+        let glass_view = match cut {
+            Some(cut) => {
+                let towards_eye = -camera.forward()[cut.axis];
+                let mut a = Vector3::zeros();
+                a[cut.axis] = -towards_eye;
+                frustum.bounded_by(a, towards_eye * cut.value)
+            }
+            None => frustum.clone(),
+        };
         let (right, up) = camera.right_up();
         let to_light = -camera.forward() + 0.5 * up - 0.3 * right;
         let light_with = |specular| Light::new(to_light, -camera.forward(), specular);
@@ -49,7 +63,8 @@ impl Stage {
             light: light_with(if smooth { SPECULAR } else { 0.0 }),
             matte_light: light_with(0.0),
             glass_light: light_with(GLASS_SPECULAR),
-            frustum: Frustum::new(&camera, NEAR * scale),
+            frustum,
+            glass_view,
             camera,
             horizon,
         }
@@ -116,7 +131,12 @@ impl Renderer {
             None => SKY_BOTTOM,
         };
         let smooth = self.options.shading == Shading::Smooth;
-        let stage = Stage::new(&self.camera, smooth, self.scale, horizon);
+        let stage = Stage::new(
+            &self.camera,
+            smooth,
+            (self.scale, self.options.cut),
+            horizon,
+        );
         let scene_width = self.options.scene_width();
         let (w, h) = (scene_width * SUPERSAMPLE, self.options.height * SUPERSAMPLE);
         let mut canvas = Canvas::new(w, h, self.options.background.gradient());
@@ -242,8 +262,8 @@ impl Renderer {
         let eye = stage.camera.eye();
         let depth = |x: [Vector3<f64>; 3]| stage.project((x[0] + x[1] + x[2]) / 3.0)[2];
         let mut layers: Vec<(f64, Layer)> = Vec::new();
-        let mut add_clipped = |facet: Facet, key: Option<f64>| {
-            for piece in stage.frustum.clip_triangle(facet) {
+        let mut add_clipped = |view: &Frustum, facet: Facet, key: Option<f64>| {
+            for piece in view.clip_triangle(facet) {
                 let d = key.unwrap_or_else(|| depth(piece.map(|v| v.x)));
                 layers.push((d, Layer::Glass(piece)));
             }
@@ -252,14 +272,15 @@ impl Renderer {
             match scenery {
                 Scenery::Glass(facets, motion) => {
                     for facet in facets {
-                        add_clipped(scenery::moved(facet, motion, time), None);
+                        let facet = scenery::moved(facet, motion, time);
+                        add_clipped(&stage.glass_view, facet, None);
                     }
                 }
                 Scenery::Ground(ground) => {
                     let ground = ground.at(time);
                     if !ground.seen_from_above(eye) {
                         for facet in ground.facets(eye) {
-                            add_clipped(facet, Some(f64::NEG_INFINITY));
+                            add_clipped(&stage.frustum, facet, Some(f64::NEG_INFINITY));
                         }
                     }
                 }
@@ -298,18 +319,18 @@ impl Renderer {
     /// The ice's feature edges and the obstacles' outlines where they are at `time` (s).
     fn draw_lines(&self, canvas: &mut Canvas, stage: &Stage, ice: &IceSurface, time: f64) {
         let line_width = self.options.overlay().line_width() * SUPERSAMPLE as f64;
-        let mut line = |a: Vector3<f64>, b: Vector3<f64>, color: Rgb, width: f64| {
-            if let Some([a, b]) = stage.frustum.clip_segment(a, b) {
-                canvas.line(stage.project(a), stage.project(b), color, width, true);
+        let mut line = |view: &Frustum, [a, b]: [Vector3<f64>; 2], color: Rgb| {
+            if let Some([a, b]) = view.clip_segment(a, b) {
+                canvas.line(stage.project(a), stage.project(b), color, line_width, true);
             }
         };
-        for [a, b] in feature_edges(&ice.triangles, &ice.positions) {
-            line(a, b, EDGE, line_width);
+        for edge in feature_edges(&ice.triangles, &ice.positions) {
+            line(&stage.frustum, edge, EDGE);
         }
         for outline in &self.outlines {
             let place = |x: &Vector3<f64>| outline.motion.position(time, x);
             for [a, b] in &outline.segments {
-                line(place(a), place(b), OBSTACLE, line_width);
+                line(&stage.glass_view, [place(a), place(b)], OBSTACLE);
             }
         }
     }
