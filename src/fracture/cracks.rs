@@ -15,6 +15,7 @@
 
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
+use petgraph::unionfind::UnionFind;
 use std::collections::HashMap;
 
 /// Boundary planes of the scene's mesh, per scene element.
@@ -95,19 +96,19 @@ pub fn crack_faces(
         let key = [x.x.to_bits(), x.y.to_bits(), x.z.to_bits()];
         *canonical.entry(key).or_insert(i)
     };
-    let mut union = UnionFind::new(faces.len());
+    let mut union = UnionFind::<usize>::new(faces.len());
     let mut edge_owner: HashMap<(usize, usize), usize> = HashMap::new();
     for (k, face) in faces.iter().enumerate() {
         let c = face.nodes.map(&mut key_of);
         for j in 0..3 {
             let (a, b) = (c[j], c[(j + 1) % 3]);
             let owner = *edge_owner.entry((a.min(b), a.max(b))).or_insert(k);
-            union.join(owner, k);
+            union.union(owner, k);
         }
     }
     let mut ids: HashMap<usize, usize> = HashMap::new();
     for (k, face) in faces.iter_mut().enumerate() {
-        let root = union.root(k);
+        let root = union.find_mut(k);
         let next = ids.len();
         face.crack = *ids.entry(root).or_insert(next);
     }
@@ -260,33 +261,5 @@ impl CrackSurface {
             surface.crack.push(face.crack);
         }
         surface
-    }
-}
-
-/// Disjoint sets over 0..n with path halving.
-struct UnionFind {
-    parent: Vec<usize>,
-}
-
-impl UnionFind {
-    fn new(n: usize) -> Self {
-        UnionFind {
-            parent: (0..n).collect(),
-        }
-    }
-
-    fn root(&mut self, mut i: usize) -> usize {
-        while self.parent[i] != i {
-            self.parent[i] = self.parent[self.parent[i]];
-            i = self.parent[i];
-        }
-        i
-    }
-
-    fn join(&mut self, a: usize, b: usize) {
-        let (ra, rb) = (self.root(a), self.root(b));
-        if ra != rb {
-            self.parent[ra.max(rb)] = ra.min(rb);
-        }
     }
 }

@@ -1,5 +1,7 @@
 //! Connected parts of a tet mesh.
 
+use petgraph::unionfind::UnionFind;
+
 use super::TetMesh;
 
 /// Connected components of the mesh (nodes joined by tets): part index per node and count.
@@ -10,27 +12,18 @@ pub fn parts(mesh: &TetMesh) -> (Vec<u32>, usize) {
 /// [`parts`] of `nodes` nodes joined by `tets`.
 pub fn parts_of(nodes: usize, tets: &[[usize; 4]]) -> (Vec<u32>, usize) {
     let n = nodes;
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn find(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
+    let mut sets = UnionFind::<usize>::new(n);
     for tet in tets {
         for &v in &tet[1..] {
-            let (a, b) = (find(&mut parent, tet[0]), find(&mut parent, v));
-            if a != b {
-                parent[a.max(b)] = a.min(b);
-            }
+            sets.union(tet[0], v);
         }
     }
+    // Parts numbered in the order of their first node.
     let mut label = vec![u32::MAX; n];
     let mut part = vec![0u32; n];
     let mut count = 0;
     for (i, p) in part.iter_mut().enumerate() {
-        let r = find(&mut parent, i);
+        let r = sets.find_mut(i);
         if label[r] == u32::MAX {
             label[r] = count;
             count += 1;

@@ -4,6 +4,7 @@
 
 use super::raster::Rgb;
 use nalgebra::Vector3;
+use petgraph::unionfind::UnionFind;
 use std::collections::HashMap;
 
 /// A unit normal per corner of each triangle of `surface` (node indices into `positions`).
@@ -32,7 +33,7 @@ pub fn corner_normals(
         })
         .collect();
     // Corner 3 f + k is corner k of triangle f; corners of one fan end up in one set.
-    let mut fans = DisjointSets::new(3 * surface.len());
+    let mut fans = UnionFind::<usize>::new(3 * surface.len());
     let cos_feature = feature_deg.to_radians().cos();
     for sides in edge_sides(surface).values() {
         let &[(f, fa, fb), (g, ga, gb)] = sides.as_slice() else {
@@ -56,13 +57,13 @@ pub fn corner_normals(
             } else {
                 0.0
             };
-            sums[fans.find(3 * f + k)] += angle * unit[f];
+            sums[fans.find_mut(3 * f + k)] += angle * unit[f];
         }
     }
     (0..surface.len())
         .map(|f| {
             std::array::from_fn(|k| {
-                sums[fans.find(3 * f + k)]
+                sums[fans.find_mut(3 * f + k)]
                     .try_normalize(0.0)
                     .unwrap_or(unit[f])
             })
@@ -88,34 +89,6 @@ fn edge_sides(surface: &[([usize; 3], usize)]) -> EdgeSides {
         }
     }
     sides
-}
-
-/// Disjoint sets of `0..n` (union–find with path halving).
-struct DisjointSets {
-    parent: Vec<usize>,
-}
-
-impl DisjointSets {
-    fn new(n: usize) -> Self {
-        DisjointSets {
-            parent: (0..n).collect(),
-        }
-    }
-
-    /// The representative of `i`'s set.
-    fn find(&mut self, mut i: usize) -> usize {
-        while self.parent[i] != i {
-            self.parent[i] = self.parent[self.parent[i]];
-            i = self.parent[i];
-        }
-        i
-    }
-
-    /// Joins the sets of `a` and `b`.
-    fn union(&mut self, a: usize, b: usize) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        self.parent[ra] = rb;
-    }
 }
 
 /// Element values averaged to the nodes, each element weighted by its volume at `positions`
