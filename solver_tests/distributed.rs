@@ -161,8 +161,9 @@ fn two_processes_match_one(path: &Path, extra: &[&str], parts: bool) {
     }
     let diff = difference(&one, &two);
     // The fields process 0 gathers from the processes' parts, node by node and element by
-    // element: velocities and every element's stress, within the positions' bound (measured
-    // ≤ 1.2e-10 of their largest value).
+    // element: velocities within the positions' bound (measured ≤ 1.2e-10 of their largest
+    // value), and every element's stress, stored in single precision (only drawn): each run's
+    // value within half an f32 ulp (6e-8) of its double, so 1.5e-7 of the largest over two.
     let relative = |name| {
         let (diff, scale) = field_difference(&one, &two, name);
         if scale > 0.0 {
@@ -177,7 +178,7 @@ fn two_processes_match_one(path: &Path, extra: &[&str], parts: bool) {
     );
     assert!(diff <= 1e-8, "{name}: {diff:e}");
     assert!(
-        velocity <= 1e-8 && stress <= 1e-8,
+        velocity <= 1e-8 && stress <= 1.5e-7,
         "{name}: {velocity:e}, {stress:e}"
     );
     assert_eq!(stat(&one, "elements"), stat(&two, "elements"));
