@@ -287,6 +287,7 @@ impl OutputWriter {
             records,
             last_commit: None,
             last_sidecars: None,
+            last_fields: None,
         };
         Ok((writer, rf))
     }

@@ -12,8 +12,8 @@ use super::hdf5_io::{
 use super::ownership::{check_target, partial_path, remove_stale_partials, take_place, RunLock};
 use super::xdmf::{write_sidecars, FrameRecord};
 use super::{
-    corrupt, invalid, voigt_to_matrix, Frame, FrameOptions, OutputError, RunHeader, StepStats,
-    FORMAT_VERSION, FRAME_GROUPS, RESERVED_FRAME_NAMES, TENSORS,
+    corrupt, invalid, voigt_to_matrix, Field, Frame, FrameOptions, OutputError, RunHeader,
+    StepStats, FORMAT_VERSION, FRAME_GROUPS, RESERVED_FRAME_NAMES, TENSORS,
 };
 
 /// Rows appended to `/stats` per chunk; 4096 rows × 8 B = 32 KiB chunks keep
@@ -145,6 +145,32 @@ pub struct OutputWriter {
     pub(super) last_commit: Option<std::time::Instant>,
     /// When the sidecars were last rewritten and how long that took (`None`: never).
     pub(super) last_sidecars: Option<(std::time::Instant, std::time::Duration)>,
+    /// The last frame's group and its fields' values: a field with the same values in the next
+    /// frame is hard-linked to it instead of written again (`None` after a resume or reopen).
+    pub(super) last_fields: Option<(Group, Vec<StoredValues>)>,
+}
+
+/// A field's values as a frame stored them: name, columns, single precision, the values.
+pub(super) struct StoredValues {
+    name: String,
+    cols: usize,
+    single: bool,
+    data: Vec<f64>,
+}
+
+impl StoredValues {
+    /// Whether `f`, stored in single precision if `single`, stores exactly these values.
+    fn holds(&self, f: &Field, single: bool) -> bool {
+        self.name == f.name
+            && self.cols == f.cols
+            && self.single == single
+            && self.data.len() == f.data.len()
+            && self
+                .data
+                .iter()
+                .zip(f.data)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+    }
 }
 
 /// How a run's file is created and reopened for writing, so that between commits nothing the
@@ -310,6 +336,7 @@ impl OutputWriter {
                 records: Vec::new(),
                 last_commit: None,
                 last_sidecars: None,
+                last_fields: None,
             }),
             Err(e) => {
                 let _ = std::fs::remove_file(path);
@@ -497,13 +524,33 @@ impl OutputWriter {
             (frame.node_fields, "Node"),
             (frame.row_fields, "Rows"),
         ];
+        let last = self.last_fields.take();
+        let mut stored = Vec::new();
         for (fields, center) in centers {
             for f in fields {
-                let shape = (f.name, f.data.len() / f.cols, f.cols);
-                let ds = write_values(&path, &g, shape, f.data, options.single(f.name))?;
-                write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
+                let single = options.single(f.name);
+                // Values that have not changed since the last frame (a history that is not
+                // evolving, the record of refused splits) are hard-linked to its dataset: a
+                // link costs a few bytes and a fraction of a dataset's time.
+                let unchanged = last
+                    .as_ref()
+                    .filter(|(_, values)| values.iter().any(|v| v.holds(f, single)));
+                if let Some((last_group, _)) = unchanged {
+                    link_dataset(&path, last_group, &g, f.name)?;
+                } else {
+                    let shape = (f.name, f.data.len() / f.cols, f.cols);
+                    let ds = write_values(&path, &g, shape, f.data, single)?;
+                    write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
+                }
+                stored.push(StoredValues {
+                    name: f.name.into(),
+                    cols: f.cols,
+                    single,
+                    data: f.data.to_vec(),
+                });
             }
         }
+        self.last_fields = Some((g.clone(), stored));
         if options.tensor_matrices {
             write_tensor_matrices(&path, &g, name, frame, options.drawn_single)?;
         }
@@ -700,7 +747,9 @@ impl OutputWriter {
         if !self.uncommitted.is_empty() || metadata_cache_bytes(file) < CACHE_REOPEN_BYTES {
             return Ok(());
         }
-        // Pending `/stats` rows stay in memory until the next commit writes them.
+        // Pending `/stats` rows stay in memory until the next commit writes them. No object
+        // of the file may stay open, or closing would not empty the cache.
+        self.last_fields = None;
         let path = self.location.clone();
         let file = self.file.take().expect("checked above");
         file.close()
