@@ -3,11 +3,11 @@
 //!
 //! A frame is copied (a few hundred kilobytes at 1e4 elements: well under a millisecond) and
 //! handed over through a queue of about [`QUEUED_BYTES`] of frames; when the writer falls
-//! further behind, the run waits for it, so memory stays bounded. Everything the writer does stays as on one
-//! thread: the same frames and `/stats` rows in the same order, the same commits, and on an error
-//! or a dropped writer, the frames already handed over are written and committed first (what
-//! the writer's own drop does). A writer error reaches the run at its next frame, stats batch or
-//! `finish`.
+//! further behind, the run waits for it, so memory stays bounded. Everything the writer does
+//! stays as on one thread: the same frames and `/stats` rows in the same order, the same
+//! commits, and on an error or a dropped writer, the frames already handed over are written and
+//! committed first (what the writer's own drop does). A writer error reaches the run at its
+//! next frame, stats batch or `finish`.
 
 use std::path::PathBuf;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
