@@ -52,6 +52,46 @@ fn good_scene_parses_with_defaults() {
 }
 
 #[test]
+fn restart_points_and_frame_contents_default_and_are_checked() {
+    // A frame every step: restart points every 10 steps, no derived copies, drawn fields in
+    // single precision.
+    let scene = parse(GOOD).unwrap();
+    assert_eq!(scene.restart_every, 10);
+    let options = scene.frame_options;
+    assert!(!options.tensor_matrices && !options.derived_scalars && options.drawn_single);
+    assert!(scene.notices.is_empty(), "{:?}", scene.notices);
+    // Frames every 3 steps: the copies stored; restart points fall on every 30th step only,
+    // which a notice says.
+    let every3 =
+        parse(&GOOD.replace("end_time = 0.03", "end_time = 0.03\noutput_every = 3")).unwrap();
+    assert!(every3.frame_options.tensor_matrices && every3.frame_options.derived_scalars);
+    assert!(
+        every3
+            .notices
+            .iter()
+            .any(|n| n.contains("restart_every") && n.contains("every 30 steps")),
+        "{:?}",
+        every3.notices
+    );
+    let chosen = parse(
+        &(GOOD.replace("end_time = 0.03", "end_time = 0.03\nrestart_every = 4")
+            + "[output]\ndrawn_precision = \"double\"\nderived_scalars = true\n"),
+    )
+    .unwrap();
+    assert_eq!(chosen.restart_every, 4);
+    assert!(chosen.frame_options.derived_scalars && !chosen.frame_options.drawn_single);
+    error_of(
+        &GOOD.replace("end_time = 0.03", "end_time = 0.03\nrestart_every = 0"),
+        Some("time.restart_every"),
+    );
+    let err = error_of(
+        &(GOOD.to_string() + "[output]\ndrawn_precision = \"half\"\n"),
+        Some("drawn_precision"),
+    );
+    assert!(err.contains("single") && err.contains("double"), "{err}");
+}
+
+#[test]
 fn unknown_keys_are_rejected_with_their_name() {
     let err = error_of(
         &GOOD.replace("mu = 3.70e10", "mu = 3.70e10\nshear = 1.0"),
