@@ -183,11 +183,6 @@ impl BackgroundWriter {
         self.options
     }
 
-    /// Path of the run's file.
-    pub fn path(&self) -> &std::path::Path {
-        &self.path
-    }
-
     /// Hands a copy of `frame` (and the `/stats` rows before it) to the writing thread; waits
     /// while the queue is full. An error the thread met is returned here.
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), OutputError> {

@@ -135,16 +135,6 @@ pub const DRAWN_DATASETS: [&str; 8] = [
     "contact_active",
 ];
 
-/// The scalars a frame can store besides what they are computed from (readers compute the
-/// per-element ones from `stress` and `plastic_strain` in a file without them;
-/// `contact_active` is where `contact_normal_force` is not zero).
-pub const DERIVED_SCALARS: [&str; 4] = [
-    "von_mises",
-    "max_principal_stress",
-    "plastic_strain_norm",
-    "contact_active",
-];
-
 /// What frames store beyond a resumed run's state (`[output]`): derived copies and the
 /// precision of what is only drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -152,8 +142,9 @@ pub struct FrameOptions {
     /// Store every symmetric tensor a second time as 3 × 3 matrices (`tensors/<name>`, the
     /// layout VTK's XDMF readers show as tensors).
     pub tensor_matrices: bool,
-    /// Store the [`DERIVED_SCALARS`] (von Mises, largest principal stress, ‖ε_p‖ per element,
-    /// and whether each node is in contact).
+    /// Store the scalars computed from other fields: von Mises, largest principal stress and
+    /// ‖ε_p‖ per element, and whether each node is in contact (readers compute them from
+    /// `stress`, `plastic_strain` and `contact_normal_force` in a file without them).
     pub derived_scalars: bool,
     /// Store the [`DRAWN_DATASETS`], `tensors/` and the crack vertices as 32-bit floats (7
     /// significant digits: 1e-8 m on a 10 cm body), halving their size.

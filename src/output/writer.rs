@@ -485,15 +485,12 @@ impl OutputWriter {
             write_attr(&path, &g, name, value)?;
         }
         let options = self.options;
+        // A built-in dataset of `rows` × `cols` values, in single precision if only drawn.
+        let builtin = |name, rows, cols, data: &[f64]| {
+            write_values(&path, &g, (name, rows, cols), data, options.single(name))
+        };
         let n = frame.positions.len();
-        let positions = frame.positions.as_flattened();
-        write_values(
-            &path,
-            &g,
-            ("positions", n, 3),
-            positions,
-            options.single("positions"),
-        )?;
+        builtin("positions", n, 3, frame.positions.as_flattened())?;
         write_vec3(&path, &g, "velocities", frame.velocities)?;
         if frame.topology_changed {
             write_vec3(&path, &g, "rest_positions", frame.rest_positions)?;
@@ -510,15 +507,7 @@ impl OutputWriter {
             link_dataset(&path, &source, &g, "rest_positions")?;
             link_dataset(&path, &source, &g, "tets")?;
         }
-        let stress = frame.stress.as_flattened();
-        let m = frame.stress.len();
-        write_values(
-            &path,
-            &g,
-            ("stress", m, 6),
-            stress,
-            options.single("stress"),
-        )?;
+        builtin("stress", frame.stress.len(), 6, frame.stress.as_flattened())?;
         let centers = [
             (frame.element_fields, "Cell"),
             (frame.node_fields, "Node"),
