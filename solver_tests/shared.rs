@@ -10,7 +10,7 @@
 use icefem::assembly::{Assembly, DofMap};
 use icefem::physics::Model;
 use icefem::sim::part::Part;
-use icefem::sim::{Collective, Distribution, Simulation};
+use icefem::sim::{Collective, Distribution, SimError, Simulation};
 use icefem::solver::linear::Cholesky;
 use icefem::solver::{ExternalSolver, FillOrdering, LinearError, LinearStats};
 use std::sync::{Arc, Barrier, Mutex};
@@ -68,39 +68,55 @@ impl Collective for Sums {
 /// factor on both processes, each solving for its part's free dofs.
 struct SummedCholesky {
     sums: Sums,
-    /// The whole mesh's pattern, and for each free dof of the part's, its free index there.
-    whole: Arc<Assembly>,
-    free_in_whole: Vec<usize>,
+    /// The whole mesh's pattern, and for each free dof of the part's, its free index there;
+    /// `None` where the part is the whole mesh, whose pattern (with the couplings its terms
+    /// add, such as ice–ice contact across a crack) is the part's.
+    whole: Option<(Arc<Assembly>, Vec<usize>)>,
     cholesky: Cholesky,
+}
+
+impl SummedCholesky {
+    /// The part's Hessian `values` on `assembly`'s pattern placed in the whole's.
+    fn in_whole(&self, assembly: &Assembly, values: &[f64]) -> Vec<f64> {
+        let Some((whole, free_in_whole)) = &self.whole else {
+            return values.to_vec();
+        };
+        let mut in_whole = vec![0.0; whole.nnz()];
+        let (col_ptr, row_idx) = (assembly.symbolic().col_ptr(), assembly.symbolic().row_idx());
+        let whole_col_ptr = whole.symbolic().col_ptr();
+        let whole_rows = whole.symbolic().row_idx();
+        for c in 0..assembly.dofs().num_free() {
+            let wc = free_in_whole[c];
+            let rows = &whole_rows[whole_col_ptr[wc]..whole_col_ptr[wc + 1]];
+            for k in col_ptr[c]..col_ptr[c + 1] {
+                let wr = free_in_whole[row_idx[k]];
+                let at = rows
+                    .binary_search(&wr)
+                    .expect("the part's entry is in the whole");
+                in_whole[whole_col_ptr[wc] + at] = values[k];
+            }
+        }
+        in_whole
+    }
 }
 
 impl ExternalSolver for SummedCholesky {
     fn factorize(&mut self, assembly: &Assembly, values: &[f64]) -> Result<(), LinearError> {
-        // Each entry of the part's pattern into the whole's.
-        let mut whole = vec![0.0; self.whole.nnz()];
-        let (col_ptr, row_idx) = (assembly.symbolic().col_ptr(), assembly.symbolic().row_idx());
-        let whole_col_ptr = self.whole.symbolic().col_ptr();
-        let whole_rows = self.whole.symbolic().row_idx();
-        for c in 0..assembly.dofs().num_free() {
-            let wc = self.free_in_whole[c];
-            let rows = &whole_rows[whole_col_ptr[wc]..whole_col_ptr[wc + 1]];
-            for k in col_ptr[c]..col_ptr[c + 1] {
-                let wr = self.free_in_whole[row_idx[k]];
-                let at = rows
-                    .binary_search(&wr)
-                    .expect("the part's entry is in the whole");
-                whole[whole_col_ptr[wc] + at] = values[k];
-            }
-        }
-        let [a, b] = self.sums.exchange.both(self.sums.rank, &whole);
+        let mine = self.in_whole(assembly, values);
+        let [a, b] = self.sums.exchange.both(self.sums.rank, &mine);
         let summed: Vec<f64> = a.iter().zip(&b).map(|(a, b)| a + b).collect();
-        self.cholesky.factorize(&self.whole, &summed).map(|_| ())
+        let whole = self.whole.as_ref().map_or(assembly, |(w, _)| w);
+        self.cholesky.factorize(whole, &summed).map(|_| ())
     }
     fn solve(&mut self, b: &[f64], x: &mut [f64]) -> Result<LinearStats, LinearError> {
+        let Some((whole, free_in_whole)) = &self.whole else {
+            // The right-hand side is the same on both processes.
+            return Ok(self.cholesky.solve(b, x));
+        };
         // The right-hand side is the same on every process where a dof is held: put each
         // part's into the whole's (both give the same shared entries), solve, read back.
-        let mut rhs = vec![f64::NAN; self.whole.dofs().num_free()];
-        for (&w, v) in self.free_in_whole.iter().zip(b) {
+        let mut rhs = vec![f64::NAN; whole.dofs().num_free()];
+        for (&w, v) in free_in_whole.iter().zip(b) {
             rhs[w] = *v;
         }
         let [p, q] = self.sums.exchange.both(self.sums.rank, &rhs);
@@ -111,7 +127,7 @@ impl ExternalSolver for SummedCholesky {
             .collect();
         let mut whole_x = vec![0.0; rhs.len()];
         let stats = self.cholesky.solve(&rhs, &mut whole_x);
-        for (&w, x) in self.free_in_whole.iter().zip(x.iter_mut()) {
+        for (&w, x) in free_in_whole.iter().zip(x.iter_mut()) {
             *x = whole_x[w];
         }
         Ok(stats)
@@ -122,6 +138,8 @@ impl ExternalSolver for SummedCholesky {
 /// belongs to the lower process among its elements'.
 struct Half {
     part: Part,
+    /// Process of each element of the whole mesh.
+    element_part: Vec<u32>,
     exchange: Arc<Exchange>,
     rank: usize,
     sums: Sums,
@@ -132,10 +150,21 @@ struct Half {
 impl Half {
     /// The part of process `rank` of `model`'s mesh: the whole mesh if `whole`.
     fn new(model: &Model, exchange: Arc<Exchange>, rank: usize, whole: bool) -> Self {
+        let elements = model.mesh.num_tets();
+        let element_part = (0..elements).map(|e| u32::from(e >= elements / 2)).collect();
+        Self::with_parts(model, exchange, rank, whole, element_part)
+    }
+
+    /// The part of process `rank` of `model`'s mesh when element `e` is process
+    /// `element_part[e]`'s.
+    fn with_parts(
+        model: &Model,
+        exchange: Arc<Exchange>,
+        rank: usize,
+        whole: bool,
+        element_part: Vec<u32>,
+    ) -> Self {
         let tets = &model.mesh.tets;
-        let element_part: Vec<u32> = (0..tets.len())
-            .map(|e| u32::from(e >= tets.len() / 2))
-            .collect();
         let mut owner = vec![1u32; model.num_nodes()];
         for (tet, &p) in tets.iter().zip(&element_part) {
             for &v in tet {
@@ -157,6 +186,7 @@ impl Half {
             },
             owned_dofs: part.owned_dofs(),
             part,
+            element_part,
             exchange,
             rank,
             whole: Arc::new(whole_assembly),
@@ -175,6 +205,19 @@ impl Distribution for Half {
         &self.part.own_elements
     }
     fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError> {
+        let sums = Sums {
+            exchange: self.exchange.clone(),
+            rank: self.rank,
+            whole_dofs: self.sums.whole_dofs.clone(),
+            total: self.sums.total,
+        };
+        if self.part.is_whole() {
+            return Ok(Box::new(SummedCholesky {
+                sums,
+                whole: None,
+                cholesky: Cholesky::new(FillOrdering::Auto, assembly)?,
+            }));
+        }
         let whole_dofs = &self.sums.whole_dofs;
         let free_in_whole = assembly
             .dofs()
@@ -183,16 +226,21 @@ impl Distribution for Half {
             .map(|&d| self.whole.dofs().free(whole_dofs[d]).expect("free in both"))
             .collect();
         Ok(Box::new(SummedCholesky {
-            sums: Sums {
-                exchange: self.exchange.clone(),
-                rank: self.rank,
-                whole_dofs: whole_dofs.clone(),
-                total: self.sums.total,
-            },
-            whole: self.whole.clone(),
-            free_in_whole,
+            sums,
+            whole: Some((self.whole.clone(), free_in_whole)),
             cholesky: Cholesky::new(FillOrdering::Auto, &self.whole)?,
         }))
+    }
+    fn remeshed(
+        &self,
+        model: &Model,
+        parent: &[usize],
+    ) -> Result<(Box<dyn Distribution>, Part), SimError> {
+        let element_part = parent.iter().map(|&p| self.element_part[p]).collect();
+        let whole = self.part.is_whole();
+        let half = Half::with_parts(model, self.exchange.clone(), self.rank, whole, element_part);
+        let part = half.part.clone();
+        Ok((Box::new(half), part))
     }
 }
 
@@ -274,4 +322,118 @@ fn the_freezing_container_shared_by_two_matches_one() {
 #[test]
 fn the_freezing_container_in_two_parts_matches_one() {
     freezing_container_on_two(false);
+}
+
+/// What a run with fracture did: the splits of each step, the crack area at the end (m²) and
+/// the displacements of every step before the first split.
+struct Cracked {
+    events: Vec<usize>,
+    area: f64,
+    before_first_split: Vec<Vec<f64>>,
+}
+
+/// `scene` (with `[fracture]`) to its end; shared by two processes, each holding the whole
+/// mesh (as a run with fracture does), if `share` is given.
+fn crack(scene: &icefem::scene::Scene, share: Option<(Arc<Exchange>, usize)>) -> Cracked {
+    let mut sim = match share {
+        None => Simulation::new(scene.model.clone(), scene.settings).unwrap(),
+        Some((exchange, rank)) => {
+            let half = Half::new(&scene.model, exchange, rank, true);
+            let model = half.part.model(&scene.model).unwrap();
+            let mut sim = Simulation::for_part(model, scene.settings).unwrap();
+            sim.distribute(Box::new(half)).unwrap();
+            sim
+        }
+    };
+    let settings = scene.fracture.expect("a scene with [fracture]");
+    let mut fracture = icefem::fracture::Fracture::new(settings, &sim.model.mesh);
+    let steps = icefem::run::step_count(scene.end_time, scene.settings.dt);
+    let mut cracked = Cracked {
+        events: Vec::new(),
+        area: 0.0,
+        before_first_split: Vec::new(),
+    };
+    for _ in 0..steps {
+        sim.step().unwrap();
+        let report = fracture.after_step(&mut sim).unwrap();
+        if report.events.is_empty() && cracked.events.iter().all(|&n| n == 0) {
+            cracked.before_first_split.push(sim.state.u.clone());
+        }
+        cracked.events.push(report.events.len());
+    }
+    cracked.area = fracture.crack_area(&sim.model.mesh.rest);
+    cracked
+}
+
+#[test]
+fn a_pulled_bar_shared_by_two_cracks_as_on_one() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pulled_bar.toml");
+    let scene = icefem::scene::Scene::load(&path).unwrap();
+    let serial = crack(&scene, None);
+    let exchange = Arc::new(Exchange {
+        barrier: Barrier::new(2),
+        slots: Mutex::new([Vec::new(), Vec::new()]),
+    });
+    let [first, second] = std::thread::scope(|s| {
+        let handles = [0, 1].map(|rank| {
+            let (scene, exchange) = (&scene, exchange.clone());
+            s.spawn(move || crack(scene, Some((exchange, rank))))
+        });
+        handles.map(|h| h.join().unwrap())
+    });
+    // Both processes hold the whole mesh and take the same decisions: the same bits.
+    assert_eq!(first.events, second.events);
+    assert_eq!(first.area.to_bits(), second.area.to_bits());
+    assert_eq!(first.before_first_split, second.before_first_split);
+    let splits: usize = serial.events.iter().sum();
+    assert!(splits > 0, "the bar cracks");
+    // Until the first split, one process's displacements to round-off: the same matrix
+    // factorised, its two halves added in another order (measured below 1e-12).
+    assert_eq!(serial.before_first_split.len(), first.before_first_split.len());
+    for (a, b) in serial.before_first_split.iter().zip(&first.before_first_split) {
+        let scale = a.iter().fold(0.0f64, |m, u| m.max(u.abs()));
+        let diff = a.iter().zip(b).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(diff <= 1e-9 * scale, "{diff:e} of {scale:e}");
+    }
+    eprintln!(
+        "pulled bar: {splits} splits, crack area {:.4e} m² on one process, {:.4e} m² shared by two",
+        serial.area, first.area
+    );
+    assert_eq!(serial.events, first.events);
+    assert!((serial.area - first.area).abs() <= 1e-9 * serial.area);
+}
+
+#[test]
+#[ignore]
+fn explore_container() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/freezing_container_fracture.toml");
+    let mut scene = icefem::scene::Scene::load(&path).unwrap();
+    scene.end_time = std::env::var("END").map(|s| s.parse().unwrap()).unwrap_or(30.0);
+    let t = std::time::Instant::now();
+    let serial = crack(&scene, None);
+    let t1 = t.elapsed().as_secs_f64();
+    let exchange = Arc::new(Exchange {
+        barrier: Barrier::new(2),
+        slots: Mutex::new([Vec::new(), Vec::new()]),
+    });
+    let [first, _second] = std::thread::scope(|s| {
+        let handles = [0, 1].map(|rank| {
+            let (scene, exchange) = (&scene, exchange.clone());
+            s.spawn(move || crack(scene, Some((exchange, rank))))
+        });
+        handles.map(|h| h.join().unwrap())
+    });
+    let t2 = t.elapsed().as_secs_f64() - t1;
+    let s1: usize = serial.events.iter().sum();
+    let s2: usize = first.events.iter().sum();
+    eprintln!("serial {s1} events area {:e} ({} steps before split) {t1:.1}s; two {s2} events area {:e} ({} before) {t2:.1}s", serial.area, serial.before_first_split.len(), first.area, first.before_first_split.len());
+    let n = serial.before_first_split.len().min(first.before_first_split.len());
+    let mut worst = 0.0f64;
+    for k in 0..n { let a=&serial.before_first_split[k]; let b=&first.before_first_split[k];
+        let scale = a.iter().fold(0.0f64, |m, u| m.max(u.abs()));
+        let diff = a.iter().zip(b).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        if scale > 0.0 { worst = worst.max(diff/scale); } }
+    eprintln!("worst before split {worst:e}");
+    let first_diff = serial.events.iter().zip(&first.events).position(|(a,b)| a!=b);
+    eprintln!("first differing step {first_diff:?}");
 }

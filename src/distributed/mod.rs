@@ -364,4 +364,45 @@ impl Distribution for ProcessShare {
             self.solve,
         )?))
     }
+
+    fn remeshed(
+        &self,
+        model: &Model,
+        parent: &[usize],
+    ) -> Result<(Box<dyn Distribution>, Part), SimError> {
+        let mesh = &model.mesh;
+        let size = self.collective.world.size() as usize;
+        let element_part = parent
+            .iter()
+            .map(|&p| self.partition.element_part[p])
+            .collect();
+        let partition =
+            Partition::from_element_parts(mesh, element_part, size);
+        let part = Part::new(
+            &mesh.tets,
+            (&partition.element_part, &partition.node_owner),
+            self.rank,
+            true,
+        );
+        let share = ProcessShare {
+            collective: MpiCollective {
+                world: SimpleCommunicator::world(),
+                ghosts: Ghosts::new(
+                    SimpleCommunicator::world(),
+                    &part.nodes,
+                    &part.owned_nodes,
+                    &partition.node_owner,
+                ),
+            },
+            owned_dofs: part.owned_dofs(),
+            owned_elements: part.own_elements.clone(),
+            rank: self.rank,
+            partition,
+            nodes: part.nodes.clone(),
+            tets: mesh.tets.clone(),
+            rest: mesh.rest.clone(),
+            solve: self.solve,
+        };
+        Ok((Box::new(share), part))
+    }
 }

@@ -139,9 +139,8 @@ pub fn run(
     run_on(scene, options, None, interrupt, progress)
 }
 
-/// [`run`], shared among `processes` if given. A shared run refuses fracture (its remeshing
-/// is not distributed); resuming, the writing process reads the frame and gives it to the
-/// others.
+/// [`run`], shared among `processes` if given; resuming, the writing process reads the frame
+/// and gives it to the others.
 pub fn run_on(
     scene: &Scene,
     options: &RunOptions,
@@ -149,14 +148,6 @@ pub fn run_on(
     interrupt: &AtomicBool,
     progress: impl FnMut(&Progress),
 ) -> Result<RunSummary, RunError> {
-    if processes.is_some() && scene.fracture.is_some() {
-        return Err(RunError::Setup {
-            path: scene.path.clone(),
-            error: SimError::NotDistributed(
-                "fracture ([fracture]: its remeshing is not distributed)",
-            ),
-        });
-    }
     let (settings, end_time) = checked_times(scene, options)?;
     let output = options
         .output
@@ -630,11 +621,13 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
 }
 
 /// Whether a distributed run needs the whole mesh on every process: where a term couples
-/// nodes beyond their elements (ice–ice contact, Rayleigh's β K) or the heat equation is
-/// solved (on the whole mesh).
+/// nodes beyond their elements (ice–ice contact, Rayleigh's β K), the heat equation is
+/// solved (on the whole mesh), or fracture splits the mesh (every process finds and makes
+/// the same splits on it, see `Distribution::remeshed`).
 fn needs_whole_mesh(scene: &Scene) -> bool {
     let model = &scene.model;
     scene.thermal.is_some()
+        || scene.fracture.is_some()
         || model.ice_contact().is_some()
         || model.damping.is_some_and(|d| d.stiffness > 0.0)
 }

@@ -480,9 +480,10 @@ impl Simulation {
     /// Continues with `model` on a new mesh after a topology change (fracture; see
     /// [`Model::remeshed`]), with the nodal displacements `u` and velocities `v` (3 per node)
     /// and what the terms carry, `term_history`, on the new mesh; new element `e` inherits the
-    /// history of element `parent[e]`. Pattern,
-    /// colouring and symbolic factorisation are rebuilt (only here); time and step count carry
-    /// on.
+    /// history of element `parent[e]`. Pattern, colouring and symbolic factorisation are
+    /// rebuilt (only here); time and step count carry on. In a distributed run every process
+    /// calls it with the same split (`model` the whole model on the new mesh, which every
+    /// process holds: see [`Distribution::remeshed`]) and continues on its share of it.
     pub fn remesh(
         &mut self,
         model: Model,
@@ -491,14 +492,29 @@ impl Simulation {
         term_history: TermHistory,
         parent: &[usize],
     ) -> Result<(), SimError> {
-        if self.shared.is_some() {
-            return Err(SimError::NotDistributed(
-                "remeshing (fracture: its remeshing is not distributed)",
-            ));
-        }
+        Self::check(&model, &self.settings)?;
+        // In a distributed run, every process splits alike and continues on its part of the
+        // new mesh.
+        let shared = match &self.shared {
+            Some(shared) => Some(shared.distribution.remeshed(&model, parent)?),
+            None => None,
+        };
+        let model = match &shared {
+            // A split changes elements of several parts at once: a run with fracture holds
+            // the whole mesh on every process (`run::needs_whole_mesh`).
+            Some((_, part)) if !part.is_whole() => {
+                return Err(SimError::NotDistributed(
+                    "splitting a process's part of the mesh (fracture needs the whole mesh)",
+                ))
+            }
+            Some((_, part)) => part
+                .model(&model)
+                .map_err(|e| SimError::Setup(e.to_string()))?,
+            None => model,
+        };
         let (time, step) = (self.state.time, self.state.step);
         let history = self.state.history.inherit(parent);
-        let mut next = Simulation::new(model, self.settings)?;
+        let mut next = Simulation::for_part(model, self.settings)?;
         next.thermal_schedule = (self.thermal_schedule.take()).map(|s| s.inherit(parent));
         let mesh = &next.model.mesh;
         next.heat = self
@@ -517,6 +533,9 @@ impl Simulation {
             next_dt: self.state.next_dt,
         };
         next.set_time(time);
+        if let Some((distribution, _)) = shared {
+            next.distribute(distribution)?;
+        }
         *self = next;
         Ok(())
     }

@@ -4,8 +4,10 @@
 
 use super::balance::EnergyParts;
 use super::potential::Collective;
+use super::part::Part;
 use super::{Energies, SimError, Simulation};
 use crate::assembly::{Assembly, ElementSubset};
+use crate::physics::Model;
 use crate::solver::{ExternalSolver, LinearError, LinearSolver};
 
 /// How a simulation is shared among several processes (implemented by `distributed` over
@@ -21,6 +23,16 @@ pub trait Distribution {
     fn owned_elements(&self) -> &[bool];
     /// A linear solver shared by the processes, for `assembly`'s pattern.
     fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError>;
+    /// The distribution of `model` (the whole model), whose mesh was made from this
+    /// distribution's by splitting elements (fracture): element `e` came from element
+    /// `parent[e]` and stays with its process. Called by every process at the same split (it
+    /// exchanges the new ghosts). Returns it with this process's part of the new mesh, of
+    /// which [`Part::model`] makes the process's model.
+    fn remeshed(
+        &self,
+        model: &Model,
+        parent: &[usize],
+    ) -> Result<(Box<dyn Distribution>, Part), SimError>;
 }
 
 /// A simulation's share of a distributed run: the distribution and this process's elements
