@@ -151,7 +151,9 @@ impl Half {
     /// The part of process `rank` of `model`'s mesh: the whole mesh if `whole`.
     fn new(model: &Model, exchange: Arc<Exchange>, rank: usize, whole: bool) -> Self {
         let elements = model.mesh.num_tets();
-        let element_part = (0..elements).map(|e| u32::from(e >= elements / 2)).collect();
+        let element_part = (0..elements)
+            .map(|e| u32::from(e >= elements / 2))
+            .collect();
         Self::with_parts(model, exchange, rank, whole, element_part)
     }
 
@@ -389,10 +391,20 @@ fn a_pulled_bar_shared_by_two_cracks_as_on_one() {
     assert!(splits > 0, "the bar cracks");
     // Until the first split, one process's displacements to round-off: the same matrix
     // factorised, its two halves added in another order (measured below 1e-12).
-    assert_eq!(serial.before_first_split.len(), first.before_first_split.len());
-    for (a, b) in serial.before_first_split.iter().zip(&first.before_first_split) {
+    assert_eq!(
+        serial.before_first_split.len(),
+        first.before_first_split.len()
+    );
+    for (a, b) in serial
+        .before_first_split
+        .iter()
+        .zip(&first.before_first_split)
+    {
         let scale = a.iter().fold(0.0f64, |m, u| m.max(u.abs()));
-        let diff = a.iter().zip(b).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let diff = a
+            .iter()
+            .zip(b)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
         assert!(diff <= 1e-9 * scale, "{diff:e} of {scale:e}");
     }
     eprintln!(
@@ -401,39 +413,4 @@ fn a_pulled_bar_shared_by_two_cracks_as_on_one() {
     );
     assert_eq!(serial.events, first.events);
     assert!((serial.area - first.area).abs() <= 1e-9 * serial.area);
-}
-
-#[test]
-#[ignore]
-fn explore_container() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/freezing_container_fracture.toml");
-    let mut scene = icefem::scene::Scene::load(&path).unwrap();
-    scene.end_time = std::env::var("END").map(|s| s.parse().unwrap()).unwrap_or(30.0);
-    let t = std::time::Instant::now();
-    let serial = crack(&scene, None);
-    let t1 = t.elapsed().as_secs_f64();
-    let exchange = Arc::new(Exchange {
-        barrier: Barrier::new(2),
-        slots: Mutex::new([Vec::new(), Vec::new()]),
-    });
-    let [first, _second] = std::thread::scope(|s| {
-        let handles = [0, 1].map(|rank| {
-            let (scene, exchange) = (&scene, exchange.clone());
-            s.spawn(move || crack(scene, Some((exchange, rank))))
-        });
-        handles.map(|h| h.join().unwrap())
-    });
-    let t2 = t.elapsed().as_secs_f64() - t1;
-    let s1: usize = serial.events.iter().sum();
-    let s2: usize = first.events.iter().sum();
-    eprintln!("serial {s1} events area {:e} ({} steps before split) {t1:.1}s; two {s2} events area {:e} ({} before) {t2:.1}s", serial.area, serial.before_first_split.len(), first.area, first.before_first_split.len());
-    let n = serial.before_first_split.len().min(first.before_first_split.len());
-    let mut worst = 0.0f64;
-    for k in 0..n { let a=&serial.before_first_split[k]; let b=&first.before_first_split[k];
-        let scale = a.iter().fold(0.0f64, |m, u| m.max(u.abs()));
-        let diff = a.iter().zip(b).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-        if scale > 0.0 { worst = worst.max(diff/scale); } }
-    eprintln!("worst before split {worst:e}");
-    let first_diff = serial.events.iter().zip(&first.events).position(|(a,b)| a!=b);
-    eprintln!("first differing step {first_diff:?}");
 }

@@ -11,9 +11,10 @@
 //! gradients with algebraic multigrid ([`solver`]). Process 0 gathers the processes' parts of
 //! each frame and writes the same file a run on one process writes.
 //!
-//! Not distributed: fracture (its remeshing) — a run that needs it is refused with a
-//! message. Every process also keeps the scene's whole model (mesh, element data, loads),
-//! from which it builds its part.
+//! Fracture splits the whole mesh, which every process then holds: each makes the same
+//! splits and shares the split mesh out again ([`Distribution::remeshed`]). Every process
+//! also keeps the scene's whole model (mesh, element data, loads), from which it builds its
+//! part.
 
 pub mod ghosts;
 pub mod partition;
@@ -31,7 +32,8 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use partition::Partition;
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
+use std::rc::Rc;
 
 /// What this process exchanged with the others so far, counted where it is sent (in values
 /// of 8 bytes; a matrix entry also carries its two 4-byte indices): the measured side of the
@@ -91,10 +93,10 @@ pub struct MpiProcesses {
     /// The partition and this process's part, from [`Processes::part_model`] until
     /// [`Processes::distribute`].
     part: RefCell<Option<(Partition, Part)>>,
-    /// Nodes and elements of this process's part.
-    held: std::cell::Cell<[u64; 2]>,
+    /// Nodes and elements of this process's part (its share's, once the mesh is split).
+    held: Rc<Cell<[u64; 2]>>,
     /// Whether every process holds the whole mesh even where parts would do.
-    whole_mesh: std::cell::Cell<bool>,
+    whole_mesh: Cell<bool>,
 }
 
 impl MpiProcesses {
@@ -110,8 +112,8 @@ impl MpiProcesses {
             _universe: universe,
             world,
             part: RefCell::new(None),
-            held: std::cell::Cell::new([0; 2]),
-            whole_mesh: std::cell::Cell::new(false),
+            held: Rc::new(Cell::new([0; 2])),
+            whole_mesh: Cell::new(false),
         })
     }
 
@@ -235,6 +237,7 @@ impl Processes for MpiProcesses {
             tets: mesh.tets.clone(),
             rest: mesh.rest.clone(),
             solve: (iterative.tolerance, iterative.max_iterations),
+            held: self.held.clone(),
         };
         sim.distribute(Box::new(share))
     }
@@ -340,6 +343,8 @@ struct ProcessShare {
     rest: Vec<nalgebra::Vector3<f64>>,
     /// CG's relative tolerance and iteration cap.
     solve: (f64, usize),
+    /// Nodes and elements of this process's part, for its report.
+    held: Rc<Cell<[u64; 2]>>,
 }
 
 impl Distribution for ProcessShare {
@@ -376,8 +381,7 @@ impl Distribution for ProcessShare {
             .iter()
             .map(|&p| self.partition.element_part[p])
             .collect();
-        let partition =
-            Partition::from_element_parts(mesh, element_part, size);
+        let partition = Partition::from_element_parts(mesh, element_part, size);
         let part = Part::new(
             &mesh.tets,
             (&partition.element_part, &partition.node_owner),
@@ -402,7 +406,11 @@ impl Distribution for ProcessShare {
             tets: mesh.tets.clone(),
             rest: mesh.rest.clone(),
             solve: self.solve,
+            held: self.held.clone(),
         };
+        share
+            .held
+            .set([part.nodes.len() as u64, part.elements.len() as u64]);
         Ok((Box::new(share), part))
     }
 }

@@ -11,8 +11,9 @@
 //! only (`Model::restrict`), so that the processes' parts add up to the whole potential.
 //!
 //! Where a term couples nodes beyond their elements (ice–ice contact, Rayleigh's β K), where
-//! the heat equation is solved, or on one process, a part is the whole mesh: every element and
-//! node, each process evaluating its own elements and owned nodes as above.
+//! the heat equation is solved, where fracture splits the mesh, or on one process, a part is
+//! the whole mesh: every element and node, each process evaluating its own elements and owned
+//! nodes as above.
 
 use super::State;
 use crate::mesh::MeshError;

@@ -3,8 +3,8 @@
 //! process's decisions the same.
 
 use super::balance::EnergyParts;
-use super::potential::Collective;
 use super::part::Part;
+use super::potential::Collective;
 use super::{Energies, SimError, Simulation};
 use crate::assembly::{Assembly, ElementSubset};
 use crate::physics::Model;
