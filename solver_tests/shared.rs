@@ -7,10 +7,12 @@
 //! node, the ring of elements a part needs — in the default build; `distributed.rs` (feature
 //! `mpi`) checks MPI and PETSc on top.
 
+mod common;
+
 use icefem::assembly::{Assembly, DofMap};
 use icefem::physics::Model;
 use icefem::sim::part::Part;
-use icefem::sim::{Collective, Distribution, SimError, Simulation};
+use icefem::sim::{Collective, Distribution, Scheme, SimError, Simulation};
 use icefem::solver::linear::Cholesky;
 use icefem::solver::{ExternalSolver, FillOrdering, LinearError, LinearStats};
 use std::sync::{Arc, Barrier, Mutex};
@@ -278,22 +280,18 @@ fn run(
     (u, iterations)
 }
 
-/// The freezing container's displacements on two processes against one.
-fn freezing_container_on_two(whole: bool) {
-    // Freezing, the nodal volumetric energy, plasticity, the container's walls: the first
-    // 90 steps (3 s), in which the ice front moves in and the water is squeezed.
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/freezing_container.toml");
-    let scene = icefem::scene::Scene::load(&path).unwrap();
-    let steps = 90;
-    let (serial, serial_iterations) = run(&scene, steps, None);
+/// `scene`'s first `steps` steps on two processes against one (each holding its part of the
+/// mesh, or the whole mesh if `whole`): the same Newton iterations, displacements to
+/// round-off.
+fn two_match_one(scene: &icefem::scene::Scene, steps: usize, whole: bool) {
+    let (serial, serial_iterations) = run(scene, steps, None);
     let exchange = Arc::new(Exchange {
         barrier: Barrier::new(2),
         slots: Mutex::new([Vec::new(), Vec::new()]),
     });
     let [(first, first_iterations), (second, second_iterations)] = std::thread::scope(|s| {
         let handles = [0, 1].map(|rank| {
-            let (scene, exchange) = (&scene, exchange.clone());
+            let exchange = exchange.clone();
             s.spawn(move || run(scene, steps, Some((exchange, rank, whole))))
         });
         handles.map(|h| h.join().unwrap())
@@ -302,28 +300,60 @@ fn freezing_container_on_two(whole: bool) {
     let both: Vec<f64> = first.iter().zip(&second).map(|(a, b)| a + b).collect();
     // Against one process: the same factorisation of the same matrix up to the order of
     // the sums (the two parts added, the gradient summed), so round-off only: ε times the
-    // conditioning over 90 steps (measured below 1e-12 of the largest displacement).
+    // conditioning over the steps (measured below 1e-12 of the largest displacement).
     let scale = serial.iter().fold(0.0f64, |m, u| m.max(u.abs()));
     let diff = serial
         .iter()
         .zip(&both)
         .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
     eprintln!(
-        "shared by two (whole mesh on each: {whole}): max |Δu| / max |u| = {:.2e}",
+        "{}: shared by two (whole mesh on each: {whole}): max |Δu| / max |u| = {:.2e}",
+        scene.path.display(),
         diff / scale
     );
     assert!(scale > 0.0 && diff <= 1e-9 * scale, "{diff:e} of {scale:e}");
     assert_eq!(serial_iterations, first_iterations);
 }
 
+/// The freezing container (freezing, the nodal volumetric energy, plasticity, the
+/// container's walls): its first 90 steps (3 s), in which the ice front moves in and the
+/// water is squeezed.
+fn freezing_container() -> icefem::scene::Scene {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/freezing_container.toml");
+    icefem::scene::Scene::load(&path).unwrap()
+}
+
 #[test]
 fn the_freezing_container_shared_by_two_matches_one() {
-    freezing_container_on_two(true);
+    two_match_one(&freezing_container(), 90, true);
 }
 
 #[test]
 fn the_freezing_container_in_two_parts_matches_one() {
-    freezing_container_on_two(false);
+    two_match_one(&freezing_container(), 90, false);
+}
+
+#[test]
+fn stiffness_damping_in_two_parts_matches_one() {
+    // Rayleigh's β Kₙ held by elements as the elastic energy is: with the nodal volumetric
+    // energy, Kₙ's rows reach two rings of elements, beyond a part's ring.
+    let mut scene = freezing_container();
+    scene.model.damping = Some(icefem::physics::Rayleigh {
+        mass: 0.0,
+        stiffness: 1e-4,
+    });
+    two_match_one(&scene, 90, false);
+    // The start from the acceleration of the state (Newmark's), with β Kₙ v in its forces.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sagging_bar.toml");
+    std::fs::write(&path, common::SAGGING_BAR).unwrap();
+    let mut bar = icefem::scene::Scene::load(&path).unwrap();
+    for scheme in [Scheme::BackwardEuler, Scheme::Newmark] {
+        bar.settings.scheme = scheme;
+        bar.model.initial_velocity = vec![0.01; 3 * bar.model.num_nodes()];
+        two_match_one(&bar, 10, false);
+    }
 }
 
 /// What a run with fracture did: the splits of each step, the crack area at the end (m²) and

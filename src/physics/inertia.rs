@@ -71,7 +71,8 @@ impl StepTerm for Inertia<'_> {
 pub struct StiffnessDamping<'a> {
     /// The velocity's length h_d (s) and origin p (m, all dofs): vₙ₊₁ = (u − p)/h_d.
     pub velocity_form: (f64, &'a [f64]),
-    /// β Kₙ on the free system (CSC values of `assembly`'s pattern, N s/m).
+    /// β Kₙ on the free system (CSC values of `assembly`'s pattern, N s/m); in a distributed
+    /// run, this process's share of it by elements (see [`StepTerm::shared_by_elements`]).
     pub beta_stiffness: &'a [f64],
     /// Pattern of the free system.
     pub assembly: &'a Assembly,
@@ -115,8 +116,8 @@ impl StepTerm for StiffnessDamping<'_> {
         // βKₙ/h: fixed when Kₙ is, i.e. when the elastic term's Hessian is.
         true
     }
-    fn evaluated_whole(&self) -> bool {
-        // Kₙ couples each node with its neighbours through every element around them.
+    fn shared_by_elements(&self) -> bool {
+        // Kₙ is assembled from the elastic energy's elements (and nodal parts), as that is.
         true
     }
 }

@@ -81,6 +81,13 @@ pub trait StepTerm {
     fn evaluated_whole(&self) -> bool {
         false
     }
+    /// Whether a process of a distributed run holds its share of the term by elements, as it
+    /// does the elastic energy (its own elements and the nodal parts of its owned nodes): its
+    /// gradient and Hessian are then partial at every node it holds and summed across the
+    /// processes, instead of kept on its owned nodes.
+    fn shared_by_elements(&self) -> bool {
+        false
+    }
 }
 
 /// How much re-lagging changed what a term holds fixed (see [`StepTerm::relag`]).

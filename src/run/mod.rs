@@ -621,13 +621,9 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
 }
 
 /// Whether a distributed run needs the whole mesh on every process: where a term couples
-/// nodes beyond their elements (ice–ice contact, Rayleigh's β K), the heat equation is
-/// solved (on the whole mesh), or fracture splits the mesh (every process finds and makes
-/// the same splits on it, see `Distribution::remeshed`).
+/// nodes that share no element (ice–ice contact), the heat equation is solved (on the whole
+/// mesh), or fracture splits the mesh (every process finds and makes the same splits on it,
+/// see `Distribution::remeshed`).
 fn needs_whole_mesh(scene: &Scene) -> bool {
-    let model = &scene.model;
-    scene.thermal.is_some()
-        || scene.fracture.is_some()
-        || model.ice_contact().is_some()
-        || model.damping.is_some_and(|d| d.stiffness > 0.0)
+    scene.thermal.is_some() || scene.fracture.is_some() || scene.model.ice_contact().is_some()
 }

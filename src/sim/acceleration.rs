@@ -62,8 +62,15 @@ impl Simulation {
             let mut force = vec![0.0; v.len()];
             self.assembly
                 .multiply(&self.damping_stiffness, &v, &mut force);
+            // A process of a distributed run holds its share of β Kₙ: the processes' forces
+            // at a node add up.
+            let mut damping_force = vec![0.0; gradient.len()];
             for (f, &d) in force.iter().zip(dofs.free_dofs()) {
-                gradient[d] += f;
+                damping_force[d] = *f;
+            }
+            self.exchange_sum(&mut damping_force);
+            for (g, f) in gradient.iter_mut().zip(&damping_force) {
+                *g += f;
             }
         }
         let model = &self.model;

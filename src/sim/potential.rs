@@ -235,14 +235,27 @@ impl<'a> StepPotential<'a> {
             &mut self.t_contact,
             u,
             (gradient.as_deref_mut(), hessian.as_deref_mut()),
-            Some(&mut whole),
+            Pass::Owned(&mut whole),
         );
         share.keep_owned(gradient.as_deref_mut(), hessian.as_deref_mut());
         let mut elastic = 0.0;
         self.element_passes += 1;
-        elastic_term.add(u, &mut elastic, gradient.as_deref_mut(), hessian);
+        elastic_term.add(
+            u,
+            &mut elastic,
+            gradient.as_deref_mut(),
+            hessian.as_deref_mut(),
+        );
+        // The terms held by elements, as the elastic energy is.
+        let by_elements = add_in_order(
+            others,
+            &mut self.t_contact,
+            u,
+            (gradient.as_deref_mut(), hessian),
+            Pass::ByElements,
+        );
         let elastic = share.collective.sum(elastic);
-        let rest = share.collective.sum(rest);
+        let rest = share.collective.sum(rest + by_elements);
         if let Some(g) = gradient {
             share.collective.exchange(g);
         }
@@ -280,7 +293,13 @@ impl<'a> StepPotential<'a> {
                 );
             }
         }
-        let rest = add_in_order(others, &mut self.t_contact, u, (gradient, hessian), None);
+        let rest = add_in_order(
+            others,
+            &mut self.t_contact,
+            u,
+            (gradient, hessian),
+            Pass::All,
+        );
         self.last_elastic = elastic;
         elastic + rest
     }
@@ -377,23 +396,36 @@ impl<'a> StepPotential<'a> {
     }
 }
 
-/// The energy of `terms` at `u`, summed in order, adding their gradients and Hessians into
-/// those given; contact terms' time is added to `t_contact` (s). With `whole`, the energies
-/// of the terms evaluated whole on every process go there instead.
+/// Which of a potential's other terms a pass over them adds.
+enum Pass<'s> {
+    /// Every term (one process).
+    All,
+    /// A process's terms on its owned nodes, the energies of those evaluated whole on every
+    /// process going to the given sum (a distributed run).
+    Owned(&'s mut f64),
+    /// A process's terms held by elements ([`StepTerm::shared_by_elements`]).
+    ByElements,
+}
+
+/// The energy of the `pass`'s `terms` at `u`, summed in order, adding their gradients and
+/// Hessians into those given; contact terms' time is added to `t_contact` (s).
 fn add_in_order(
     terms: &mut [Box<dyn StepTerm + '_>],
     t_contact: &mut f64,
     u: &[f64],
     (mut gradient, mut hessian): (Option<&mut [f64]>, Option<&mut [f64]>),
-    mut whole: Option<&mut f64>,
+    mut pass: Pass<'_>,
 ) -> f64 {
     let mut energy = 0.0;
+    let by_elements = matches!(pass, Pass::ByElements);
     for term in terms {
-        let clock = term.as_contact().is_some().then(Instant::now);
-        let sum = match whole.as_deref_mut() {
-            Some(w) if term.evaluated_whole() => w,
-            _ => &mut energy,
+        let sum = match &mut pass {
+            Pass::All => &mut energy,
+            _ if term.shared_by_elements() != by_elements => continue,
+            Pass::Owned(whole) if term.evaluated_whole() => &mut **whole,
+            Pass::Owned(_) | Pass::ByElements => &mut energy,
         };
+        let clock = term.as_contact().is_some().then(Instant::now);
         term.add(u, sum, gradient.as_deref_mut(), hessian.as_deref_mut());
         if let Some(clock) = clock {
             *t_contact += clock.elapsed().as_secs_f64();

@@ -45,8 +45,8 @@ pub(super) struct Shared {
 impl Simulation {
     /// Shares the simulation among the processes of `distribution` from its next step on
     /// (fails only if the distributed solver cannot be made). Its model is this process's
-    /// part ([`super::part::Part::model`]). Rayleigh damping's β Kₙ is assembled whole on every
-    /// process, like the other terms every process evaluates whole.
+    /// part ([`super::part::Part::model`]). Rayleigh damping's β Kₙ is shared by elements, as
+    /// the elastic energy is.
     pub fn distribute(&mut self, distribution: Box<dyn Distribution>) -> Result<(), SimError> {
         self.linear = LinearSolver::External(distribution.solver(&self.assembly)?);
         self.workspace.forget_factor();
@@ -92,6 +92,14 @@ impl Simulation {
         self.shared
             .as_ref()
             .is_none_or(|shared| shared.distribution.owned_dofs()[d])
+    }
+
+    /// Sums the processes' parts of `v` (3 per node) at every node several of them hold, in
+    /// place (nothing on one process).
+    pub(super) fn exchange_sum(&self, v: &mut [f64]) {
+        if let Some(shared) = &self.shared {
+            shared.distribution.collective().exchange(v);
+        }
     }
 
     /// Keeps `v` (3 per node) on the dofs this process owns and makes every process's copy

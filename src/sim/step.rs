@@ -597,7 +597,9 @@ impl Simulation {
         );
     }
 
-    /// β Kₙ: the elastic Hessian at the start of the step, scaled by β.
+    /// β Kₙ: the elastic Hessian at the start of the step, scaled by β; in a distributed run,
+    /// this process's share of it (its elements' and its owned nodes' nodal parts, as the
+    /// elastic energy is shared).
     pub(super) fn stiffness_at_previous(&mut self, beta: f64) {
         if let Some(quadratic) = &self.hessians.elastic_quadratic {
             // A fixed quadratic's Hessian is Kₙ at every step: no pass over the elements.
@@ -616,6 +618,7 @@ impl Simulation {
             // β K must be positive semi-definite to damp.
             true,
         );
+        elastic.subset = (self.shared.as_ref()).map(|s| (&s.elements, s.distribution.owned_dofs()));
         let mut gradient = vec![0.0; self.previous.len()];
         self.damping_stiffness.fill(0.0);
         elastic.add(
