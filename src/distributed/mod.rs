@@ -17,6 +17,7 @@
 //! part.
 
 pub mod ghosts;
+pub mod heat;
 pub mod partition;
 pub mod petsc;
 pub mod solver;
@@ -217,8 +218,18 @@ impl Processes for MpiProcesses {
                 "the simulation was not built on this process's part".into(),
             ));
         };
-        let mesh = &sim.model.mesh;
         let iterative = sim.settings.iterative();
+        let solve = (iterative.tolerance, iterative.max_iterations);
+        sim.distribute_heat(|system, free| {
+            let share = heat::HeatProcessShare::new(
+                (&partition, self.rank()),
+                (&part.nodes, &part.owned_nodes),
+                (system, free),
+                solve,
+            )?;
+            Ok(Box::new(share))
+        })?;
+        let mesh = &sim.model.mesh;
         let share = ProcessShare {
             collective: MpiCollective {
                 world: SimpleCommunicator::world(),
@@ -236,7 +247,7 @@ impl Processes for MpiProcesses {
             nodes: part.nodes.clone(),
             tets: mesh.tets.clone(),
             rest: mesh.rest.clone(),
-            solve: (iterative.tolerance, iterative.max_iterations),
+            solve,
             held: self.held.clone(),
         };
         sim.distribute(Box::new(share))

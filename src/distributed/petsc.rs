@@ -220,15 +220,17 @@ impl Drop for Gather {
     }
 }
 
-/// A square sparse matrix distributed by rows (PETSc AIJ, block size 3), preallocated.
+/// A square sparse matrix distributed by rows (PETSc AIJ), preallocated.
 pub struct Matrix(ffi::Mat);
 
 impl Matrix {
-    /// A `global` × `global` matrix with `local` rows on this process, whose local row `i`
-    /// has at most `diagonal[i]` entries in this process's columns and `off[i]` in others'.
+    /// A `global` × `global` matrix in blocks of `block` rows (3: a node's dofs), with
+    /// `local` rows on this process, whose local row `i` has at most `diagonal[i]` entries in
+    /// this process's columns and `off[i]` in others'.
     pub fn new(
         local: usize,
         global: usize,
+        block: usize,
         (diagonal, off): (&[Int], &[Int]),
     ) -> Result<Self, PetscError> {
         let mut a: ffi::Mat = ptr::null_mut();
@@ -240,7 +242,7 @@ impl Matrix {
             let (m, n) = (int(local), int(global));
             check(ffi::MatSetSizes(a, m, m, n, n), "MatSetSizes")?;
             check(ffi::MatSetType(a, aij.as_ptr()), "MatSetType")?;
-            check(ffi::MatSetBlockSize(a, 3), "MatSetBlockSize")?;
+            check(ffi::MatSetBlockSize(a, int(block)), "MatSetBlockSize")?;
             check(
                 ffi::MatSeqAIJSetPreallocation(a, 0, diagonal.as_ptr()),
                 "MatSeqAIJSetPreallocation",

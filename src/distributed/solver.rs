@@ -99,7 +99,7 @@ impl PetscSolver {
                 off[i] = (rows.len() - inside) as Int;
             }
         }
-        let mut matrix = Matrix::new(local, global, (&diagonal, &off))?;
+        let mut matrix = Matrix::new(local, global, 3, (&diagonal, &off))?;
         let coordinates: Vec<f64> = node_of_row
             .iter()
             .flat_map(|&v| [rest[v].x, rest[v].y, rest[v].z])

@@ -32,10 +32,11 @@ pub(super) fn emit_frame(
         return Ok(());
     };
     let contact = sim.contact_forces();
+    let temperature = sim.node_temperatures().unwrap_or_default();
     let share = part.share_of(
         &sim.state,
         &sim.stresses(),
-        contact.unwrap_or(&ContactForces::default()),
+        (contact.unwrap_or(&ContactForces::default()), &temperature),
     );
     let shares = processes.gather_values(share);
     let Some(writer) = writer else {
@@ -62,7 +63,7 @@ pub(super) fn emit_frame(
         state: &state,
         stress: whole.stress,
         contact: contact.map(|_| &whole.contact),
-        temperature: None,
+        temperature: (!whole.temperature.is_empty()).then_some(whole.temperature),
     };
     Ok(write_frame(writer, &source, None, flags)?)
 }

@@ -253,17 +253,25 @@ fn simulation_for(
         }
     };
     if let Some(thermal) = &scene.thermal {
-        // On the scene's mesh, before a resumed fractured run rebuilds its split mesh (with
-        // the whole masses: a process's part of a distributed run has those of its nodes).
+        // On the scene's mesh, before a resumed fractured run rebuilds its split mesh, or on
+        // this process's part of it (with the whole masses: a process's part of a
+        // distributed run has those of its owned nodes only).
         let mesh = &sim.model.mesh;
-        let heat = Heat::new(
-            mesh,
-            scene.model.mass.clone(),
-            thermal.phases,
-            &thermal.boundary,
-            thermal.initial.clone(),
-        )
-        .map_err(|e| setup(e.into()))?;
+        let whole_mass = &scene.model.mass;
+        let (mass, boundary, initial) = match &part {
+            Some(part) => (
+                part.rows_of(whole_mass, 1, false),
+                thermal.boundary.restricted(|i| part.local(i)),
+                part.rows_of(&thermal.initial, 1, false),
+            ),
+            None => (
+                whole_mass.clone(),
+                thermal.boundary.clone(),
+                thermal.initial.clone(),
+            ),
+        };
+        let heat = Heat::new(mesh, mass, thermal.phases, &boundary, initial)
+            .map_err(|e| setup(e.into()))?;
         let link = HeatLink::new(heat, mesh);
         sim.attach_heat(link);
     }
@@ -621,9 +629,8 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
 }
 
 /// Whether a distributed run needs the whole mesh on every process: where a term couples
-/// nodes that share no element (ice–ice contact), the heat equation is solved (on the whole
-/// mesh), or fracture splits the mesh (every process finds and makes the same splits on it,
-/// see `Distribution::remeshed`).
+/// nodes that share no element (ice–ice contact), or fracture splits the mesh (every process
+/// finds and makes the same splits on it, see `Distribution::remeshed`).
 fn needs_whole_mesh(scene: &Scene) -> bool {
-    scene.thermal.is_some() || scene.fracture.is_some() || scene.model.ice_contact().is_some()
+    scene.fracture.is_some() || scene.model.ice_contact().is_some()
 }

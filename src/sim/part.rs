@@ -81,6 +81,11 @@ impl Part {
         }
     }
 
+    /// The part's node of node `i` of the whole mesh, if the part holds it.
+    pub fn local(&self, i: usize) -> Option<usize> {
+        Some(self.local_node[i]).filter(|&k| k != NONE)
+    }
+
     /// Whether the part is the whole mesh (every node of it).
     pub fn is_whole(&self) -> bool {
         self.nodes.len() == self.local_node.len()
@@ -163,12 +168,13 @@ impl Part {
     }
 
     /// This process's share of a state for the process that writes it whole
-    /// ([`StateShares::whole`]): its owned nodes' and own elements' numbers and values.
+    /// ([`StateShares::whole`]): its owned nodes' and own elements' numbers and values, with
+    /// the element stresses, contact forces and nodal temperatures (°C; empty without heat).
     pub fn share_of(
         &self,
         state: &State,
         stress: &[[f64; 6]],
-        contact: &ContactForces,
+        (contact, temperature): (&ContactForces, &[f64]),
     ) -> Vec<f64> {
         let nodes: Vec<usize> = (0..self.nodes.len())
             .filter(|&k| self.owned_nodes[k])
@@ -183,6 +189,7 @@ impl Part {
             !h.plastic_strain.is_empty(),
             !h.freeze_state.is_empty(),
             !contact.normal.is_empty(),
+            !temperature.is_empty(),
         ];
         let mut out = vec![nodes.len() as f64, elements.len() as f64];
         out.extend(flags.map(|f| f64::from(u8::from(f))));
@@ -200,6 +207,9 @@ impl Part {
         if flags[3] {
             node_values(&contact.normal);
             node_values(&contact.friction);
+        }
+        if flags[4] {
+            out.extend(nodes.iter().map(|&k| temperature[k]));
         }
         for &k in &elements {
             out.push(h.eigenstrain[k]);
@@ -232,6 +242,8 @@ pub struct StateShares {
     pub stress: Vec<[f64; 6]>,
     /// Contact forces (N, 3 per node; empty without contact).
     pub contact: ContactForces,
+    /// Nodal temperatures (°C; empty without heat).
+    pub temperature: Vec<f64>,
 }
 
 impl StateShares {
@@ -248,14 +260,14 @@ impl StateShares {
         let mut whole = StateShares::default();
         let s = &mut whole.state;
         let first = shares.first()?;
-        let flags: Vec<bool> = first.get(2..6)?.iter().map(|&f| f != 0.0).collect();
+        let flags: Vec<bool> = first.get(2..7)?.iter().map(|&f| f != 0.0).collect();
         let dofs = |on: bool| if on { vec![0.0; 3 * nodes] } else { Vec::new() };
         let (carried_fields, carried_scalars) = if flags[0] {
             carried
         } else {
             (&[][..], &[][..])
         };
-        let scalars = first.get(6..6 + carried_scalars.len())?;
+        let scalars = first.get(7..7 + carried_scalars.len())?;
         s.carried.scalars = carried_scalars
             .iter()
             .copied()
@@ -275,10 +287,13 @@ impl StateShares {
             s.history.freeze_state = vec![0.0; elements];
         }
         whole.stress = vec![[0.0; 6]; elements];
+        if flags[4] {
+            whole.temperature = vec![0.0; nodes];
+        }
         for share in shares {
             let mut at = share.iter().copied();
             let (n, e) = (at.next()? as usize, at.next()? as usize);
-            let mut at = at.skip(4 + carried_scalars.len());
+            let mut at = at.skip(5 + carried_scalars.len());
             let node_ids: Vec<usize> = at.by_ref().take(n).map(|x| x as usize).collect();
             let element_ids: Vec<usize> = at.by_ref().take(e).map(|x| x as usize).collect();
             if node_ids.len() != n || element_ids.len() != e {
@@ -300,6 +315,11 @@ impl StateShares {
             if flags[3] {
                 place(&mut whole.contact.normal)?;
                 place(&mut whole.contact.friction)?;
+            }
+            if flags[4] {
+                for &i in &node_ids {
+                    *whole.temperature.get_mut(i)? = at.next()?;
+                }
             }
             for &k in &element_ids {
                 *s.history.eigenstrain.get_mut(k)? = at.next()?;
@@ -400,6 +420,7 @@ mod tests {
             normal: dofs(900),
             friction: dofs(1000),
         };
+        let temperature: Vec<f64> = (0..10).map(|i| value(1100 + i)).collect();
         let shares: Vec<Vec<f64>> = (0..2)
             .map(|rank| {
                 let part = Part::new(&tets, (&element_part, &owner), rank, false);
@@ -420,7 +441,8 @@ mod tests {
                     normal: part.dofs_of(&contact.normal),
                     friction: part.dofs_of(&contact.friction),
                 };
-                part.share_of(&state, &stress, &contact)
+                let temperature = part.rows_of(&temperature, 1, false);
+                part.share_of(&state, &stress, (&contact, &temperature))
             })
             .collect();
         let together = StateShares::whole(&shares, 10, 4, CARRIED).unwrap();
@@ -428,6 +450,7 @@ mod tests {
         assert_eq!(together.stress, stress);
         assert_eq!(together.contact.normal, contact.normal);
         assert_eq!(together.contact.friction, contact.friction);
+        assert_eq!(together.temperature, temperature);
         // A share cut short is refused, not read past its end.
         let mut cut = shares.clone();
         cut[1].pop();

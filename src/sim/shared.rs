@@ -9,6 +9,8 @@ use super::{Energies, SimError, Simulation};
 use crate::assembly::{Assembly, ElementSubset};
 use crate::physics::Model;
 use crate::solver::{ExternalSolver, LinearError, LinearSolver};
+use crate::thermal::system::ScalarSystem;
+use crate::thermal::HeatShare;
 
 /// How a simulation is shared among several processes (implemented by `distributed` over
 /// MPI and PETSc). Every process holds its part of the mesh and state (see [`super::part`]) and
@@ -56,6 +58,18 @@ impl Simulation {
             distribution,
         });
         Ok(())
+    }
+
+    /// Shares the heat model (with `[thermal]`) among the processes: its mesh is this
+    /// process's part, and `make` builds its share (see [`crate::thermal::Heat::distribute`]).
+    pub fn distribute_heat(
+        &mut self,
+        make: impl FnOnce(&ScalarSystem, &[Option<usize>]) -> Result<Box<dyn HeatShare>, String>,
+    ) -> Result<(), SimError> {
+        match &mut self.heat {
+            Some(link) => Ok(link.heat.distribute(make)?),
+            None => Ok(()),
+        }
     }
 
     /// Whether the simulation is shared among several processes.

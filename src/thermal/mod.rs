@@ -25,10 +25,12 @@ pub mod enthalpy;
 pub mod link;
 pub mod monotone;
 pub mod neumann;
+pub mod shared;
 pub mod system;
 
 pub use enthalpy::{Phase, Phases};
 pub use link::HeatLink;
+pub use shared::HeatShare;
 
 use crate::mesh::TetMesh;
 use monotone::{add_corrected_conduction, EdgeCorrection, ObtuseEdges};
@@ -59,6 +61,24 @@ pub struct HeatBoundary {
     /// Boundary triangles exchanging heat with a fluid: nodes, heat transfer coefficient h
     /// (W/(m² K)) and the fluid's temperature (°C).
     pub convection: Vec<([usize; 3], f64, f64)>,
+}
+
+impl HeatBoundary {
+    /// The boundary on a part of the mesh, whose node `local(i)` is node `i` of the whole
+    /// mesh (`None`: not in the part): the fixed nodes and convecting triangles it holds.
+    pub fn restricted(&self, local: impl Fn(usize) -> Option<usize>) -> HeatBoundary {
+        HeatBoundary {
+            fixed: (self.fixed.iter())
+                .filter_map(|&(i, t)| Some((local(i)?, t)))
+                .collect(),
+            convection: (self.convection.iter())
+                .filter_map(|&(tri, h, t)| {
+                    let [a, b, c] = tri.map(&local);
+                    Some(([a?, b?, c?], h, t))
+                })
+                .collect(),
+        }
+    }
 }
 
 /// What a heat step did.
@@ -110,6 +130,11 @@ pub struct Heat {
     /// Nodal temperature (°C).
     temperature: Vec<f64>,
     system: ScalarSystem,
+    /// Whether this process counts each free node in sums and maxima: it owns it (every node
+    /// on one process).
+    counted: Vec<bool>,
+    /// This process's share of a distributed run.
+    share: Option<Box<dyn HeatShare>>,
 }
 
 /// Newton stops when the largest residual is this fraction of the largest diagonal of the
@@ -203,7 +228,60 @@ impl Heat {
             convection,
             temperature,
             system,
+            counted: vec![true; count],
+            share: None,
         })
+    }
+
+    /// Shares the heat model among the processes of a distributed run: this model is a
+    /// process's part (see [`shared`]), `make` builds its share from the heat system's
+    /// pattern and each node's free number.
+    pub fn distribute(
+        &mut self,
+        make: impl FnOnce(&ScalarSystem, &[Option<usize>]) -> Result<Box<dyn HeatShare>, String>,
+    ) -> Result<(), ThermalError> {
+        let share = make(&self.system, &self.free).map_err(ThermalError::Setup)?;
+        for (i, free) in self.free.iter().enumerate() {
+            if let Some(j) = free {
+                self.counted[*j] = share.owned()[i];
+            }
+        }
+        self.share = Some(share);
+        Ok(())
+    }
+
+    /// Whether this process counts node `i` in sums over the nodes: it owns it.
+    fn counts(&self, i: usize) -> bool {
+        self.share.as_ref().is_none_or(|s| s.owned()[i])
+    }
+
+    /// Σ of `x` over the processes (`x` on one).
+    fn sum(&self, x: f64) -> f64 {
+        self.share.as_ref().map_or(x, |s| s.sum(x))
+    }
+
+    /// Largest `x` over the processes (`x` on one).
+    fn max(&self, x: f64) -> f64 {
+        self.share.as_ref().map_or(x, |s| s.max(x))
+    }
+
+    /// Σ_i m_i f(T_i) over the nodes this process counts, for the nodes' values `f` (summed
+    /// over the processes).
+    fn mass_sum(&self, f: impl Fn(usize, f64) -> f64) -> f64 {
+        let local = (self.mass.iter().enumerate())
+            .filter(|(i, _)| self.counts(*i))
+            .map(|(i, m)| m * f(i, self.temperature[i]))
+            .sum();
+        self.sum(local)
+    }
+
+    /// Σ a_j b_j over the free nodes this process counts, summed over the processes.
+    fn dot(&self, a: &[f64], b: &[f64]) -> f64 {
+        let local = (a.iter().zip(b).zip(&self.counted))
+            .filter(|(_, &c)| c)
+            .map(|((a, b), _)| a * b)
+            .sum();
+        self.sum(local)
     }
 
     /// Nodal temperatures (°C).
@@ -245,20 +323,12 @@ impl Heat {
 
     /// Total enthalpy Σ m_i h(T_i) (J, relative to ice at the mushy range's lower end).
     pub fn enthalpy(&self) -> f64 {
-        self.mass
-            .iter()
-            .zip(&self.temperature)
-            .map(|(m, &t)| m * self.phases.enthalpy(t))
-            .sum()
+        self.mass_sum(|_, t| self.phases.enthalpy(t))
     }
 
     /// Frozen mass Σ m_i f(T_i) (kg).
     pub fn frozen_mass(&self) -> f64 {
-        self.mass
-            .iter()
-            .zip(self.nodal_ice_fraction())
-            .map(|(m, f)| m * f)
-            .sum()
+        self.mass_sum(|_, t| self.phases.ice_fraction(t))
     }
 
     /// Element conductivities (W/(m K)) from the current ice fractions.
@@ -319,16 +389,19 @@ impl Heat {
             passes += 1;
             if self.mark_extrema(&solve.temperature, &mut cancel) == 0 {
                 let heat_in = self.heat_in(&residual, &solve.temperature);
-                break (solve.temperature, heat_in, corrections.len());
+                // Each edge counted by the process owning its first node, which holds it
+                // whole.
+                let counted = (corrections.iter())
+                    .filter(|c| self.counts(c.nodes.0))
+                    .count();
+                break (
+                    solve.temperature,
+                    heat_in,
+                    self.sum(counted as f64) as usize,
+                );
             }
         };
-        let enthalpy_change = self
-            .mass
-            .iter()
-            .zip(&t)
-            .zip(&h0)
-            .map(|((m, &ti), h)| m * (p.enthalpy(ti) - h))
-            .sum();
+        let enthalpy_change = self.mass_sum(|i, _| p.enthalpy(t[i]) - h0[i]);
         self.temperature = t;
         let latent_change = -p.latent_heat * (self.frozen_mass() - frozen0);
         Ok(HeatStep {
@@ -351,9 +424,30 @@ impl Heat {
             let (h, ht) = self.convection[i];
             (h > 0.0).then(|| ht / h)
         };
-        let free = |i: usize| self.free[i].is_some();
+        // Each process judges the nodes it owns, whose neighbours are all on it.
+        let free = |i: usize| self.free[i].is_some() && self.counts(i);
+        let Some(share) = &self.share else {
+            return self
+                .obtuse
+                .mark_extrema(&self.temperature, t, air, free, cancel);
+        };
+        let before = cancel.to_vec();
         self.obtuse
-            .mark_extrema(&self.temperature, t, air, free, cancel)
+            .mark_extrema(&self.temperature, t, air, free, cancel);
+        // The edges any process marked, marked on every process holding them.
+        let whole = share.whole_nodes();
+        let key = |(a, b): (usize, usize)| (whole[a].min(whole[b]), whole[a].max(whole[b]));
+        let mine: Vec<(usize, usize)> = (self.obtuse.edge_nodes().enumerate())
+            .filter(|(e, _)| cancel[*e] && !before[*e])
+            .map(|(_, nodes)| key(nodes))
+            .collect();
+        let marked = share.union(&mine);
+        for (e, nodes) in self.obtuse.edge_nodes().enumerate() {
+            if marked.binary_search(&key(nodes)).is_ok() {
+                cancel[e] = true;
+            }
+        }
+        marked.len()
     }
 
     /// Newton on the step's `residual` from the current temperatures, with an exact line
@@ -369,9 +463,13 @@ impl Heat {
         loop {
             // The Jacobian, its scale and the convergence test.
             self.assemble_jacobian(residual, &t);
-            let largest_diagonal = self.system.largest_diagonal();
-            let worst = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            if worst <= RELATIVE_TOLERANCE * largest_diagonal || residual.n_free == 0 {
+            let largest_diagonal = self.max(self.system.largest_diagonal(&self.counted));
+            let worst = (r.iter().zip(&self.counted))
+                .filter(|(_, &c)| c)
+                .fold(0.0f64, |m, (v, _)| m.max(v.abs()));
+            let worst = self.max(worst);
+            // No free node on any process: the largest diagonal is 0.
+            if worst <= RELATIVE_TOLERANCE * largest_diagonal || largest_diagonal == 0.0 {
                 break;
             }
             if iterations == MAX_ITERATIONS {
@@ -383,13 +481,10 @@ impl Heat {
                 });
             }
             iterations += 1;
-            factorizations += usize::from(
-                self.system
-                    .factor()
-                    .map_err(|reason| ThermalError::Step { time, reason })?,
-            );
+            let failed = |reason| ThermalError::Step { time, reason };
+            factorizations += usize::from(self.factor().map_err(failed)?);
             let mut step: Vec<f64> = r.iter().map(|v| -v).collect();
-            self.system.solve_in_place(&mut step);
+            self.solve_in_place(&mut step).map_err(failed)?;
             t = self.line_search(residual, &t, &r, &step);
             r = residual.of(self, &t);
         }
@@ -442,20 +537,13 @@ impl Heat {
             }
             x
         };
-        let slope = |x: &[f64]| -> f64 {
-            residual
-                .of(self, x)
-                .iter()
-                .zip(step)
-                .map(|(a, b)| a * b)
-                .sum()
-        };
+        let slope = |x: &[f64]| -> f64 { self.dot(&residual.of(self, x), step) };
         let mut alpha = 1.0;
         let mut next = trial(alpha);
         let slope_at_one = slope(&next);
         if slope_at_one > 0.0 {
             // Regula falsi with the Illinois modification on [0, 1].
-            let (mut a, mut fa) = (0.0, r.iter().zip(step).map(|(a, b)| a * b).sum::<f64>());
+            let (mut a, mut fa) = (0.0, self.dot(r, step));
             let (mut b, mut fb) = (1.0, slope_at_one);
             let mut side = 0;
             for _ in 0..60 {
@@ -489,12 +577,41 @@ impl Heat {
     fn heat_in(&self, residual: &StepResidual, t: &[f64]) -> f64 {
         let dt = residual.dt;
         let kt = self.conduction(residual.k, residual.corrections, t);
-        dt * (0..t.len())
+        let local = (0..t.len())
+            .filter(|&i| self.counts(i))
             .map(|i| match self.free[i] {
                 Some(_) => self.convection[i].1 - self.convection[i].0 * t[i],
                 None => kt[i],
             })
-            .sum::<f64>()
+            .sum::<f64>();
+        dt * self.sum(local)
+    }
+
+    /// Factorises the Jacobian (sets the processes' solver up), unless it is the one already
+    /// factorised on every process; returns whether it did.
+    fn factor(&mut self) -> Result<bool, String> {
+        let Some(share) = &mut self.share else {
+            return self.system.factor();
+        };
+        // The same decision on every process: the set-up is collective.
+        let changed = f64::from(u8::from(!self.system.holds_factored()));
+        if share.max(changed) == 0.0 {
+            return Ok(false);
+        }
+        share.set_matrix(&self.system)?;
+        self.system.remember_factored();
+        Ok(true)
+    }
+
+    /// x ← J⁻¹ x with the last factorisation (`x` by free number).
+    fn solve_in_place(&mut self, x: &mut [f64]) -> Result<(), String> {
+        match &mut self.share {
+            Some(share) => share.solve_in_place(x),
+            None => {
+                self.system.solve_in_place(x);
+                Ok(())
+            }
+        }
     }
 }
 

@@ -133,6 +133,11 @@ impl ObtuseEdges {
         ObtuseEdges { edges, nodes }
     }
 
+    /// The nodes of each edge some element couples positively.
+    pub fn edge_nodes(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.edges.iter().map(|e| e.nodes)
+    }
+
     /// Number of edges some element couples positively.
     pub fn len(&self) -> usize {
         self.edges.len()

@@ -130,25 +130,59 @@ impl ScalarSystem {
         self.values[self.diagonal[i]] += v;
     }
 
-    /// The largest diagonal entry (0 for an empty system).
-    pub fn largest_diagonal(&self) -> f64 {
+    /// The largest diagonal entry of the rows marked in `counted` (0 for none).
+    pub fn largest_diagonal(&self, counted: &[bool]) -> f64 {
         self.diagonal
             .iter()
-            .fold(0.0f64, |m, &slot| m.max(self.values[slot]))
+            .zip(counted)
+            .filter(|(_, &c)| c)
+            .fold(0.0f64, |m, (&slot, _)| m.max(self.values[slot]))
     }
 
-    /// Factorises the current values, unless the factor is already of exactly these values
-    /// (bit for bit: the same step length and phases, no node in the mushy range — a frozen
-    /// block cooling, or conduction without phase change); returns whether it factorised. An
-    /// error names the pivot that was not positive.
-    pub fn factor(&mut self) -> Result<bool, String> {
-        let same = self.factored.len() == self.values.len()
+    /// Number of free nodes (rows).
+    pub fn rows(&self) -> usize {
+        self.diagonal.len()
+    }
+
+    /// The entries of each row of the symmetric matrix: (column, slot in `values`), both
+    /// triangles.
+    pub fn row_entries(&self) -> Vec<Vec<(usize, usize)>> {
+        let mut rows = vec![Vec::new(); self.rows()];
+        let (col_ptr, row_idx) = (self.pattern.col_ptr(), self.pattern.row_idx());
+        for c in 0..self.rows() {
+            for slot in col_ptr[c]..col_ptr[c + 1] {
+                let r = row_idx[slot];
+                rows[r].push((c, slot));
+                if r != c {
+                    rows[c].push((r, slot));
+                }
+            }
+        }
+        rows
+    }
+
+    /// Whether the last factorisation was of exactly the current values (bit for bit: the
+    /// same step length and phases, no node in the mushy range — a frozen block cooling, or
+    /// conduction without phase change).
+    pub fn holds_factored(&self) -> bool {
+        self.factored.len() == self.values.len()
             && self
                 .factored
                 .iter()
                 .zip(&self.values)
-                .all(|(a, b)| a.to_bits() == b.to_bits());
-        if same {
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+    }
+
+    /// Records the current values as factorised (by a solver outside this system).
+    pub fn remember_factored(&mut self) {
+        self.factored.clone_from(&self.values);
+    }
+
+    /// Factorises the current values, unless the factor is already of exactly these values
+    /// ([`ScalarSystem::holds_factored`]); returns whether it factorised. An error names the
+    /// pivot that was not positive.
+    pub fn factor(&mut self) -> Result<bool, String> {
+        if self.holds_factored() {
             return Ok(false);
         }
         self.factored.clear();

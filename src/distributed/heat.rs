@@ -1,0 +1,223 @@
+//! The heat model on several processes (see `thermal::shared`): each process sets the rows
+//! of the nodes it owns — whole on its part of the mesh — into a PETSc matrix over the whole
+//! mesh's nodes, numbered as the mechanics' nodes are (a fixed-temperature node is a row of
+//! its diagonal alone), solved by conjugate gradients with BoomerAMG; each process gathers
+//! the solution on its part's free nodes. Sums, maxima and the union of the edges whose
+//! couplings are cancelled go over MPI.
+
+use super::partition::Partition;
+use super::petsc::{Divergence, Gather, Int, Krylov, Matrix, Vector};
+use super::traffic;
+use crate::thermal::system::ScalarSystem;
+use crate::thermal::HeatShare;
+use mpi::collective::SystemOperation;
+use mpi::datatype::PartitionMut;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+/// An owned free node's row: its PETSc index, its columns' PETSc indices and the slots of
+/// its entries in the heat system's values.
+struct Row {
+    row: Int,
+    columns: Vec<Int>,
+    slots: Vec<usize>,
+    /// Index of the diagonal entry in `columns`.
+    diagonal: usize,
+}
+
+/// One process's share of a heat model.
+pub struct HeatProcessShare {
+    world: SimpleCommunicator,
+    owned: Vec<bool>,
+    whole_nodes: Vec<usize>,
+    matrix: Matrix,
+    krylov: Krylov,
+    rhs: Vector,
+    solution: Vector,
+    gather: Gather,
+    /// This process's owned free nodes' rows.
+    rows: Vec<Row>,
+    /// For each of this process's PETSc rows, its node's free number (`None`: fixed).
+    row_free: Vec<Option<usize>>,
+    /// The PETSc rows of this process's fixed nodes.
+    fixed_rows: Vec<Int>,
+}
+
+impl HeatProcessShare {
+    /// The share of process `rank` of `partition` whose part holds the whole mesh's nodes
+    /// `nodes` (ascending), of which it owns those marked in `owned`, for the heat `system` on
+    /// the part and each node's free number `free`; CG stops at the relative residual `rtol`
+    /// or after `max_iterations`.
+    pub fn new(
+        (partition, rank): (&Partition, u32),
+        (nodes, owned): (&[usize], &[bool]),
+        (system, free): (&ScalarSystem, &[Option<usize>]),
+        (rtol, max_iterations): (f64, usize),
+    ) -> Result<Self, String> {
+        let petsc = |k: usize| partition.petsc_node[nodes[k]] as Int;
+        let r = rank as usize;
+        let (start, end) = (partition.node_start[r], partition.node_start[r + 1]);
+        let global = partition.petsc_node.len();
+        let in_range = |i: Int| (start..end).contains(&(i as usize));
+        let mut node_of_free = vec![0; system.rows()];
+        let mut row_free = vec![None; end - start];
+        for (k, f) in free.iter().enumerate() {
+            if let Some(j) = *f {
+                node_of_free[j] = k;
+            }
+            if owned[k] {
+                row_free[petsc(k) as usize - start] = *f;
+            }
+        }
+        let entries = system.row_entries();
+        let rows: Vec<Row> = (entries.into_iter().enumerate())
+            .filter(|(j, _)| owned[node_of_free[*j]])
+            .map(|(j, row)| Row {
+                row: petsc(node_of_free[j]),
+                diagonal: row.iter().position(|&(c, _)| c == j).expect("a diagonal"),
+                columns: row.iter().map(|&(c, _)| petsc(node_of_free[c])).collect(),
+                slots: row.iter().map(|&(_, slot)| slot).collect(),
+            })
+            .collect();
+        let (mut diagonal, mut off) = (vec![1 as Int; end - start], vec![0 as Int; end - start]);
+        for row in &rows {
+            let inside = row.columns.iter().filter(|&&c| in_range(c)).count();
+            let local = row.row as usize - start;
+            diagonal[local] = inside as Int;
+            off[local] = (row.columns.len() - inside) as Int;
+        }
+        let fixed_rows = (row_free.iter().enumerate())
+            .filter(|(_, f)| f.is_none())
+            .map(|(i, _)| (start + i) as Int)
+            .collect();
+        let error = |e: super::petsc::PetscError| e.to_string();
+        let matrix = Matrix::new(end - start, global, 1, (&diagonal, &off)).map_err(error)?;
+        let rhs = Vector::new(end - start, global, 1).map_err(error)?;
+        let solution = Vector::new(end - start, global, 1).map_err(error)?;
+        let gathered: Vec<Int> = node_of_free.iter().map(|&k| petsc(k)).collect();
+        let gather = Gather::new(&solution, &gathered).map_err(error)?;
+        Ok(HeatProcessShare {
+            world: SimpleCommunicator::world(),
+            owned: owned.to_vec(),
+            whole_nodes: nodes.to_vec(),
+            matrix,
+            krylov: Krylov::cg_amg(rtol, max_iterations).map_err(error)?,
+            rhs,
+            solution,
+            gather,
+            rows,
+            row_free,
+            fixed_rows,
+        })
+    }
+}
+
+impl HeatShare for HeatProcessShare {
+    fn owned(&self) -> &[bool] {
+        &self.owned
+    }
+
+    fn whole_nodes(&self) -> &[usize] {
+        &self.whole_nodes
+    }
+
+    fn sum(&self, x: f64) -> f64 {
+        // Gathered and added in process order: the same bits on every process.
+        let mut all = vec![0.0; self.world.size() as usize];
+        self.world.all_gather_into(&x, &mut all[..]);
+        traffic::add(&traffic::SUMS, 2 * (all.len() - 1));
+        all.iter().sum()
+    }
+
+    fn max(&self, x: f64) -> f64 {
+        let mut y = 0.0;
+        self.world
+            .all_reduce_into(&x, &mut y, SystemOperation::max());
+        y
+    }
+
+    fn union(&self, edges: &[(usize, usize)]) -> Vec<(usize, usize)> {
+        let mine: Vec<u64> = edges
+            .iter()
+            .flat_map(|&(a, b)| [a as u64, b as u64])
+            .collect();
+        let count = mine.len() as mpi::Count;
+        let mut counts = vec![0 as mpi::Count; self.world.size() as usize];
+        self.world.all_gather_into(&count, &mut counts[..]);
+        let starts = super::ghosts::starts(&counts);
+        let mut all = vec![0u64; counts.iter().sum::<mpi::Count>() as usize];
+        self.world.all_gather_varcount_into(
+            &mine[..],
+            &mut PartitionMut::new(&mut all[..], &counts[..], &starts[..]),
+        );
+        let mut union: Vec<(usize, usize)> = all
+            .chunks_exact(2)
+            .map(|p| (p[0] as usize, p[1] as usize))
+            .collect();
+        union.sort_unstable();
+        union.dedup();
+        union
+    }
+
+    fn set_matrix(&mut self, system: &ScalarSystem) -> Result<(), String> {
+        let error = |e: super::petsc::PetscError| e.to_string();
+        self.matrix.zero().map_err(error)?;
+        let mut diagonal_sum = 0.0;
+        for row in &self.rows {
+            let values: Vec<f64> = row.slots.iter().map(|&s| system.values[s]).collect();
+            diagonal_sum += values[row.diagonal].abs();
+            self.matrix
+                .add_row(row.row, &row.columns, &values)
+                .map_err(error)?;
+        }
+        // A fixed node's row is its diagonal alone, scaled like the others (its update is
+        // zero).
+        let scale = if diagonal_sum > 0.0 {
+            diagonal_sum / self.rows.len() as f64
+        } else {
+            1.0
+        };
+        for &row in &self.fixed_rows {
+            self.matrix.add_row(row, &[row], &[scale]).map_err(error)?;
+        }
+        self.matrix.assemble().map_err(error)?;
+        self.krylov.set_matrix(&self.matrix).map_err(error)
+    }
+
+    fn solve_in_place(&mut self, x: &mut [f64]) -> Result<(), String> {
+        let error = |e: super::petsc::PetscError| e.to_string();
+        let row_free = &self.row_free;
+        self.rhs
+            .write_local(|local| {
+                for (entry, f) in local.iter_mut().zip(row_free) {
+                    *entry = f.map_or(0.0, |j| x[j]);
+                }
+            })
+            .map_err(error)?;
+        match self
+            .krylov
+            .solve(&self.rhs, &mut self.solution)
+            .map_err(error)?
+        {
+            Ok(_) => {}
+            Err((Divergence::Indefinite, i)) => {
+                return Err(format!(
+                    "conjugate gradients met negative curvature at iteration {i}"
+                ))
+            }
+            Err((Divergence::Iterations, i)) => {
+                return Err(format!(
+                    "conjugate gradients did not converge in {i} iterations"
+                ))
+            }
+            Err((Divergence::Other(code), i)) => {
+                return Err(format!(
+                    "conjugate gradients stopped after {i} iterations (KSPConvergedReason {code})"
+                ))
+            }
+        }
+        self.gather
+            .gather(&self.solution, |mine| x.copy_from_slice(mine))
+            .map_err(error)
+    }
+}
