@@ -1,7 +1,7 @@
 //! Runs on two processes (`mpirun -n 2 icefem run`, the `mpi` feature) against the same
 //! scenes on one: the cantilever, the static block, the paper's freezing container without
-//! fracture and a damped bar (each process holding its part of the mesh), ice–ice contact
-//! and fracture (the whole mesh on each). `make test-mpi` runs these and the scikit-fem
+//! fracture, a damped bar and heat conduction (each process holding its part of the mesh),
+//! ice–ice contact and fracture (the whole mesh on each). `make test-mpi` runs these and the scikit-fem
 //! validation on 2 processes.
 //!
 //! A distributed run solves each Newton iteration by PETSc's conjugate gradients to the
@@ -344,6 +344,14 @@ fn the_fractured_container_on_two_processes_cracks_as_on_one() {
         &scene("freezing_container_fracture.toml"),
         &["--end-time", "40"],
     );
+    assert!((one - two).abs() <= 1e-6 * one, "{one:e} vs {two:e}");
+}
+
+#[test]
+fn the_container_frozen_by_its_walls_on_two_processes_cracks_as_on_one() {
+    // Heat conduction shared by the processes (on the whole mesh, which fracture needs), its
+    // 8 hours: 4 splits.
+    let (one, two) = two_processes_crack_as_one(&scene("freezing_container_thermal.toml"), &[]);
     assert!((one - two).abs() <= 1e-6 * one, "{one:e} vs {two:e}");
 }
 

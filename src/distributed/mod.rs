@@ -8,7 +8,8 @@
 //! elements and the other terms on the nodes it owns; energies and dof sums are added across
 //! the processes, gradients at the nodes several processes hold exchanged between them
 //! ([`ghosts`]), and the Hessian's parts go into one PETSc matrix, solved by conjugate
-//! gradients with algebraic multigrid ([`solver`]). Process 0 gathers the processes' parts of
+//! gradients with algebraic multigrid ([`solver`]); the heat model is shared the same way
+//! ([`heat`]). Process 0 gathers the processes' parts of
 //! each frame and writes the same file a run on one process writes.
 //!
 //! Fracture splits the whole mesh, which every process then holds: each makes the same

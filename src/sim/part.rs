@@ -10,9 +10,8 @@
 //! elastic energy of its part's elements only, and everything per node on its owned nodes
 //! only (`Model::restrict`), so that the processes' parts add up to the whole potential.
 //!
-//! Where a term couples nodes that share no element (ice–ice contact), where the heat
-//! equation is solved, where fracture splits the mesh, or on one process, a part is the
-//! whole mesh: every element and node, each process evaluating its own elements and owned
+//! Where a term couples nodes that share no element (ice–ice contact), where fracture splits
+//! the mesh, or on one process, a part is the whole mesh: every element and node, each process evaluating its own elements and owned
 //! nodes as above.
 
 use super::State;

@@ -150,8 +150,8 @@ impl ScalarSystem {
         let mut rows = vec![Vec::new(); self.rows()];
         let (col_ptr, row_idx) = (self.pattern.col_ptr(), self.pattern.row_idx());
         for c in 0..self.rows() {
-            for slot in col_ptr[c]..col_ptr[c + 1] {
-                let r = row_idx[slot];
+            let range = col_ptr[c]..col_ptr[c + 1];
+            for (slot, &r) in range.clone().zip(&row_idx[range]) {
                 rows[r].push((c, slot));
                 if r != c {
                     rows[c].push((r, slot));
