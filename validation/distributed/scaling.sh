@@ -3,16 +3,18 @@
 # 3 backward-Euler steps) on one process with icefem's shared-memory multigrid (2 threads),
 # on one process through PETSc (ICEFEM_DISTRIBUTE_ONE=1), on two processes through PETSc
 # each holding its part of the mesh, and on two holding the whole mesh (ICEFEM_WHOLE_MESH=1,
-# as scenes with ice–ice contact, Rayleigh's β or heat conduction do). Prints, per run:
+# as scenes with ice–ice contact or fracture do). Prints, per run:
 # seconds per Newton iteration (assembly, preconditioner set-up, solve), CG iterations per
 # solve, peak memory and nodes held per process, and the values each process exchanged per
 # Newton iteration. Needs `make mpi` (binary with the `mpi` feature) and the validation venv
 # (validation/setup_venv.sh) for h5py.
-#   validation/distributed/scaling.sh [SIZES]     SIZES: 1e5 (default) and/or 1e6
+#   validation/distributed/scaling.sh [SIZES]     SIZES: 1e5 (default), 1e6, and/or weak
+#   (weak: about 1e5 dofs per process, cube_1e5 on one process and cube_2e5 on two)
+# ICEFEM_BIN and ICEFEM_PYTHON name another binary or Python.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-BIN=target/release/icefem
-PY=validation/.venv/bin/python
+BIN=${ICEFEM_BIN:-target/release/icefem}
+PY=${ICEFEM_PYTHON:-validation/.venv/bin/python}
 MPIRUN="mpirun --oversubscribe --allow-run-as-root"
 OUT=$(mktemp -d)
 trap 'rm -rf "$OUT"' EXIT
@@ -40,6 +42,15 @@ PY
 echo "| run | Newton it. | assembly s/it | set-up s (count) | solve s/it | CG it./it | total s | peak MB per process | nodes held per process | exchanged per it.: sums/entries/gathered/halo |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 for size in $sizes; do
+    if [ "$size" = weak ]; then
+        # Weak scaling: about 1e5 dofs per process, the cube on one process and the cube
+        # refined to twice the dofs on two, both through PETSc.
+        ICEFEM_DISTRIBUTE_ONE=1 $MPIRUN -n 1 -x ICEFEM_DISTRIBUTE_ONE "$BIN" run validation/distributed/cube_1e5.toml -o "$OUT/k1.h5" --force 2> "$OUT/k1.log"
+        summarise "1e5 dofs, PETSc, 1 process" "$OUT/k1.h5" "$OUT/k1.log"
+        $MPIRUN -n 2 "$BIN" run validation/distributed/cube_2e5.toml -o "$OUT/k2.h5" --force 2> "$OUT/k2.log"
+        summarise "2e5 dofs, PETSc, 2 processes, parts" "$OUT/k2.h5" "$OUT/k2.log"
+        continue
+    fi
     scene=validation/distributed/cube_$size.toml
     /usr/bin/time -f "maxrss %M" "$BIN" -q run "$scene" -o "$OUT/s.h5" --force 2> "$OUT/s.log"
     summarise "$size icefem AMG, 1 process" "$OUT/s.h5" "$OUT/s.log"
