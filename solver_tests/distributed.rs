@@ -142,30 +142,59 @@ fn held_nodes(stderr: &str) -> (u64, Vec<u64>) {
     (total, held)
 }
 
-/// One process against two on `scene` (with `extra` arguments): positions within the
-/// solver's tolerance, the same Newton iterations in every step. With `parts`, each process
-/// holds a part of the mesh, else the whole of it.
-fn two_processes_match_one(path: &Path, extra: &[&str], parts: bool) {
-    let name = path.file_name().unwrap().to_string_lossy();
+/// A scene run on one process and on two.
+struct Runs {
+    /// The folder the files are in (removed when dropped).
+    _dir: tempfile::TempDir,
+    /// The output files of one and two processes.
+    one: PathBuf,
+    two: PathBuf,
+    /// The report of the run on two.
+    report: String,
+    /// The scene's nodes and the nodes each of the two processes held.
+    total: u64,
+    held: Vec<u64>,
+}
+
+/// `path` (with `extra` arguments) on one process and on two.
+fn on_one_and_two(path: &Path, extra: &[&str]) -> Runs {
     let dir = tempfile::tempdir().unwrap();
     let (one, two) = (dir.path().join("one.h5"), dir.path().join("two.h5"));
     icefem_run(1, path, &one, extra);
     let report = icefem_run(2, path, &two, extra);
     let (total, held) = held_nodes(&report);
+    Runs {
+        _dir: dir,
+        one,
+        two,
+        report,
+        total,
+        held,
+    }
+}
+
+/// One process against two on `scene` (with `extra` arguments): positions within the
+/// solver's tolerance, the same Newton iterations in every step. With `parts`, each process
+/// holds a part of the mesh, else the whole of it.
+fn two_processes_match_one(path: &Path, extra: &[&str], parts: bool) {
+    let name = path.file_name().unwrap().to_string_lossy();
+    let runs = on_one_and_two(path, extra);
+    let (one, two, report) = (&runs.one, &runs.two, &runs.report);
+    let (total, held) = (runs.total, &runs.held);
     assert_eq!(held.len(), 2, "{report}");
-    for h in held {
+    for &h in held {
         assert!(
             if parts { h < total } else { h == total },
             "{name}: {h} of {total} nodes"
         );
     }
-    let diff = difference(&one, &two);
+    let diff = difference(one, two);
     // The fields process 0 gathers from the processes' parts, node by node and element by
     // element: velocities within the positions' bound (measured ≤ 1.2e-10 of their largest
     // value), and every element's stress, stored in single precision (only drawn): each run's
     // value within half an f32 ulp (6e-8) of its double, so 1.5e-7 of the largest over two.
     let relative = |name| {
-        let (diff, scale) = field_difference(&one, &two, name);
+        let (diff, scale) = field_difference(one, two, name);
         if scale > 0.0 {
             diff / scale
         } else {
@@ -181,13 +210,13 @@ fn two_processes_match_one(path: &Path, extra: &[&str], parts: bool) {
         velocity <= 1e-8 && stress <= 1.5e-7,
         "{name}: {velocity:e}, {stress:e}"
     );
-    assert_eq!(stat(&one, "elements"), stat(&two, "elements"));
+    assert_eq!(stat(one, "elements"), stat(two, "elements"));
     // The same steps and Newton iterations as one process — except where a step starts at
     // equilibrium to round-off (a settled cantilever): whether its residual is over the
     // round-off floor, one iteration or none, is then decided by the last bits.
     let (n1, n2) = (
-        stat(&one, "newton_iterations"),
-        stat(&two, "newton_iterations"),
+        stat(one, "newton_iterations"),
+        stat(two, "newton_iterations"),
     );
     assert_eq!(n1.len(), n2.len(), "{name}: steps");
     for (step, (a, b)) in n1.iter().zip(&n2).enumerate() {
@@ -198,7 +227,7 @@ fn two_processes_match_one(path: &Path, extra: &[&str], parts: bool) {
             step + 1
         );
     }
-    assert_eq!(stat(&one, "time"), stat(&two, "time"));
+    assert_eq!(stat(one, "time"), stat(two, "time"));
 }
 
 #[test]
@@ -262,25 +291,14 @@ fn one_process_under_mpirun_is_the_serial_run_bit_for_bit() {
     assert_eq!(displacements(&serial), displacements(&mpi1));
 }
 
-/// Every frame's step and displacement.
-fn steps_and_displacements(path: &Path) -> Vec<(u64, Vec<f64>)> {
+/// Every frame's step.
+fn frame_steps(path: &Path) -> Vec<u64> {
     let file = hdf5::File::open(path).unwrap();
     let frames = file.group("frames").unwrap();
     let mut names = frames.member_names().unwrap();
     names.sort();
-    names
-        .iter()
-        .map(|n| {
-            let frame = frames.group(n).unwrap();
-            let step = frame.attr("step").unwrap().read_scalar::<u64>().unwrap();
-            let u = frame
-                .dataset("displacement")
-                .unwrap()
-                .read_raw::<f64>()
-                .unwrap();
-            (step, u)
-        })
-        .collect()
+    let step = |n: &String| frames.group(n).unwrap().attr("step").unwrap().read_scalar();
+    names.iter().map(|n| step(n).unwrap()).collect()
 }
 
 /// One process against two on a scene with fracture (`extra` arguments): the positions to
@@ -288,34 +306,32 @@ fn steps_and_displacements(path: &Path) -> Vec<(u64, Vec<f64>)> {
 /// the two runs' crack areas at the end (m²).
 fn two_processes_crack_as_one(path: &Path, extra: &[&str]) -> (f64, f64) {
     let name = path.file_name().unwrap().to_string_lossy();
-    let dir = tempfile::tempdir().unwrap();
-    let (one, two) = (dir.path().join("one.h5"), dir.path().join("two.h5"));
-    icefem_run(1, path, &one, extra);
-    let report = icefem_run(2, path, &two, extra);
+    let runs = on_one_and_two(path, extra);
+    let (one, two, report) = (&runs.one, &runs.two, &runs.report);
+    let (total, held) = (runs.total, &runs.held);
     // A run with fracture holds the whole (split) mesh on every process.
-    let (total, held) = held_nodes(&report);
     assert!(held.iter().all(|&h| h == held[0] && h > total), "{report}");
-    let (events1, events2) = (stat(&one, "fracture_events"), stat(&two, "fracture_events"));
+    let (events1, events2) = (stat(one, "fracture_events"), stat(two, "fracture_events"));
     let first_split = events1.iter().position(|&e| e > 0.0).expect("it cracks") as u64 + 1;
     // Before the first split: CG's tolerance against one process's exact factorisation, as
     // for the scenes without fracture (module doc).
-    let (frames1, frames2) = (steps_and_displacements(&one), steps_and_displacements(&two));
-    let before: Vec<_> = frames1
-        .iter()
-        .zip(&frames2)
-        .take_while(|(a, _)| a.0 < first_split)
+    let steps = frame_steps(one);
+    let (frames1, frames2) = (displacements(one), displacements(two));
+    let before: Vec<_> = (frames1.iter().zip(&frames2).zip(&steps))
+        .take_while(|(_, &step)| step < first_split)
+        .map(|(frames, _)| frames)
         .collect();
     assert!(before.len() > 1, "{name}: frames before the first split");
     let scale = before
         .iter()
-        .flat_map(|(a, _)| &a.1)
+        .flat_map(|(a, _)| a.iter())
         .fold(0.0f64, |m, u| m.max(u.abs()));
     let diff = before
         .iter()
-        .flat_map(|(a, b)| a.1.iter().zip(&b.1))
+        .flat_map(|(a, b)| a.iter().zip(b.iter()))
         .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
     let splits: f64 = events1.iter().sum();
-    let (area1, area2) = (stat(&one, "crack_area"), stat(&two, "crack_area"));
+    let (area1, area2) = (stat(one, "crack_area"), stat(two, "crack_area"));
     let (area1, area2) = (*area1.last().unwrap(), *area2.last().unwrap());
     eprintln!(
         "{name}: max |Δu| / max |u| = {:.2e} over the {} frames before the first split (step \
@@ -377,14 +393,12 @@ fn without_fracture(scene: &Path, dir: &Path) -> PathBuf {
 /// without heat.
 fn heat_on_two_matches_one(path: &Path, extra: &[&str]) {
     let name = path.file_name().unwrap().to_string_lossy();
-    let dir = tempfile::tempdir().unwrap();
-    let (one, two) = (dir.path().join("one.h5"), dir.path().join("two.h5"));
-    icefem_run(1, path, &one, extra);
-    let report = icefem_run(2, path, &two, extra);
-    let (total, held) = held_nodes(&report);
+    let runs = on_one_and_two(path, extra);
+    let (one, two, report) = (&runs.one, &runs.two, &runs.report);
+    let (total, held) = (runs.total, &runs.held);
     assert!(held.iter().all(|&h| h < total), "{report}");
-    let (temperature, _) = field_difference(&one, &two, "temperature");
-    let displacement = difference(&one, &two);
+    let (temperature, _) = field_difference(one, two, "temperature");
+    let displacement = difference(one, two);
     eprintln!("{name}: max |ΔT| = {temperature:.2e} K, max |Δu| / max |u| = {displacement:.2e}");
     // The heat Newton stops where its residual is 1e-10 of the largest diagonal × 1 K (a
     // temperature error of ~1e-10 K), CG at the relative residual 1e-12; measured ≤ 2.1e-11 K.
@@ -395,7 +409,7 @@ fn heat_on_two_matches_one(path: &Path, extra: &[&str]) {
         "heat_passes",
         "heat_cancelled_edges",
     ] {
-        assert_eq!(stat(&one, column), stat(&two, column), "{name}: {column}");
+        assert_eq!(stat(one, column), stat(two, column), "{name}: {column}");
     }
 }
 

@@ -24,6 +24,7 @@ pub mod petsc;
 pub mod solver;
 
 use crate::assembly::Assembly;
+use crate::mesh::TetMesh;
 use crate::physics::Model;
 use crate::run::Processes;
 use crate::sim::part::Part;
@@ -207,8 +208,6 @@ impl Processes for MpiProcesses {
         let model = part
             .model(model)
             .map_err(|e| SimError::Setup(e.to_string()))?;
-        self.held
-            .set([part.nodes.len() as u64, part.elements.len() as u64]);
         *self.part.borrow_mut() = Some((partition, part.clone()));
         Ok((part, model))
     }
@@ -230,27 +229,12 @@ impl Processes for MpiProcesses {
             )?;
             Ok(Box::new(share))
         })?;
-        let mesh = &sim.model.mesh;
-        let share = ProcessShare {
-            collective: MpiCollective {
-                world: SimpleCommunicator::world(),
-                ghosts: Ghosts::new(
-                    SimpleCommunicator::world(),
-                    &part.nodes,
-                    &part.owned_nodes,
-                    &partition.node_owner,
-                ),
-            },
-            owned_dofs: part.owned_dofs(),
-            owned_elements: part.own_elements,
-            rank: self.rank(),
-            partition,
-            nodes: part.nodes.clone(),
-            tets: mesh.tets.clone(),
-            rest: mesh.rest.clone(),
-            solve,
-            held: self.held.clone(),
-        };
+        let share = ProcessShare::new(
+            (&part, partition),
+            &sim.model.mesh,
+            self.rank(),
+            (solve, self.held.clone()),
+        );
         sim.distribute(Box::new(share))
     }
 
@@ -359,6 +343,39 @@ struct ProcessShare {
     held: Rc<Cell<[u64; 2]>>,
 }
 
+impl ProcessShare {
+    /// The share of process `rank` holding `part` of `mesh` in `partition`, CG stopping at
+    /// `solve`'s relative tolerance or iteration cap, its part's size reported in `held`.
+    fn new(
+        (part, partition): (&Part, Partition),
+        mesh: &TetMesh,
+        rank: u32,
+        (solve, held): ((f64, usize), Rc<Cell<[u64; 2]>>),
+    ) -> Self {
+        held.set([part.nodes.len() as u64, part.elements.len() as u64]);
+        ProcessShare {
+            collective: MpiCollective {
+                world: SimpleCommunicator::world(),
+                ghosts: Ghosts::new(
+                    SimpleCommunicator::world(),
+                    &part.nodes,
+                    &part.owned_nodes,
+                    &partition.node_owner,
+                ),
+            },
+            owned_dofs: part.owned_dofs(),
+            owned_elements: part.own_elements.clone(),
+            rank,
+            partition,
+            nodes: part.nodes.clone(),
+            tets: mesh.tets.clone(),
+            rest: mesh.rest.clone(),
+            solve,
+            held,
+        }
+    }
+}
+
 impl Distribution for ProcessShare {
     fn collective(&self) -> &dyn Collective {
         &self.collective
@@ -400,29 +417,12 @@ impl Distribution for ProcessShare {
             self.rank,
             true,
         );
-        let share = ProcessShare {
-            collective: MpiCollective {
-                world: SimpleCommunicator::world(),
-                ghosts: Ghosts::new(
-                    SimpleCommunicator::world(),
-                    &part.nodes,
-                    &part.owned_nodes,
-                    &partition.node_owner,
-                ),
-            },
-            owned_dofs: part.owned_dofs(),
-            owned_elements: part.own_elements.clone(),
-            rank: self.rank,
-            partition,
-            nodes: part.nodes.clone(),
-            tets: mesh.tets.clone(),
-            rest: mesh.rest.clone(),
-            solve: self.solve,
-            held: self.held.clone(),
-        };
-        share
-            .held
-            .set([part.nodes.len() as u64, part.elements.len() as u64]);
+        let share = ProcessShare::new(
+            (&part, partition),
+            mesh,
+            self.rank,
+            (self.solve, self.held.clone()),
+        );
         Ok((Box::new(share), part))
     }
 }
