@@ -20,7 +20,8 @@ pub trait Collective {
 }
 
 /// A process's share of a solve distributed over several processes. Each process evaluates
-/// the elastic energy of its own elements (the elastic term's subset) and the other terms
+/// the elastic energy of its own elements (the elastic term's subset), like it the terms held
+/// by elements ([`StepTerm::shared_by_elements`]: Rayleigh's β Kₙ), and the other terms
 /// on the nodes it owns (its model's masses, loads and contact nodes are those of its owned
 /// nodes; terms that couple nodes beyond the elements, [`StepTerm::evaluated_whole`], are
 /// evaluated whole on every process), keeping only the owned dofs' gradient entries and

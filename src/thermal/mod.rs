@@ -321,12 +321,14 @@ impl Heat {
             .collect()
     }
 
-    /// Total enthalpy Σ m_i h(T_i) (J, relative to ice at the mushy range's lower end).
+    /// Total enthalpy Σ m_i h(T_i) (J, relative to ice at the mushy range's lower end); in a
+    /// distributed run, over the whole mesh (every process calls it).
     pub fn enthalpy(&self) -> f64 {
         self.mass_sum(|_, t| self.phases.enthalpy(t))
     }
 
-    /// Frozen mass Σ m_i f(T_i) (kg).
+    /// Frozen mass Σ m_i f(T_i) (kg); in a distributed run, over the whole mesh (every
+    /// process calls it).
     pub fn frozen_mass(&self) -> f64 {
         self.mass_sum(|_, t| self.phases.ice_fraction(t))
     }
