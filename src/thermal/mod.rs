@@ -657,3 +657,24 @@ struct HeatSolve {
     /// Numeric factorisations.
     factorizations: usize,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_part_keeps_the_fixed_nodes_and_convecting_triangles_it_holds() {
+        let boundary = HeatBoundary {
+            fixed: vec![(0, -10.0), (5, -5.0)],
+            convection: vec![([0, 1, 2], 500.0, -10.0), ([2, 3, 5], 10.0, -20.0)],
+        };
+        // The part holds whole-mesh nodes 0, 1, 2, 3 as its nodes 0 … 3.
+        let local = |i: usize| (i < 4).then_some(i);
+        let part = boundary.restricted(local);
+        assert_eq!(part.fixed, vec![(0, -10.0)]);
+        assert_eq!(part.convection, vec![([0, 1, 2], 500.0, -10.0)]);
+        // Renumbered: whole node i is the part's node 3 − i.
+        let part = boundary.restricted(|i: usize| (i < 4).then(|| 3 - i));
+        assert_eq!(part.convection, vec![([3, 2, 1], 500.0, -10.0)]);
+    }
+}

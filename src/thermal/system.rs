@@ -213,3 +213,41 @@ impl ScalarSystem {
         );
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn row_entries_are_both_triangles_of_the_pattern() {
+        // Two tets sharing the face 1-2-3; node 4 is held (not free).
+        let tets = [[0, 1, 2, 3], [1, 2, 3, 4]];
+        let free = [Some(0), Some(1), Some(2), Some(3), None];
+        let mut system = ScalarSystem::new(&tets, &free, 4).unwrap();
+        for (k, v) in system.values.iter_mut().enumerate() {
+            *v = k as f64 + 1.0;
+        }
+        let rows = system.row_entries();
+        assert_eq!(rows.len(), 4);
+        // Every free node couples with every other (they share tet 0), itself included.
+        for (i, row) in rows.iter().enumerate() {
+            let mut columns: Vec<usize> = row.iter().map(|&(c, _)| c).collect();
+            columns.sort_unstable();
+            assert_eq!(columns, vec![0, 1, 2, 3], "row {i}");
+        }
+        // (i, j) and (j, i) read the same stored value.
+        for (i, row) in rows.iter().enumerate() {
+            for &(j, slot) in row {
+                let back = rows[j].iter().find(|&&(c, _)| c == i).unwrap().1;
+                assert_eq!(slot, back);
+            }
+        }
+        assert!(!system.holds_factored());
+        system.remember_factored();
+        assert!(system.holds_factored());
+        assert_eq!(system.largest_diagonal(&[true, false, false, false]), {
+            let slot = rows[0].iter().find(|&&(c, _)| c == 0).unwrap().1;
+            system.values[slot]
+        });
+    }
+}
