@@ -255,27 +255,24 @@ impl Processes for MpiProcesses {
         bytes
     }
 
-    fn gather_values(&self, values: Vec<f64>) -> Vec<Vec<f64>> {
+    fn gather_values(&self, values: Vec<f64>, take: &mut dyn FnMut(Vec<f64>)) {
         let root = self.world.process_at_rank(0);
         let count = values.len() as mpi::Count;
         if self.rank() != 0 {
             root.gather_into(&count);
-            root.gather_varcount_into(&values[..]);
-            return Vec::new();
+            root.send(&values[..]);
+            return;
         }
         let mut counts = vec![0 as mpi::Count; self.size()];
         root.gather_into_root(&count, &mut counts[..]);
-        let starts = ghosts::starts(&counts);
-        let mut all = vec![0.0; counts.iter().sum::<mpi::Count>() as usize];
-        root.gather_varcount_into_root(
-            &values[..],
-            &mut mpi::datatype::PartitionMut::new(&mut all[..], &counts[..], &starts[..]),
-        );
-        counts
-            .iter()
-            .zip(&starts)
-            .map(|(&c, &s)| all[s as usize..(s + c) as usize].to_vec())
-            .collect()
+        take(values);
+        for (p, &count) in counts.iter().enumerate().skip(1) {
+            let mut received = vec![0.0; count as usize];
+            self.world
+                .process_at_rank(p as mpi::Rank)
+                .receive_into(&mut received[..]);
+            take(received);
+        }
     }
 
     fn any(&self, flag: bool) -> bool {

@@ -38,20 +38,27 @@ pub(super) fn emit_frame(
         &sim.stresses(),
         (contact.unwrap_or(&ContactForces::default()), &temperature),
     );
-    let shares = processes.gather_values(share);
+    // Each share placed as it arrives: the writing process holds the whole state and one
+    // other process's share at a time.
+    let carried = (
+        sim.integrator().carried_fields(),
+        sim.integrator().carried_scalars(),
+    );
+    let (nodes, elements) = (mesh.num_nodes(), mesh.num_tets());
+    let mut whole: Option<StateShares> = None;
+    let mut complete = true;
+    processes.gather_values(share, &mut |values| {
+        let shares = whole.get_or_insert_with(|| {
+            StateShares::for_shares(&values, nodes, elements, carried).unwrap_or_default()
+        });
+        complete &= shares.place(&values).is_some();
+    });
     let Some(writer) = writer else {
         return Ok(());
     };
-    let whole = StateShares::whole(
-        &shares,
-        mesh.num_nodes(),
-        mesh.num_tets(),
-        (
-            sim.integrator().carried_fields(),
-            sim.integrator().carried_scalars(),
-        ),
-    )
-    .ok_or_else(|| SimError::Setup("a process's part of the state did not arrive whole".into()))?;
+    let whole = whole
+        .filter(|_| complete)
+        .ok_or_else(|| SimError::Setup("a process's part of the state did not arrive whole".into()))?;
     let state = State {
         time: sim.state.time,
         step: sim.state.step,

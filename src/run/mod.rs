@@ -124,8 +124,9 @@ pub trait Processes {
     fn any(&self, flag: bool) -> bool;
     /// The bytes the writing process gives, on every process (the others give none).
     fn broadcast_bytes(&self, bytes: Vec<u8>) -> Vec<u8>;
-    /// Every process's `values`, in process order, on the writing process (none elsewhere).
-    fn gather_values(&self, values: Vec<f64>) -> Vec<Vec<f64>>;
+    /// Every process's `values`, in process order, given to `take` on the writing process
+    /// one at a time (it holds one other process's values at once); nothing elsewhere.
+    fn gather_values(&self, values: Vec<f64>, take: &mut dyn FnMut(Vec<f64>));
 }
 
 /// Runs `scene` with `options`, calling `progress` after every step; stops early (cleanly, with

@@ -256,17 +256,32 @@ impl StateShares {
         elements: usize,
         carried: (&[&'static str], &[&'static str]),
     ) -> Option<StateShares> {
+        let mut whole = StateShares::for_shares(shares.first()?, nodes, elements, carried)?;
+        for share in shares {
+            whole.place(share)?;
+        }
+        Some(whole)
+    }
+
+    /// The whole state, zero, of a mesh of `nodes` nodes and `elements` elements for shares
+    /// laid out as `share` (any process's), to [`StateShares::place`] the shares in; `None`
+    /// if `share` is cut short.
+    pub fn for_shares(
+        share: &[f64],
+        nodes: usize,
+        elements: usize,
+        carried: (&[&'static str], &[&'static str]),
+    ) -> Option<StateShares> {
         let mut whole = StateShares::default();
         let s = &mut whole.state;
-        let first = shares.first()?;
-        let flags: Vec<bool> = first.get(2..7)?.iter().map(|&f| f != 0.0).collect();
+        let flags: Vec<bool> = share.get(2..7)?.iter().map(|&f| f != 0.0).collect();
         let dofs = |on: bool| if on { vec![0.0; 3 * nodes] } else { Vec::new() };
         let (carried_fields, carried_scalars) = if flags[0] {
             carried
         } else {
             (&[][..], &[][..])
         };
-        let scalars = first.get(7..7 + carried_scalars.len())?;
+        let scalars = share.get(7..7 + carried_scalars.len())?;
         s.carried.scalars = carried_scalars
             .iter()
             .copied()
@@ -289,53 +304,58 @@ impl StateShares {
         if flags[4] {
             whole.temperature = vec![0.0; nodes];
         }
-        for share in shares {
-            let mut at = share.iter().copied();
-            let (n, e) = (at.next()? as usize, at.next()? as usize);
-            let mut at = at.skip(5 + carried_scalars.len());
-            let node_ids: Vec<usize> = at.by_ref().take(n).map(|x| x as usize).collect();
-            let element_ids: Vec<usize> = at.by_ref().take(e).map(|x| x as usize).collect();
-            if node_ids.len() != n || element_ids.len() != e {
-                return None;
-            }
-            let mut place = |v: &mut Vec<f64>| {
-                for &i in &node_ids {
-                    for a in 0..3 {
-                        *v.get_mut(3 * i + a)? = at.next()?;
-                    }
-                }
-                Some(())
-            };
-            place(&mut s.u)?;
-            place(&mut s.v)?;
-            for (_, field) in &mut s.carried.fields {
-                place(field)?;
-            }
-            if flags[3] {
-                place(&mut whole.contact.normal)?;
-                place(&mut whole.contact.friction)?;
-            }
-            if flags[4] {
-                for &i in &node_ids {
-                    *whole.temperature.get_mut(i)? = at.next()?;
+        Some(whole)
+    }
+
+    /// Puts one process's `share` in its place; `None` if it is cut short or does not fit.
+    pub fn place(&mut self, share: &[f64]) -> Option<()> {
+        let s = &mut self.state;
+        let mut at = share.iter().copied();
+        let (n, e) = (at.next()? as usize, at.next()? as usize);
+        let flags: Vec<bool> = share.get(2..7)?.iter().map(|&f| f != 0.0).collect();
+        let mut at = at.skip(5 + s.carried.scalars.len());
+        let node_ids: Vec<usize> = at.by_ref().take(n).map(|x| x as usize).collect();
+        let element_ids: Vec<usize> = at.by_ref().take(e).map(|x| x as usize).collect();
+        if node_ids.len() != n || element_ids.len() != e {
+            return None;
+        }
+        let mut place = |v: &mut Vec<f64>| {
+            for &i in &node_ids {
+                for a in 0..3 {
+                    *v.get_mut(3 * i + a)? = at.next()?;
                 }
             }
-            for &k in &element_ids {
-                *s.history.eigenstrain.get_mut(k)? = at.next()?;
-                if flags[1] {
-                    for x in s.history.plastic_strain.get_mut(k)?.iter_mut() {
-                        *x = at.next()?;
-                    }
-                }
-                if flags[2] {
-                    *s.history.freeze_state.get_mut(k)? = at.next()?;
-                }
-                for x in whole.stress.get_mut(k)? {
+            Some(())
+        };
+        place(&mut s.u)?;
+        place(&mut s.v)?;
+        for (_, field) in &mut s.carried.fields {
+            place(field)?;
+        }
+        if flags[3] {
+            place(&mut self.contact.normal)?;
+            place(&mut self.contact.friction)?;
+        }
+        if flags[4] {
+            for &i in &node_ids {
+                *self.temperature.get_mut(i)? = at.next()?;
+            }
+        }
+        for &k in &element_ids {
+            *s.history.eigenstrain.get_mut(k)? = at.next()?;
+            if flags[1] {
+                for x in s.history.plastic_strain.get_mut(k)?.iter_mut() {
                     *x = at.next()?;
                 }
             }
+            if flags[2] {
+                *s.history.freeze_state.get_mut(k)? = at.next()?;
+            }
+            for x in self.stress.get_mut(k)? {
+                *x = at.next()?;
+            }
         }
-        Some(whole)
+        Some(())
     }
 }
 
