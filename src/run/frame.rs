@@ -56,9 +56,9 @@ pub(super) fn emit_frame(
     let Some(writer) = writer else {
         return Ok(());
     };
-    let whole = whole
-        .filter(|_| complete)
-        .ok_or_else(|| SimError::Setup("a process's part of the state did not arrive whole".into()))?;
+    let whole = whole.filter(|_| complete).ok_or_else(|| {
+        SimError::Setup("a process's part of the state did not arrive whole".into())
+    })?;
     let state = State {
         time: sim.state.time,
         step: sim.state.step,
