@@ -7,10 +7,8 @@
 
 use super::partition::Partition;
 use super::petsc::{Divergence, Gather, Int, Krylov, Matrix, Vector};
-use super::traffic;
 use crate::thermal::system::ScalarSystem;
 use crate::thermal::HeatShare;
-use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -41,6 +39,8 @@ pub struct HeatProcessShare {
     row_free: Vec<Option<usize>>,
     /// The PETSc rows of this process's fixed nodes.
     fixed_rows: Vec<Int>,
+    /// A row's values (scratch).
+    values: Vec<f64>,
 }
 
 impl HeatProcessShare {
@@ -108,6 +108,7 @@ impl HeatProcessShare {
             rows,
             row_free,
             fixed_rows,
+            values: Vec::new(),
         })
     }
 }
@@ -122,18 +123,11 @@ impl HeatShare for HeatProcessShare {
     }
 
     fn sum(&self, x: f64) -> f64 {
-        // Gathered and added in process order: the same bits on every process.
-        let mut all = vec![0.0; self.world.size() as usize];
-        self.world.all_gather_into(&x, &mut all[..]);
-        traffic::add(&traffic::SUMS, 2 * (all.len() - 1));
-        all.iter().sum()
+        super::sum_in_order(&self.world, x)
     }
 
     fn max(&self, x: f64) -> f64 {
-        let mut y = 0.0;
-        self.world
-            .all_reduce_into(&x, &mut y, SystemOperation::max());
-        y
+        super::largest(&self.world, x)
     }
 
     fn union(&self, edges: &[(usize, usize)]) -> Vec<(usize, usize)> {
@@ -164,10 +158,12 @@ impl HeatShare for HeatProcessShare {
         self.matrix.zero().map_err(error)?;
         let mut diagonal_sum = 0.0;
         for row in &self.rows {
-            let values: Vec<f64> = row.slots.iter().map(|&s| system.values[s]).collect();
-            diagonal_sum += values[row.diagonal].abs();
+            self.values.clear();
+            self.values
+                .extend(row.slots.iter().map(|&s| system.values[s]));
+            diagonal_sum += self.values[row.diagonal].abs();
             self.matrix
-                .add_row(row.row, &row.columns, &values)
+                .add_row(row.row, &row.columns, &self.values)
                 .map_err(error)?;
         }
         // A fixed node's row is its diagonal alone, scaled like the others (its update is

@@ -175,10 +175,7 @@ impl MpiProcesses {
 
     /// The largest of `x` over the processes.
     pub fn max(&self, x: f64) -> f64 {
-        let mut y = 0.0;
-        self.world
-            .all_reduce_into(&x, &mut y, SystemOperation::max());
-        y
+        largest(&self.world, x)
     }
 }
 
@@ -305,10 +302,7 @@ struct MpiCollective {
 
 impl Collective for MpiCollective {
     fn sum(&self, x: f64) -> f64 {
-        let mut all = vec![0.0; self.world.size() as usize];
-        self.world.all_gather_into(&x, &mut all[..]);
-        traffic::add(&traffic::SUMS, 2 * (all.len() - 1));
-        all.iter().sum()
+        sum_in_order(&self.world, x)
     }
 
     fn exchange(&self, v: &mut [f64]) {
@@ -316,11 +310,24 @@ impl Collective for MpiCollective {
     }
 
     fn max(&self, x: f64) -> f64 {
-        let mut y = 0.0;
-        self.world
-            .all_reduce_into(&x, &mut y, SystemOperation::max());
-        y
+        largest(&self.world, x)
     }
+}
+
+/// Σ of `x` over the processes of `world`, gathered and added in process order: the same
+/// bits on every process.
+pub(crate) fn sum_in_order(world: &SimpleCommunicator, x: f64) -> f64 {
+    let mut all = vec![0.0; world.size() as usize];
+    world.all_gather_into(&x, &mut all[..]);
+    traffic::add(&traffic::SUMS, 2 * (all.len() - 1));
+    all.iter().sum()
+}
+
+/// The largest `x` over the processes of `world`.
+pub(crate) fn largest(world: &SimpleCommunicator, x: f64) -> f64 {
+    let mut y = 0.0;
+    world.all_reduce_into(&x, &mut y, SystemOperation::max());
+    y
 }
 
 /// One process's share of a distributed simulation.

@@ -507,9 +507,7 @@ impl Simulation {
                     "splitting a process's part of the mesh (fracture needs the whole mesh)",
                 ))
             }
-            Some((_, part)) => part
-                .model(&model)
-                .map_err(|e| SimError::Setup(e.to_string()))?,
+            Some((_, part)) => part.whole_model(model),
             None => model,
         };
         let (time, step) = (self.state.time, self.state.step);

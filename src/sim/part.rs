@@ -104,31 +104,35 @@ impl Part {
     /// materials inherited), with masses, loads and per-node terms on the owned nodes only
     /// (see `Model::restrict`), and its initial displacement and velocity.
     pub fn model(&self, whole: &Model) -> Result<Model, MeshError> {
-        let mut model = if self.is_whole() {
-            whole.clone()
-        } else {
-            let rest: Vec<_> = self.nodes.iter().map(|&i| whole.mesh.rest[i]).collect();
-            let tets = self.tets_of(&whole.mesh.tets);
-            let mut model = whole.remeshed(&rest, tets, &self.elements, &[])?;
-            model.initial_displacement = self.dofs_of(&whole.initial_displacement);
-            model.initial_velocity = self.dofs_of(&whole.initial_velocity);
-            model
-        };
-        let restriction = NodeRestriction {
+        if self.is_whole() {
+            return Ok(self.whole_model(whole.clone()));
+        }
+        let rest: Vec<_> = self.nodes.iter().map(|&i| whole.mesh.rest[i]).collect();
+        let tets = self.tets_of(&whole.mesh.tets);
+        let mut model = whole.remeshed(&rest, tets, &self.elements, &[])?;
+        model.initial_displacement = self.dofs_of(&whole.initial_displacement);
+        model.initial_velocity = self.dofs_of(&whole.initial_velocity);
+        model.restrict(&self.owned_nodes, &whole.terms, &self.restriction());
+        Ok(model)
+    }
+
+    /// [`Part::model`] of a part that is the whole mesh, from the whole `model` itself.
+    pub fn whole_model(&self, mut model: Model) -> Model {
+        debug_assert!(self.is_whole());
+        let terms = std::mem::take(&mut model.terms);
+        model.restrict(&self.owned_nodes, &terms, &self.restriction());
+        model
+    }
+
+    /// The restriction of the whole mesh's per-node terms to the nodes this process owns.
+    fn restriction(&self) -> NodeRestriction {
+        NodeRestriction {
             local: self.local_node.clone(),
             kept: (0..self.whole_nodes())
                 .map(|i| self.local_node[i] != NONE && self.owned_nodes[self.local_node[i]])
                 .collect(),
             local_nodes: self.nodes.len(),
-        };
-        let terms = std::mem::take(&mut model.terms);
-        let terms = if self.is_whole() {
-            terms
-        } else {
-            whole.terms.clone()
-        };
-        model.restrict(&self.owned_nodes, &terms, &restriction);
-        Ok(model)
+        }
     }
 
     /// The part's entries of a vector over the whole mesh's dofs (3 per node; empty stays
@@ -167,7 +171,7 @@ impl Part {
     }
 
     /// This process's share of a state for the process that writes it whole
-    /// ([`StateShares::whole`]): its owned nodes' and own elements' numbers and values, with
+    /// ([`StateShares::place`]): its owned nodes' and own elements' numbers and values, with
     /// the element stresses, contact forces and nodal temperatures (°C; empty without heat).
     pub fn share_of(
         &self,
@@ -246,26 +250,11 @@ pub struct StateShares {
 }
 
 impl StateShares {
-    /// The whole state of a mesh of `nodes` nodes and `elements` elements from every
-    /// process's share, the time scheme carrying the node fields and scalars `carried` names
-    /// ([`crate::sim::TimeIntegrator::carried_fields`] and `carried_scalars`); `None` if a
-    /// share is cut short.
-    pub fn whole(
-        shares: &[Vec<f64>],
-        nodes: usize,
-        elements: usize,
-        carried: (&[&'static str], &[&'static str]),
-    ) -> Option<StateShares> {
-        let mut whole = StateShares::for_shares(shares.first()?, nodes, elements, carried)?;
-        for share in shares {
-            whole.place(share)?;
-        }
-        Some(whole)
-    }
-
     /// The whole state, zero, of a mesh of `nodes` nodes and `elements` elements for shares
-    /// laid out as `share` (any process's), to [`StateShares::place`] the shares in; `None`
-    /// if `share` is cut short.
+    /// laid out as `share` (any process's), to [`StateShares::place`] the shares in, the time
+    /// scheme carrying the node fields and scalars `carried` names
+    /// ([`crate::sim::TimeIntegrator::carried_fields`] and `carried_scalars`); `None` if
+    /// `share` is cut short.
     pub fn for_shares(
         share: &[f64],
         nodes: usize,
@@ -364,6 +353,22 @@ mod tests {
     use super::*;
     use crate::physics::history::ElementHistory;
     use crate::sim::SchemeState;
+
+    /// The whole state of a mesh of `nodes` nodes and `elements` elements put together from
+    /// every process's share, as the writing process does (`run::frame`), the time scheme
+    /// carrying the node fields and scalars `carried` names; `None` if a share is cut short.
+    fn whole_of(
+        shares: &[Vec<f64>],
+        nodes: usize,
+        elements: usize,
+        carried: (&[&'static str], &[&'static str]),
+    ) -> Option<StateShares> {
+        let mut whole = StateShares::for_shares(shares.first()?, nodes, elements, carried)?;
+        for share in shares {
+            whole.place(share)?;
+        }
+        Some(whole)
+    }
 
     /// Node fields and a scalar a time scheme carries.
     const CARRIED: (&[&str], &[&str]) = (
@@ -464,7 +469,7 @@ mod tests {
                 part.share_of(&state, &stress, (&contact, &temperature))
             })
             .collect();
-        let together = StateShares::whole(&shares, 10, 4, CARRIED).unwrap();
+        let together = whole_of(&shares, 10, 4, CARRIED).unwrap();
         assert_eq!(together.state, whole);
         assert_eq!(together.stress, stress);
         assert_eq!(together.contact.normal, contact.normal);
@@ -473,6 +478,6 @@ mod tests {
         // A share cut short is refused, not read past its end.
         let mut cut = shares.clone();
         cut[1].pop();
-        assert!(StateShares::whole(&cut, 10, 4, CARRIED).is_none());
+        assert!(whole_of(&cut, 10, 4, CARRIED).is_none());
     }
 }
