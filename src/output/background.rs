@@ -13,7 +13,9 @@ use std::path::PathBuf;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::thread::JoinHandle;
 
-use super::{invalid, Field, Frame, FrameOptions, OutputError, OutputWriter, StepStats};
+use super::{
+    invalid, Field, Frame, FrameLayout, FrameOptions, OutputError, OutputWriter, StepStats,
+};
 use crate::fracture::cracks::CrackSurface;
 
 /// Bytes of frames the run may be ahead of the writer before it waits (estimated from the
@@ -130,6 +132,12 @@ impl OwnedFrame {
 enum Job {
     /// `/stats` rows, then a frame.
     Frame(Vec<StepStats>, Box<OwnedFrame>),
+    /// `/stats` rows, then the beginning of a frame written in blocks.
+    Begin(Vec<StepStats>, Box<FrameLayout>),
+    /// A block of rows of a frame's dataset: its index, the first row, the values.
+    Rows(usize, usize, Vec<f64>),
+    /// The end of a frame written in blocks.
+    End,
     /// `/stats` rows.
     Stats(Vec<StepStats>),
     /// The last `/stats` rows: finish the file.
@@ -188,6 +196,31 @@ impl BackgroundWriter {
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), OutputError> {
         let stats = std::mem::take(&mut self.pending_stats);
         self.send(Job::Frame(stats, Box::new(OwnedFrame::copy(frame))))?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Hands the beginning of a frame written in blocks to the writing thread
+    /// ([`OutputWriter::begin_frame`]), with the `/stats` rows before it.
+    pub fn begin_frame(&mut self, frame: &FrameLayout) -> Result<(), OutputError> {
+        let stats = std::mem::take(&mut self.pending_stats);
+        self.send(Job::Begin(stats, Box::new(frame.clone())))
+    }
+
+    /// Hands a block of rows of the open frame's dataset `column` to the writing thread
+    /// ([`OutputWriter::write_rows`]); waits while the queue is full.
+    pub fn write_rows(
+        &mut self,
+        column: usize,
+        first: usize,
+        values: Vec<f64>,
+    ) -> Result<(), OutputError> {
+        self.send(Job::Rows(column, first, values))
+    }
+
+    /// Completes the open frame ([`OutputWriter::end_frame`]).
+    pub fn end_frame(&mut self) -> Result<(), OutputError> {
+        self.send(Job::End)?;
         self.frames += 1;
         Ok(())
     }
@@ -272,6 +305,12 @@ fn work(mut writer: OutputWriter, jobs: Receiver<Job>) -> Result<(), OutputError
                 append(&mut writer, rows)?;
                 frame.write(&mut writer)?;
             }
+            Job::Begin(rows, frame) => {
+                append(&mut writer, rows)?;
+                writer.begin_frame(&frame)?;
+            }
+            Job::Rows(column, first, values) => writer.write_rows(column, first, &values)?,
+            Job::End => writer.end_frame()?,
             Job::Stats(rows) => append(&mut writer, rows)?,
             Job::Finish(rows) => {
                 append(&mut writer, rows)?;

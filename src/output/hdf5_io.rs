@@ -231,11 +231,10 @@ pub(super) fn write_matrix<T: H5Type>(
 ) -> Result<Dataset, OutputError> {
     let ctx = || format!("writing {}/{name} [{rows}, {cols}]", g.name());
     let mut b = g.new_dataset_builder();
-    if rows * cols >= COMPRESS_MIN_VALUES {
-        let chunk_rows = (FRAME_CHUNK_VALUES / cols).clamp(1, rows);
+    if let Some(chunk) = chunk_rows(rows, cols) {
         b = compress(match cols {
-            1 => b.chunk(chunk_rows),
-            _ => b.chunk((chunk_rows, cols)),
+            1 => b.chunk(chunk),
+            _ => b.chunk((chunk, cols)),
         });
     }
     if cols == 1 {
@@ -246,6 +245,70 @@ pub(super) fn write_matrix<T: H5Type>(
         let view = ArrayView2::from_shape((rows, cols), data)
             .map_err(|e| invalid(path, format!("{name}: {e}")))?;
         b.with_data(view).create(name).ctx(path, ctx)
+    }
+}
+
+/// Rows per chunk of a frame dataset of `rows` × `cols` values; `None` when it is stored
+/// contiguous and uncompressed (fewer than `COMPRESS_MIN_VALUES` values).
+pub(super) fn chunk_rows(rows: usize, cols: usize) -> Option<usize> {
+    (rows * cols >= COMPRESS_MIN_VALUES).then(|| (FRAME_CHUNK_VALUES / cols).clamp(1, rows))
+}
+
+/// Creates an empty dataset of `rows` × `cols` doubles (1-D when `cols == 1`; 32-bit floats
+/// when `single`), chunked and compressed as [`write_matrix`] would write it, for its rows to
+/// be written later by [`write_rows`].
+pub(super) fn create_values(
+    path: &Path,
+    g: &Group,
+    (name, rows, cols): (&str, usize, usize),
+    single: bool,
+) -> Result<Dataset, OutputError> {
+    let mut b = g.new_dataset_builder();
+    if let Some(chunk) = chunk_rows(rows, cols) {
+        b = compress(match cols {
+            1 => b.chunk(chunk),
+            _ => b.chunk((chunk, cols)),
+        });
+    }
+    let shape: hdf5::Extents = match cols {
+        1 => rows.into(),
+        _ => (rows, cols).into(),
+    };
+    let ctx = || format!("creating {}/{name} [{rows}, {cols}]", g.name());
+    match single {
+        true => b.empty::<f32>().shape(shape).create(name).ctx(path, ctx),
+        false => b.empty::<f64>().shape(shape).create(name).ctx(path, ctx),
+    }
+}
+
+/// Writes `values`, rows of `cols` doubles (as 32-bit floats when `single`), into rows
+/// `first..` of dataset `ds` made by [`create_values`].
+pub(super) fn write_rows(
+    path: &Path,
+    ds: &Dataset,
+    (first, cols): (usize, usize),
+    values: &[f64],
+    single: bool,
+) -> Result<(), OutputError> {
+    let rows = values.len() / cols;
+    let ctx = || format!("writing rows {first}..{} of {}", first + rows, ds.name());
+    fn write<T: H5Type>(
+        ds: &Dataset,
+        (first, rows, cols): (usize, usize, usize),
+        data: &[T],
+    ) -> hdf5::Result<()> {
+        if cols == 1 {
+            ds.write_slice(ArrayView1::from(data), first..first + rows)
+        } else {
+            let view = ArrayView2::from_shape((rows, cols), data).map_err(|e| e.to_string())?;
+            ds.write_slice(view, (first..first + rows, ..))
+        }
+    }
+    if single {
+        let narrow: Vec<f32> = values.iter().map(|&x| x as f32).collect();
+        write(ds, (first, rows, cols), &narrow).ctx(path, ctx)
+    } else {
+        write(ds, (first, rows, cols), values).ctx(path, ctx)
     }
 }
 

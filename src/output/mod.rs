@@ -78,6 +78,7 @@
 //! an icefem file no run is writing.
 
 mod background;
+mod blocks;
 mod describe;
 mod hdf5_io;
 mod ownership;
@@ -90,6 +91,7 @@ mod writer;
 mod xdmf;
 
 pub use background::BackgroundWriter;
+pub use blocks::{frame_columns, ColumnValues, FrameColumn, FrameLayout};
 pub use describe::{describe, summary, DatasetSummary, FileSummary, FrameTime};
 pub use reader::{parse_frame_range, CrackTriangle, FrameReader, StoredFrame, StoredMesh};
 pub use resume::{ResumeFrame, StoredField};
@@ -172,7 +174,7 @@ impl FrameOptions {
 
 /// A symmetric tensor in Voigt order xx yy zz yz xz xy as a 3 × 3 matrix, row-major:
 /// xx xy xz, yx yy yz, zx zy zz.
-fn voigt_to_matrix(v: &[f64]) -> [f64; 9] {
+pub fn voigt_to_matrix(v: &[f64]) -> [f64; 9] {
     [v[0], v[5], v[4], v[5], v[1], v[3], v[4], v[3], v[2]]
 }
 

@@ -288,6 +288,7 @@ impl OutputWriter {
             last_commit: None,
             last_sidecars: None,
             last_fields: None,
+            open: None,
         };
         Ok((writer, rf))
     }

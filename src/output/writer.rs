@@ -97,7 +97,7 @@ pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 40] = [
 
 /// Group name of frame `index`: at least 6 digits so that names sort in
 /// frame order in tools that list members alphabetically (h5ls, HDFView).
-fn frame_name(index: usize) -> String {
+pub(super) fn frame_name(index: usize) -> String {
     format!("{index:06}")
 }
 
@@ -148,6 +148,8 @@ pub struct OutputWriter {
     /// The last frame's group and its fields' values: a field with the same values in the next
     /// frame is hard-linked to it instead of written again (`None` after a resume or reopen).
     pub(super) last_fields: Option<(Group, Vec<StoredValues>)>,
+    /// The frame being written in blocks of rows ([`OutputWriter::begin_frame`]), if any.
+    pub(super) open: Option<super::blocks::OpenFrame>,
 }
 
 /// A field's values as a frame stored them: name, columns, single precision, the values.
@@ -227,7 +229,7 @@ fn metadata_cache_bytes(file: &File) -> usize {
 }
 
 /// Bytes one `/stats` row takes (34 columns of 8 bytes at most).
-const STATS_ROW_BYTES: u64 = 8 * STATS_COLUMNS.len() as u64;
+pub(super) const STATS_ROW_BYTES: u64 = 8 * STATS_COLUMNS.len() as u64;
 
 /// Room kept free beyond the frames for a commit's metadata and the XDMF sidecars (bytes);
 /// [`OutputWriter::check_room`] adds 2 % of the file for the metadata that grows with it.
@@ -337,6 +339,7 @@ impl OutputWriter {
                 last_commit: None,
                 last_sidecars: None,
                 last_fields: None,
+                open: None,
             }),
             Err(e) => {
                 let _ = std::fs::remove_file(path);
@@ -411,7 +414,7 @@ impl OutputWriter {
         &self.target
     }
 
-    fn file(&self) -> Result<&File, OutputError> {
+    pub(super) fn file(&self) -> Result<&File, OutputError> {
         // Only reachable if a method were called after `finish`, which takes `self`.
         self.file
             .as_ref()
@@ -425,35 +428,84 @@ impl OutputWriter {
     /// `InvalidInput` error leaves the file untouched.
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), OutputError> {
         self.validate_frame(frame)?;
+        if self.open.is_some() {
+            return Err(invalid(&self.location, "a frame written in blocks is open"));
+        }
         self.reopen_if_cache_is_large()?;
         let bytes = frame_bytes(frame);
         self.check_room(bytes + STATS_ROW_BYTES * self.pending_stats.len() as u64)?;
         let name = frame_name(self.next_frame);
         let file = self.file()?.clone();
-        let frames = file
-            .group("frames")
-            .ctx(&self.location, || "opening /frames".into())?;
-        if frames.link_exists(&name) {
-            return Err(corrupt(
-                &self.location,
-                format!("/frames/{name} already exists"),
-            ));
-        }
-        drop(frames);
         // A group that fails half-written is simply dropped: nothing links to it.
-        let g = self.write_frame_group(frame, &file, &name)?;
-        let previous = self
-            .uncommitted
-            .last()
-            .map(|(_, r, _)| r)
-            .or(self.records.last());
-        let record = FrameRecord::of(self.next_frame, frame, self.options, previous);
+        let g = self.start_frame_group(&file, &name, (frame.step, frame.time), frame.attributes)?;
+        self.write_frame_group(frame, &file, &g, &name)?;
+        let record = FrameRecord::of(self.next_frame, frame, self.options, self.last_record());
         if frame.topology_changed {
             self.topology = format!("/frames/{name}");
             self.unlinked_topology = Some(g.clone());
             self.n_nodes = frame.positions.len();
             self.n_elems = frame.tets.len();
         }
+        self.frame_written(&file, (name, record, g), bytes)
+    }
+
+    /// The sidecar record of the last frame written, committed or not.
+    pub(super) fn last_record(&self) -> Option<&FrameRecord> {
+        (self.uncommitted.last().map(|(_, r, _)| r)).or(self.records.last())
+    }
+
+    /// Creates the anonymous group of frame `name` (to be linked by the commit) with its step,
+    /// time (s) and other attributes; an error if `/frames` already has a frame of that name.
+    pub(super) fn start_frame_group(
+        &self,
+        file: &File,
+        name: &str,
+        (step, time): (u64, f64),
+        attributes: &[(&str, f64)],
+    ) -> Result<Group, OutputError> {
+        let path = &self.location;
+        let frames = file
+            .group("frames")
+            .ctx(path, || "opening /frames".into())?;
+        if frames.link_exists(name) {
+            return Err(corrupt(path, format!("/frames/{name} already exists")));
+        }
+        let g = file
+            .create_group_builder()
+            .create(None)
+            .ctx(path, || format!("creating the group of frame {name}"))?;
+        write_attr(path, &g, "step", &step)?;
+        write_attr(path, &g, "time", &time)?;
+        for (name, value) in attributes {
+            write_attr(path, &g, name, value)?;
+        }
+        Ok(g)
+    }
+
+    /// Hard-links the current topology's `rest_positions` and `tets` into frame group `g`.
+    /// Hard links cost a few bytes and keep every frame self-contained for readers (XDMF,
+    /// h5py) that only look at one group.
+    pub(super) fn link_topology(&self, file: &File, g: &Group) -> Result<(), OutputError> {
+        let path = &self.location;
+        let source = match &self.unlinked_topology {
+            Some(group) => group.clone(),
+            None => file
+                .group(&self.topology)
+                .ctx(path, || format!("opening {}", self.topology))?,
+        };
+        link_dataset(path, &source, g, "rest_positions")?;
+        link_dataset(path, &source, g, "tets")
+    }
+
+    /// Marks frame group `g` complete and queues it for the next commit (`bytes`: what it
+    /// adds to the file at most); commits when the last commit is [`COMMIT_INTERVAL`] old.
+    pub(super) fn frame_written(
+        &mut self,
+        file: &File,
+        (name, record, g): (String, FrameRecord, Group),
+        bytes: u64,
+    ) -> Result<(), OutputError> {
+        write_attr(&self.location, &g, "complete", &1u8)?;
         self.uncommitted.push((name, record, g));
         self.uncommitted_bytes += bytes;
         self.next_frame += 1;
@@ -461,51 +513,34 @@ impl OutputWriter {
             .last_commit
             .is_none_or(|t| t.elapsed() >= COMMIT_INTERVAL)
         {
-            self.commit(&file, false)?;
+            self.commit(file, false)?;
         }
         Ok(())
     }
 
-    /// Writes `frame` into a new anonymous group of `file` (to be linked as `name`), marked
-    /// complete: it becomes a frame of the file only when the commit links it.
+    /// Writes the datasets of `frame` into its anonymous group `g` (frame `name`): it becomes
+    /// a frame of the file only when the commit links it.
     fn write_frame_group(
         &mut self,
         frame: &Frame,
         file: &File,
+        g: &Group,
         name: &str,
-    ) -> Result<Group, OutputError> {
+    ) -> Result<(), OutputError> {
         let path = self.location.clone();
-        let g = file
-            .create_group_builder()
-            .create(None)
-            .ctx(&path, || format!("creating the group of frame {name}"))?;
-        write_attr(&path, &g, "step", &frame.step)?;
-        write_attr(&path, &g, "time", &frame.time)?;
-        for (name, value) in frame.attributes {
-            write_attr(&path, &g, name, value)?;
-        }
         let options = self.options;
         // A built-in dataset of `rows` × `cols` values, in single precision if only drawn.
         let builtin = |name, rows, cols, data: &[f64]| {
-            write_values(&path, &g, (name, rows, cols), data, options.single(name))
+            write_values(&path, g, (name, rows, cols), data, options.single(name))
         };
         let n = frame.positions.len();
         builtin("positions", n, 3, frame.positions.as_flattened())?;
-        write_vec3(&path, &g, "velocities", frame.velocities)?;
+        write_vec3(&path, g, "velocities", frame.velocities)?;
         if frame.topology_changed {
-            write_vec3(&path, &g, "rest_positions", frame.rest_positions)?;
-            write_tets(&path, &g, "tets", frame.tets)?;
+            write_vec3(&path, g, "rest_positions", frame.rest_positions)?;
+            write_tets(&path, g, "tets", frame.tets)?;
         } else {
-            // Hard links cost a few bytes and keep every frame self-contained
-            // for readers (XDMF, h5py) that only look at one group.
-            let source = match &self.unlinked_topology {
-                Some(group) => group.clone(),
-                None => file
-                    .group(&self.topology)
-                    .ctx(&path, || format!("opening {}", self.topology))?,
-            };
-            link_dataset(&path, &source, &g, "rest_positions")?;
-            link_dataset(&path, &source, &g, "tets")?;
+            self.link_topology(file, g)?;
         }
         builtin("stress", frame.stress.len(), 6, frame.stress.as_flattened())?;
         let centers = [
@@ -525,10 +560,10 @@ impl OutputWriter {
                     .as_ref()
                     .filter(|(_, values)| values.iter().any(|v| v.holds(f, single)));
                 if let Some((last_group, _)) = unchanged {
-                    link_dataset(&path, last_group, &g, f.name)?;
+                    link_dataset(&path, last_group, g, f.name)?;
                 } else {
                     let shape = (f.name, f.data.len() / f.cols, f.cols);
-                    let ds = write_values(&path, &g, shape, f.data, single)?;
+                    let ds = write_values(&path, g, shape, f.data, single)?;
                     write_attr(&path, &ds, "center", &vlen_str(&path, "center", center)?)?;
                 }
                 stored.push(StoredValues {
@@ -541,7 +576,7 @@ impl OutputWriter {
         }
         self.last_fields = Some((g.clone(), stored));
         if options.tensor_matrices {
-            write_tensor_matrices(&path, &g, name, frame, options.drawn_single)?;
+            write_tensor_matrices(&path, g, name, frame, options.drawn_single)?;
         }
         if let Some(c) = frame.cracks {
             let cg = g
@@ -554,8 +589,7 @@ impl OutputWriter {
             let ids: Vec<[usize; 1]> = c.crack.iter().map(|&k| [k]).collect();
             write_indices(&path, &cg, "crack", &ids)?;
         }
-        write_attr(&path, &g, "complete", &1u8)?;
-        Ok(g)
+        Ok(())
     }
 
     /// What frames written from now on store besides a resumed run's state (everything, in
@@ -617,22 +651,7 @@ impl OutputWriter {
             for f in fields {
                 // Row fields have as many rows as their values fill.
                 let rows = rows.unwrap_or(f.data.len() / f.cols.max(1));
-                if f.name.is_empty()
-                    || f.name == "."
-                    || f.name.contains('/')
-                    || f.name.contains('\0')
-                    || RESERVED_FRAME_NAMES.contains(&f.name)
-                    || FRAME_GROUPS.contains(&f.name)
-                {
-                    return Err(invalid(
-                        path,
-                        format!("invalid {kind} field name {:?}", f.name),
-                    ));
-                }
-                if seen.contains(&f.name) {
-                    return Err(invalid(path, format!("duplicate field name {:?}", f.name)));
-                }
-                seen.push(f.name);
+                check_field_name(path, kind, f.name, &mut seen)?;
                 let expected = rows.checked_mul(f.cols);
                 if f.cols == 0 || expected != Some(f.data.len()) {
                     return Err(invalid(
@@ -729,7 +748,7 @@ impl OutputWriter {
     /// otherwise grow the run's memory with every frame. Reopening between commits writes
     /// nothing the last commit did not (but `/stats` rows a long stretch without frames had
     /// to write early).
-    fn reopen_if_cache_is_large(&mut self) -> Result<(), OutputError> {
+    pub(super) fn reopen_if_cache_is_large(&mut self) -> Result<(), OutputError> {
         let Some(file) = &self.file else {
             return Ok(());
         };
@@ -755,7 +774,7 @@ impl OutputWriter {
     /// limit) leaves room for `size` more bytes, the frames not yet committed and a reserve
     /// for the commit's metadata and the sidecars: a frame that does not fit is not begun, so
     /// a full disk never interrupts a write and the committed frames stay readable.
-    fn check_room(&self, size: u64) -> Result<(), OutputError> {
+    pub(super) fn check_room(&self, size: u64) -> Result<(), OutputError> {
         let written = std::fs::metadata(&self.location).map_or(0, |m| m.len());
         let needed = size + self.uncommitted_bytes + COMMIT_RESERVE + written / 50;
         let available = available_bytes(&self.location, written);
@@ -865,6 +884,30 @@ pub(super) fn create_stats_column(
         .chunk(STATS_CHUNK_ROWS)
         .create(name)
         .ctx(path, || format!("creating /stats/{name}"))
+}
+
+/// Fails unless `name` may name a field of a frame (of `kind`: "node", "element" or "row")
+/// and is not among the names `seen` so far, to which it is added.
+pub(super) fn check_field_name<'a>(
+    path: &Path,
+    kind: &str,
+    name: &'a str,
+    seen: &mut Vec<&'a str>,
+) -> Result<(), OutputError> {
+    if name.is_empty()
+        || name == "."
+        || name.contains('/')
+        || name.contains('\0')
+        || RESERVED_FRAME_NAMES.contains(&name)
+        || FRAME_GROUPS.contains(&name)
+    {
+        return Err(invalid(path, format!("invalid {kind} field name {name:?}")));
+    }
+    if seen.contains(&name) {
+        return Err(invalid(path, format!("duplicate field name {name:?}")));
+    }
+    seen.push(name);
+    Ok(())
 }
 
 /// Writes the symmetric tensors of `frame` (the stress and every 6-column field) again as

@@ -19,7 +19,10 @@ use super::hdf5_io::{
     check_hdf5_signature, check_icefem_layout, list_frames, open_2d, open_read, read_attr,
     read_string, Hdf5Context,
 };
-use super::{corrupt, invalid, Frame, FrameOptions, OutputError, RESERVED_FRAME_NAMES, TENSORS};
+use super::{
+    corrupt, invalid, Frame, FrameLayout, FrameOptions, OutputError, RESERVED_FRAME_NAMES, TENSORS,
+};
+use crate::fracture::cracks::CrackSurface;
 
 /// One dataset as a sidecar describes it: shape and number type.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -90,7 +93,34 @@ impl FrameRecord {
         options: FrameOptions,
         previous: Option<&FrameRecord>,
     ) -> Self {
-        let (n, m) = (frame.positions.len(), frame.tets.len());
+        let names = |fields: &[super::Field]| -> Vec<(String, usize)> {
+            fields
+                .iter()
+                .map(|f| (f.name.to_string(), f.cols))
+                .collect()
+        };
+        let layout = FrameLayout {
+            step: frame.step,
+            time: frame.time,
+            attributes: Vec::new(),
+            nodes: frame.positions.len(),
+            elements: frame.tets.len(),
+            element_fields: names(frame.element_fields),
+            node_fields: names(frame.node_fields),
+        };
+        Self::of_layout(index, &layout, frame.cracks, options, previous)
+    }
+
+    /// The record of a frame laid out as `frame`, with crack surfaces `cracks`, written as
+    /// group `index` with `options` (see [`FrameRecord::of`]).
+    pub(super) fn of_layout(
+        index: usize,
+        frame: &FrameLayout,
+        cracks: Option<&CrackSurface>,
+        options: FrameOptions,
+        previous: Option<&FrameRecord>,
+    ) -> Self {
+        let (n, m) = (frame.nodes, frame.elements);
         let tensor_matrices = options.tensor_matrices;
         // The item of a dataset of doubles, or of singles where the options store it so.
         let float = |rows, cols, single: bool| Item {
@@ -117,27 +147,27 @@ impl FrameRecord {
         }
         let builtins = attributes.len();
         for (fields, center, rows) in [
-            (frame.element_fields, "Cell", m),
-            (frame.node_fields, "Node", n),
+            (&frame.element_fields, "Cell", m),
+            (&frame.node_fields, "Node", n),
         ] {
-            for f in fields.iter().filter(|f| tensor_matrices || f.cols != 6) {
-                let single = options.single(f.name);
-                attributes.push(match f.cols {
+            for (name, cols) in fields.iter().filter(|(_, c)| tensor_matrices || *c != 6) {
+                let single = options.single(name);
+                attributes.push(match cols {
                     6 => builtin(
-                        f.name,
-                        &format!("{TENSORS}/{}", f.name),
+                        name,
+                        &format!("{TENSORS}/{name}"),
                         center,
                         float(rows, 9, options.drawn_single),
                     ),
-                    1 => builtin(f.name, f.name, center, float(rows, 0, single)),
-                    cols => builtin(f.name, f.name, center, float(rows, cols, single)),
+                    1 => builtin(name, name, center, float(rows, 0, single)),
+                    &cols => builtin(name, name, center, float(rows, cols, single)),
                 });
             }
         }
         // Fields in name order (as `read_record` lists them).
         attributes[builtins..].sort_by(|a, b| a.name.cmp(&b.name));
         let attributes = shared(attributes, previous);
-        let cracks = frame.cracks.map(|c| {
+        let cracks = cracks.map(|c| {
             let t = c.triangles.len();
             let vertices = float(c.vertices.len(), 3, options.drawn_single);
             [indices(t, 3), vertices, indices(t, 0)]

@@ -5,9 +5,12 @@ use super::{as_rows, rows, Processes, RunError};
 use crate::fem;
 use crate::fracture::Fracture;
 use crate::mesh::TetMesh;
-use crate::output::{BackgroundWriter, Field, Frame, OutputError};
+use crate::output::{
+    frame_columns, voigt_to_matrix, BackgroundWriter, ColumnValues, Field, Frame, FrameLayout,
+    FrameOptions, OutputError,
+};
 use crate::physics::contact::ContactForces;
-use crate::sim::part::{Part, StateShares};
+use crate::sim::part::Part;
 use crate::sim::{SimError, Simulation, State};
 
 /// Writes the current state of `sim` as a frame on the writing process (`writer`). In a
@@ -18,7 +21,7 @@ pub(super) fn emit_frame(
     writer: Option<&mut BackgroundWriter>,
     (sim, fracture): (&Simulation, Option<&Fracture>),
     shared: Option<(&dyn Processes, &Part, &TetMesh)>,
-    flags: FrameFlags,
+    (flags, options): (FrameFlags, FrameOptions),
 ) -> Result<(), RunError> {
     let Some((processes, part, mesh)) = shared else {
         if let Some(writer) = writer {
@@ -31,48 +34,168 @@ pub(super) fn emit_frame(
         }
         return Ok(());
     };
-    let contact = sim.contact_forces();
-    let temperature = sim.node_temperatures().unwrap_or_default();
-    let share = part.share_of(
-        &sim.state,
-        &sim.stresses(),
-        (contact.unwrap_or(&ContactForces::default()), &temperature),
-    );
-    // Each share placed as it arrives: the writing process holds the whole state and one
-    // other process's share at a time.
-    let carried = (
-        sim.integrator().carried_fields(),
-        sim.integrator().carried_scalars(),
-    );
-    let (nodes, elements) = (mesh.num_nodes(), mesh.num_tets());
-    let mut whole: Option<StateShares> = None;
-    let mut complete = true;
-    processes.gather_values(share, &mut |values| {
-        let shares = whole.get_or_insert_with(|| {
-            StateShares::for_shares(&values, nodes, elements, carried).unwrap_or_default()
-        });
-        complete &= shares.place(&values).is_some();
-    });
-    let Some(writer) = writer else {
-        return Ok(());
+    write_in_blocks(writer, sim, (processes, part, mesh), flags, options)
+}
+
+/// Writes the state of `sim`, whose mesh is this process's part of `mesh`, as a frame on the
+/// writing process (`writer`) of `processes`, in blocks of rows: every process computes its
+/// part's fields and, block by block, gives the rows of its owned nodes and own elements to
+/// the writing process, which places them in the block and hands the block to its writer.
+/// The writing process holds one block (at most 8 MiB of values) and one process's rows of
+/// it at a time besides its own part's fields.
+fn write_in_blocks(
+    mut writer: Option<&mut BackgroundWriter>,
+    sim: &Simulation,
+    (processes, part, mesh): (&dyn Processes, &Part, &TetMesh),
+    flags: FrameFlags,
+    options: FrameOptions,
+) -> Result<(), RunError> {
+    let source = FrameSource::of(sim);
+    let derived = DerivedFields::of(&source, None, options.derived_scalars);
+    let element_fields = element_fields(&source, &derived, false);
+    let node_fields = node_fields(&source, &derived, false);
+    let names = |fields: &[Field]| {
+        fields
+            .iter()
+            .map(|f| (f.name.to_string(), f.cols))
+            .collect()
     };
-    let whole = whole.filter(|_| complete).ok_or_else(|| {
-        SimError::Setup("a process's part of the state did not arrive whole".into())
-    })?;
-    let state = State {
-        time: sim.state.time,
+    let layout = FrameLayout {
         step: sim.state.step,
-        next_dt: sim.state.next_dt,
-        ..whole.state
+        time: sim.state.time,
+        attributes: (frame_attributes(&sim.state, flags).into_iter())
+            .map(|(name, value)| (name.to_string(), value))
+            .collect(),
+        nodes: mesh.num_nodes(),
+        elements: mesh.num_tets(),
+        element_fields: names(&element_fields),
+        node_fields: names(&node_fields),
     };
-    let source = FrameSource {
-        mesh,
-        state: &state,
-        stress: whole.stress,
-        contact: contact.map(|_| &whole.contact),
-        temperature: (!whole.temperature.is_empty()).then_some(whole.temperature),
+    let (nodes, elements) = (part.given_rows(false), part.given_rows(true));
+    // The writer's first error; the blocks are still gathered after it, as the other
+    // processes send them.
+    let mut failed: Option<RunError> = None;
+    let mut write =
+        |writer: &mut BackgroundWriter,
+         job: &mut dyn FnMut(&mut BackgroundWriter) -> Result<(), RunError>| {
+            if failed.is_none() {
+                failed = job(writer).err();
+            }
+        };
+    if let Some(w) = writer.as_deref_mut() {
+        write(w, &mut |w| Ok(w.begin_frame(&layout)?));
+    }
+    for (index, column) in frame_columns(&layout, options).iter().enumerate() {
+        let values = column_values(
+            &column.values,
+            (&source, &derived),
+            (&element_fields, &node_fields),
+        );
+        let cols = column.cols;
+        let rows = if column.per_node { &nodes } else { &elements };
+        let mut at = 0;
+        for first in (0..column.rows).step_by(column.block_rows) {
+            let end = (first + column.block_rows).min(column.rows);
+            let stop = at + rows[at..].partition_point(|&(i, _)| i < end);
+            let mut share = Vec::with_capacity((stop - at) * (1 + cols));
+            share.extend(rows[at..stop].iter().map(|&(i, _)| i as f64));
+            for &(_, k) in &rows[at..stop] {
+                share.extend_from_slice(&values[cols * k..cols * (k + 1)]);
+            }
+            at = stop;
+            let mut block = BlockRows::new(first, end, cols, writer.is_some());
+            processes.gather_values(share, &mut |rows| block.place(&rows));
+            if let Some(w) = writer.as_deref_mut() {
+                write(w, &mut |w| {
+                    let values = block.take().ok_or_else(|| {
+                        SimError::Setup(format!(
+                            "rows {first}..{end} of the frame's {:?} did not arrive whole",
+                            column.values
+                        ))
+                    })?;
+                    Ok(w.write_rows(index, first, values)?)
+                });
+            }
+        }
+    }
+    if let Some(w) = writer {
+        write(w, &mut |w| Ok(w.end_frame()?));
+    }
+    failed.map_or(Ok(()), Err)
+}
+
+/// A block of rows `first..end` of a frame's dataset of `cols` columns, put together on the
+/// writing process from the processes' rows.
+struct BlockRows {
+    first: usize,
+    cols: usize,
+    values: Vec<f64>,
+    /// Whether each row arrived.
+    arrived: Vec<bool>,
+    /// Whether rows arrived that are not in the block, or twice.
+    wrong: bool,
+}
+
+impl BlockRows {
+    /// The empty block; with `holds` false (a process that does not write), nothing is kept.
+    fn new(first: usize, end: usize, cols: usize, holds: bool) -> Self {
+        let rows = if holds { end - first } else { 0 };
+        BlockRows {
+            first,
+            cols,
+            values: vec![0.0; rows * cols],
+            arrived: vec![false; rows],
+            wrong: false,
+        }
+    }
+
+    /// Places one process's rows: their numbers in the dataset, then their values.
+    fn place(&mut self, given: &[f64]) {
+        let count = given.len() / (1 + self.cols);
+        let (numbers, values) = given.split_at(count);
+        for (&number, row) in numbers.iter().zip(values.chunks_exact(self.cols)) {
+            let r = (number as usize).wrapping_sub(self.first);
+            match self.arrived.get_mut(r) {
+                Some(arrived) if !*arrived => {
+                    *arrived = true;
+                    self.values[self.cols * r..self.cols * (r + 1)].copy_from_slice(row);
+                }
+                _ => self.wrong = true,
+            }
+        }
+    }
+
+    /// The block's values, if every row arrived once.
+    fn take(&mut self) -> Option<Vec<f64>> {
+        (!self.wrong && self.arrived.iter().all(|&a| a)).then(|| std::mem::take(&mut self.values))
+    }
+}
+
+/// The values of a frame's dataset on a process's part, a row per part node or element.
+fn column_values<'a>(
+    values: &ColumnValues,
+    (source, derived): (&'a FrameSource, &'a DerivedFields),
+    (element_fields, node_fields): (&'a [Field<'a>], &'a [Field<'a>]),
+) -> std::borrow::Cow<'a, [f64]> {
+    use std::borrow::Cow;
+    let field = |name: &str| {
+        (element_fields.iter().chain(node_fields))
+            .find(|f| f.name == name)
+            .map_or(&[][..], |f| f.data)
     };
-    Ok(write_frame(writer, &source, None, flags)?)
+    match values {
+        ColumnValues::Positions => Cow::Borrowed(derived.positions.as_flattened()),
+        ColumnValues::Velocities => Cow::Borrowed(&source.state.v),
+        ColumnValues::Stress => Cow::Borrowed(source.stress.as_flattened()),
+        ColumnValues::Field(name) => Cow::Borrowed(field(name)),
+        ColumnValues::Matrices(name) => {
+            let voigt = match name.as_str() {
+                "stress" => source.stress.as_flattened(),
+                name => field(name),
+            };
+            Cow::Owned(voigt.chunks_exact(6).flat_map(voigt_to_matrix).collect())
+        }
+    }
 }
 
 /// What a frame is written from: a simulation's mesh and state, or the whole state of a
@@ -269,6 +392,19 @@ fn element_fields<'a>(
     fields
 }
 
+/// The scalar attributes of a frame of `state` besides its step and time: whether it is a
+/// restart point, what the time scheme carries, and the step length proposed next (s).
+fn frame_attributes(state: &State, flags: FrameFlags) -> Vec<(&'static str, f64)> {
+    let restart_point = f64::from(u8::from(flags.restart_point));
+    let mut attributes = vec![("restart_point", restart_point)];
+    attributes.extend(state.carried.scalars.iter().copied());
+    // With adaptive steps: the length the control proposes for the next step.
+    if state.next_dt > 0.0 {
+        attributes.push(("next_dt", state.next_dt));
+    }
+    attributes
+}
+
 /// Writes the state of `source` as a frame (with the crack surfaces and what a resumed run
 /// needs of `fracture`, if the run fractures).
 fn write_frame(
@@ -280,13 +416,7 @@ fn write_frame(
     let state = source.state;
     let scalars = writer.frame_options().derived_scalars;
     let derived = DerivedFields::of(source, fracture.map(|(f, _)| f), scalars);
-    let restart_point = f64::from(u8::from(flags.restart_point));
-    let mut attributes = vec![("restart_point", restart_point)];
-    attributes.extend(state.carried.scalars.iter().copied());
-    // With adaptive steps: the length the control proposes for the next step.
-    if state.next_dt > 0.0 {
-        attributes.push(("next_dt", state.next_dt));
-    }
+    let attributes = frame_attributes(state, flags);
     let cracks = fracture.map(|(f, sim)| f.surface(sim));
     writer.write_frame(&Frame {
         step: state.step,

@@ -355,7 +355,13 @@ impl Run<'_> {
     /// Writes the current state as a frame (gathered onto the writing process).
     fn emit_frame(&mut self, flags: FrameFlags) -> Result<(), RunError> {
         let sim_and_fracture = (&self.sim, self.fracture.as_ref());
-        emit_frame(self.writer.as_mut(), sim_and_fracture, self.shared, flags)
+        let options = self.scene.frame_options;
+        emit_frame(
+            self.writer.as_mut(),
+            sim_and_fracture,
+            self.shared,
+            (flags, options),
+        )
     }
 
     /// Whether an interrupt is set on any process (every process stops at the same step).

@@ -14,9 +14,7 @@
 //! the mesh, or on one process, a part is the whole mesh: every element and node, each process evaluating its own elements and owned
 //! nodes as above.
 
-use super::State;
 use crate::mesh::MeshError;
-use crate::physics::contact::ContactForces;
 use crate::physics::term::NodeRestriction;
 use crate::physics::Model;
 
@@ -170,61 +168,18 @@ impl Part {
             .collect()
     }
 
-    /// This process's share of a state for the process that writes it whole
-    /// ([`StateShares::place`]): its owned nodes' and own elements' numbers and values, with
-    /// the element stresses, contact forces and nodal temperatures (°C; empty without heat).
-    pub fn share_of(
-        &self,
-        state: &State,
-        stress: &[[f64; 6]],
-        (contact, temperature): (&ContactForces, &[f64]),
-    ) -> Vec<f64> {
-        let nodes: Vec<usize> = (0..self.nodes.len())
-            .filter(|&k| self.owned_nodes[k])
-            .collect();
-        let elements: Vec<usize> = (0..self.elements.len())
-            .filter(|&k| self.own_elements[k])
-            .collect();
-        let h = &state.history;
-        let carried = &state.carried;
-        let flags = [
-            !(carried.fields.is_empty() && carried.scalars.is_empty()),
-            !h.plastic_strain.is_empty(),
-            !h.freeze_state.is_empty(),
-            !contact.normal.is_empty(),
-            !temperature.is_empty(),
-        ];
-        let mut out = vec![nodes.len() as f64, elements.len() as f64];
-        out.extend(flags.map(|f| f64::from(u8::from(f))));
-        out.extend(carried.scalars.iter().map(|(_, x)| *x));
-        out.extend(nodes.iter().map(|&k| self.nodes[k] as f64));
-        out.extend(elements.iter().map(|&k| self.elements[k] as f64));
-        let mut node_values = |v: &[f64]| {
-            out.extend(nodes.iter().flat_map(|&k| &v[3 * k..3 * k + 3]));
+    /// The rows this process gives to a frame, in the whole mesh's order: its owned nodes
+    /// (or, if `per_element`, its own elements) as (row of the whole mesh, row of the part).
+    /// Every node and element is given by one process.
+    pub fn given_rows(&self, per_element: bool) -> Vec<(usize, usize)> {
+        let (items, mine) = match per_element {
+            true => (&self.elements, &self.own_elements),
+            false => (&self.nodes, &self.owned_nodes),
         };
-        node_values(&state.u);
-        node_values(&state.v);
-        for (_, field) in &carried.fields {
-            node_values(field);
-        }
-        if flags[3] {
-            node_values(&contact.normal);
-            node_values(&contact.friction);
-        }
-        if flags[4] {
-            out.extend(nodes.iter().map(|&k| temperature[k]));
-        }
-        for &k in &elements {
-            out.push(h.eigenstrain[k]);
-            if flags[1] {
-                out.extend(h.plastic_strain[k].iter());
-            }
-            if flags[2] {
-                out.push(h.freeze_state[k]);
-            }
-            out.extend(stress[k]);
-        }
-        out
+        (items.iter().enumerate())
+            .filter(|&(k, _)| mine[k])
+            .map(|(k, &i)| (i, k))
+            .collect()
     }
 
     /// The whole-mesh dof of each of the part's dofs (3 per node).
@@ -235,146 +190,9 @@ impl Part {
     }
 }
 
-/// A state put together from the processes' shares ([`Part::share_of`]): what the writing
-/// process of a distributed run writes.
-#[derive(Clone, Debug, Default)]
-pub struct StateShares {
-    /// The state on the whole mesh (time, step and proposed step length left as they are).
-    pub state: State,
-    /// Element stresses (Pa, Voigt).
-    pub stress: Vec<[f64; 6]>,
-    /// Contact forces (N, 3 per node; empty without contact).
-    pub contact: ContactForces,
-    /// Nodal temperatures (°C; empty without heat).
-    pub temperature: Vec<f64>,
-}
-
-impl StateShares {
-    /// The whole state, zero, of a mesh of `nodes` nodes and `elements` elements for shares
-    /// laid out as `share` (any process's), to [`StateShares::place`] the shares in, the time
-    /// scheme carrying the node fields and scalars `carried` names
-    /// ([`crate::sim::TimeIntegrator::carried_fields`] and `carried_scalars`); `None` if
-    /// `share` is cut short.
-    pub fn for_shares(
-        share: &[f64],
-        nodes: usize,
-        elements: usize,
-        carried: (&[&'static str], &[&'static str]),
-    ) -> Option<StateShares> {
-        let mut whole = StateShares::default();
-        let s = &mut whole.state;
-        let flags: Vec<bool> = share.get(2..7)?.iter().map(|&f| f != 0.0).collect();
-        let dofs = |on: bool| if on { vec![0.0; 3 * nodes] } else { Vec::new() };
-        let (carried_fields, carried_scalars) = if flags[0] {
-            carried
-        } else {
-            (&[][..], &[][..])
-        };
-        let scalars = share.get(7..7 + carried_scalars.len())?;
-        s.carried.scalars = carried_scalars
-            .iter()
-            .copied()
-            .zip(scalars.iter().copied())
-            .collect();
-        s.carried.fields = carried_fields
-            .iter()
-            .map(|&name| (name, dofs(true)))
-            .collect();
-        (s.u, s.v) = (dofs(true), dofs(true));
-        (whole.contact.normal, whole.contact.friction) = (dofs(flags[3]), dofs(flags[3]));
-        s.history.eigenstrain = vec![0.0; elements];
-        if flags[1] {
-            s.history.plastic_strain = vec![nalgebra::Matrix3::zeros(); elements];
-        }
-        if flags[2] {
-            s.history.freeze_state = vec![0.0; elements];
-        }
-        whole.stress = vec![[0.0; 6]; elements];
-        if flags[4] {
-            whole.temperature = vec![0.0; nodes];
-        }
-        Some(whole)
-    }
-
-    /// Puts one process's `share` in its place; `None` if it is cut short or does not fit.
-    pub fn place(&mut self, share: &[f64]) -> Option<()> {
-        let s = &mut self.state;
-        let mut at = share.iter().copied();
-        let (n, e) = (at.next()? as usize, at.next()? as usize);
-        let flags: Vec<bool> = share.get(2..7)?.iter().map(|&f| f != 0.0).collect();
-        let mut at = at.skip(5 + s.carried.scalars.len());
-        let node_ids: Vec<usize> = at.by_ref().take(n).map(|x| x as usize).collect();
-        let element_ids: Vec<usize> = at.by_ref().take(e).map(|x| x as usize).collect();
-        if node_ids.len() != n || element_ids.len() != e {
-            return None;
-        }
-        let mut place = |v: &mut Vec<f64>| {
-            for &i in &node_ids {
-                for a in 0..3 {
-                    *v.get_mut(3 * i + a)? = at.next()?;
-                }
-            }
-            Some(())
-        };
-        place(&mut s.u)?;
-        place(&mut s.v)?;
-        for (_, field) in &mut s.carried.fields {
-            place(field)?;
-        }
-        if flags[3] {
-            place(&mut self.contact.normal)?;
-            place(&mut self.contact.friction)?;
-        }
-        if flags[4] {
-            for &i in &node_ids {
-                *self.temperature.get_mut(i)? = at.next()?;
-            }
-        }
-        for &k in &element_ids {
-            *s.history.eigenstrain.get_mut(k)? = at.next()?;
-            if flags[1] {
-                for x in s.history.plastic_strain.get_mut(k)?.iter_mut() {
-                    *x = at.next()?;
-                }
-            }
-            if flags[2] {
-                *s.history.freeze_state.get_mut(k)? = at.next()?;
-            }
-            for x in self.stress.get_mut(k)? {
-                *x = at.next()?;
-            }
-        }
-        Some(())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::history::ElementHistory;
-    use crate::sim::SchemeState;
-
-    /// The whole state of a mesh of `nodes` nodes and `elements` elements put together from
-    /// every process's share, as the writing process does (`run::frame`), the time scheme
-    /// carrying the node fields and scalars `carried` names; `None` if a share is cut short.
-    fn whole_of(
-        shares: &[Vec<f64>],
-        nodes: usize,
-        elements: usize,
-        carried: (&[&'static str], &[&'static str]),
-    ) -> Option<StateShares> {
-        let mut whole = StateShares::for_shares(shares.first()?, nodes, elements, carried)?;
-        for share in shares {
-            whole.place(share)?;
-        }
-        Some(whole)
-    }
-
-    /// Node fields and a scalar a time scheme carries.
-    const CARRIED: (&[&str], &[&str]) = (
-        &["acceleration", "back_displacement", "back_velocity"],
-        &["back_dt"],
-    );
 
     #[test]
     fn a_part_holds_every_element_around_its_elements_nodes() {
@@ -412,72 +230,26 @@ mod tests {
     }
 
     #[test]
-    fn the_parts_shares_put_the_whole_state_back_together() {
+    fn every_node_and_element_is_given_to_a_frame_by_one_process() {
         let tets = [[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5], [6, 7, 8, 9]];
         let (element_part, owner) = ([0, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1, 1, 1]);
-        let value = |k: usize| (k as f64).sin();
-        let dofs = |offset: usize| (0..30).map(|d| value(d + offset)).collect::<Vec<f64>>();
-        let mut whole = State {
-            u: dofs(0),
-            v: dofs(100),
-            carried: SchemeState {
-                fields: vec![
-                    (CARRIED.0[0], dofs(200)),
-                    (CARRIED.0[1], dofs(300)),
-                    (CARRIED.0[2], dofs(400)),
-                ],
-                scalars: vec![(CARRIED.1[0], 0.5)],
-            },
-            ..State::default()
-        };
-        whole.history = ElementHistory {
-            eigenstrain: (0..4).map(|e| value(500 + e)).collect(),
-            plastic_strain: (0..4)
-                .map(|e| nalgebra::Matrix3::from_fn(|i, j| value(600 + 9 * e + 3 * i + j)))
-                .collect(),
-            freeze_state: (0..4).map(|e| value(700 + e)).collect(),
-        };
-        let stress: Vec<[f64; 6]> = (0..4)
-            .map(|e| std::array::from_fn(|k| value(800 + 6 * e + k)))
-            .collect();
-        let contact = ContactForces {
-            normal: dofs(900),
-            friction: dofs(1000),
-        };
-        let temperature: Vec<f64> = (0..10).map(|i| value(1100 + i)).collect();
-        let shares: Vec<Vec<f64>> = (0..2)
-            .map(|rank| {
-                let part = Part::new(&tets, (&element_part, &owner), rank, false);
-                let state = State {
-                    u: part.dofs_of(&whole.u),
-                    v: part.dofs_of(&whole.v),
-                    carried: SchemeState {
-                        fields: (whole.carried.fields.iter())
-                            .map(|(name, v)| (*name, part.dofs_of(v)))
-                            .collect(),
-                        scalars: whole.carried.scalars.clone(),
-                    },
-                    history: whole.history.inherit(&part.elements),
-                    ..State::default()
+        let parts = [0, 1].map(|rank| Part::new(&tets, (&element_part, &owner), rank, false));
+        for (per_element, count) in [(false, 10), (true, 4)] {
+            let mut given: Vec<usize> = Vec::new();
+            for part in &parts {
+                let rows = part.given_rows(per_element);
+                // In the whole mesh's order, each naming the part's row of the same item.
+                assert!(rows.windows(2).all(|w| w[0].0 < w[1].0));
+                let items = if per_element {
+                    &part.elements
+                } else {
+                    &part.nodes
                 };
-                let stress: Vec<_> = part.elements.iter().map(|&e| stress[e]).collect();
-                let contact = ContactForces {
-                    normal: part.dofs_of(&contact.normal),
-                    friction: part.dofs_of(&contact.friction),
-                };
-                let temperature = part.rows_of(&temperature, 1, false);
-                part.share_of(&state, &stress, (&contact, &temperature))
-            })
-            .collect();
-        let together = whole_of(&shares, 10, 4, CARRIED).unwrap();
-        assert_eq!(together.state, whole);
-        assert_eq!(together.stress, stress);
-        assert_eq!(together.contact.normal, contact.normal);
-        assert_eq!(together.contact.friction, contact.friction);
-        assert_eq!(together.temperature, temperature);
-        // A share cut short is refused, not read past its end.
-        let mut cut = shares.clone();
-        cut[1].pop();
-        assert!(whole_of(&cut, 10, 4, CARRIED).is_none());
+                assert!(rows.iter().all(|&(i, k)| items[k] == i));
+                given.extend(rows.iter().map(|&(i, _)| i));
+            }
+            given.sort_unstable();
+            assert_eq!(given, (0..count).collect::<Vec<_>>());
+        }
     }
 }

@@ -1,0 +1,293 @@
+//! Frames written in blocks of rows ([`OutputWriter::begin_frame`]): what the writing process
+//! of a distributed run does, so that it never holds a whole frame. Each dataset is created
+//! whole (chunked and compressed as a frame written at once) and its rows arrive in blocks of
+//! whole chunks, each chunk written once; the file is laid out as a frame written at once.
+
+use hdf5::{Dataset, Group};
+
+use super::hdf5_io::{chunk_rows, create_values, vlen_str, write_attr, write_rows, Hdf5Context};
+use super::writer::check_field_name;
+use super::xdmf::FrameRecord;
+use super::{invalid, FrameOptions, OutputError, OutputWriter, TENSORS};
+
+/// Chunks of a dataset written in one block: 16 chunks of 64 Ki values, 8 MiB of doubles.
+const BLOCK_CHUNKS: usize = 16;
+
+/// A frame's layout: what it holds, without its values.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameLayout {
+    /// Solver time step index.
+    pub step: u64,
+    /// Simulated time (s).
+    pub time: f64,
+    /// Scalar attributes besides `step` and `time` (see [`super::Frame::attributes`]).
+    pub attributes: Vec<(String, f64)>,
+    /// Nodes and elements of the mesh (the current topology's).
+    pub nodes: usize,
+    pub elements: usize,
+    /// Element fields besides the stress (name, columns).
+    pub element_fields: Vec<(String, usize)>,
+    /// Node fields besides positions and velocities (name, columns).
+    pub node_fields: Vec<(String, usize)>,
+}
+
+/// What one dataset of a frame written in blocks holds.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ColumnValues {
+    /// Positions X + u (m), 3 a node.
+    Positions,
+    /// Velocities (m/s), 3 a node.
+    Velocities,
+    /// Element stresses (Pa, Voigt order xx yy zz yz xz xy), 6 an element.
+    Stress,
+    /// A node or element field of the layout, by name.
+    Field(String),
+    /// A symmetric tensor — the stress, or a 6-column field by name — as 3 × 3 matrices, 9
+    /// values a row ([`super::voigt_to_matrix`]).
+    Matrices(String),
+}
+
+/// One dataset of a frame written in blocks: what it holds, its shape, and how many rows go
+/// in one block.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameColumn {
+    /// What the dataset holds.
+    pub values: ColumnValues,
+    /// Whether a row is a node's (else an element's).
+    pub per_node: bool,
+    /// Rows and columns of the dataset.
+    pub rows: usize,
+    pub cols: usize,
+    /// Rows of a block: whole chunks of the dataset, about 8 MiB of values (the last block
+    /// holds what is left).
+    pub block_rows: usize,
+    /// Its path inside the frame group, and whether it is stored in single precision and
+    /// carries a `center` attribute.
+    dataset: String,
+    single: bool,
+    center: Option<&'static str>,
+}
+
+/// The datasets of a frame laid out as `frame`, written with `options`, in the order they are
+/// written: positions, velocities, stress, the element and node fields, and with
+/// `options.tensor_matrices` the stress and every 6-column field as matrices. Every process
+/// of a distributed run computes the same list.
+pub fn frame_columns(frame: &FrameLayout, options: FrameOptions) -> Vec<FrameColumn> {
+    let (n, m) = (frame.nodes, frame.elements);
+    let column = |values, per_node, cols, dataset: String, center| {
+        let rows = if per_node { n } else { m };
+        let single = match &values {
+            ColumnValues::Matrices(_) => options.drawn_single,
+            _ => options.single(&dataset),
+        };
+        FrameColumn {
+            values,
+            per_node,
+            rows,
+            cols,
+            block_rows: chunk_rows(rows, cols)
+                .map_or(rows, |c| c * BLOCK_CHUNKS)
+                .max(1),
+            dataset,
+            single,
+            center,
+        }
+    };
+    let mut columns = vec![
+        column(ColumnValues::Positions, true, 3, "positions".into(), None),
+        column(ColumnValues::Velocities, true, 3, "velocities".into(), None),
+        column(ColumnValues::Stress, false, 6, "stress".into(), None),
+    ];
+    let fields = [
+        (&frame.element_fields, false, "Cell"),
+        (&frame.node_fields, true, "Node"),
+    ];
+    for (list, per_node, center) in fields {
+        for (name, cols) in list {
+            let values = ColumnValues::Field(name.clone());
+            columns.push(column(values, per_node, *cols, name.clone(), Some(center)));
+        }
+    }
+    if options.tensor_matrices {
+        let tensors = std::iter::once(("stress", false, "Cell")).chain(
+            (fields.iter())
+                .flat_map(|(list, per_node, center)| {
+                    list.iter()
+                        .map(move |(name, cols)| (name, cols, per_node, center))
+                })
+                .filter(|(_, &cols, _, _)| cols == 6)
+                .map(|(name, _, &per_node, &center)| (name.as_str(), per_node, center)),
+        );
+        for (name, per_node, center) in tensors {
+            let values = ColumnValues::Matrices(name.into());
+            let dataset = format!("{TENSORS}/{name}");
+            columns.push(column(values, per_node, 9, dataset, Some(center)));
+        }
+    }
+    columns
+}
+
+/// The frame being written in blocks.
+pub(super) struct OpenFrame {
+    name: String,
+    group: Group,
+    columns: Vec<FrameColumn>,
+    datasets: Vec<Dataset>,
+    /// Rows written so far, per dataset.
+    written: Vec<usize>,
+    record: FrameRecord,
+    /// What the frame adds to the file at most.
+    bytes: u64,
+}
+
+impl OutputWriter {
+    /// Begins a frame laid out as `frame` whose datasets' rows arrive in blocks
+    /// ([`write_rows`](Self::write_rows), in any order) and which
+    /// [`end_frame`](Self::end_frame) completes. The mesh is the current topology's: its
+    /// `rest_positions` and `tets` are linked as for a frame whose topology did not change.
+    /// Fields are written anew in every such frame (none is linked to the last frame's).
+    pub fn begin_frame(&mut self, frame: &FrameLayout) -> Result<(), OutputError> {
+        let path = self.location.clone();
+        if self.open.is_some() {
+            return Err(invalid(&path, "a frame written in blocks is already open"));
+        }
+        if (frame.nodes, frame.elements) != (self.n_nodes, self.n_elems) {
+            return Err(invalid(
+                &path,
+                format!(
+                    "frame step {}: {} nodes and {} elements, the mesh has {} and {}",
+                    frame.step, frame.nodes, frame.elements, self.n_nodes, self.n_elems
+                ),
+            ));
+        }
+        let mut seen = Vec::new();
+        for (list, kind) in [
+            (&frame.element_fields, "element"),
+            (&frame.node_fields, "node"),
+        ] {
+            for (name, cols) in list {
+                check_field_name(&path, kind, name, &mut seen)?;
+                if *cols == 0 {
+                    return Err(invalid(&path, format!("{kind} field {name:?}: no columns")));
+                }
+            }
+        }
+        self.reopen_if_cache_is_large()?;
+        let columns = frame_columns(frame, self.options);
+        let values: usize = columns.iter().map(|c| c.rows * c.cols).sum();
+        let bytes = 16_384 + 8 * values as u64;
+        self.check_room(bytes + super::writer::STATS_ROW_BYTES * self.pending_stats.len() as u64)?;
+        let name = super::writer::frame_name(self.next_frame);
+        let file = self.file()?.clone();
+        let attributes: Vec<(&str, f64)> = (frame.attributes.iter())
+            .map(|(k, v)| (k.as_str(), *v))
+            .collect();
+        let group = self.start_frame_group(&file, &name, (frame.step, frame.time), &attributes)?;
+        self.link_topology(&file, &group)?;
+        let datasets = create_datasets(&path, &group, &columns)?;
+        let record = FrameRecord::of_layout(
+            self.next_frame,
+            frame,
+            None,
+            self.options,
+            self.last_record(),
+        );
+        // The next frame written at once must not link to this one's fields by the last
+        // values kept (they are not kept for a frame written in blocks).
+        self.last_fields = None;
+        self.open = Some(OpenFrame {
+            name,
+            group,
+            written: vec![0; columns.len()],
+            columns,
+            datasets,
+            record,
+            bytes,
+        });
+        Ok(())
+    }
+
+    /// Writes `values`, whole rows of dataset `column` (an index into
+    /// [`frame_columns`]), into its rows from `first` on.
+    pub fn write_rows(
+        &mut self,
+        column: usize,
+        first: usize,
+        values: &[f64],
+    ) -> Result<(), OutputError> {
+        let path = &self.location;
+        let open = (self.open.as_mut()).ok_or_else(|| invalid(path, "no frame is open"))?;
+        let (Some(c), Some(ds)) = (open.columns.get(column), open.datasets.get(column)) else {
+            return Err(invalid(path, format!("no dataset {column} in the frame")));
+        };
+        let rows = values.len() / c.cols;
+        if !values.len().is_multiple_of(c.cols) || first + rows > c.rows {
+            return Err(invalid(
+                path,
+                format!(
+                    "{}: {} values from row {first} of {} rows × {} columns",
+                    c.dataset,
+                    values.len(),
+                    c.rows,
+                    c.cols
+                ),
+            ));
+        }
+        write_rows(path, ds, (first, c.cols), values, c.single)?;
+        open.written[column] += rows;
+        Ok(())
+    }
+
+    /// Completes the frame begun by [`begin_frame`](Self::begin_frame): an error, and no
+    /// frame, unless every row of every dataset was written.
+    pub fn end_frame(&mut self) -> Result<(), OutputError> {
+        let path = self.location.clone();
+        let open = (self.open.take()).ok_or_else(|| invalid(&path, "no frame is open"))?;
+        let short = (open.columns.iter().zip(&open.written)).find(|(c, &w)| w != c.rows);
+        if let Some((c, w)) = short {
+            return Err(invalid(
+                &path,
+                format!(
+                    "frame {}: {w} of the {} rows of {} written",
+                    open.name, c.rows, c.dataset
+                ),
+            ));
+        }
+        drop(open.datasets);
+        let file = self.file()?.clone();
+        self.frame_written(&file, (open.name, open.record, open.group), open.bytes)
+    }
+}
+
+/// Creates the datasets of `columns` in frame group `g` (the tensors in its group
+/// [`TENSORS`]), empty, with their `center` attributes.
+fn create_datasets(
+    path: &std::path::Path,
+    g: &Group,
+    columns: &[FrameColumn],
+) -> Result<Vec<Dataset>, OutputError> {
+    let mut tensors: Option<Group> = None;
+    let mut datasets = Vec::with_capacity(columns.len());
+    for c in columns {
+        let (parent, name) = match c.dataset.split_once('/') {
+            Some((_, name)) => {
+                if tensors.is_none() {
+                    let t = (g.create_group(TENSORS))
+                        .ctx(path, || format!("creating {}/{TENSORS}", g.name()))?;
+                    tensors = Some(t);
+                }
+                (tensors.as_ref().unwrap_or(g), name)
+            }
+            None => (g, c.dataset.as_str()),
+        };
+        let ds = create_values(path, parent, (name, c.rows, c.cols), c.single)?;
+        if let Some(center) = c.center {
+            write_attr(path, &ds, "center", &vlen_str(path, "center", center)?)?;
+        }
+        datasets.push(ds);
+    }
+    Ok(datasets)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,243 @@
+//! Tests of frames written in blocks: the same file as a frame written at once (datasets,
+//! types, chunks, filters, values, attributes, sidecar), and the refusal of incomplete or
+//! misplaced blocks.
+
+use std::path::Path;
+
+use hdf5::{File, Group};
+
+use super::super::test_support::{frame_data, hdf5_guard, header, FrameData};
+use super::super::{Field, Frame, FrameOptions, OutputWriter};
+use super::{frame_columns, ColumnValues, FrameLayout};
+
+/// A "mesh" large enough for every frame dataset to be chunked and compressed (at least
+/// 2 048 values): 3 000 nodes and elements, the tets' indices valid but not a real mesh.
+fn large_mesh() -> (Vec<[f64; 3]>, Vec<[usize; 4]>) {
+    let n = 3000;
+    let rest = (0..n)
+        .map(|i| [i as f64 / 7.0, (i % 13) as f64, 1.0 / (1.0 + i as f64)])
+        .collect();
+    let tets = (0..n)
+        .map(|e| [e, (e + 1) % n, (e + 2) % n, (e + 5) % n])
+        .collect();
+    (rest, tets)
+}
+
+/// The element and node fields of the test frame.
+fn fields(d: &FrameData) -> ([Field<'_>; 2], [Field<'_>; 1]) {
+    let field = |name, cols, data| Field { name, cols, data };
+    (
+        [
+            field("eigenstrain", 1, &d.eig[..]),
+            field("plastic_strain", 6, &d.plastic[..]),
+        ],
+        [field("temperature", 1, &d.temp[..])],
+    )
+}
+
+/// Writes frame `d` at once into a new file `path` with `options`.
+fn write_at_once(path: &Path, d: &FrameData, options: FrameOptions) {
+    let mut w = OutputWriter::create(path, &header(&d.rest, &d.tets)).unwrap();
+    w.set_frame_options(options);
+    let (ef, nf) = fields(d);
+    w.write_frame(&Frame {
+        step: 7,
+        time: 0.25,
+        positions: &d.pos,
+        velocities: &d.vel,
+        rest_positions: &d.rest,
+        tets: &d.tets,
+        topology_changed: false,
+        stress: &d.stress,
+        element_fields: &ef,
+        node_fields: &nf,
+        row_fields: &[],
+        attributes: &[("restart_point", 1.0), ("next_dt", 1e-3)],
+        cracks: None,
+    })
+    .unwrap();
+    w.finish().unwrap();
+}
+
+/// The layout of the test frame `d`.
+fn layout(d: &FrameData) -> FrameLayout {
+    let (ef, nf) = fields(d);
+    let names = |f: &[Field]| f.iter().map(|f| (f.name.to_string(), f.cols)).collect();
+    FrameLayout {
+        step: 7,
+        time: 0.25,
+        attributes: vec![("restart_point".into(), 1.0), ("next_dt".into(), 1e-3)],
+        nodes: d.rest.len(),
+        elements: d.tets.len(),
+        element_fields: names(&ef),
+        node_fields: names(&nf),
+    }
+}
+
+/// The values of dataset `column` of the test frame `d`.
+fn values(d: &FrameData, column: &ColumnValues) -> Vec<f64> {
+    let (ef, nf) = fields(d);
+    let field = |name: &str| ef.iter().chain(&nf).find(|f| f.name == name).unwrap().data;
+    match column {
+        ColumnValues::Positions => d.pos.as_flattened().to_vec(),
+        ColumnValues::Velocities => d.vel.as_flattened().to_vec(),
+        ColumnValues::Stress => d.stress.as_flattened().to_vec(),
+        ColumnValues::Field(name) => field(name).to_vec(),
+        ColumnValues::Matrices(name) => {
+            let voigt = match name.as_str() {
+                "stress" => d.stress.as_flattened(),
+                name => field(name),
+            };
+            voigt
+                .chunks_exact(6)
+                .flat_map(super::super::voigt_to_matrix)
+                .collect()
+        }
+    }
+}
+
+/// Writes frame `d` in blocks into a new file `path` with `options`: each dataset in two
+/// blocks, the second half first.
+fn write_in_blocks(path: &Path, d: &FrameData, options: FrameOptions) {
+    let mut w = OutputWriter::create(path, &header(&d.rest, &d.tets)).unwrap();
+    w.set_frame_options(options);
+    let layout = layout(d);
+    w.begin_frame(&layout).unwrap();
+    for (k, c) in frame_columns(&layout, options).iter().enumerate() {
+        let v = values(d, &c.values);
+        let half = c.rows / 2;
+        w.write_rows(k, half, &v[half * c.cols..]).unwrap();
+        w.write_rows(k, 0, &v[..half * c.cols]).unwrap();
+    }
+    w.end_frame().unwrap();
+    w.finish().unwrap();
+}
+
+/// Every dataset under group `g`, by path from it.
+fn datasets(g: &Group, prefix: &str) -> Vec<String> {
+    let mut all = Vec::new();
+    for name in g.member_names().unwrap() {
+        let path = format!("{prefix}{name}");
+        match g.group(&name) {
+            Ok(sub) => all.extend(datasets(&sub, &format!("{path}/"))),
+            Err(_) => all.push(path),
+        }
+    }
+    all
+}
+
+/// Asserts that frame 0 of the files `a` and `b` holds the same datasets — type, shape,
+/// chunks, filters, values and `center` attribute — and attributes.
+fn assert_same_frame(a: &File, b: &File) {
+    let (ga, gb) = (
+        a.group("frames/000000").unwrap(),
+        b.group("frames/000000").unwrap(),
+    );
+    let names = datasets(&ga, "");
+    assert_eq!(names, datasets(&gb, ""));
+    assert!(names.contains(&"tensors/plastic_strain".to_string()));
+    for name in &names {
+        let (x, y) = (ga.dataset(name).unwrap(), gb.dataset(name).unwrap());
+        assert_eq!(
+            x.dtype().unwrap().to_descriptor().unwrap(),
+            y.dtype().unwrap().to_descriptor().unwrap(),
+            "{name}"
+        );
+        assert_eq!(x.shape(), y.shape(), "{name}");
+        assert_eq!(x.chunk(), y.chunk(), "{name}");
+        assert_eq!(x.filters(), y.filters(), "{name}");
+        if name != "tets" {
+            assert_eq!(
+                x.read_raw::<f64>().unwrap(),
+                y.read_raw::<f64>().unwrap(),
+                "{name}"
+            );
+        }
+        let center = |ds: &hdf5::Dataset| {
+            ds.attr("center")
+                .ok()
+                .map(|c| super::super::hdf5_io::read_string(&c).unwrap())
+        };
+        assert_eq!(center(&x), center(&y), "{name}");
+    }
+    let mut attrs = ga.attr_names().unwrap();
+    attrs.sort();
+    let mut attrs_b = gb.attr_names().unwrap();
+    attrs_b.sort();
+    assert_eq!(attrs, attrs_b);
+    for name in ["step", "complete"] {
+        assert_eq!(
+            ga.attr(name).unwrap().read_raw::<u64>().unwrap(),
+            gb.attr(name).unwrap().read_raw::<u64>().unwrap()
+        );
+    }
+    for name in ["time", "restart_point", "next_dt"] {
+        assert_eq!(
+            ga.attr(name).unwrap().read_raw::<f64>().unwrap(),
+            gb.attr(name).unwrap().read_raw::<f64>().unwrap()
+        );
+    }
+}
+
+#[test]
+fn a_frame_written_in_blocks_is_the_frame_written_at_once() {
+    let _guard = hdf5_guard();
+    let (rest, tets) = large_mesh();
+    let d = frame_data(3, &rest, &tets);
+    let drawn_single = FrameOptions {
+        drawn_single: true,
+        ..FrameOptions::default()
+    };
+    for options in [FrameOptions::default(), drawn_single] {
+        let (da, db) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+        let (pa, pb) = (da.path().join("run.h5"), db.path().join("run.h5"));
+        write_at_once(&pa, &d, options);
+        write_in_blocks(&pb, &d, options);
+        assert_same_frame(&File::open(&pa).unwrap(), &File::open(&pb).unwrap());
+        // The sidecars describe the same datasets.
+        let sidecar = |p: &Path| std::fs::read_to_string(p.with_extension("xdmf")).unwrap();
+        assert_eq!(sidecar(&pa), sidecar(&pb));
+    }
+}
+
+#[test]
+fn a_frame_missing_rows_or_given_misplaced_rows_is_refused() {
+    let _guard = hdf5_guard();
+    let (rest, tets) = large_mesh();
+    let d = frame_data(1, &rest, &tets);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("run.h5");
+    let mut w = OutputWriter::create(&path, &header(&d.rest, &d.tets)).unwrap();
+    let layout = layout(&d);
+    // Another mesh's counts.
+    let other = FrameLayout {
+        nodes: 10,
+        ..layout.clone()
+    };
+    assert!(w.begin_frame(&other).is_err());
+    assert!(w.write_rows(0, 0, &[0.0; 3]).is_err(), "no frame open");
+    w.begin_frame(&layout).unwrap();
+    assert!(w.begin_frame(&layout).is_err(), "a frame is open");
+    let columns = frame_columns(&layout, FrameOptions::default());
+    // Past the last row, a partial row, an unknown dataset.
+    assert!(w.write_rows(0, 2999, &[0.0; 6]).is_err());
+    assert!(w.write_rows(0, 0, &[0.0; 4]).is_err());
+    assert!(w.write_rows(columns.len(), 0, &[0.0; 3]).is_err());
+    for (k, c) in columns.iter().enumerate() {
+        let v = values(&d, &c.values);
+        // The positions' last row never written.
+        let rows = if k == 0 { c.rows - 1 } else { c.rows };
+        w.write_rows(k, 0, &v[..rows * c.cols]).unwrap();
+    }
+    let e = w.end_frame().unwrap_err().to_string();
+    assert!(e.contains("2999 of the 3000 rows of positions"), "{e}");
+    assert_eq!(w.frame_count(), 0);
+    w.finish().unwrap();
+    let f = File::open(&path).unwrap();
+    assert!(f
+        .group("frames")
+        .unwrap()
+        .member_names()
+        .unwrap()
+        .is_empty());
+}
