@@ -125,6 +125,45 @@ fn field_difference(a: &Path, b: &Path, name: &str) -> (f64, f64) {
     (diff, scale)
 }
 
+/// Every dataset of every frame of the file at `path`: its path, number type and shape.
+fn frame_layout(path: &Path) -> Vec<(String, String, Vec<usize>)> {
+    fn walk(g: &hdf5::Group, prefix: &str, out: &mut Vec<(String, String, Vec<usize>)>) {
+        let mut names = g.member_names().unwrap();
+        names.sort();
+        for name in names {
+            let path = format!("{prefix}/{name}");
+            match g.group(&name) {
+                Ok(sub) => walk(&sub, &path, out),
+                Err(_) => {
+                    let ds = g.dataset(&name).unwrap();
+                    let kind = format!("{:?}", ds.dtype().unwrap().to_descriptor().unwrap());
+                    out.push((path, kind, ds.shape()));
+                }
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(
+        &hdf5::File::open(path).unwrap().group("frames").unwrap(),
+        "",
+        &mut out,
+    );
+    out
+}
+
+/// The file of a distributed run is laid out as one process's: the same datasets in every
+/// frame, with the same types and shapes, and sidecars describing the same grids.
+fn assert_same_layout(one: &Path, two: &Path) {
+    assert_eq!(frame_layout(one), frame_layout(two));
+    let sidecar = |p: &Path| {
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        std::fs::read_to_string(p.with_extension("xdmf"))
+            .unwrap()
+            .replace(&name, "RUN.h5")
+    };
+    assert_eq!(sidecar(one), sidecar(two));
+}
+
 /// The scene's node count and the nodes each process held, from a distributed run's report.
 fn held_nodes(stderr: &str) -> (u64, Vec<u64>) {
     let number_before = |text: &str, unit: &str| -> Option<u64> {
@@ -211,6 +250,7 @@ fn two_processes_match_one(path: &Path, extra: &[&str], parts: bool) {
         "{name}: {velocity:e}, {stress:e}"
     );
     assert_eq!(stat(one, "elements"), stat(two, "elements"));
+    assert_same_layout(one, two);
     // The same steps and Newton iterations as one process — except where a step starts at
     // equilibrium to round-off (a settled cantilever): whether its residual is over the
     // round-off floor, one iteration or none, is then decided by the last bits.
@@ -404,6 +444,7 @@ fn heat_on_two_matches_one(path: &Path, extra: &[&str]) {
     // temperature error of ~1e-10 K), CG at the relative residual 1e-12; measured ≤ 2.1e-11 K.
     assert!(temperature <= 1e-10, "{name}: {temperature:e} K");
     assert!(displacement <= 1e-8, "{name}: {displacement:e}");
+    assert_same_layout(one, two);
     for column in [
         "heat_newton_iterations",
         "heat_passes",

@@ -7,7 +7,9 @@
 //! stays as on one thread: the same frames and `/stats` rows in the same order, the same
 //! commits, and on an error or a dropped writer, the frames already handed over are written and
 //! committed first (what the writer's own drop does). A writer error reaches the run at its
-//! next frame, stats batch or `finish`.
+//! next frame, stats batch or `finish`. A frame written in blocks ([`OutputWriter::begin_frame`])
+//! is handed over block by block, each at most 8 MiB of values, so the queue then holds at
+//! most its length in blocks.
 
 use std::path::PathBuf;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
