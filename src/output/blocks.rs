@@ -6,9 +6,8 @@
 use hdf5::{Dataset, Group};
 
 use super::hdf5_io::{chunk_rows, create_values, vlen_str, write_attr, write_rows, Hdf5Context};
-use super::writer::check_field_name;
 use super::xdmf::FrameRecord;
-use super::{invalid, FrameOptions, OutputError, OutputWriter, TENSORS};
+use super::{check_field_name, invalid, FrameOptions, OutputError, OutputWriter, TENSORS};
 
 /// Chunks of a dataset written in one block: 16 chunks of 64 Ki values, 8 MiB of doubles.
 const BLOCK_CHUNKS: usize = 16;
@@ -172,13 +171,10 @@ impl OutputWriter {
                 }
             }
         }
-        self.reopen_if_cache_is_large()?;
         let columns = frame_columns(frame, self.options);
         let values: usize = columns.iter().map(|c| c.rows * c.cols).sum();
         let bytes = 16_384 + 8 * values as u64;
-        self.check_room(bytes + super::writer::STATS_ROW_BYTES * self.pending_stats.len() as u64)?;
-        let name = super::writer::frame_name(self.next_frame);
-        let file = self.file()?.clone();
+        let (file, name) = self.prepare_frame(bytes)?;
         let attributes: Vec<(&str, f64)> = (frame.attributes.iter())
             .map(|(k, v)| (k.as_str(), *v))
             .collect();

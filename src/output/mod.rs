@@ -119,6 +119,30 @@ const RESERVED_FRAME_NAMES: [&str; 5] = [
 /// Groups inside a frame group: the crack surface and the symmetric tensors as 3 × 3 matrices.
 const FRAME_GROUPS: [&str; 2] = ["cracks", "tensors"];
 
+/// Fails unless `name` may name a field of a frame (of `kind`: "node", "element" or "row")
+/// and is not among the names `seen` so far, to which it is added.
+fn check_field_name<'a>(
+    path: &Path,
+    kind: &str,
+    name: &'a str,
+    seen: &mut Vec<&'a str>,
+) -> Result<(), OutputError> {
+    if name.is_empty()
+        || name == "."
+        || name.contains('/')
+        || name.contains('\0')
+        || RESERVED_FRAME_NAMES.contains(&name)
+        || FRAME_GROUPS.contains(&name)
+    {
+        return Err(invalid(path, format!("invalid {kind} field name {name:?}")));
+    }
+    if seen.contains(&name) {
+        return Err(invalid(path, format!("duplicate field name {name:?}")));
+    }
+    seen.push(name);
+    Ok(())
+}
+
 /// The group of a frame holding each symmetric tensor as 3 × 3 matrices.
 const TENSORS: &str = "tensors";
 

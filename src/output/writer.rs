@@ -12,8 +12,8 @@ use super::hdf5_io::{
 use super::ownership::{check_target, partial_path, remove_stale_partials, take_place, RunLock};
 use super::xdmf::{write_sidecars, FrameRecord};
 use super::{
-    corrupt, invalid, voigt_to_matrix, Field, Frame, FrameOptions, OutputError, RunHeader,
-    StepStats, FORMAT_VERSION, FRAME_GROUPS, RESERVED_FRAME_NAMES, TENSORS,
+    check_field_name, corrupt, invalid, voigt_to_matrix, Field, Frame, FrameOptions, OutputError,
+    RunHeader, StepStats, FORMAT_VERSION, TENSORS,
 };
 
 /// Rows appended to `/stats` per chunk; 4096 rows × 8 B = 32 KiB chunks keep
@@ -97,7 +97,7 @@ pub(super) const STATS_COLUMNS: [(&str, StatsColumn); 40] = [
 
 /// Group name of frame `index`: at least 6 digits so that names sort in
 /// frame order in tools that list members alphabetically (h5ls, HDFView).
-pub(super) fn frame_name(index: usize) -> String {
+fn frame_name(index: usize) -> String {
     format!("{index:06}")
 }
 
@@ -229,7 +229,7 @@ fn metadata_cache_bytes(file: &File) -> usize {
 }
 
 /// Bytes one `/stats` row takes (34 columns of 8 bytes at most).
-pub(super) const STATS_ROW_BYTES: u64 = 8 * STATS_COLUMNS.len() as u64;
+const STATS_ROW_BYTES: u64 = 8 * STATS_COLUMNS.len() as u64;
 
 /// Room kept free beyond the frames for a commit's metadata and the XDMF sidecars (bytes);
 /// [`OutputWriter::check_room`] adds 2 % of the file for the metadata that grows with it.
@@ -431,11 +431,8 @@ impl OutputWriter {
         if self.open.is_some() {
             return Err(invalid(&self.location, "a frame written in blocks is open"));
         }
-        self.reopen_if_cache_is_large()?;
         let bytes = frame_bytes(frame);
-        self.check_room(bytes + STATS_ROW_BYTES * self.pending_stats.len() as u64)?;
-        let name = frame_name(self.next_frame);
-        let file = self.file()?.clone();
+        let (file, name) = self.prepare_frame(bytes)?;
         // A group that fails half-written is simply dropped: nothing links to it.
         let g = self.start_frame_group(&file, &name, (frame.step, frame.time), frame.attributes)?;
         self.write_frame_group(frame, &file, &g, &name)?;
@@ -447,6 +444,15 @@ impl OutputWriter {
             self.n_elems = frame.tets.len();
         }
         self.frame_written(&file, (name, record, g), bytes)
+    }
+
+    /// Makes ready for a frame of at most `bytes`: reopens the file if its metadata cache is
+    /// large, checks there is room for the frame and the pending `/stats` rows; the file and
+    /// the frame's name.
+    pub(super) fn prepare_frame(&mut self, bytes: u64) -> Result<(File, String), OutputError> {
+        self.reopen_if_cache_is_large()?;
+        self.check_room(bytes + STATS_ROW_BYTES * self.pending_stats.len() as u64)?;
+        Ok((self.file()?.clone(), frame_name(self.next_frame)))
     }
 
     /// The sidecar record of the last frame written, committed or not.
@@ -748,7 +754,7 @@ impl OutputWriter {
     /// otherwise grow the run's memory with every frame. Reopening between commits writes
     /// nothing the last commit did not (but `/stats` rows a long stretch without frames had
     /// to write early).
-    pub(super) fn reopen_if_cache_is_large(&mut self) -> Result<(), OutputError> {
+    fn reopen_if_cache_is_large(&mut self) -> Result<(), OutputError> {
         let Some(file) = &self.file else {
             return Ok(());
         };
@@ -774,7 +780,7 @@ impl OutputWriter {
     /// limit) leaves room for `size` more bytes, the frames not yet committed and a reserve
     /// for the commit's metadata and the sidecars: a frame that does not fit is not begun, so
     /// a full disk never interrupts a write and the committed frames stay readable.
-    pub(super) fn check_room(&self, size: u64) -> Result<(), OutputError> {
+    fn check_room(&self, size: u64) -> Result<(), OutputError> {
         let written = std::fs::metadata(&self.location).map_or(0, |m| m.len());
         let needed = size + self.uncommitted_bytes + COMMIT_RESERVE + written / 50;
         let available = available_bytes(&self.location, written);
@@ -884,30 +890,6 @@ pub(super) fn create_stats_column(
         .chunk(STATS_CHUNK_ROWS)
         .create(name)
         .ctx(path, || format!("creating /stats/{name}"))
-}
-
-/// Fails unless `name` may name a field of a frame (of `kind`: "node", "element" or "row")
-/// and is not among the names `seen` so far, to which it is added.
-pub(super) fn check_field_name<'a>(
-    path: &Path,
-    kind: &str,
-    name: &'a str,
-    seen: &mut Vec<&'a str>,
-) -> Result<(), OutputError> {
-    if name.is_empty()
-        || name == "."
-        || name.contains('/')
-        || name.contains('\0')
-        || RESERVED_FRAME_NAMES.contains(&name)
-        || FRAME_GROUPS.contains(&name)
-    {
-        return Err(invalid(path, format!("invalid {kind} field name {name:?}")));
-    }
-    if seen.contains(&name) {
-        return Err(invalid(path, format!("duplicate field name {name:?}")));
-    }
-    seen.push(name);
-    Ok(())
 }
 
 /// Writes the symmetric tensors of `frame` (the stress and every 6-column field) again as
