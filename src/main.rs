@@ -848,7 +848,9 @@ fn run_command(
     let start = Instant::now();
     let mut last_log = Instant::now();
     let mut eta = Eta::new();
-    let summary = run_on(&scene, options, processes, &interrupt, |p: &Progress| {
+    // The scene's warnings are said again after the run, which lets go of the scene.
+    let warnings = scene.warnings.clone();
+    let summary = run_on(scene, options, processes, &interrupt, |p: &Progress| {
         let left = eta.update(start.elapsed().as_secs_f64(), p.time, p.end_time);
         let left = left.map_or_else(|| "…".to_string(), format_duration);
         if bar_shown {
@@ -898,7 +900,7 @@ fn run_command(
     for line in summary.outcome.lines() {
         eprintln!("  {line}");
     }
-    for warning in scene.warnings.iter().chain(&summary.outcome.warnings) {
+    for warning in warnings.iter().chain(&summary.outcome.warnings) {
         eprintln!("warning: {warning}");
     }
     if summary.interrupted {

@@ -20,10 +20,10 @@ use crate::sim::{SimError, Simulation, State};
 pub(super) fn emit_frame(
     writer: Option<&mut BackgroundWriter>,
     (sim, fracture): (&Simulation, Option<&Fracture>),
-    shared: Option<(&dyn Processes, &Part, &TetMesh)>,
+    shared: Option<(&dyn Processes, &Part, (usize, usize))>,
     (flags, options): (FrameFlags, FrameOptions),
 ) -> Result<(), RunError> {
-    let Some((processes, part, mesh)) = shared else {
+    let Some((processes, part, counts)) = shared else {
         if let Some(writer) = writer {
             write_frame(
                 writer,
@@ -34,7 +34,7 @@ pub(super) fn emit_frame(
         }
         return Ok(());
     };
-    write_in_blocks(writer, sim, (processes, part, mesh), flags, options)
+    write_in_blocks(writer, sim, (processes, part, counts), flags, options)
 }
 
 /// Writes the state of `sim`, whose mesh is this process's part of `mesh`, as a frame on the
@@ -46,7 +46,7 @@ pub(super) fn emit_frame(
 fn write_in_blocks(
     mut writer: Option<&mut BackgroundWriter>,
     sim: &Simulation,
-    (processes, part, mesh): (&dyn Processes, &Part, &TetMesh),
+    (processes, part, (nodes, elements)): (&dyn Processes, &Part, (usize, usize)),
     flags: FrameFlags,
     options: FrameOptions,
 ) -> Result<(), RunError> {
@@ -66,8 +66,8 @@ fn write_in_blocks(
         attributes: (frame_attributes(&sim.state, flags).into_iter())
             .map(|(name, value)| (name.to_string(), value))
             .collect(),
-        nodes: mesh.num_nodes(),
-        elements: mesh.num_tets(),
+        nodes,
+        elements,
         element_fields: names(&element_fields),
         node_fields: names(&node_fields),
     };

@@ -7,9 +7,9 @@ mod restore;
 pub use outcome::{FractureOutcome, Outcome};
 
 use crate::fracture::{Fracture, FractureReport};
-use crate::mesh::TetMesh;
 use crate::output::{
-    BackgroundWriter, ObstacleMesh, OutputError, OutputWriter, ResumeFrame, RunHeader, StepStats,
+    BackgroundWriter, FrameOptions, ObstacleMesh, OutputError, OutputWriter, ResumeFrame,
+    RunHeader, StepStats,
 };
 use crate::physics::contact::Shape;
 use crate::physics::Model;
@@ -137,18 +137,20 @@ pub fn run(
     interrupt: &AtomicBool,
     progress: impl FnMut(&Progress),
 ) -> Result<RunSummary, RunError> {
-    run_on(scene, options, None, interrupt, progress)
+    run_on(scene.clone(), options, None, interrupt, progress)
 }
 
 /// [`run`], shared among `processes` if given; resuming, the writing process reads the frame
-/// and gives it to the others.
+/// and gives it to the others. The scene (its whole model) is let go once the run is set up:
+/// the simulation holds what it needs (in a distributed run, this process's part).
 pub fn run_on(
-    scene: &Scene,
+    whole: Scene,
     options: &RunOptions,
     processes: Option<&dyn Processes>,
     interrupt: &AtomicBool,
     progress: impl FnMut(&Progress),
 ) -> Result<RunSummary, RunError> {
+    let scene = &whole;
     let (settings, end_time) = checked_times(scene, options)?;
     let output = options
         .output
@@ -183,17 +185,19 @@ pub fn run_on(
     } else {
         Some(new_writer(scene, options, &output)?)
     };
+    let counts = (scene.model.mesh.num_nodes(), scene.model.mesh.num_tets());
     let mut run = Run {
-        scene,
+        frames: (scene.frame_options, scene.output_every, scene.restart_every),
         settings,
         end_time,
         processes,
-        shared: shared.map(|(p, part)| (p, part, &scene.model.mesh)),
+        shared: shared.map(|(p, part)| (p, part, counts)),
         sim,
         fracture,
         writer: writer.map(BackgroundWriter::start),
         output,
     };
+    drop(whole);
     if !options.resume {
         run.emit_frame(FrameFlags {
             topology_changed: true,
@@ -336,14 +340,15 @@ fn new_writer(
 
 /// A run set up: its simulation, fracture and output, stepped to the end time.
 struct Run<'a> {
-    scene: &'a Scene,
+    /// What the frames store, and every how many steps frames and restart points come.
+    frames: (FrameOptions, u64, u64),
     settings: StepSettings,
     /// End time (s).
     end_time: f64,
     processes: Option<&'a dyn Processes>,
-    /// The processes, this one's part and the whole mesh, where the parts are not the whole
-    /// mesh.
-    shared: Option<(&'a dyn Processes, &'a Part, &'a TetMesh)>,
+    /// The processes, this one's part and the whole mesh's node and element counts, where
+    /// the parts are not the whole mesh.
+    shared: Option<(&'a dyn Processes, &'a Part, (usize, usize))>,
     sim: Simulation,
     fracture: Option<Fracture>,
     /// The output (on the writing process).
@@ -355,7 +360,7 @@ impl Run<'_> {
     /// Writes the current state as a frame (gathered onto the writing process).
     fn emit_frame(&mut self, flags: FrameFlags) -> Result<(), RunError> {
         let sim_and_fracture = (&self.sim, self.fracture.as_ref());
-        let options = self.scene.frame_options;
+        let options = self.frames.0;
         emit_frame(
             self.writer.as_mut(),
             sim_and_fracture,
@@ -422,7 +427,7 @@ impl Run<'_> {
             if let Some(writer) = &mut self.writer {
                 // A process's part of a distributed run holds only some of the elements.
                 let elements = match self.shared {
-                    Some(_) => self.scene.model.mesh.num_tets(),
+                    Some((_, _, (_, elements))) => elements,
                     None => self.sim.model.mesh.num_tets(),
                 };
                 let fracture = self.fracture.as_ref();
@@ -478,7 +483,7 @@ impl Run<'_> {
     /// The length of the interval between frames (s): `output_every` steps of the scene's
     /// dt. Adaptive steps end on the frame times.
     fn frame_interval(&self) -> f64 {
-        self.scene.output_every as f64 * self.settings.dt
+        self.frames.1 as f64 * self.settings.dt
     }
 
     /// One step and fracture's splits after it; whether a frame is due after it. With
@@ -525,8 +530,8 @@ impl Run<'_> {
             None => {
                 let step = sim.state.step;
                 FrameDue {
-                    restart: step.is_multiple_of(self.scene.restart_every),
-                    frame: step.is_multiple_of(self.scene.output_every) || step == *total_steps,
+                    restart: step.is_multiple_of(self.frames.2),
+                    frame: step.is_multiple_of(self.frames.1) || step == *total_steps,
                 }
             }
         };
