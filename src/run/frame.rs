@@ -37,7 +37,8 @@ pub(super) fn emit_frame(
     write_in_blocks(writer, sim, (processes, part, counts), flags, options)
 }
 
-/// Writes the state of `sim`, whose mesh is this process's part of `mesh`, as a frame on the
+/// Writes the state of `sim`, whose mesh is this process's `part` of a mesh of `nodes` nodes
+/// and `elements` elements, as a frame on the
 /// writing process (`writer`) of `processes`, in blocks of rows: every process computes its
 /// part's fields and, block by block, gives the rows of its owned nodes and own elements to
 /// the writing process, which places them in the block and hands the block to its writer.
@@ -152,6 +153,7 @@ impl BlockRows {
     /// Places one process's rows: their numbers in the dataset, then their values.
     fn place(&mut self, given: &[f64]) {
         let count = given.len() / (1 + self.cols);
+        self.wrong |= given.len() != count * (1 + self.cols);
         let (numbers, values) = given.split_at(count);
         for (&number, row) in numbers.iter().zip(values.chunks_exact(self.cols)) {
             let r = (number as usize).wrapping_sub(self.first);
@@ -433,4 +435,33 @@ fn write_frame(
         attributes: &attributes,
         cracks: cracks.as_ref(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::BlockRows;
+
+    #[test]
+    fn a_block_is_put_together_from_the_processes_rows_and_refused_if_not_whole() {
+        // Rows 10..14 of a 2-column dataset, given by two processes (row numbers, then values).
+        let first = [10.0, 12.0, 1.0, 2.0, 5.0, 6.0];
+        let second = [11.0, 13.0, 3.0, 4.0, 7.0, 8.0];
+        let mut block = BlockRows::new(10, 14, 2, true);
+        block.place(&first);
+        block.place(&second);
+        assert_eq!(
+            block.take(),
+            Some(vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0])
+        );
+        // A row missing, a row given twice, a row outside the block, a share cut short.
+        let refused = |shares: &[&[f64]]| {
+            let mut block = BlockRows::new(10, 14, 2, true);
+            shares.iter().for_each(|s| block.place(s));
+            block.take().is_none()
+        };
+        assert!(refused(&[&first]));
+        assert!(refused(&[&first, &second, &[11.0, 0.0, 0.0]]));
+        assert!(refused(&[&first, &second, &[14.0, 0.0, 0.0]]));
+        assert!(refused(&[&first, &second[..5]]));
+    }
 }
