@@ -42,7 +42,7 @@ pub enum ColumnValues {
     /// A node or element field of the layout, by name.
     Field(String),
     /// A symmetric tensor — the stress, or a 6-column field by name — as 3 × 3 matrices, 9
-    /// values a row ([`super::voigt_to_matrix`]).
+    /// values a row ([`super::voigt_to_matrices`]).
     Matrices(String),
 }
 

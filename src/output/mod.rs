@@ -196,10 +196,13 @@ impl FrameOptions {
     }
 }
 
-/// A symmetric tensor in Voigt order xx yy zz yz xz xy as a 3 × 3 matrix, row-major:
-/// xx xy xz, yx yy yz, zx zy zz.
-pub fn voigt_to_matrix(v: &[f64]) -> [f64; 9] {
-    [v[0], v[5], v[4], v[5], v[1], v[3], v[4], v[3], v[2]]
+/// Symmetric tensors in Voigt order xx yy zz yz xz xy, 6 values each, as 3 × 3 matrices,
+/// row-major (xx xy xz, yx yy yz, zx zy zz), 9 values each: the layout VTK's XDMF readers
+/// read as a tensor.
+pub fn voigt_to_matrices(voigt: &[f64]) -> Vec<f64> {
+    (voigt.chunks_exact(6))
+        .flat_map(|v| [v[0], v[5], v[4], v[5], v[1], v[3], v[4], v[3], v[2]])
+        .collect()
 }
 
 /// One per-element or per-node field stored in a frame, row-major (rows × cols).

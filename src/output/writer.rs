@@ -12,7 +12,7 @@ use super::hdf5_io::{
 use super::ownership::{check_target, partial_path, remove_stale_partials, take_place, RunLock};
 use super::xdmf::{write_sidecars, FrameRecord};
 use super::{
-    check_field_name, corrupt, invalid, voigt_to_matrix, Field, Frame, FrameOptions, OutputError,
+    check_field_name, corrupt, invalid, voigt_to_matrices, Field, Frame, FrameOptions, OutputError,
     RunHeader, StepStats, FORMAT_VERSION, TENSORS,
 };
 
@@ -914,7 +914,7 @@ fn write_tensor_matrices(
             .map(|(f, center)| (f.name, center, f.data)),
     );
     for (field, center, data) in voigt {
-        let matrices: Vec<f64> = data.chunks_exact(6).flat_map(voigt_to_matrix).collect();
+        let matrices = voigt_to_matrices(data);
         let ds = write_values(
             path,
             &tensors,

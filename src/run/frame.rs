@@ -6,7 +6,7 @@ use crate::fem;
 use crate::fracture::Fracture;
 use crate::mesh::TetMesh;
 use crate::output::{
-    frame_columns, voigt_to_matrix, BackgroundWriter, ColumnValues, Field, Frame, FrameLayout,
+    frame_columns, voigt_to_matrices, BackgroundWriter, ColumnValues, Field, Frame, FrameLayout,
     FrameOptions, OutputError,
 };
 use crate::physics::contact::ContactForces;
@@ -195,7 +195,7 @@ fn column_values<'a>(
                 "stress" => source.stress.as_flattened(),
                 name => field(name),
             };
-            Cow::Owned(voigt.chunks_exact(6).flat_map(voigt_to_matrix).collect())
+            Cow::Owned(voigt_to_matrices(voigt))
         }
     }
 }

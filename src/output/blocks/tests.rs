@@ -88,10 +88,7 @@ fn values(d: &FrameData, column: &ColumnValues) -> Vec<f64> {
                 "stress" => d.stress.as_flattened(),
                 name => field(name),
             };
-            voigt
-                .chunks_exact(6)
-                .flat_map(super::super::voigt_to_matrix)
-                .collect()
+            super::super::voigt_to_matrices(voigt)
         }
     }
 }
