@@ -497,7 +497,7 @@ fn a_cracks_copies_keep_their_gap_when_its_normal_turns() {
     assert_eq!(normals.len(), 9);
     let (slid, pressed) = (5.7e-5, 1e-6);
     let frames = ice.crack_sides().frames(rest, &u, &normals, &[]);
-    let candidates = ice.candidates(rest, (&u, &u), 1e-4, &frames);
+    let candidates = ice.candidates(rest, (&u, 0.0), 1e-4, &frames);
     for c in candidates.iter().filter(|c| c.is_copy_pair()) {
         // q (the face's node) moves against m and along y.
         let q = c.face[0];
@@ -509,7 +509,7 @@ fn a_cracks_copies_keep_their_gap_when_its_normal_turns() {
     let turned: Vec<_> = normals.iter().map(|m| m.map(|m| turn * m)).collect();
     let gaps = |carried: &[f64]| -> Vec<f64> {
         let frames = ice.crack_sides().frames(rest, &u, &turned, carried);
-        let c = ice.candidates(rest, (&u, &u), 1e-4, &frames);
+        let c = ice.candidates(rest, (&u, 0.0), 1e-4, &frames);
         c.iter()
             .filter(|c| c.is_copy_pair())
             .map(|c| ice.gap(rest, &u, c).unwrap().0)

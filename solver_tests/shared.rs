@@ -175,7 +175,7 @@ impl Half {
                 owner[v] = owner[v].min(p);
             }
         }
-        let part = Part::new(tets, (&element_part, &owner), rank as u32, whole);
+        let part = Part::new(tets, (&element_part, &owner), rank as u32, (&[], whole));
         let whole_dofs = Arc::new(part.whole_dofs().collect::<Vec<_>>());
         let couplings = model.elasticity.couplings();
         let constrained = model.constrained_dofs();

@@ -42,6 +42,7 @@ use icefem::physics::plasticity::Plasticity;
 use icefem::physics::term::{Solve, StepStartView, StepTerm, Term};
 use icefem::physics::{Contact, Elasticity, Model, Obstacle, Region, Traction};
 use icefem::scene::Scene;
+use icefem::sim::part::Part;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use std::path::Path;
 
@@ -654,6 +655,7 @@ fn with_step_terms<R>(
         rest: &mesh.rest,
         u: &start.previous,
         v: &start.velocity,
+        max_speed: start.velocity.iter().fold(0.0f64, |m, x| m.max(x.abs())),
         dt: start.h,
         carried: &Default::default(),
     };
@@ -1240,6 +1242,102 @@ fn check_ice_friction(
 }
 
 #[test]
+fn ice_contact_on_two_parts_adds_up_to_the_whole() {
+    // Each cube (5 × 5 × 5 cells) is one process's part; each process holds the boundary of
+    // both besides (`elements_held_everywhere`), numbered in its part, and evaluates the
+    // pairs with a node it owns, keeping their gradient entries and Hessian columns on its
+    // owned nodes (as a distributed solve does) and counting the energy of the pairs whose
+    // node it owns. Friction included (the upper cube slides). An owned node then gets its
+    // pairs' contributions in the order of one process: the gradient entries and Hessian
+    // columns are the whole term's bit for bit; the energies, summed in another order, add
+    // up to the whole's to round-off (1e-12, against 1e-16 per addition).
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/stacked_cubes.toml");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("cells = [3, 3, 3]", "cells = [5, 5, 5]")
+        .replace("[physics]\n", "[physics]\nice_friction = 0.3\n");
+    let scene = Scene::parse(&text, &path).unwrap();
+    let model = &scene.model;
+    let previous = pressed_cubes(&scene, ICE_DEPTH);
+    let part_of = model.ice_contact().unwrap().part.clone();
+    let upper = part_of[model.num_nodes() - 1];
+    let h = scene.settings.dt;
+    let velocity: Vec<f64> = (0..previous.len())
+        .map(|d| match (part_of[d / 3] == upper, d % 3) {
+            (true, 0) => 0.012,
+            (true, 1) => 0.006,
+            _ => 0.0,
+        })
+        .collect();
+    let u = axpy(&previous, h, &velocity);
+    let start = Start {
+        previous,
+        velocity,
+        h,
+        dynamic: true,
+    };
+    // Energy, gradient and dense Hessian of a model's ice contact at the start's `u`.
+    let evaluate = |model: &Model, start: &Start, u: &[f64]| {
+        let mut term = model
+            .terms
+            .iter()
+            .find(|t| t.as_any().is::<IceContactTerm>())
+            .unwrap()
+            .clone();
+        with_step_term(term.as_mut(), &model.mesh, start, |t, asm| {
+            let (mut e, mut g) = (0.0, vec![0.0; u.len()]);
+            let mut hessian = vec![0.0; asm.nnz()];
+            t.add(u, &mut e, Some(&mut g), Some(&mut hessian));
+            (e, g, dense(asm, &hessian))
+        })
+    };
+    let (energy, gradient, hessian) = evaluate(model, &start, &u);
+    let n = u.len();
+    // The elements of the lower cube come first.
+    let tets = &model.mesh.tets;
+    let element_part: Vec<u32> = (0..tets.len())
+        .map(|e| u32::from(part_of[tets[e][0]] == upper))
+        .collect();
+    let mut owner = vec![1u32; model.num_nodes()];
+    for (tet, &p) in tets.iter().zip(&element_part) {
+        for &v in tet {
+            owner[v] = owner[v].min(p);
+        }
+    }
+    let everywhere = model.elements_held_everywhere();
+    let (mut energies, mut g_sum, mut h_sum) = (Vec::new(), vec![0.0; n], vec![0.0; n * n]);
+    for rank in 0..2 {
+        let part = Part::new(tets, (&element_part, &owner), rank, (&everywhere, false));
+        assert!(!part.is_whole(), "the other cube's inside is not held");
+        let local = part.model(model).unwrap();
+        let of = |v: &[f64]| part.dofs_of(v);
+        let at = Start {
+            previous: of(&start.previous),
+            velocity: of(&start.velocity),
+            h,
+            dynamic: true,
+        };
+        let (e, g, hl) = evaluate(&local, &at, &of(&u));
+        let whole: Vec<usize> = part.whole_dofs().collect();
+        let owned = part.owned_dofs();
+        for (l, &c) in whole.iter().enumerate().filter(|&(l, _)| owned[l]) {
+            g_sum[c] += g[l];
+            for (k, &d) in whole.iter().enumerate() {
+                h_sum[c * n + d] += hl[l * whole.len() + k];
+            }
+        }
+        energies.push(e);
+    }
+    assert!(energies.iter().all(|&e| e > 0.0), "{energies:?}");
+    assert!(g_sum == gradient, "gradients differ");
+    assert!(h_sum == hessian, "Hessians differ");
+    let e_sum: f64 = energies.iter().sum();
+    let error = (e_sum - energy).abs() / energy;
+    eprintln!("ice contact on two parts: energies {energies:?} add up to {energy:.3e} J ({error:.1e} apart)");
+    assert!(error < 1e-12, "{error:e}");
+}
+
+#[test]
 fn ice_friction_sliding() {
     // The upper cube slides at (12, 6) mm/s over the lower one: 0.2 mm of slip in the step
     // against ε = ε_v h = 1.7e-6 m, and no foot point leaves its triangle (1.4 mm margin).
@@ -1277,12 +1375,9 @@ fn ice_friction_normal_force_at_rest_extrapolates_to_itself() {
     let mesh = &scene.model.mesh;
     let ice = scene.model.ice_contact().unwrap();
     let u = pressed_cubes(&scene, ICE_DEPTH);
-    let (v, normals) = (
-        vec![0.0; u.len()],
-        ice.crack_sides().normals(&mesh.rest, &u),
-    );
+    let normals = ice.crack_sides().normals(&mesh.rest, &u);
     let frames = ice.crack_sides().frames(&mesh.rest, &u, &normals, &[]);
-    let candidates = ice.candidates(&mesh.rest, (&u, &v), scene.settings.dt, &frames);
+    let candidates = ice.candidates(&mesh.rest, (&u, 0.0), scene.settings.dt, &frames);
     let step = IceStep {
         term: ice,
         rest: &mesh.rest,

@@ -196,11 +196,12 @@ impl Processes for MpiProcesses {
             .process_at_rank(0)
             .broadcast_into(&mut element_part[..]);
         let partition = Partition::from_element_parts(mesh, element_part, size);
+        let everywhere = model.elements_held_everywhere();
         let part = Part::new(
             &mesh.tets,
             (&partition.element_part, &partition.node_owner),
             self.rank(),
-            whole || self.whole_mesh.get(),
+            (&everywhere, whole || self.whole_mesh.get()),
         );
         let model = part
             .model(model)
@@ -419,7 +420,7 @@ impl Distribution for ProcessShare {
             &mesh.tets,
             (&partition.element_part, &partition.node_owner),
             self.rank,
-            true,
+            (&[], true),
         );
         let share = ProcessShare::new(
             (&part, partition),

@@ -96,6 +96,24 @@ impl CrackSides {
         &self.pairs
     }
 
+    /// The pairs with every node `i` renamed `local(i)`, which must keep the nodes' order (a
+    /// process's part numbers its nodes in the whole mesh's order). The carried rows then name
+    /// the renamed nodes: a distributed run with cracks holds the whole mesh on every process,
+    /// numbered as the whole.
+    pub fn renumbered(&self, local: impl Fn(usize) -> usize) -> CrackSides {
+        let faces = |faces: &[[usize; 3]]| faces.iter().map(|f| f.map(&local)).collect();
+        let pairs = (self.pairs.iter())
+            .map(|c| CopyPair {
+                p: local(c.p),
+                q: local(c.q),
+                area: c.area,
+                faces_p: faces(&c.faces_p),
+                faces_q: faces(&c.faces_q),
+            })
+            .collect();
+        CrackSides { pairs }
+    }
+
     /// Whether there is no pair (no split node).
     pub fn is_empty(&self) -> bool {
         self.pairs.is_empty()

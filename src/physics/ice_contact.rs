@@ -80,6 +80,9 @@ pub struct IceContact {
     crack_face: Vec<bool>,
     /// Per node, whether it lies on a crack face.
     on_crack: Vec<bool>,
+    /// Per node, whether this process owns it: every node on one process, the owned nodes on
+    /// a process's part (see [`IceContact::restricted`]).
+    owned: Vec<bool>,
 }
 
 /// Largest cos of the angle between a node's outward normal and the reversed outward normal of
@@ -180,21 +183,61 @@ impl IceContact {
             copies,
             crack_face,
             on_crack,
+            owned: vec![true; mesh.num_nodes()],
         })
     }
 
-    /// Candidate pairs for a step from displacement `u` with velocities `v` over `h` seconds:
-    /// node and triangle of different parts, or across a crack (see the module docs), whose
-    /// boxes, grown by the motion of the step plus half an edge, overlap.
-    /// The pairs of copies get their normal and offset from `frames` ([`CrackSides::frames`]).
+    /// The term on a process's part of a distributed run: numbered as the part's mesh, which
+    /// holds every boundary node and face of the whole (see
+    /// [`Term::elements_held_everywhere`]), and evaluating only the pairs with a node the
+    /// process owns among their four, whose forces and stiffness the process keeps on its
+    /// owned nodes; the energy of a pair counts on the owner of its node. An owned node then
+    /// gets the contributions of its pairs in the order one process adds them: the same
+    /// bits. Every process still finds every candidate pair (the same on each), so that its
+    /// sparsity pattern couples every pair its rows take part in. A face or node the part
+    /// does not hold is left out.
+    pub fn restricted(&self, part: &NodeRestriction) -> IceContact {
+        let n = part.num_nodes();
+        let mut component = vec![u32::MAX; n];
+        let (mut on_crack, mut owned) = (vec![false; n], vec![false; n]);
+        for i in 0..self.part.len() {
+            if let Some(k) = part.held(i) {
+                component[k] = self.part[i];
+                on_crack[k] = self.on_crack[i];
+                owned[k] = self.owned[i] && part.kept(i).is_some();
+            }
+        }
+        let held_face = |f: &[usize; 3]| f.iter().all(|&i| part.held(i).is_some());
+        let (faces, crack_face) = (self.faces.iter().zip(&self.crack_face))
+            .filter(|(f, _)| held_face(f))
+            .map(|(f, &c)| (f.map(|i| part.local(i)), c))
+            .unzip();
+        IceContact {
+            part: component,
+            nodes: (self.nodes.iter())
+                .filter_map(|&(i, area)| part.held(i).map(|k| (k, area)))
+                .collect(),
+            faces,
+            crack_face,
+            on_crack,
+            owned,
+            copies: self.copies.renumbered(|i| part.local(i)),
+            ..*self
+        }
+    }
+
+    /// Candidate pairs for a step from displacement `u` over `h` seconds with `vmax` the
+    /// largest velocity component (m/s, over the whole mesh): node and triangle of different
+    /// parts, or across a crack (see the module docs), whose boxes, grown by the motion of the
+    /// step plus half an edge, overlap. The pairs of copies get their normal and offset from
+    /// `frames` ([`CrackSides::frames`]).
     pub fn candidates(
         &self,
         rest: &[Vector3<f64>],
-        (u, v): (&[f64], &[f64]),
+        (u, vmax): (&[f64], f64),
         h: f64,
         frames: &[CopyFrame],
     ) -> Vec<Candidate> {
-        let vmax = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let margin = 2.0 * vmax * h + 0.5 * self.edge;
         let mut grid = BoxGrid::new(self.edge.max(margin));
         // Unit normals of the faces and (area-weighted mean) of the boundary nodes, now.
@@ -341,7 +384,8 @@ impl IceContact {
     /// runs of one node against one other part, and in each run picks the face the node is
     /// closest to (smallest |g| among faces it projects into): a node near an edge of the other
     /// body also lies "behind" the side face there, and only the nearest face tells whether it
-    /// is inside. Pairs of copies of a split node each count on their own. Calls `f(index into candidates, gap, ∇g)` for each chosen pair.
+    /// is inside. Pairs of copies of a split node each count on their own. Calls `f(index into
+    /// candidates, gap, ∇g)` for each chosen pair with a node this process owns.
     pub fn for_each_closest(
         &self,
         rest: &[Vector3<f64>],
@@ -352,7 +396,11 @@ impl IceContact {
         let mut start = 0;
         while start < candidates.len() {
             if candidates[start].is_copy_pair() {
-                if let Some((g, dg)) = self.gap(rest, u, &candidates[start]) {
+                let mine = self.touches_owned(&candidates[start]);
+                if let Some((g, dg)) = mine
+                    .then(|| self.gap(rest, u, &candidates[start]))
+                    .flatten()
+                {
                     f(start, g, &dg);
                 }
                 start += 1;
@@ -365,14 +413,27 @@ impl IceContact {
             {
                 end += 1;
             }
+            // The nearest face is chosen among all the run's, as on one process.
+            let mine = (start..end).any(|m| self.touches_owned(&candidates[m]));
             let best = (start..end)
+                .filter(|_| mine)
                 .filter_map(|m| self.gap(rest, u, &candidates[m]).map(|(g, dg)| (m, g, dg)))
                 .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
-            if let Some((m, g, dg)) = best {
+            if let Some((m, g, dg)) = best.filter(|b| self.touches_owned(&candidates[b.0])) {
                 f(m, g, &dg);
             }
             start = end;
         }
+    }
+
+    /// Whether a node of the pair `c` is one this process owns.
+    fn touches_owned(&self, c: &Candidate) -> bool {
+        IceContact::pair_nodes(c).iter().any(|&i| self.owned[i])
+    }
+
+    /// Whether this process counts the energy of the pair `c`: it owns the pair's node.
+    pub fn counts_energy(&self, c: &Candidate) -> bool {
+        self.owned[c.node]
     }
 
     /// The four nodes of a pair, in gradient order.
@@ -496,7 +557,9 @@ impl<'a> IceStep<'a> {
             let tangent = Matrix3::identity() - n * n.transpose();
             let y = tangent * rel;
             let (f0, g_y, h_y) = friction_terms(self.term.friction * lambda, &y, &tangent, eps);
-            energy += f0;
+            if self.term.counts_energy(&self.candidates[m]) {
+                energy += f0;
+            }
             for k in 0..4 {
                 for a in 0..3 {
                     let d = 3 * nodes[k] + a;
@@ -587,7 +650,9 @@ impl<'a> IceStep<'a> {
                 let nodes = IceContact::pair_nodes(c);
                 let penalty = self.term.penalty(gap);
                 if let Some((phi, slope, _)) = penalty {
-                    energy += ka * phi;
+                    if self.term.counts_energy(c) {
+                        energy += ka * phi;
+                    }
                     for (k, dgk) in dg.iter().enumerate() {
                         let d = 3 * nodes[k / 3] + k % 3;
                         if let Some(gr) = gradient.as_deref_mut() {
@@ -643,9 +708,6 @@ impl StepTerm for IceStep<'_> {
     }
     fn add_anticipated_gradient(&self, u: &[f64], gradient: &mut [f64]) -> bool {
         self.add_anticipated_pair_gradient(u, gradient)
-    }
-    fn evaluated_whole(&self) -> bool {
-        true
     }
     fn relag(&mut self, u: &[f64]) -> LagChange {
         self.relag_friction(u)
@@ -773,7 +835,7 @@ impl Term for IceContactTerm {
         // Kept for every pair, also those not facing each other this step: their gaps are
         // carried all the same.
         self.copy_frames = sides.frames(start.rest, start.u, &normals, &gaps);
-        let at = (start.u, start.v);
+        let at = (start.u, start.max_speed);
         self.candidates = term.candidates(start.rest, at, start.dt, &self.copy_frames);
         let mut couplings: Vec<(usize, usize)> = self
             .candidates
@@ -844,11 +906,25 @@ impl Term for IceContactTerm {
     fn as_contact(&self) -> Option<&dyn SceneContact> {
         Some(self)
     }
-    fn evaluated_whole(&self) -> bool {
-        true
+    /// The elements of the boundary faces: every process holds every face and boundary node,
+    /// as a pair's node and face may lie in any two processes' parts.
+    fn elements_held_everywhere(&self, mesh: &TetMesh) -> Vec<usize> {
+        if self.active.is_none() {
+            return Vec::new();
+        }
+        let mut tets: Vec<usize> = mesh.boundary_faces().iter().map(|f| f.tet).collect();
+        tets.sort_unstable();
+        tets.dedup();
+        tets
     }
-    fn restricted(&self, _part: &NodeRestriction) -> Box<dyn Term> {
-        self.clone_box()
+    fn restricted(&self, part: &NodeRestriction) -> Box<dyn Term> {
+        Box::new(IceContactTerm {
+            active: self.active.as_ref().map(|c| c.restricted(part)),
+            candidates: Vec::new(),
+            candidate_slots: Vec::new(),
+            copy_frames: Vec::new(),
+            ..*self
+        })
     }
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term> {
         Box::new(IceContactTerm::new(

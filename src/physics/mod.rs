@@ -261,6 +261,17 @@ impl Model {
         history
     }
 
+    /// The elements every process of a distributed run holds beyond its part, for the terms
+    /// that couple nodes sharing no element (see `Term::elements_held_everywhere`), ascending.
+    pub fn elements_held_everywhere(&self) -> Vec<usize> {
+        let mut elements: Vec<usize> = (self.terms.iter())
+            .flat_map(|t| t.elements_held_everywhere(&self.mesh))
+            .collect();
+        elements.sort_unstable();
+        elements.dedup();
+        elements
+    }
+
     /// Adds contact with rigid obstacles, summed before the other contact terms.
     pub fn add_obstacles(&mut self, contact: Contact) {
         let nodes = self.mesh.num_nodes();

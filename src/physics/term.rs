@@ -77,10 +77,6 @@ pub trait StepTerm {
     fn as_contact(&self) -> Option<&dyn SolveContact> {
         None
     }
-    /// Whether the term couples nodes beyond the elements' (see [`Term::evaluated_whole`]).
-    fn evaluated_whole(&self) -> bool {
-        false
-    }
     /// Whether a process of a distributed run holds its share of the term by elements, as it
     /// does the elastic energy (its own elements and the nodal parts of its owned nodes): its
     /// gradient and Hessian are then partial at every node it holds and summed across the
@@ -121,6 +117,9 @@ pub struct StepStartView<'a> {
     pub u: &'a [f64],
     /// Velocity at the start of the step (m/s), 3 per node.
     pub v: &'a [f64],
+    /// The largest velocity component at the start of the step over the whole mesh (m/s):
+    /// on a process's part of a distributed run, over every process's.
+    pub max_speed: f64,
     /// The step (s).
     pub dt: f64,
     /// What the terms carry, at the start of the step.
@@ -246,15 +245,14 @@ pub trait Term: Send + Sync + std::fmt::Debug {
     }
     /// The term on a mesh made by splitting elements of this one's.
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term>;
-    /// Whether the term couples nodes that share no element (ice–ice contact): in a
-    /// distributed run every process then evaluates it whole, on the whole mesh, and counts
-    /// its energy once, instead of evaluating it on the nodes it owns.
-    fn evaluated_whole(&self) -> bool {
-        false
+    /// The elements of `mesh` (this term's) that every process of a distributed run must
+    /// hold beyond its part, because the term couples their nodes to nodes that share no
+    /// element with them (ice–ice contact: the boundary's); none by default.
+    fn elements_held_everywhere(&self, _mesh: &TetMesh) -> Vec<usize> {
+        Vec::new()
     }
     /// The term on the nodes `part` keeps (a process's owned nodes in a distributed run),
-    /// numbered as in its mesh: its per-node contributions on those nodes only. A term
-    /// evaluated whole stays as it is.
+    /// numbered as in its mesh: its per-node contributions on those nodes only.
     fn restricted(&self, part: &NodeRestriction) -> Box<dyn Term>;
 }
 
@@ -272,6 +270,10 @@ pub struct NodeRestriction {
 }
 
 impl NodeRestriction {
+    /// Node `i` of the whole mesh in the process's mesh, if it is in it.
+    pub fn held(&self, i: usize) -> Option<usize> {
+        Some(self.local[i]).filter(|&k| k != usize::MAX)
+    }
     /// Node `i` of the whole mesh in the process's mesh, if the process keeps it.
     pub fn kept(&self, i: usize) -> Option<usize> {
         self.kept[i].then(|| self.local[i])

@@ -640,9 +640,12 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
     rows
 }
 
-/// Whether a distributed run needs the whole mesh on every process: where a term couples
-/// nodes that share no element (ice–ice contact), or fracture splits the mesh (every process
-/// finds and makes the same splits on it, see `Distribution::remeshed`).
+/// Whether a distributed run needs the whole mesh on every process: where fracture splits
+/// the mesh (every process finds and makes the same splits on it, see
+/// `Distribution::remeshed`) or the mesh has cracks already (a resumed fractured run: the
+/// pairs of copies on its cracks are carried from frame to frame by the whole mesh's node
+/// numbers).
 fn needs_whole_mesh(scene: &Scene) -> bool {
-    scene.fracture.is_some() || scene.model.ice_contact().is_some()
+    scene.fracture.is_some()
+        || (scene.model.ice_contact()).is_some_and(|c| !c.crack_sides().is_empty())
 }

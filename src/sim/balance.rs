@@ -163,23 +163,10 @@ pub(super) fn energies_of(
     assembly: &Assembly,
     elastic: ElasticInputs,
     (u, v, t, loads): (&[f64], &[f64], f64, &[f64]),
-) -> EnergyParts {
+) -> Energies {
     let mut energy = 0.0;
     elastic_term(model, assembly, elastic).add(u, &mut energy, None, None);
     energies_with(model, energy, (u, v), (t, loads))
-}
-
-/// The energies of a state, with the contact energy in its two parts: that of the terms
-/// evaluated on a process's owned nodes and that of the terms evaluated whole on every
-/// process ([`crate::physics::term::Term::evaluated_whole`]); on one process they simply add.
-#[derive(Clone, Copy, Debug, Default)]
-pub(super) struct EnergyParts {
-    /// The energies (J), the contact energy both parts'.
-    pub energies: Energies,
-    /// Contact energy of the terms evaluated on the owned nodes (J).
-    pub contact_owned: f64,
-    /// Contact energy of the terms evaluated whole (J).
-    pub contact_whole: f64,
 }
 
 /// Energies of `model` at `(u, v)`, time `t` and dead `loads` (N, 3 per node) with the elastic
@@ -189,34 +176,23 @@ pub(super) fn energies_with(
     elastic: f64,
     (u, v): (&[f64], &[f64]),
     (t, loads): (f64, &[f64]),
-) -> EnergyParts {
+) -> Energies {
     let kinetic = v
         .iter()
         .enumerate()
         .map(|(d, v)| 0.5 * model.mass[d / 3] * v * v)
         .sum();
     let potential = -loads.iter().zip(u).map(|(f, u)| f * u).sum::<f64>();
-    let contact_of = |whole: bool| -> f64 {
-        model
-            .terms
-            .iter()
-            .filter(|term| term.evaluated_whole() == whole)
-            .map(|term| term.stored_energy(&model.mesh.rest, u, t))
-            .sum()
-    };
-    // The model's terms evaluated on owned nodes come first (obstacles, then ice–ice
-    // contact): the total is their sum in order.
-    let contact_owned = contact_of(false);
-    let contact_whole = contact_of(true);
-    EnergyParts {
-        energies: Energies {
-            kinetic,
-            elastic,
-            potential,
-            contact: contact_owned + contact_whole,
-        },
-        contact_owned,
-        contact_whole,
+    // The model's terms in order (obstacles, then ice–ice contact): the total is their sum
+    // in order.
+    let contact = (model.terms.iter())
+        .map(|term| term.stored_energy(&model.mesh.rest, u, t))
+        .sum();
+    Energies {
+        kinetic,
+        elastic,
+        potential,
+        contact,
     }
 }
 

@@ -10,9 +10,11 @@
 //! elastic energy of its part's elements only, and everything per node on its owned nodes
 //! only (`Model::restrict`), so that the processes' parts add up to the whole potential.
 //!
-//! Where a term couples nodes that share no element (ice–ice contact), where fracture splits
-//! the mesh, or on one process, a part is the whole mesh: every element and node, each process evaluating its own elements and owned
-//! nodes as above.
+//! A term that couples nodes sharing no element (ice–ice contact: a boundary node with any
+//! boundary face) has every process hold the elements that carry those nodes besides (see
+//! `Term::elements_held_everywhere`); they are ghosts like the ring's. Where fracture splits
+//! the mesh, or on one process, a part is the whole mesh: every element and node, each
+//! process evaluating its own elements and owned nodes as above.
 
 use crate::mesh::MeshError;
 use crate::physics::term::NodeRestriction;
@@ -34,18 +36,21 @@ pub struct Part {
     pub owned_nodes: Vec<bool>,
     /// Each node of the whole mesh in the part (`usize::MAX`: not in it).
     local_node: Vec<usize>,
+    /// Number of elements of the whole mesh.
+    whole_elements: usize,
 }
 
 impl Part {
     /// The part of process `rank` when element `e` is in partition part `element_part[e]`
     /// and node `i` is owned by process `node_owner[i]` (one of its elements' processes): its
-    /// elements, every element around their nodes, and those elements' nodes (`tets`: the
-    /// whole mesh's elements). With `whole`, every element and node.
+    /// elements, every element around their nodes, the elements `everywhere` (every process
+    /// holds them), and those elements' nodes (`tets`: the whole mesh's elements). With
+    /// `whole`, every element and node.
     pub fn new(
         tets: &[[usize; 4]],
         (element_part, node_owner): (&[u32], &[u32]),
         rank: u32,
-        whole: bool,
+        (everywhere, whole): (&[usize], bool),
     ) -> Part {
         let n = node_owner.len();
         let mut near = vec![whole; n];
@@ -56,8 +61,12 @@ impl Part {
                 }
             }
         }
+        let mut held = vec![false; tets.len()];
+        for &e in everywhere {
+            held[e] = true;
+        }
         let elements: Vec<usize> = (0..tets.len())
-            .filter(|&e| tets[e].iter().any(|&v| near[v]))
+            .filter(|&e| held[e] || tets[e].iter().any(|&v| near[v]))
             .collect();
         let mut local_node = vec![NONE; n];
         for &e in &elements {
@@ -75,6 +84,7 @@ impl Part {
             elements,
             nodes,
             local_node,
+            whole_elements: tets.len(),
         }
     }
 
@@ -83,9 +93,9 @@ impl Part {
         Some(self.local_node[i]).filter(|&k| k != NONE)
     }
 
-    /// Whether the part is the whole mesh (every node of it).
+    /// Whether the part is the whole mesh (every element of it, so every node).
     pub fn is_whole(&self) -> bool {
-        self.nodes.len() == self.local_node.len()
+        self.elements.len() == self.whole_elements
     }
 
     /// Number of nodes of the whole mesh.
@@ -201,7 +211,7 @@ mod tests {
         // Elements 0 | 1, 2, 3; a node belongs to the lowest part among its elements'.
         let element_part = [0, 1, 1, 1];
         let owner = [0, 0, 0, 0, 1, 1, 1, 1, 1, 1];
-        let first = Part::new(&tets, (&element_part, &owner), 0, false);
+        let first = Part::new(&tets, (&element_part, &owner), 0, (&[], false));
         // Element 0's nodes 1, 2, 3 are in elements 1 and 2 too; element 3 is apart.
         assert_eq!(first.elements, vec![0, 1, 2]);
         assert_eq!(first.own_elements, vec![true, false, false]);
@@ -211,7 +221,7 @@ mod tests {
             vec![true, true, true, true, false, false]
         );
         assert!(!first.is_whole());
-        let second = Part::new(&tets, (&element_part, &owner), 1, false);
+        let second = Part::new(&tets, (&element_part, &owner), 1, (&[], false));
         assert_eq!(second.elements, vec![0, 1, 2, 3]);
         assert!(second.is_whole());
         // Part 1 being element 3 alone: nodes 0 … 5 are not in it.
@@ -219,21 +229,29 @@ mod tests {
             &tets,
             (&[0, 0, 0, 1], &[0, 0, 0, 0, 0, 0, 1, 1, 1, 1]),
             1,
-            false,
+            (&[], false),
         );
         assert_eq!(apart.elements, vec![3]);
         assert_eq!(apart.nodes, vec![6, 7, 8, 9]);
         assert_eq!(apart.owned_dofs(), vec![true; 12]);
         let whole: Vec<f64> = (0..30).map(f64::from).collect();
         assert_eq!(apart.dofs_of(&whole)[..3], [18.0, 19.0, 20.0]);
-        assert!(Part::new(&tets, (&element_part, &owner), 0, true).is_whole());
+        assert!(Part::new(&tets, (&element_part, &owner), 0, (&[], true)).is_whole());
+        // Element 3 held by every process: a ghost element with ghost nodes, evaluated by
+        // process 1 alone.
+        let with = Part::new(&tets, (&element_part, &owner), 0, (&[3], false));
+        assert_eq!(with.elements, vec![0, 1, 2, 3]);
+        assert_eq!(with.own_elements, vec![true, false, false, false]);
+        assert_eq!(with.nodes, (0..10).collect::<Vec<_>>());
+        assert_eq!(with.owned_nodes.iter().filter(|&&o| o).count(), 4);
     }
 
     #[test]
     fn every_node_and_element_is_given_to_a_frame_by_one_process() {
         let tets = [[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5], [6, 7, 8, 9]];
         let (element_part, owner) = ([0, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1, 1, 1]);
-        let parts = [0, 1].map(|rank| Part::new(&tets, (&element_part, &owner), rank, false));
+        let parts =
+            [0, 1].map(|rank| Part::new(&tets, (&element_part, &owner), rank, (&[], false)));
         for (per_element, count) in [(false, 10), (true, 4)] {
             let mut given: Vec<usize> = Vec::new();
             for part in &parts {

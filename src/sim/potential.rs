@@ -21,13 +21,13 @@ pub trait Collective {
 
 /// A process's share of a solve distributed over several processes. Each process evaluates
 /// the elastic energy of its own elements (the elastic term's subset), like it the terms held
-/// by elements ([`StepTerm::shared_by_elements`]: Rayleigh's β Kₙ), and the other terms
-/// on the nodes it owns (its model's masses, loads and contact nodes are those of its owned
-/// nodes; terms that couple nodes beyond the elements, [`StepTerm::evaluated_whole`], are
-/// evaluated whole on every process), keeping only the owned dofs' gradient entries and
-/// Hessian columns, so that the processes' parts add up to the potential. Energies and
-/// gradients are then summed across the processes (a whole term's energy counted once); the
-/// Hessian stays in parts, which the distributed linear solver adds up.
+/// by elements ([`StepTerm::shared_by_elements`]: Rayleigh's β Kₙ), and the other terms on
+/// the nodes it owns (its model's masses, loads and obstacle contact nodes are those of its
+/// owned nodes; ice–ice contact pairs with an owned node), keeping only the owned dofs'
+/// gradient entries and Hessian columns, so that the processes' parts add up to the
+/// potential. Energies and
+/// gradients are then summed across the processes; the Hessian stays in parts, which the
+/// distributed linear solver adds up.
 #[derive(Clone, Copy)]
 pub struct Share<'a> {
     /// The sums across processes.
@@ -230,13 +230,12 @@ impl<'a> StepPotential<'a> {
     ) -> f64 {
         let (elastic_term, others) = (&mut self.elastic, &mut self.terms);
         // Each process keeps what it owns.
-        let mut whole = 0.0;
         let rest = add_in_order(
             others,
             &mut self.t_contact,
             u,
             (gradient.as_deref_mut(), hessian.as_deref_mut()),
-            Pass::Owned(&mut whole),
+            Pass::Owned,
         );
         share.keep_owned(gradient.as_deref_mut(), hessian.as_deref_mut());
         let mut elastic = 0.0;
@@ -261,7 +260,7 @@ impl<'a> StepPotential<'a> {
             share.collective.exchange(g);
         }
         self.last_elastic = elastic;
-        elastic + rest + whole
+        elastic + rest
     }
 
     /// Potential at `u`, adding the gradient and Hessian into those given.
@@ -398,12 +397,12 @@ impl<'a> StepPotential<'a> {
 }
 
 /// Which of a potential's other terms a pass over them adds.
-enum Pass<'s> {
+#[derive(Clone, Copy, PartialEq)]
+enum Pass {
     /// Every term (one process).
     All,
-    /// A process's terms on its owned nodes, the energies of those evaluated whole on every
-    /// process going to the given sum (a distributed run).
-    Owned(&'s mut f64),
+    /// A process's terms on its owned nodes (a distributed run).
+    Owned,
     /// A process's terms held by elements ([`StepTerm::shared_by_elements`]).
     ByElements,
 }
@@ -415,19 +414,20 @@ fn add_in_order(
     t_contact: &mut f64,
     u: &[f64],
     (mut gradient, mut hessian): (Option<&mut [f64]>, Option<&mut [f64]>),
-    mut pass: Pass<'_>,
+    pass: Pass,
 ) -> f64 {
     let mut energy = 0.0;
-    let by_elements = matches!(pass, Pass::ByElements);
     for term in terms {
-        let sum = match &mut pass {
-            Pass::All => &mut energy,
-            _ if term.shared_by_elements() != by_elements => continue,
-            Pass::Owned(whole) if term.evaluated_whole() => &mut **whole,
-            Pass::Owned(_) | Pass::ByElements => &mut energy,
-        };
+        if pass != Pass::All && term.shared_by_elements() != (pass == Pass::ByElements) {
+            continue;
+        }
         let clock = term.as_contact().is_some().then(Instant::now);
-        term.add(u, sum, gradient.as_deref_mut(), hessian.as_deref_mut());
+        term.add(
+            u,
+            &mut energy,
+            gradient.as_deref_mut(),
+            hessian.as_deref_mut(),
+        );
         if let Some(clock) = clock {
             *t_contact += clock.elapsed().as_secs_f64();
         }

@@ -2,7 +2,6 @@
 //! given (see `distributed`), and the sums and maxima over the processes that keep every
 //! process's decisions the same.
 
-use super::balance::EnergyParts;
 use super::part::Part;
 use super::potential::Collective;
 use super::{Energies, SimError, Simulation};
@@ -130,18 +129,17 @@ impl Simulation {
         }
     }
 
-    /// The energies of `parts` (this process's share, see [`EnergyParts`]) summed
-    /// over the processes of a distributed run; on one process, its energies.
-    pub(super) fn energies_over_processes(&self, parts: EnergyParts) -> Energies {
+    /// The energies `mine` (this process's share) summed over the processes of a distributed
+    /// run; on one process, `mine`.
+    pub(super) fn energies_over_processes(&self, mine: Energies) -> Energies {
         if self.shared.is_none() {
-            return parts.energies;
+            return mine;
         }
-        let e = parts.energies;
         Energies {
-            kinetic: self.sum_over_processes(e.kinetic),
-            elastic: self.sum_over_processes(e.elastic),
-            potential: self.sum_over_processes(e.potential),
-            contact: self.sum_over_processes(parts.contact_owned) + parts.contact_whole,
+            kinetic: self.sum_over_processes(mine.kinetic),
+            elastic: self.sum_over_processes(mine.elastic),
+            potential: self.sum_over_processes(mine.potential),
+            contact: self.sum_over_processes(mine.contact),
         }
     }
 }

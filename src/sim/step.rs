@@ -2,7 +2,7 @@
 //! stages read top to bottom in [`Simulation::try_step`]: prepare the solve → solve the step's
 //! potential (with re-lagging) → finish (velocity, energy balance, local error) → commit.
 
-use super::balance::{energies_of, energies_with, EnergyParts};
+use super::balance::{energies_of, energies_with};
 use super::integrator::StepEnd;
 use super::potential::{Share, StepPotential};
 use super::terms::{solve_terms, ElasticInputs};
@@ -72,7 +72,7 @@ enum ElasticAtSolution {
     Quadratic(f64),
     /// Newton's last evaluation's (summed over the processes of a distributed run), with the
     /// energies of the solve's start the balance check compares it with.
-    Evaluated { elastic: f64, before: EnergyParts },
+    Evaluated { elastic: f64, before: Energies },
 }
 
 /// What a solve found, besides its solution.
@@ -150,6 +150,7 @@ impl Simulation {
             rest: &self.model.mesh.rest,
             u: &self.state.u,
             v: &self.state.v,
+            max_speed: self.max_speed(),
             dt: self.settings.dt,
             carried: &self.state.term_history,
         };
@@ -419,7 +420,7 @@ impl Simulation {
         // the solution: computed on another thread while Newton runs (a pass over the
         // elements less on the solve's path). In a distributed run each process computes its
         // part of them, summed after the scope (MPI is called from this thread only).
-        let mut before: Option<EnergyParts> = None;
+        let mut before: Option<Energies> = None;
         let solved = rayon::in_place_scope(|scope| {
             if !fixed {
                 let elastic = ElasticInputs {
@@ -499,15 +500,12 @@ impl Simulation {
         let energies = match solved.elastic {
             // The minimiser of a convex quadratic potential meets the balance identically, up
             // to the residual the Newton test already bounds: no check, no passes for it.
-            ElasticAtSolution::Quadratic(elastic) => {
-                energies_with(
-                    &self.model,
-                    elastic,
-                    (u, &end.velocity),
-                    (t_new, &self.loads),
-                )
-                .energies
-            }
+            ElasticAtSolution::Quadratic(elastic) => energies_with(
+                &self.model,
+                elastic,
+                (u, &end.velocity),
+                (t_new, &self.loads),
+            ),
             ElasticAtSolution::Evaluated { elastic, before } => {
                 // The potential's elastic energy at the solution is summed over the
                 // processes already.
@@ -662,7 +660,7 @@ fn solved_at(
     potential: &mut StepPotential,
     u: &[f64],
     report: Option<NewtonReport>,
-    before: Option<EnergyParts>,
+    before: Option<Energies>,
 ) -> Solved {
     let newton = report.unwrap_or_default();
     let elastic = match before {
