@@ -616,6 +616,17 @@ fn a_run_on_two_processes_resumed_on_two_is_the_uninterrupted_run_bit_for_bit() 
 }
 
 #[test]
+fn a_run_with_ice_contact_on_two_processes_resumed_on_two_is_the_uninterrupted_run_bit_for_bit() {
+    // The stacked cubes, each process holding its part and the boundary: the resumed
+    // processes find the same contact pairs from the frame's state.
+    resumed_on_two_is_uninterrupted(
+        &scene("stacked_cubes.toml"),
+        ("0.15", "0.3"),
+        &["displacement"],
+    );
+}
+
+#[test]
 fn a_cracked_run_on_two_processes_resumed_on_two_is_the_uninterrupted_run_bit_for_bit() {
     // Cut at step 20, after the bar's 21 splits (steps 6 to 8): the split mesh is rebuilt
     // from the frame and shared out as the uninterrupted run's was (each element with the
