@@ -237,10 +237,11 @@ mod tests {
         let whole: Vec<f64> = (0..30).map(f64::from).collect();
         assert_eq!(apart.dofs_of(&whole)[..3], [18.0, 19.0, 20.0]);
         assert!(Part::new(&tets, (&element_part, &owner), 0, (&[], true)).is_whole());
-        // Element 3 held by every process: a ghost element with ghost nodes, evaluated by
-        // process 1 alone.
+        // Element 3 held by every process: on process 0 a ghost element with ghost nodes,
+        // evaluated by process 1 alone.
         let with = Part::new(&tets, (&element_part, &owner), 0, (&[3], false));
         assert_eq!(with.elements, vec![0, 1, 2, 3]);
+        assert!(with.is_whole());
         assert_eq!(with.own_elements, vec![true, false, false, false]);
         assert_eq!(with.nodes, (0..10).collect::<Vec<_>>());
         assert_eq!(with.owned_nodes.iter().filter(|&&o| o).count(), 4);

@@ -25,9 +25,8 @@ pub trait Collective {
 /// the nodes it owns (its model's masses, loads and obstacle contact nodes are those of its
 /// owned nodes; ice–ice contact pairs with an owned node), keeping only the owned dofs'
 /// gradient entries and Hessian columns, so that the processes' parts add up to the
-/// potential. Energies and
-/// gradients are then summed across the processes; the Hessian stays in parts, which the
-/// distributed linear solver adds up.
+/// potential. Energies and gradients are then summed across the processes; the Hessian stays
+/// in parts, which the distributed linear solver adds up.
 #[derive(Clone, Copy)]
 pub struct Share<'a> {
     /// The sums across processes.
