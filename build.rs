@@ -41,6 +41,8 @@ mod petsc {
         }
         println!("cargo:rustc-link-search=native={petsc_dir}/lib");
         println!("cargo:rustc-link-lib=dylib=petsc_real");
+        // PT-Scotch (PETSc's partitioner here), for seeding its random generator.
+        println!("cargo:rustc-link-lib=dylib=ptscotch-7.0");
         let mpi_includes = pkg_config("ompi-c", "--cflags-only-I")
             .or_else(|| pkg_config("mpi", "--cflags-only-I"))
             .unwrap_or_else(|| vec!["-I/usr/lib/x86_64-linux-gnu/openmpi/include".into()]);
@@ -50,10 +52,12 @@ mod petsc {
             .clang_args(mpi_includes)
             .allowlist_function("Petsc(Initialize|InitializeNoArguments|Finalize|Initialized|OptionsHasName|OptionsSetValue)")
             .allowlist_function("Vec(CreateMPI|SetBlockSize|GetLocalSize|SetValues|AssemblyBegin|AssemblyEnd|GetArray|RestoreArray|GetArrayRead|RestoreArrayRead|Destroy|Duplicate|Set|CreateSeq|ScatterCreate|ScatterBegin|ScatterEnd|ScatterDestroy|GetOwnershipRange|Norm)")
-            .allowlist_function("Mat(Create|SetSizes|SetType|SetBlockSize|SeqAIJSetPreallocation|MPIAIJSetPreallocation|SetValues|AssemblyBegin|AssemblyEnd|ZeroEntries|SetOption|SetNearNullSpace|NullSpaceCreateRigidBody|NullSpaceDestroy|Destroy|GetInfo)")
+            .allowlist_function("Mat(Create|SetSizes|SetType|SetBlockSize|SeqAIJSetPreallocation|MPIAIJSetPreallocation|SetValues|AssemblyBegin|AssemblyEnd|ZeroEntries|SetOption|SetNearNullSpace|NullSpaceCreateRigidBody|NullSpaceDestroy|Destroy|GetInfo|CreateMPIAdj)")
             .allowlist_function("KSP(Create|SetOperators|SetType|GetPC|SetTolerances|SetFromOptions|SetUp|Solve|GetIterationNumber|GetConvergedReason|Destroy|SetReusePreconditioner|SetInitialGuessNonzero)")
             .allowlist_function("PC(SetType|GAMGSetNSmooths|SetFromOptions)")
-            .allowlist_function("IS(CreateGeneral|Destroy)")
+            .allowlist_function("IS(CreateGeneral|Destroy|GetIndices|RestoreIndices|GetLocalSize)")
+            .allowlist_function("MatPartitioning(Create|SetAdjacency|SetType|Apply|Destroy)")
+            .allowlist_function("PetscMallocA")
             .allowlist_var("PETSC_COMM_WORLD")
             .allowlist_type("(PetscBool|PetscCopyMode|InsertMode|ScatterMode|MatAssemblyType|MatOption|KSPConvergedReason|NormType|MatInfoType)")
             .default_enum_style(bindgen::EnumVariation::Rust { non_exhaustive: false })

@@ -17,6 +17,7 @@
 //! also keeps the scene's whole model (mesh, element data, loads), from which it builds its
 //! part.
 
+pub mod dual_graph;
 pub mod ghosts;
 pub mod heat;
 pub mod partition;
@@ -106,6 +107,13 @@ impl MpiProcesses {
     /// Initialises MPI (calls may come from any thread, one at a time: a test harness runs
     /// tests on threads of its own) and PETSc.
     pub fn init() -> Result<Self, DistributedError> {
+        // PT-Scotch partitions on several threads in an order that changes from run to run;
+        // on one thread (and from a fixed seed, see `petsc::ptscotch_parts`) every run gets
+        // the same partition, which a resumed run needs to share the mesh out as the run it
+        // resumes did. Set before MPI and PETSc start their threads.
+        if std::env::var_os("SCOTCH_PTHREAD_NUMBER").is_none() {
+            std::env::set_var("SCOTCH_PTHREAD_NUMBER", "1");
+        }
         let (universe, _) = mpi::initialize_with_threading(mpi::Threading::Multiple)
             .ok_or(DistributedError::Mpi)?;
         let world = universe.world();
@@ -182,20 +190,9 @@ impl MpiProcesses {
 impl Processes for MpiProcesses {
     fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError> {
         let mesh = &model.mesh;
-        let size = self.size();
-        // Process 0 partitions; every process uses its partition.
-        let mut element_part = match self.rank() {
-            0 => {
-                Partition::new(mesh, size)
-                    .map_err(|e| SimError::Setup(e.to_string()))?
-                    .element_part
-            }
-            _ => vec![0u32; mesh.num_tets()],
-        };
-        self.world
-            .process_at_rank(0)
-            .broadcast_into(&mut element_part[..]);
-        let partition = Partition::from_element_parts(mesh, element_part, size);
+        // Every process takes part in the partition and gets the same one.
+        let partition = Partition::in_parallel(&self.world, mesh)
+            .map_err(|e| SimError::Setup(e.to_string()))?;
         let everywhere = model.elements_held_everywhere();
         let part = Part::new(
             &mesh.tets,

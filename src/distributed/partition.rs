@@ -1,6 +1,7 @@
-//! The mesh shared among processes: METIS splits the elements (by their dual graph, elements
-//! that share a face adjacent), each node goes to the lowest-numbered process among its
-//! elements', and PETSc's numbering lists each process's nodes contiguously.
+//! The mesh shared among processes: PT-Scotch splits the elements (by their dual graph,
+//! elements that share a face adjacent; computed by all the processes, see `dual_graph`),
+//! each node goes to the lowest-numbered process among its elements', and PETSc's numbering
+//! lists each process's nodes contiguously.
 
 use crate::mesh::TetMesh;
 
@@ -20,14 +21,45 @@ pub struct Partition {
 
 /// Failure of the partitioner.
 #[derive(Debug, thiserror::Error)]
-#[error("METIS could not partition the mesh ({0})")]
+#[error("the mesh could not be partitioned ({0})")]
 pub struct PartitionError(pub String);
 
 impl Partition {
-    /// Splits `mesh` into `parts` (≥ 1) by METIS.
-    pub fn new(mesh: &TetMesh, parts: usize) -> Result<Self, PartitionError> {
-        let element_part = split_elements(mesh, parts)?;
-        Ok(Self::from_element_parts(mesh, element_part, parts))
+    /// Splits `mesh` into as many parts as `world` has processes by PT-Scotch, every process
+    /// taking part: each builds the dual graph of its contiguous range of the elements
+    /// ([`super::dual_graph::rows`]) and the partitioner runs on all of them; each
+    /// element's part is then gathered onto every process.
+    pub fn in_parallel(
+        world: &mpi::topology::SimpleCommunicator,
+        mesh: &TetMesh,
+    ) -> Result<Self, PartitionError> {
+        use mpi::traits::*;
+        let (size, ne) = (world.size() as usize, mesh.num_tets());
+        if size > ne {
+            return Err(PartitionError(format!(
+                "{size} processes for {ne} elements: at most one process per element"
+            )));
+        }
+        let ranges: Vec<usize> = (0..=size).map(|r| r * ne / size).collect();
+        let rank = world.rank() as usize;
+        let range = ranges[rank]..ranges[rank + 1];
+        let (offsets, neighbours) = super::dual_graph::rows(world, &mesh.tets[range], &ranges);
+        let mine = super::petsc::ptscotch_parts(&offsets, &neighbours, ne)
+            .map_err(|e| PartitionError(e.to_string()))?;
+        let counts: Vec<mpi::Count> = ranges
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as mpi::Count)
+            .collect();
+        let mut element_part = vec![0u32; ne];
+        world.all_gather_varcount_into(
+            &mine[..],
+            &mut mpi::datatype::PartitionMut::new(
+                &mut element_part[..],
+                &counts[..],
+                &super::ghosts::starts(&counts)[..],
+            ),
+        );
+        Ok(Self::from_element_parts(mesh, element_part, size))
     }
 
     /// The partition given each element's process (`< parts`).
@@ -94,58 +126,6 @@ impl Partition {
     }
 }
 
-/// Each element's part, by METIS's k-way partition of the elements' dual graph (adjacent
-/// through a face: 3 common nodes).
-fn split_elements(mesh: &TetMesh, parts: usize) -> Result<Vec<u32>, PartitionError> {
-    let ne = mesh.num_tets();
-    if parts <= 1 || ne == 0 {
-        return Ok(vec![0; ne]);
-    }
-    if parts > ne {
-        return Err(PartitionError(format!(
-            "{parts} processes for {ne} elements: at most one process per element"
-        )));
-    }
-    let index = |x: usize| i32::try_from(x).map_err(|_| PartitionError(format!("{x} > i32")));
-    let mut eptr: Vec<i32> = (0..=ne).map(|e| index(4 * e)).collect::<Result<_, _>>()?;
-    let mut eind: Vec<i32> = mesh
-        .tets
-        .iter()
-        .flatten()
-        .map(|&v| index(v))
-        .collect::<Result<_, _>>()?;
-    let mut ne_i = index(ne)?;
-    let mut nn_i = index(mesh.num_nodes())?;
-    let mut ncommon = 3i32;
-    let mut nparts = index(parts)?;
-    let mut objval = 0i32;
-    let mut epart = vec![0i32; ne];
-    let mut npart = vec![0i32; mesh.num_nodes()];
-    // SAFETY: eptr (ne + 1 entries) and eind (4 ne node indices < nn) follow METIS's mesh
-    // contract; epart/npart have ne/nn entries; null weights and options select defaults.
-    let status = unsafe {
-        metis_sys::METIS_PartMeshDual(
-            &mut ne_i,
-            &mut nn_i,
-            eptr.as_mut_ptr(),
-            eind.as_mut_ptr(),
-            std::ptr::null_mut(),
-            std::ptr::null_mut(),
-            &mut ncommon,
-            &mut nparts,
-            std::ptr::null_mut(),
-            std::ptr::null_mut(),
-            &mut objval,
-            epart.as_mut_ptr(),
-            npart.as_mut_ptr(),
-        )
-    };
-    if status != metis_sys::rstatus_et_METIS_OK {
-        return Err(PartitionError(format!("status {status}")));
-    }
-    Ok(epart.into_iter().map(|p| p as u32).collect())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -154,15 +134,17 @@ mod tests {
     #[test]
     fn every_process_gets_elements_and_owned_nodes_are_numbered_contiguously() {
         let mesh = box_mesh([0.0; 3], [1.0; 3], [6, 4, 4], 5).unwrap();
-        let p = Partition::new(&mesh, 3).unwrap();
+        // Three slabs along x.
+        let element_part = (mesh.tets.iter())
+            .map(|t| (t.iter().map(|&v| mesh.rest[v].x).sum::<f64>() / 4.0 * 3.0) as u32)
+            .collect();
+        let p = Partition::from_element_parts(&mesh, element_part, 3);
         for part in 0..3 {
             let (elements, owned, ghosts) = p.counts(&mesh, part);
-            // METIS balances to ~3 % by default: every part has about a third.
-            assert!(
-                elements as f64 > 0.25 * mesh.num_tets() as f64,
-                "{elements}"
-            );
-            assert!(owned > 0 && ghosts > 0);
+            assert_eq!(elements, mesh.num_tets() / 3);
+            assert!(owned > 0);
+            // A node on an interface belongs to the lower slab: the first has no ghosts.
+            assert_eq!(ghosts > 0, part > 0, "{part}: {ghosts}");
         }
         let mut seen = vec![false; mesh.num_nodes()];
         for (v, &i) in p.petsc_node.iter().enumerate() {

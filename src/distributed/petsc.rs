@@ -479,3 +479,106 @@ impl Drop for Krylov {
         }
     }
 }
+
+unsafe extern "C" {
+    /// Sets the seed of Scotch's random generator (`SCOTCH_Num` is a C `int` in this build).
+    fn SCOTCH_randomSeed(seed: std::os::raw::c_int);
+    /// Restarts Scotch's random generator from its seed.
+    fn SCOTCH_randomReset();
+}
+
+/// A copy of `values` in memory PETSc allocated (it frees what it takes ownership of).
+fn petsc_array(values: &[Int]) -> Result<*mut Int, PetscError> {
+    let mut out: *mut Int = ptr::null_mut();
+    let (function, file) = (c"petsc_array", c"petsc.rs");
+    // SAFETY: PetscMallocA allocates `bytes` (≥ 1, so never a null result on success) and
+    // stores the address in `out`; the copy writes within it.
+    unsafe {
+        check(
+            ffi::PetscMallocA(
+                1,
+                ffi::PetscBool::PETSC_FALSE,
+                0,
+                function.as_ptr(),
+                file.as_ptr(),
+                std::mem::size_of_val(values).max(1),
+                (&mut out as *mut *mut Int).cast(),
+            ),
+            "PetscMallocA",
+        )?;
+        ptr::copy_nonoverlapping(values.as_ptr(), out, values.len());
+    }
+    Ok(out)
+}
+
+/// The part (0 … processes − 1) of each of this process's rows of a graph distributed over
+/// the processes in contiguous ranges of rows, by PT-Scotch through PETSc's
+/// `MatPartitioning`: this process's rows are `rows` (CSR offsets, starting at 0) with the
+/// global column indices `columns`, of a graph with `total` rows. Every process calls it.
+pub fn ptscotch_parts(rows: &[Int], columns: &[Int], total: usize) -> Result<Vec<u32>, PetscError> {
+    let local = int(rows.len() - 1);
+    let (ia, ja) = (petsc_array(rows)?, petsc_array(columns)?);
+    let mut adjacency: ffi::Mat = ptr::null_mut();
+    let mut partitioning: ffi::MatPartitioning = ptr::null_mut();
+    let mut is: ffi::IS = ptr::null_mut();
+    let kind = c"ptscotch";
+    let mut parts = Vec::new();
+    // A fixed seed makes the partition the same in every run (a resumed run shares the mesh
+    // out as the run it resumes did): Debian's Scotch seeds from the clock otherwise.
+    // SAFETY: plain calls into Scotch's global random generator, before the partitioner runs.
+    unsafe {
+        SCOTCH_randomSeed(1);
+        SCOTCH_randomReset();
+    }
+    // SAFETY: the adjacency matrix takes `ia` and `ja` (PETSc-allocated) and frees them when
+    // destroyed; every object is created before use and destroyed once below, also after an
+    // error (destroying a null object is a no-op).
+    let result = unsafe {
+        (|| {
+            check(
+                ffi::MatCreateMPIAdj(
+                    world(),
+                    local,
+                    int(total),
+                    ia,
+                    ja,
+                    ptr::null_mut(),
+                    &mut adjacency,
+                ),
+                "MatCreateMPIAdj",
+            )?;
+            check(
+                ffi::MatPartitioningCreate(world(), &mut partitioning),
+                "MatPartitioningCreate",
+            )?;
+            check(
+                ffi::MatPartitioningSetAdjacency(partitioning, adjacency),
+                "MatPartitioningSetAdjacency",
+            )?;
+            check(
+                ffi::MatPartitioningSetType(partitioning, kind.as_ptr()),
+                "MatPartitioningSetType",
+            )?;
+            check(
+                ffi::MatPartitioningApply(partitioning, &mut is),
+                "MatPartitioningApply",
+            )?;
+            let mut n: Int = 0;
+            check(ffi::ISGetLocalSize(is, &mut n), "ISGetLocalSize")?;
+            let mut indices: *const Int = ptr::null();
+            check(ffi::ISGetIndices(is, &mut indices), "ISGetIndices")?;
+            parts = std::slice::from_raw_parts(indices, n.max(0) as usize)
+                .iter()
+                .map(|&p| p as u32)
+                .collect();
+            check(ffi::ISRestoreIndices(is, &mut indices), "ISRestoreIndices")
+        })()
+    };
+    // SAFETY: each pointer is null or a live object created above, destroyed once.
+    unsafe {
+        ffi::ISDestroy(&mut is);
+        ffi::MatPartitioningDestroy(&mut partitioning);
+        ffi::MatDestroy(&mut adjacency);
+    }
+    result.map(|()| parts)
+}
