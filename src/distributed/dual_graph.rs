@@ -5,13 +5,11 @@
 //! elements; the graph feeds a partitioner that runs on every process (PT-Scotch, see
 //! `partition`).
 
-use super::ghosts::starts;
+use super::ghosts::exchange;
 use super::petsc::Int;
 use crate::mesh::TET_FACES;
-use mpi::datatype::{Partition, PartitionMut};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
-use mpi::Count;
 
 /// This process's rows of the dual graph, for the elements `first .. first + tets.len()`
 /// (`tets`: their nodes) when process `r` holds the elements `ranges[r] .. ranges[r + 1]`:
@@ -33,7 +31,7 @@ pub fn rows(
             faces[hashed(&key, size)].extend([key[0], key[1], key[2], (first + k) as u64]);
         }
     }
-    let mut received: Vec<[u64; 4]> = exchange(world, faces)
+    let mut received: Vec<[u64; 4]> = (exchange(world, faces).0)
         .chunks_exact(4)
         .map(|r| [r[0], r[1], r[2], r[3]])
         .collect();
@@ -47,7 +45,7 @@ pub fn rows(
             }
         }
     }
-    let mut mine: Vec<(u64, u64)> = exchange(world, pairs)
+    let mut mine: Vec<(u64, u64)> = (exchange(world, pairs).0)
         .chunks_exact(2)
         .map(|p| (p[0], p[1]))
         .collect();
@@ -74,19 +72,4 @@ fn hashed(key: &[u64; 3], size: usize) -> usize {
         ^ key[1].wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
         ^ key[2].wrapping_mul(0x1656_67B1_9E37_79F9);
     ((mixed >> 32) % size as u64) as usize
-}
-
-/// Sends `out[r]` to process `r`, returning what every process sent this one, in process
-/// order.
-fn exchange(world: &SimpleCommunicator, out: Vec<Vec<u64>>) -> Vec<u64> {
-    let counts: Vec<Count> = out.iter().map(|v| v.len() as Count).collect();
-    let mut incoming = vec![0 as Count; out.len()];
-    world.all_to_all_into(&counts[..], &mut incoming[..]);
-    let send = out.concat();
-    let mut received = vec![0u64; incoming.iter().sum::<Count>() as usize];
-    world.all_to_all_varcount_into(
-        &Partition::new(&send[..], &counts[..], &starts(&counts)[..]),
-        &mut PartitionMut::new(&mut received[..], &incoming[..], &starts(&incoming)[..]),
-    );
-    received
 }

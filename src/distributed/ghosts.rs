@@ -56,6 +56,21 @@ pub(super) fn starts(counts: &[Count]) -> Vec<Count> {
         .collect()
 }
 
+/// Sends `out[r]` to process `r` of `world`; returns what every process sent this one, in
+/// process order, and how many values came from each.
+pub(super) fn exchange(world: &SimpleCommunicator, out: Vec<Vec<u64>>) -> (Vec<u64>, Vec<Count>) {
+    let counts: Vec<Count> = out.iter().map(|v| v.len() as Count).collect();
+    let mut incoming = vec![0 as Count; out.len()];
+    world.all_to_all_into(&counts[..], &mut incoming[..]);
+    let send = out.concat();
+    let mut received = vec![0u64; incoming.iter().sum::<Count>() as usize];
+    world.all_to_all_varcount_into(
+        &Partition::new(&send[..], &counts[..], &starts(&counts)[..]),
+        &mut PartitionMut::new(&mut received[..], &incoming[..], &starts(&incoming)[..]),
+    );
+    (received, incoming)
+}
+
 impl Ghosts {
     /// The ghosts of a part whose nodes are the whole mesh's `nodes` (ascending), of which
     /// this process owns those marked in `owned`, node `i` of the whole mesh being owned by
@@ -75,15 +90,11 @@ impl Ghosts {
         }
         // Tell each owner which of its nodes this process holds.
         let wanted: Vec<Count> = by_owner.iter().map(|g| g.len() as Count).collect();
-        let mut asked = vec![0 as Count; size];
-        world.all_to_all_into(&wanted[..], &mut asked[..]);
+        let ids = (by_owner.iter())
+            .map(|g| g.iter().map(|&k| nodes[k] as u64).collect())
+            .collect();
+        let (asked_ids, asked) = exchange(&world, ids);
         let ghosts: Vec<usize> = by_owner.concat();
-        let ids: Vec<u64> = ghosts.iter().map(|&k| nodes[k] as u64).collect();
-        let mut asked_ids = vec![0u64; asked.iter().sum::<Count>() as usize];
-        world.all_to_all_varcount_into(
-            &Partition::new(&ids[..], &wanted[..], &starts(&wanted)[..]),
-            &mut PartitionMut::new(&mut asked_ids[..], &asked[..], &starts(&asked)[..]),
-        );
         let held = asked_ids
             .iter()
             .map(|&i| {

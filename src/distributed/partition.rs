@@ -40,6 +40,11 @@ impl Partition {
                 "{size} processes for {ne} elements: at most one process per element"
             )));
         }
+        if ne > super::petsc::Int::MAX as usize {
+            return Err(PartitionError(format!(
+                "{ne} elements exceed PETSc's 32-bit indices"
+            )));
+        }
         let ranges: Vec<usize> = (0..=size).map(|r| r * ne / size).collect();
         let rank = world.rank() as usize;
         let range = ranges[rank]..ranges[rank + 1];
