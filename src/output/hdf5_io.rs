@@ -4,6 +4,7 @@
 //! the listing of `/frames`.
 
 use std::io::Read as _;
+use std::ops::Range;
 use std::path::Path;
 use std::str::FromStr;
 
@@ -435,12 +436,7 @@ pub(super) fn open_2d(
 
 pub(super) fn read_vec3(path: &Path, g: &Group, name: &str) -> Result<Vec<[f64; 3]>, OutputError> {
     let (ds, rows) = open_2d(path, g, name, 3)?;
-    let flat = ds
-        .read_raw::<f64>()
-        .ctx(path, || format!("reading {}/{name}", g.name()))?;
-    if rows.checked_mul(3) != Some(flat.len()) {
-        return Err(corrupt(path, format!("{}/{name}: short read", g.name())));
-    }
+    let flat = read_range::<f64>(path, &ds, 3, 0..rows)?;
     Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
 
@@ -451,31 +447,60 @@ pub(super) fn read_tets(
     n: usize,
 ) -> Result<Vec<[usize; 4]>, OutputError> {
     let (ds, rows) = open_2d(path, g, name, 4)?;
+    read_tet_rows(path, &ds, n, 0..rows)
+}
+
+/// Rows `rows` of the tets dataset `ds`, each node index checked to be below `n`.
+pub(super) fn read_tet_rows(
+    path: &Path,
+    ds: &Dataset,
+    n: usize,
+    rows: Range<usize>,
+) -> Result<Vec<[usize; 4]>, OutputError> {
     // Reading as i64 lets HDF5 convert u64/i32/… files too; out-of-range
     // values make the read fail rather than wrap.
-    let flat = ds
-        .read_raw::<i64>()
-        .ctx(path, || format!("reading {}/{name}", g.name()))?;
-    if rows.checked_mul(4) != Some(flat.len()) {
-        return Err(corrupt(path, format!("{}/{name}: short read", g.name())));
-    }
-    let mut out = Vec::with_capacity(rows);
-    for (e, c) in flat.chunks_exact(4).enumerate() {
+    let flat = read_range::<i64>(path, ds, 4, rows.clone())?;
+    let mut out = Vec::with_capacity(rows.len());
+    for (e, c) in (rows.start..).zip(flat.chunks_exact(4)) {
         let mut t = [0usize; 4];
         for (k, &v) in c.iter().enumerate() {
             t[k] = usize::try_from(v).ok().filter(|&i| i < n).ok_or_else(|| {
                 corrupt(
                     path,
-                    format!(
-                        "{}/{name}: tet {e} has node index {v} outside 0..{n}",
-                        g.name()
-                    ),
+                    format!("{}: tet {e} has node index {v} outside 0..{n}", ds.name()),
                 )
             })?;
         }
         out.push(t);
     }
     Ok(out)
+}
+
+/// Rows `rows` of the 1-D or 2-D dataset `ds` of `cols` columns, row-major, in `T` (HDF5
+/// converts the stored number type); the whole dataset is read at once.
+pub(super) fn read_range<T: H5Type>(
+    path: &Path,
+    ds: &Dataset,
+    cols: usize,
+    rows: Range<usize>,
+) -> Result<Vec<T>, OutputError> {
+    let ctx = || format!("reading rows {}..{} of {}", rows.start, rows.end, ds.name());
+    let whole = ds.shape().first() == Some(&rows.end) && rows.start == 0;
+    let values = if whole {
+        ds.read_raw::<T>().ctx(path, ctx)?
+    } else if ds.ndim() == 1 {
+        let block = ds.read_slice_1d::<T, _>(rows.clone()).ctx(path, ctx)?;
+        block.into_raw_vec_and_offset().0
+    } else {
+        let block = ds
+            .read_slice_2d::<T, _>((rows.clone(), ..))
+            .ctx(path, ctx)?;
+        block.into_raw_vec_and_offset().0
+    };
+    if rows.len().checked_mul(cols) != Some(values.len()) {
+        return Err(corrupt(path, format!("{}: short read", ds.name())));
+    }
+    Ok(values)
 }
 
 /// Rejects files without the HDF5 signature, which HDF5 searches for at

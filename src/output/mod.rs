@@ -94,7 +94,7 @@ pub use background::BackgroundWriter;
 pub use blocks::{frame_columns, ColumnValues, FrameColumn, FrameLayout};
 pub use describe::{describe, summary, DatasetSummary, FileSummary, FrameTime};
 pub use reader::{parse_frame_range, CrackTriangle, FrameReader, StoredFrame, StoredMesh};
-pub use resume::{ResumeFrame, StoredField};
+pub use resume::{FrameHead, ResumeFrame, StoredField};
 pub use surfaces::{FrameMesh, SurfaceExtractor};
 pub use writer::{OutputWriter, COMMIT_INTERVAL};
 pub use xdmf::write_xdmf;

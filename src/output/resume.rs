@@ -2,13 +2,14 @@
 //! point (a frame on the output grid), discards what came after it, and reads that frame back as a [`ResumeFrame`] (which the
 //! frame reader also uses for every frame it reads).
 
+use std::ops::Range;
 use std::path::Path;
 
 use hdf5::{File, Group};
 
 use super::hdf5_io::{
-    check_hdf5_signature, check_icefem_layout, close_on_exec, list_frames, read_attr, read_string,
-    read_string_attr, read_tets, read_vec3, Hdf5Context,
+    check_hdf5_signature, check_icefem_layout, close_on_exec, list_frames, open_2d, read_attr,
+    read_range, read_string, read_string_attr, read_tet_rows, read_tets, Hdf5Context,
 };
 use super::ownership::RunLock;
 use super::writer::{crash_safe_options, create_stats_column, STATS_COLUMNS};
@@ -212,6 +213,20 @@ impl OutputWriter {
     /// it is resumed from even if it is not a restart point (nothing is computed after it;
     /// the caller reports one past the end time), so the file keeps it.
     pub fn resume_until(path: &Path, end_time: f64) -> Result<(Self, ResumeFrame), OutputError> {
+        let (writer, head) = Self::resume_head(path, end_time)?;
+        let frame = head.with_rows(
+            |name, cols, per_node| {
+                writer.resumed_rows(name, cols, 0..per_node_rows(&writer, per_node))
+            },
+            || writer.resumed_tets(0..writer.n_elems),
+        )?;
+        Ok((writer, frame))
+    }
+
+    /// [`OutputWriter::resume_until`] without the frame's per-node and per-element rows:
+    /// its head, whose rows [`OutputWriter::resumed_rows`] and
+    /// [`OutputWriter::resumed_tets`] then read a block at a time.
+    pub fn resume_head(path: &Path, end_time: f64) -> Result<(Self, FrameHead), OutputError> {
         check_hdf5_signature(path)?;
         let lock = RunLock::acquire(path)?;
         let file = crash_safe_options()
@@ -262,10 +277,10 @@ impl OutputWriter {
         let g = frames
             .group(&last_name)
             .ctx(path, || format!("opening /frames/{last_name}"))?;
-        let rf = read_frame(path, &g, scene_text)?;
+        let head = read_head(path, &g, scene_text)?;
 
         let records = read_records(path, &file)?;
-        let stats_rows = truncate_stats(path, &file, rf.step)?;
+        let stats_rows = truncate_stats(path, &file, head.frame.step)?;
         file.flush()
             .ctx(path, || "flushing after resume cleanup".into())?;
 
@@ -279,8 +294,8 @@ impl OutputWriter {
             topology: format!("/frames/{last_name}"),
             unlinked_topology: None,
             options: super::FrameOptions::default(),
-            n_nodes: rf.positions.len(),
-            n_elems: rf.tets.len(),
+            n_nodes: head.nodes,
+            n_elems: head.elements,
             stats_rows,
             pending_stats: Vec::new(),
             uncommitted: Vec::new(),
@@ -290,7 +305,43 @@ impl OutputWriter {
             last_fields: None,
             open: None,
         };
-        Ok((writer, rf))
+        Ok((writer, head))
+    }
+
+    /// Rows `rows` of the dataset `name` (`cols` columns) of the frame this writer resumed
+    /// from, before any frame is written.
+    pub fn resumed_rows(
+        &self,
+        name: &str,
+        cols: usize,
+        rows: Range<usize>,
+    ) -> Result<Vec<f64>, OutputError> {
+        let ds = self.resumed_dataset(name)?;
+        read_range(&self.location, &ds, cols, rows)
+    }
+
+    /// Rows `rows` of the tets of the frame this writer resumed from, before any frame is
+    /// written.
+    pub fn resumed_tets(&self, rows: Range<usize>) -> Result<Vec<[usize; 4]>, OutputError> {
+        let ds = self.resumed_dataset("tets")?;
+        read_tet_rows(&self.location, &ds, self.n_nodes, rows)
+    }
+
+    fn resumed_dataset(&self, name: &str) -> Result<hdf5::Dataset, OutputError> {
+        let path = &self.location;
+        let at = format!("{}/{name}", self.topology);
+        self.file()?
+            .dataset(&at)
+            .ctx(path, || format!("opening {at}"))
+    }
+}
+
+/// Rows of `writer`'s per-node (`per_node`) or per-element datasets.
+fn per_node_rows(writer: &OutputWriter, per_node: bool) -> usize {
+    if per_node {
+        writer.n_nodes
+    } else {
+        writer.n_elems
     }
 }
 
@@ -353,21 +404,95 @@ pub(super) fn read_frame(
     g: &Group,
     scene_text: String,
 ) -> Result<ResumeFrame, OutputError> {
+    let head = read_head(path, g, scene_text)?;
+    let (nodes, elements) = (head.nodes, head.elements);
+    head.with_rows(
+        |name, cols, per_node| {
+            let ds = g
+                .dataset(name)
+                .ctx(path, || format!("opening {}/{name}", g.name()))?;
+            read_range(path, &ds, cols, 0..if per_node { nodes } else { elements })
+        },
+        || read_tets(path, g, "tets", nodes),
+    )
+}
+
+/// A frame's scalars, its `Rows` fields and the names and columns of its per-node and
+/// per-element datasets, without their rows: what a distributed resume reads first, each
+/// process then taking its own rows as blocks of them arrive.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameHead {
+    /// The frame without its per-node and per-element rows (its node and element fields
+    /// have no data).
+    pub frame: ResumeFrame,
+    /// Rows of its per-node datasets (nodes of its mesh).
+    pub nodes: usize,
+    /// Rows of its per-element datasets (elements of its mesh).
+    pub elements: usize,
+}
+
+impl FrameHead {
+    /// The frame with its rows: `values(name, columns, per_node)` gives the rows of the
+    /// dataset `name` (positions, velocities, rest positions, fields), `tets()` the tets.
+    pub fn with_rows<E>(
+        self,
+        mut values: impl FnMut(&str, usize, bool) -> Result<Vec<f64>, E>,
+        tets: impl FnOnce() -> Result<Vec<[usize; 4]>, E>,
+    ) -> Result<ResumeFrame, E> {
+        let mut frame = self.frame;
+        let mut vec3 = |name| -> Result<Vec<[f64; 3]>, E> {
+            let flat = values(name, 3, true)?;
+            Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+        };
+        frame.positions = vec3("positions")?;
+        frame.velocities = vec3("velocities")?;
+        frame.rest_positions = vec3("rest_positions")?;
+        frame.tets = tets()?;
+        for f in &mut frame.element_fields {
+            f.data = values(&f.name, f.columns, false)?;
+        }
+        for f in &mut frame.node_fields {
+            f.data = values(&f.name, f.columns, true)?;
+        }
+        Ok(frame)
+    }
+
+    /// The head as bytes, for [`FrameHead::from_bytes`] in another process.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        out.extend_from_slice(&(self.nodes as u64).to_le_bytes());
+        out.extend_from_slice(&(self.elements as u64).to_le_bytes());
+        out.extend(self.frame.to_bytes());
+        out
+    }
+
+    /// The head [`FrameHead::to_bytes`] wrote; `None` if the bytes are not one.
+    pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
+        let mut r = ByteReader { bytes, at: 0 };
+        let (nodes, elements) = (r.count()?, r.count()?);
+        Some(FrameHead {
+            frame: ResumeFrame::from_bytes(&bytes[r.at..])?,
+            nodes,
+            elements,
+        })
+    }
+}
+
+/// The head of a frame group (see [`FrameHead`]), its datasets' shapes checked against one
+/// another.
+fn read_head(path: &Path, g: &Group, scene_text: String) -> Result<FrameHead, OutputError> {
     let gname = g.name();
     let step = read_attr::<u64>(path, g, "step")?;
     let time = read_attr::<f64>(path, g, "time")?;
-    let positions = read_vec3(path, g, "positions")?;
-    let velocities = read_vec3(path, g, "velocities")?;
-    let rest_positions = read_vec3(path, g, "rest_positions")?;
-    let n = positions.len();
-    if velocities.len() != n || rest_positions.len() != n {
+    let rows_of = |name, cols| open_2d(path, g, name, cols).map(|(_, rows)| rows);
+    let n = rows_of("positions", 3)?;
+    if rows_of("velocities", 3)? != n || rows_of("rest_positions", 3)? != n {
         return Err(corrupt(
             path,
             format!("{gname}: positions, velocities and rest_positions row counts differ"),
         ));
     }
-    let tets = read_tets(path, g, "tets", n)?;
-    let m = tets.len();
+    let m = rows_of("tets", 4)?;
 
     let mut element_fields = Vec::new();
     let mut node_fields = Vec::new();
@@ -414,13 +539,10 @@ pub(super) fn read_frame(
                 format!("{gname}/{name} has {rows} rows, expected {expected_rows}"),
             ));
         }
-        let data = ds
-            .read_raw::<f64>()
-            .ctx(path, || format!("reading {gname}/{name}"))?;
         let field = StoredField {
             name,
             columns: cols,
-            data,
+            data: Vec::new(),
         };
         if is_cell {
             element_fields.push(field);
@@ -438,18 +560,22 @@ pub(super) fn read_frame(
             Some((n, v))
         })
         .collect();
-    Ok(ResumeFrame {
-        step,
-        time,
-        scene_text,
-        positions,
-        velocities,
-        rest_positions,
-        tets,
-        element_fields,
-        node_fields,
-        row_fields,
-        attributes,
+    Ok(FrameHead {
+        frame: ResumeFrame {
+            step,
+            time,
+            scene_text,
+            positions: Vec::new(),
+            velocities: Vec::new(),
+            rest_positions: Vec::new(),
+            tets: Vec::new(),
+            element_fields,
+            node_fields,
+            row_fields,
+            attributes,
+        },
+        nodes: n,
+        elements: m,
     })
 }
 

@@ -8,8 +8,8 @@ pub use outcome::{FractureOutcome, Outcome};
 
 use crate::fracture::{Fracture, FractureReport};
 use crate::output::{
-    BackgroundWriter, FrameOptions, ObstacleMesh, OutputError, OutputWriter, ResumeFrame,
-    RunHeader, StepStats,
+    BackgroundWriter, FrameHead, FrameOptions, ObstacleMesh, OutputError, OutputWriter,
+    ResumeFrame, RunHeader, StepStats,
 };
 use crate::physics::contact::Shape;
 use crate::physics::Model;
@@ -18,7 +18,7 @@ use crate::sim::part::Part;
 use crate::sim::{SimError, Simulation, StepReport, StepSettings};
 use crate::thermal::{Heat, HeatLink};
 use frame::{emit_frame, FrameFlags};
-use restore::{part_frame, restore};
+use restore::{restore, resumed_part};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -141,7 +141,8 @@ pub fn run(
 }
 
 /// [`run`], shared among `processes` if given; resuming, the writing process reads the frame
-/// and gives it to the others. The scene (its whole model) is let go once the run is set up:
+/// and gives it to the others (a block of rows at a time, each process keeping its part's,
+/// where the processes hold parts). The scene (its whole model) is let go once the run is set up:
 /// the simulation holds what it needs (in a distributed run, this process's part).
 pub fn run_on(
     whole: Scene,
@@ -164,22 +165,25 @@ pub fn run_on(
     let mut fracture = scene.fracture.map(|f| Fracture::new(f, &sim.model.mesh));
     let writes = processes.is_none_or(|p| p.writes());
     let writer = if options.resume {
-        let (writer, frame) = resume_frame(scene, &output, end_time, processes, writes)?;
         match shared {
-            Some((_, part)) => {
+            Some((processes, part)) => {
+                let (writer, head) = resume_head(scene, &output, end_time, processes)?;
                 let mesh = &scene.model.mesh;
-                if frame.rest_positions != rows(&mesh.rest) || frame.tets != mesh.tets {
-                    return Err(RunError::Resume {
-                        path: output.clone(),
-                        reason: "its mesh differs from the scene's mesh".into(),
-                    });
-                }
-                let frame = part_frame(part, &frame, mesh);
+                let frame = resumed_part(
+                    processes,
+                    (writer.as_ref(), &output),
+                    (head, restore::BLOCK_VALUES),
+                    (part, mesh),
+                )?;
                 restore(&mut sim, None, &output, &frame, &scene.text)?;
+                writer
             }
-            None => restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?,
+            None => {
+                let (writer, frame) = resume_frame(scene, &output, end_time, processes, writes)?;
+                restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?;
+                writer
+            }
         }
-        writer
     } else if !writes {
         None
     } else {
@@ -309,6 +313,29 @@ fn resume_frame(
         reason: "the frame process 0 read did not arrive whole".into(),
     })?;
     Ok((None, frame))
+}
+
+/// The head of the last complete frame of the file `output` a distributed run resumes (read
+/// by the writing process and given to the others; see [`resumed_part`]), and the file's
+/// writer on the writing process.
+fn resume_head(
+    scene: &Scene,
+    output: &Path,
+    end_time: f64,
+    processes: &dyn Processes,
+) -> Result<(Option<OutputWriter>, FrameHead), RunError> {
+    if processes.writes() {
+        let (mut writer, head) = OutputWriter::resume_head(output, end_time)?;
+        writer.set_frame_options(scene.frame_options);
+        processes.broadcast_bytes(head.to_bytes());
+        return Ok((Some(writer), head));
+    }
+    let bytes = processes.broadcast_bytes(Vec::new());
+    let head = FrameHead::from_bytes(&bytes).ok_or_else(|| RunError::Resume {
+        path: output.into(),
+        reason: "the frame's head process 0 read did not arrive whole".into(),
+    })?;
+    Ok((None, head))
 }
 
 /// A new output file `output` for `scene` (replacing an icefem file with `--force`), its

@@ -1,43 +1,129 @@
 //! Resuming a run: the state of its last complete frame put back into a simulation.
 
-use super::{rows, RunError};
+use super::{rows, Processes, RunError};
 use crate::fem;
 use crate::fracture::split::Fracturable;
 use crate::fracture::Fracture;
 use crate::mesh::TetMesh;
-use crate::output::{ResumeFrame, StoredField};
+use crate::output::{FrameHead, OutputError, OutputWriter, ResumeFrame};
 use crate::sim::part::Part;
 use crate::sim::{SchemeState, Simulation};
 use std::path::Path;
 
-/// The part `part` of a frame of the whole mesh `mesh` (checked to be the frame's): its nodes'
-/// and elements' rows, its elements numbered in the part.
-pub(super) fn part_frame(part: &Part, frame: &ResumeFrame, mesh: &TetMesh) -> ResumeFrame {
-    let pick = |rows: &[[f64; 3]]| part.nodes.iter().map(|&i| rows[i]).collect();
-    let fields = |fields: &[StoredField], count: usize, per_element: bool| {
-        fields
-            .iter()
-            .filter(|f| f.data.len() == f.columns * count)
-            .map(|f| StoredField {
-                name: f.name.clone(),
-                columns: f.columns,
-                data: part.rows_of(&f.data, f.columns, per_element),
-            })
-            .collect()
+/// Values in one block of a resumed frame's rows broadcast to every process: 1 Mi, 8 MiB of
+/// doubles.
+pub(super) const BLOCK_VALUES: usize = 1 << 20;
+
+/// This process's part `part` of the frame a distributed run resumes, whose `head` every
+/// process has: the writing process (the one with `writer`) reads each dataset of the frame a
+/// block of rows at a time and gives each block to every process, which keeps the rows of its
+/// part's nodes and elements — no process holds more of the frame than its part and a block
+/// (of at most `block` values). The frame's mesh must be the scene's `mesh` (each process checks its rows; any difference
+/// is every process's error).
+pub(super) fn resumed_part(
+    processes: &dyn Processes,
+    (writer, path): (Option<&OutputWriter>, &Path),
+    (head, block): (FrameHead, usize),
+    (part, mesh): (&Part, &TetMesh),
+) -> Result<ResumeFrame, RunError> {
+    let differs = || RunError::Resume {
+        path: path.into(),
+        reason: "its mesh differs from the scene's mesh".into(),
     };
-    ResumeFrame {
-        step: frame.step,
-        time: frame.time,
-        scene_text: frame.scene_text.clone(),
-        positions: pick(&frame.positions),
-        velocities: pick(&frame.velocities),
-        rest_positions: pick(&frame.rest_positions),
-        tets: part.tets_of(&mesh.tets),
-        element_fields: fields(&frame.element_fields, mesh.num_tets(), true),
-        node_fields: fields(&frame.node_fields, mesh.num_nodes(), false),
-        row_fields: frame.row_fields.clone(),
-        attributes: frame.attributes.clone(),
+    if head.nodes != mesh.num_nodes() || head.elements != mesh.num_tets() {
+        return Err(differs());
     }
+    let frame = head.with_rows(
+        |name, cols, per_node| {
+            let (rows, whole) = if per_node {
+                (&part.nodes, mesh.num_nodes())
+            } else {
+                (&part.elements, mesh.num_tets())
+            };
+            let mut kept = Vec::with_capacity(rows.len() * cols);
+            blocks_of_rows(
+                (processes, path),
+                (whole, cols, block),
+                rows,
+                |block| writer.map_or(Ok(Vec::new()), |w| w.resumed_rows(name, cols, block)),
+                |row| kept.extend_from_slice(row),
+            )?;
+            Ok::<_, OutputError>(kept)
+        },
+        || {
+            let mut kept = Vec::with_capacity(part.elements.len());
+            blocks_of_rows(
+                (processes, path),
+                (mesh.num_tets(), 4, block),
+                &part.elements,
+                |block| {
+                    let tets = writer.map_or(Ok(Vec::new()), |w| w.resumed_tets(block))?;
+                    Ok(tets.into_iter().flatten().map(|v| v as f64).collect())
+                },
+                |row| kept.push([0, 1, 2, 3].map(|k| row[k] as usize)),
+            )?;
+            Ok::<_, OutputError>(kept)
+        },
+    )?;
+    let rest_differs = frame
+        .rest_positions
+        .iter()
+        .zip(&part.nodes)
+        .any(|(p, &i)| *p != <[f64; 3]>::from(mesh.rest[i]));
+    let tets_differ = frame
+        .tets
+        .iter()
+        .zip(&part.elements)
+        .any(|(t, &e)| *t != mesh.tets[e]);
+    if processes.any(rest_differs || tets_differ) {
+        return Err(differs());
+    }
+    Ok(ResumeFrame {
+        tets: part.tets_of(&mesh.tets),
+        ..frame
+    })
+}
+
+/// Goes through the `whole` rows of `cols` columns of a dataset a block (of at most `block`
+/// values, or one row) at a time: `read`
+/// gives a block's rows on the writing process (nothing elsewhere), which every process
+/// receives, and `keep` is given the row of each of `rows` (ascending) as its block arrives.
+fn blocks_of_rows(
+    (processes, path): (&dyn Processes, &Path),
+    (whole, cols, block): (usize, usize, usize),
+    rows: &[usize],
+    mut read: impl FnMut(std::ops::Range<usize>) -> Result<Vec<f64>, OutputError>,
+    mut keep: impl FnMut(&[f64]),
+) -> Result<(), OutputError> {
+    let block_rows = (block / cols.max(1)).max(1);
+    let mut next = rows.iter().peekable();
+    for start in (0..whole).step_by(block_rows) {
+        let end = (start + block_rows).min(whole);
+        let mine: Vec<u8> = if processes.writes() {
+            read(start..end)?
+                .iter()
+                .flat_map(|x| x.to_le_bytes())
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let bytes = processes.broadcast_bytes(mine);
+        let values: Vec<f64> = bytes
+            .chunks_exact(8)
+            .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+            .collect();
+        if values.len() != (end - start) * cols {
+            return Err(OutputError::Corrupt {
+                path: path.into(),
+                reason: format!("a block of {} rows did not arrive whole", end - start),
+            });
+        }
+        while let Some(&&i) = next.peek().filter(|&&&i| i < end) {
+            keep(&values[(i - start) * cols..(i - start + 1) * cols]);
+            next.next();
+        }
+    }
+    Ok(())
 }
 
 /// Puts `sim` (and `fracture`, if the run fractures) in the state of the resumed `frame` of
@@ -183,4 +269,176 @@ fn rebuild_split_mesh(
         .rebuild(sim, split, origin)
         .map_err(|e| RebuildError::Run(e.into()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{blocks_of_rows, resumed_part, Processes, RunError};
+    use crate::output::OutputWriter;
+    use crate::physics::Model;
+    use crate::run::{run, RunOptions};
+    use crate::scene::Scene;
+    use crate::sim::part::Part;
+    use crate::sim::{SimError, Simulation};
+    use std::path::Path;
+    use std::sync::atomic::AtomicBool;
+
+    /// One process that writes: every broadcast arrives as given.
+    struct Alone;
+
+    impl Processes for Alone {
+        fn part_model(&self, _: &Model, _: bool) -> Result<(Part, Model), SimError> {
+            unreachable!("not used by a resume")
+        }
+        fn distribute(&self, _: &mut Simulation) -> Result<(), SimError> {
+            unreachable!("not used by a resume")
+        }
+        fn count(&self) -> usize {
+            1
+        }
+        fn writes(&self) -> bool {
+            true
+        }
+        fn any(&self, flag: bool) -> bool {
+            flag
+        }
+        fn broadcast_bytes(&self, bytes: Vec<u8>) -> Vec<u8> {
+            bytes
+        }
+        fn gather_values(&self, values: Vec<f64>, take: &mut dyn FnMut(Vec<f64>)) {
+            take(values)
+        }
+    }
+
+    #[test]
+    fn rows_are_kept_from_the_blocks_they_arrive_in() {
+        // 23 rows of 3 columns, blocks of 7 values (2 rows): rows at block edges, the first
+        // and the last row, and a block with none kept.
+        let whole: Vec<f64> = (0..69).map(f64::from).collect();
+        let rows = [0, 1, 2, 5, 6, 7, 13, 22];
+        let mut read_blocks = Vec::new();
+        let mut kept = Vec::new();
+        blocks_of_rows(
+            (&Alone, Path::new("x.h5")),
+            (23, 3, 7),
+            &rows,
+            |block| {
+                read_blocks.push(block.clone());
+                Ok(whole[3 * block.start..3 * block.end].to_vec())
+            },
+            |row| kept.extend_from_slice(row),
+        )
+        .unwrap();
+        let expected: Vec<f64> = rows
+            .iter()
+            .flat_map(|&i| whole[3 * i..3 * i + 3].to_vec())
+            .collect();
+        assert_eq!(kept, expected);
+        assert_eq!(read_blocks.len(), 12);
+        assert_eq!(read_blocks[11], 22..23);
+        // A block cut short is refused, not misread.
+        let short = blocks_of_rows(
+            (&Alone, Path::new("x.h5")),
+            (23, 3, 7),
+            &rows,
+            |block| Ok(whole[3 * block.start..3 * block.end - 1].to_vec()),
+            |_| {},
+        );
+        assert!(short.is_err());
+    }
+
+    #[test]
+    fn a_part_of_a_resumed_frame_read_in_blocks_is_the_part_of_the_whole_frame() {
+        let dir = std::env::temp_dir().join(format!("icefem-resumed-part-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let output = dir.join("run.h5");
+        let text =
+            "[mesh]\nbox = { size = [0.1, 0.1, 0.1], cells = [6, 3, 3], tets_per_cell = 5 }\n\
+             [material]\ndensity = 916.0\nyoungs_modulus = 9e9\npoisson_ratio = 0.3\n\
+             [physics]\ngravity = [0.0, 0.0, -9.81]\n\
+             [plasticity]\nelastic_limit = 1e-8\n\
+             [[dirichlet]]\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1e-9]\n\
+             [time]\ndt = 0.01\nend_time = 0.03\n";
+        let scene = Scene::parse(text, &dir.join("block.toml")).unwrap();
+        let options = RunOptions {
+            output: Some(output.clone()),
+            end_time: None,
+            dt: None,
+            resume: false,
+            force: true,
+        };
+        run(&scene, &options, &AtomicBool::new(false), |_| {}).unwrap();
+        let mesh = &scene.model.mesh;
+        // Two parts split by x; this process holds part 1 and its ring.
+        let element_part: Vec<u32> = (mesh.tets.iter())
+            .map(|t| u32::from(t.iter().map(|&v| mesh.rest[v].x).sum::<f64>() > 0.3))
+            .collect();
+        let mut node_owner = vec![u32::MAX; mesh.num_nodes()];
+        for (t, &p) in mesh.tets.iter().zip(&element_part) {
+            t.iter().for_each(|&v| node_owner[v] = node_owner[v].min(p));
+        }
+        let part = Part::new(&mesh.tets, (&element_part, &node_owner), 1, (&[], false));
+        assert!(part.nodes.len() < mesh.num_nodes());
+
+        let (writer, head) = OutputWriter::resume_head(&output, f64::INFINITY).unwrap();
+        let (nodes, elements) = (head.nodes, head.elements);
+        let whole = head
+            .clone()
+            .with_rows(
+                |name, cols, per_node| {
+                    writer.resumed_rows(name, cols, 0..if per_node { nodes } else { elements })
+                },
+                || writer.resumed_tets(0..elements),
+            )
+            .unwrap();
+        assert!(whole
+            .element_fields
+            .iter()
+            .any(|f| f.name == "plastic_strain"));
+        // Blocks of 20 values: several for every dataset.
+        let mine = resumed_part(
+            &Alone,
+            (Some(&writer), &output),
+            (head.clone(), 20),
+            (&part, mesh),
+        )
+        .unwrap();
+        let pick =
+            |rows: &[[f64; 3]]| -> Vec<[f64; 3]> { part.nodes.iter().map(|&i| rows[i]).collect() };
+        assert_eq!(mine.positions, pick(&whole.positions));
+        assert_eq!(mine.velocities, pick(&whole.velocities));
+        assert_eq!(mine.rest_positions, pick(&whole.rest_positions));
+        assert_eq!(mine.tets, part.tets_of(&mesh.tets));
+        for (fields, mine_fields, per_element) in [
+            (&whole.element_fields, &mine.element_fields, true),
+            (&whole.node_fields, &mine.node_fields, false),
+        ] {
+            assert_eq!(fields.len(), mine_fields.len());
+            for (f, m) in fields.iter().zip(mine_fields) {
+                assert_eq!((&f.name, f.columns), (&m.name, m.columns));
+                assert_eq!(
+                    m.data,
+                    part.rows_of(&f.data, f.columns, per_element),
+                    "{}",
+                    f.name
+                );
+            }
+        }
+        assert_eq!((mine.step, mine.time), (whole.step, whole.time));
+        assert_eq!(mine.row_fields, whole.row_fields);
+        assert_eq!(mine.attributes, whole.attributes);
+
+        // A scene mesh that differs from the frame's in one rest position of the part.
+        let mut moved = mesh.clone();
+        moved.rest[part.nodes[0]].x += 1e-12;
+        let refused = resumed_part(
+            &Alone,
+            (Some(&writer), &output),
+            (head, 20),
+            (&part, &moved),
+        );
+        assert!(matches!(refused, Err(RunError::Resume { .. })));
+        drop(writer);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
