@@ -6,7 +6,7 @@
 //! couplings are cancelled go over MPI.
 
 use super::partition::Partition;
-use super::petsc::{Divergence, Gather, Int, Krylov, Matrix, Vector};
+use super::petsc::{Gather, Int, Krylov, Matrix, Vector};
 use crate::thermal::system::ScalarSystem;
 use crate::thermal::HeatShare;
 use mpi::datatype::PartitionMut;
@@ -190,27 +190,12 @@ impl HeatShare for HeatProcessShare {
                 }
             })
             .map_err(error)?;
-        match self
+        if let Err((why, iterations)) = self
             .krylov
             .solve(&self.rhs, &mut self.solution)
             .map_err(error)?
         {
-            Ok(_) => {}
-            Err((Divergence::Indefinite, i)) => {
-                return Err(format!(
-                    "conjugate gradients met negative curvature at iteration {i}"
-                ))
-            }
-            Err((Divergence::Iterations, i)) => {
-                return Err(format!(
-                    "conjugate gradients did not converge in {i} iterations"
-                ))
-            }
-            Err((Divergence::Other(code), i)) => {
-                return Err(format!(
-                    "conjugate gradients stopped after {i} iterations (KSPConvergedReason {code})"
-                ))
-            }
+            return Err(why.message(iterations));
         }
         self.gather
             .gather(&self.solution, |mine| x.copy_from_slice(mine))

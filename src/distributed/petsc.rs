@@ -393,12 +393,37 @@ fn set_default_option(name: &str, value: &str) -> Result<(), PetscError> {
 /// Why a Krylov solve stopped without converging.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Divergence {
-    /// The matrix or the preconditioner is not positive definite.
+    /// The matrix is not positive definite.
     Indefinite,
+    /// The preconditioner is not positive definite.
+    IndefinitePreconditioner,
     /// The iteration cap was reached.
     Iterations,
     /// Another reason (PETSc's `KSPConvergedReason`).
     Other(i32),
+}
+
+impl Divergence {
+    /// What stopped conjugate gradients after `iterations` iterations, for an error message.
+    pub fn message(self, iterations: usize) -> String {
+        match self {
+            Divergence::Indefinite => {
+                format!("conjugate gradients met negative curvature at iteration {iterations}")
+            }
+            Divergence::IndefinitePreconditioner => format!(
+                "the multigrid preconditioner is not positive definite (conjugate gradients \
+                 broke down at iteration {iterations}); PETSC_OPTIONS can choose another \
+                 smoother (-pc_hypre_boomeramg_relax_type_all) or preconditioner"
+            ),
+            Divergence::Iterations => {
+                format!("conjugate gradients did not converge in {iterations} iterations")
+            }
+            Divergence::Other(code) => format!(
+                "conjugate gradients stopped after {iterations} iterations \
+                 (KSPConvergedReason {code})"
+            ),
+        }
+    }
 }
 
 /// A Krylov solver with its preconditioner.
@@ -471,9 +496,8 @@ impl Krylov {
         } else {
             use ffi::KSPConvergedReason as R;
             let why = match reason {
-                R::KSP_DIVERGED_INDEFINITE_PC | R::KSP_DIVERGED_INDEFINITE_MAT => {
-                    Divergence::Indefinite
-                }
+                R::KSP_DIVERGED_INDEFINITE_MAT => Divergence::Indefinite,
+                R::KSP_DIVERGED_INDEFINITE_PC => Divergence::IndefinitePreconditioner,
                 R::KSP_DIVERGED_ITS => Divergence::Iterations,
                 _ => Divergence::Other(code),
             };

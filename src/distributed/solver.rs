@@ -238,12 +238,7 @@ impl ExternalSolver for PetscSolver {
                     residual: f64::NAN,
                 })
             }
-            Err((Divergence::Other(code), iterations)) => {
-                return Err(LinearError::External(format!(
-                    "conjugate gradients stopped after {iterations} iterations \
-                     (KSPConvergedReason {code})"
-                )))
-            }
+            Err((why, iterations)) => return Err(LinearError::External(why.message(iterations))),
         };
         traffic::add(&traffic::HALO, self.halo * iterations);
         traffic::add(&traffic::GATHERED, self.gathered);
