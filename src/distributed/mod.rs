@@ -30,7 +30,7 @@ use crate::physics::Model;
 use crate::run::Processes;
 use crate::sim::part::Part;
 use crate::sim::{Collective, Distribution, SimError, Simulation};
-use crate::solver::{ExternalSolver, LinearError};
+use crate::solver::{ExternalSolver, LinearError, LinearSolverKind};
 use ghosts::Ghosts;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -391,13 +391,25 @@ impl Distribution for ProcessShare {
         &self.owned_elements
     }
 
-    fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError> {
+    fn solver(
+        &self,
+        assembly: &Assembly,
+        linear: LinearSolverKind,
+    ) -> Result<Box<dyn ExternalSolver>, LinearError> {
+        let dofs = assembly.dofs();
+        let owned_free = (0..dofs.num_dofs())
+            .filter(|&d| self.owned_dofs[d] && dofs.free(d).is_some())
+            .count();
+        // The whole system's free dofs decide, as on one process (the same on every process).
+        let free = self.collective.sum(owned_free as f64) as usize;
+        let direct = linear.resolve(free) == LinearSolverKind::Cholesky;
+        let (rtol, max_iterations) = self.solve;
         Ok(Box::new(solver::PetscSolver::new(
             assembly,
             (&self.partition, &self.nodes),
             (self.rank, &self.owned_elements, &self.tets),
             &self.rest,
-            self.solve,
+            (direct, rtol, max_iterations),
         )?))
     }
 

@@ -426,10 +426,80 @@ impl Divergence {
     }
 }
 
-/// A Krylov solver with its preconditioner.
-pub struct Krylov(ffi::KSP);
+/// A Krylov solver with its preconditioner, or a direct factorisation.
+pub struct Krylov {
+    ksp: ffi::KSP,
+    /// Whether it factorises (MUMPS's LDLᵀ) instead of iterating.
+    direct: bool,
+}
 
 impl Krylov {
+    /// A sparse symmetric factorisation of the whole matrix on every process (PETSc's
+    /// redundant preconditioner around MUMPS's sequential LDLᵀ with pivoting): the
+    /// distributed counterpart of one process's Cholesky for small systems. MUMPS spread
+    /// over the processes schedules its fronts dynamically, so its factor's last bits change
+    /// from run to run (a resumed run then leaves the uninterrupted one: measured); one
+    /// sequential factorisation per process is the same on every process and in every run.
+    /// After [`Krylov::set_matrix`], [`Krylov::non_positive_eigenvalues`] counts the
+    /// matrix's negative and zero eigenvalues (its inertia). `PETSC_OPTIONS` may change any
+    /// of it.
+    pub fn direct() -> Result<Self, PetscError> {
+        for (name, value) in [
+            ("-redundant_pc_type", "cholesky"),
+            ("-redundant_pc_factor_mat_solver_type", "mumps"),
+            // MUMPS gives the inertia only with its zero-pivot detection on.
+            ("-redundant_mat_mumps_icntl_24", "1"),
+        ] {
+            set_default_option(name, value)?;
+        }
+        let (preonly, redundant) = (
+            CString::new("preonly").expect("no NUL"),
+            CString::new("redundant").expect("no NUL"),
+        );
+        let mut ksp: ffi::KSP = ptr::null_mut();
+        // SAFETY: PETSc is initialised; `ksp` receives a new solver whose PC it owns.
+        unsafe {
+            check(ffi::KSPCreate(world(), &mut ksp), "KSPCreate")?;
+            let krylov = Krylov { ksp, direct: true };
+            check(ffi::KSPSetType(ksp, preonly.as_ptr()), "KSPSetType")?;
+            let mut pc: ffi::PC = ptr::null_mut();
+            check(ffi::KSPGetPC(ksp, &mut pc), "KSPGetPC")?;
+            check(ffi::PCSetType(pc, redundant.as_ptr()), "PCSetType")?;
+            check(ffi::KSPSetFromOptions(ksp), "KSPSetFromOptions")?;
+            Ok(krylov)
+        }
+    }
+
+    /// Whether it factorises instead of iterating.
+    pub fn is_direct(&self) -> bool {
+        self.direct
+    }
+
+    /// Negative and zero eigenvalues of the matrix last factorised (the factor's inertia); 0
+    /// for an iterative solver.
+    pub fn non_positive_eigenvalues(&self) -> Result<usize, PetscError> {
+        if !self.direct {
+            return Ok(0);
+        }
+        let (mut negative, mut zero, mut positive): (Int, Int, Int) = (0, 0, 0);
+        let mut pc: ffi::PC = ptr::null_mut();
+        let mut factor: ffi::Mat = ptr::null_mut();
+        let mut inner: ffi::KSP = ptr::null_mut();
+        // SAFETY: a direct solver set up by `set_matrix`: its redundant PC's inner PC holds
+        // the factor.
+        unsafe {
+            check(ffi::KSPGetPC(self.ksp, &mut pc), "KSPGetPC")?;
+            check(ffi::PCRedundantGetKSP(pc, &mut inner), "PCRedundantGetKSP")?;
+            check(ffi::KSPGetPC(inner, &mut pc), "KSPGetPC")?;
+            check(ffi::PCFactorGetMatrix(pc, &mut factor), "PCFactorGetMatrix")?;
+            check(
+                ffi::MatGetInertia(factor, &mut negative, &mut zero, &mut positive),
+                "MatGetInertia",
+            )?;
+        }
+        Ok((negative.max(0) + zero.max(0)) as usize)
+    }
+
     /// Conjugate gradients preconditioned by algebraic multigrid — hypre's BoomerAMG with
     /// [`BOOMERAMG_DEFAULTS`] — to the relative residual `rtol` in at most `max_iterations`;
     /// `PETSC_OPTIONS` may change any of it (`-pc_type gamg` uses the rigid-body modes).
@@ -445,7 +515,7 @@ impl Krylov {
         // SAFETY: PETSc is initialised; `ksp` receives a new solver whose PC it owns.
         unsafe {
             check(ffi::KSPCreate(world(), &mut ksp), "KSPCreate")?;
-            let krylov = Krylov(ksp);
+            let krylov = Krylov { ksp, direct: false };
             check(ffi::KSPSetType(ksp, cg.as_ptr()), "KSPSetType")?;
             let mut pc: ffi::PC = ptr::null_mut();
             check(ffi::KSPGetPC(ksp, &mut pc), "KSPGetPC")?;
@@ -464,8 +534,20 @@ impl Krylov {
     pub fn set_matrix(&mut self, a: &Matrix) -> Result<(), PetscError> {
         // SAFETY: valid solver and matrix (the solver holds a reference to it).
         unsafe {
-            check(ffi::KSPSetOperators(self.0, a.0, a.0), "KSPSetOperators")?;
-            check(ffi::KSPSetUp(self.0), "KSPSetUp")
+            if self.direct {
+                // A symmetric factorisation needs the matrix said to be symmetric (it is, by
+                // construction: the Hessian's pattern and values are).
+                check(
+                    ffi::MatSetOption(
+                        a.0,
+                        ffi::MatOption::MAT_SYMMETRIC,
+                        ffi::PetscBool::PETSC_TRUE,
+                    ),
+                    "MatSetOption",
+                )?;
+            }
+            check(ffi::KSPSetOperators(self.ksp, a.0, a.0), "KSPSetOperators")?;
+            check(ffi::KSPSetUp(self.ksp), "KSPSetUp")
         }
     }
 
@@ -479,13 +561,13 @@ impl Krylov {
         let mut reason = ffi::KSPConvergedReason::KSP_CONVERGED_ITERATING;
         // SAFETY: valid solver with operators set; `b` and `x` laid out as its matrix.
         unsafe {
-            check(ffi::KSPSolve(self.0, b.0, x.0), "KSPSolve")?;
+            check(ffi::KSPSolve(self.ksp, b.0, x.0), "KSPSolve")?;
             check(
-                ffi::KSPGetIterationNumber(self.0, &mut iterations),
+                ffi::KSPGetIterationNumber(self.ksp, &mut iterations),
                 "KSPGetIterationNumber",
             )?;
             check(
-                ffi::KSPGetConvergedReason(self.0, &mut reason),
+                ffi::KSPGetConvergedReason(self.ksp, &mut reason),
                 "KSPGetConvergedReason",
             )?;
         }
@@ -510,7 +592,7 @@ impl Drop for Krylov {
     fn drop(&mut self) {
         // SAFETY: valid and dropped once.
         unsafe {
-            ffi::KSPDestroy(&mut self.0);
+            ffi::KSPDestroy(&mut self.ksp);
         }
     }
 }

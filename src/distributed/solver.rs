@@ -2,7 +2,9 @@
 //! columns where its elements and nodes write, on its part of the mesh) into a PETSc matrix
 //! over all 3n dofs, whose rows the processes own by node; PETSc sums the parts, and
 //! conjugate gradients with algebraic multigrid (hypre's BoomerAMG; PETSc's GAMG, with the
-//! rigid-body modes as near-null space, on request) solve. The constrained dofs are rows of
+//! rigid-body modes as near-null space, on request) solve — or, where one process would
+//! factorise (the scene's `linear = "cholesky"`, or `auto` on a small system), MUMPS's
+//! symmetric factorisation across the processes. The constrained dofs are rows of
 //! the diagonal only (their update is zero), which keeps every node's 3 × 3 block for the
 //! multigrid. Each process gathers the solution on its part's dofs.
 
@@ -52,13 +54,14 @@ impl PetscSolver {
     /// The solver for `assembly`'s pattern on process `rank` of `partition`, on its part of
     /// the mesh: the whole mesh's node of each of its nodes `nodes`, its elements `tets`
     /// (those it evaluates marked in `owned_elements`), the nodes' rest positions `rest` (m);
-    /// CG stops at the relative residual `rtol` or after `max_iterations`.
+    /// with `direct`, MUMPS factorises ([`Krylov::direct`]), else CG stops at the relative
+    /// residual `rtol` or after `max_iterations`.
     pub fn new(
         assembly: &Assembly,
         (partition, nodes): (&Partition, &[usize]),
         (rank, owned_elements, tets): (u32, &[bool], &[[usize; 4]]),
         rest: &[Vector3<f64>],
-        (rtol, max_iterations): (f64, usize),
+        (direct, rtol, max_iterations): (bool, f64, usize),
     ) -> Result<Self, LinearError> {
         let n_nodes = rest.len();
         let global = 3 * partition.petsc_node.len();
@@ -164,7 +167,11 @@ impl PetscSolver {
         let gathered = petsc_of_free.iter().filter(|&&i| !in_range(i)).count();
         Ok(PetscSolver {
             matrix,
-            krylov: Krylov::cg_amg(rtol, max_iterations)?,
+            krylov: if direct {
+                Krylov::direct()?
+            } else {
+                Krylov::cg_amg(rtol, max_iterations)?
+            },
             rhs,
             solution,
             gather,
@@ -212,6 +219,13 @@ impl ExternalSolver for PetscSolver {
         self.matrix.assemble()?;
         traffic::add(&traffic::MATRIX_ENTRIES, self.entries_sent);
         self.krylov.set_matrix(&self.matrix)?;
+        let count = self.krylov.non_positive_eigenvalues()?;
+        if count > 0 {
+            return Err(LinearError::NonPositiveEigenvalues {
+                count,
+                n: self.n_free,
+            });
+        }
         Ok(())
     }
 
@@ -225,6 +239,8 @@ impl ExternalSolver for PetscSolver {
         })?;
         let outcome = self.krylov.solve(&self.rhs, &mut self.solution)?;
         let iterations = match outcome {
+            // One solve with the factor, counted as one iteration as one process's Cholesky.
+            Ok(_) if self.krylov.is_direct() => 1,
             Ok(iterations) => iterations,
             Err((Divergence::Indefinite, iteration)) => {
                 return Err(LinearError::NegativeCurvature {

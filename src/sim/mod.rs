@@ -651,7 +651,7 @@ impl Simulation {
             Some(shared) => {
                 let owned = shared.distribution.owned_elements();
                 shared.elements = self.assembly.subset(owned);
-                LinearSolver::External(shared.distribution.solver(&self.assembly)?)
+                LinearSolver::External(shared.distribution.solver(&self.assembly, s.linear)?)
             }
             None => LinearSolver::new(
                 s.linear,

@@ -7,7 +7,7 @@ use super::potential::Collective;
 use super::{Energies, SimError, Simulation};
 use crate::assembly::{Assembly, ElementSubset};
 use crate::physics::Model;
-use crate::solver::{ExternalSolver, LinearError, LinearSolver};
+use crate::solver::{ExternalSolver, LinearError, LinearSolver, LinearSolverKind};
 use crate::thermal::system::ScalarSystem;
 use crate::thermal::HeatShare;
 
@@ -22,8 +22,14 @@ pub trait Distribution {
     fn owned_dofs(&self) -> &[bool];
     /// Whether this process evaluates each element of its part: every element has one.
     fn owned_elements(&self) -> &[bool];
-    /// A linear solver shared by the processes, for `assembly`'s pattern.
-    fn solver(&self, assembly: &Assembly) -> Result<Box<dyn ExternalSolver>, LinearError>;
+    /// A linear solver shared by the processes, for `assembly`'s pattern: a factorisation
+    /// where `linear` asks one process for one (Cholesky, or `Auto` on a small system), else
+    /// an iterative solver.
+    fn solver(
+        &self,
+        assembly: &Assembly,
+        linear: LinearSolverKind,
+    ) -> Result<Box<dyn ExternalSolver>, LinearError>;
     /// The distribution of `model` (the whole model), whose mesh was made from this
     /// distribution's by splitting elements (fracture): element `e` came from element
     /// `parent[e]` and stays with its process. Called by every process at the same split (it
@@ -49,7 +55,8 @@ impl Simulation {
     /// part ([`super::part::Part::model`]). Rayleigh damping's β Kₙ is shared by elements, as
     /// the elastic energy is.
     pub fn distribute(&mut self, distribution: Box<dyn Distribution>) -> Result<(), SimError> {
-        self.linear = LinearSolver::External(distribution.solver(&self.assembly)?);
+        let linear = distribution.solver(&self.assembly, self.settings.linear)?;
+        self.linear = LinearSolver::External(linear);
         self.workspace.forget_factor();
         self.hessians.forget();
         self.shared = Some(Shared {

@@ -12,6 +12,10 @@ pub enum LinearError {
          unconstrained rigid-body mode (add Dirichlet conditions) or a part of the mesh is detached"
     )]
     NotPositiveDefinite { pivot: usize, n: usize },
+    /// A symmetric factorisation (a distributed run's) found `count` negative or zero
+    /// eigenvalues: the matrix is not positive definite.
+    #[error("the system matrix is not positive definite ({count} negative or zero eigenvalues of a {n}-dof system)")]
+    NonPositiveEigenvalues { count: usize, n: usize },
     /// CG met a direction of non-positive curvature: the matrix is not positive definite.
     #[error("the system matrix is not positive definite (conjugate gradients found negative curvature at iteration {iteration} of a {n}-dof system)")]
     NegativeCurvature { iteration: usize, n: usize },
@@ -36,6 +40,7 @@ impl LinearError {
         matches!(
             self,
             LinearError::NotPositiveDefinite { .. }
+                | LinearError::NonPositiveEigenvalues { .. }
                 | LinearError::NegativeCurvature { .. }
                 | LinearError::Amg(AmgError::CoarseNotPositiveDefinite { .. })
         )

@@ -14,8 +14,10 @@ pub enum LinearSolverKind {
     Amg,
     /// Cholesky below [`AUTO_DIRECT_MAX_DOFS`] free dofs, multigrid-preconditioned CG above.
     Auto,
-    /// PETSc's solver of a distributed run (`distributed`): not chosen in a scene, which a
-    /// distributed run solves with it whatever the scene says.
+    /// PETSc's solver of a distributed run (`distributed`): not chosen in a scene. A
+    /// distributed run solves through PETSc whatever the scene says: by a factorisation
+    /// where the scene's choice resolves to [`LinearSolverKind::Cholesky`], else by CG with
+    /// algebraic multigrid.
     #[serde(skip)]
     Petsc,
 }
