@@ -53,7 +53,7 @@ mod petsc {
             .allowlist_function("Petsc(Initialize|InitializeNoArguments|Finalize|Initialized|OptionsHasName|OptionsSetValue)")
             .allowlist_function("Vec(CreateMPI|SetBlockSize|GetLocalSize|SetValues|AssemblyBegin|AssemblyEnd|GetArray|RestoreArray|GetArrayRead|RestoreArrayRead|Destroy|Duplicate|Set|CreateSeq|ScatterCreate|ScatterBegin|ScatterEnd|ScatterDestroy|GetOwnershipRange|Norm)")
             .allowlist_function("Mat(Create|SetSizes|SetType|SetBlockSize|SeqAIJSetPreallocation|MPIAIJSetPreallocation|SetValues|AssemblyBegin|AssemblyEnd|ZeroEntries|SetOption|SetNearNullSpace|NullSpaceCreateRigidBody|NullSpaceDestroy|Destroy|GetInfo|CreateMPIAdj|GetInertia)")
-            .allowlist_function("KSP(Create|SetOperators|SetType|GetPC|SetTolerances|SetFromOptions|SetUp|Solve|GetIterationNumber|GetConvergedReason|Destroy|SetReusePreconditioner|SetInitialGuessNonzero)")
+            .allowlist_function("KSP(SetOptionsPrefix|Create|SetOperators|SetType|GetPC|SetTolerances|SetFromOptions|SetUp|Solve|GetIterationNumber|GetConvergedReason|Destroy|SetReusePreconditioner|SetInitialGuessNonzero)")
             .allowlist_function("PC(SetType|GAMGSetNSmooths|SetFromOptions|FactorGetMatrix|RedundantGetKSP)")
             .allowlist_function("IS(CreateGeneral|Destroy|GetIndices|RestoreIndices|GetLocalSize)")
             .allowlist_function("MatPartitioning(Create|SetAdjacency|SetType|Apply|Destroy)")

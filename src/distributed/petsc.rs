@@ -441,18 +441,20 @@ impl Krylov {
     /// from run to run (a resumed run then leaves the uninterrupted one: measured); one
     /// sequential factorisation per process is the same on every process and in every run.
     /// After [`Krylov::set_matrix`], [`Krylov::non_positive_eigenvalues`] counts the
-    /// matrix's negative and zero eigenvalues (its inertia). `PETSC_OPTIONS` may change any
-    /// of it.
+    /// matrix's negative and zero eigenvalues (its inertia). Its options carry the prefix
+    /// `direct_` (`PETSC_OPTIONS="-direct_redundant_pc_factor_mat_solver_type petsc"`), so
+    /// that those of the iterative solver (`-pc_type …`) leave it alone.
     pub fn direct() -> Result<Self, PetscError> {
         for (name, value) in [
-            ("-redundant_pc_type", "cholesky"),
-            ("-redundant_pc_factor_mat_solver_type", "mumps"),
+            ("-direct_redundant_pc_type", "cholesky"),
+            ("-direct_redundant_pc_factor_mat_solver_type", "mumps"),
             // MUMPS gives the inertia only with its zero-pivot detection on.
-            ("-redundant_mat_mumps_icntl_24", "1"),
+            ("-direct_redundant_mat_mumps_icntl_24", "1"),
         ] {
             set_default_option(name, value)?;
         }
-        let (preonly, redundant) = (
+        let (prefix, preonly, redundant) = (
+            CString::new("direct_").expect("no NUL"),
             CString::new("preonly").expect("no NUL"),
             CString::new("redundant").expect("no NUL"),
         );
@@ -461,6 +463,10 @@ impl Krylov {
         unsafe {
             check(ffi::KSPCreate(world(), &mut ksp), "KSPCreate")?;
             let krylov = Krylov { ksp, direct: true };
+            check(
+                ffi::KSPSetOptionsPrefix(ksp, prefix.as_ptr()),
+                "KSPSetOptionsPrefix",
+            )?;
             check(ffi::KSPSetType(ksp, preonly.as_ptr()), "KSPSetType")?;
             let mut pc: ffi::PC = ptr::null_mut();
             check(ffi::KSPGetPC(ksp, &mut pc), "KSPGetPC")?;
