@@ -616,6 +616,20 @@ fn ice_contact_on_two_processes_is_within_the_spread_of_one_process_solvers() {
     );
 }
 
+/// `icefem run scene --resume file --end-time end` on `processes` processes; its stderr,
+/// panicking if it failed.
+fn resume(processes: usize, scene: &Path, file: &Path, end: &str) -> String {
+    let args: [&OsStr; 6] = [
+        "run".as_ref(),
+        scene.as_ref(),
+        "--end-time".as_ref(),
+        end.as_ref(),
+        "--resume".as_ref(),
+        file.as_ref(),
+    ];
+    succeeded(icefem(Some(processes), &args))
+}
+
 /// `scene` on two processes to `cut` (s), resumed on two to `end` (s), against the run to
 /// `end` on two: the same frames' `fields` bit for bit.
 fn resumed_on_two_is_uninterrupted(scene: &Path, (cut, end): (&str, &str), fields: &[&str]) {
@@ -624,15 +638,7 @@ fn resumed_on_two_is_uninterrupted(scene: &Path, (cut, end): (&str, &str), field
     let dir = tempfile::tempdir().unwrap();
     let (resumed, whole) = (dir.path().join("cut.h5"), dir.path().join("whole.h5"));
     icefem_run(2, scene, &resumed, &["--end-time", cut]);
-    let args: [&OsStr; 6] = [
-        "run".as_ref(),
-        scene.as_ref(),
-        "--end-time".as_ref(),
-        end.as_ref(),
-        "--resume".as_ref(),
-        resumed.as_ref(),
-    ];
-    succeeded(icefem(Some(2), &args));
+    resume(2, scene, &resumed, end);
     icefem_run(2, scene, &whole, &["--end-time", end]);
     for field in fields {
         assert_eq!(
@@ -659,15 +665,7 @@ fn a_run_on_two_processes_resumed_on_three_continues_it() {
     let (resumed, whole) = (dir.path().join("cut.h5"), dir.path().join("whole.h5"));
     let cantilever = scene("cantilever.toml");
     icefem_run(2, &cantilever, &resumed, &["--end-time", "0.5"]);
-    let args: [&OsStr; 6] = [
-        "run".as_ref(),
-        cantilever.as_ref(),
-        "--end-time".as_ref(),
-        "1.0".as_ref(),
-        "--resume".as_ref(),
-        resumed.as_ref(),
-    ];
-    let report = succeeded(icefem(Some(3), &args));
+    let report = resume(3, &cantilever, &resumed, "1.0");
     assert_eq!(held_nodes(&report).1.len(), 3, "{report}");
     icefem_run(2, &cantilever, &whole, &["--end-time", "1.0"]);
     let diff = difference(&resumed, &whole);

@@ -214,11 +214,12 @@ impl OutputWriter {
     /// the caller reports one past the end time), so the file keeps it.
     pub fn resume_until(path: &Path, end_time: f64) -> Result<(Self, ResumeFrame), OutputError> {
         let (writer, head) = Self::resume_head(path, end_time)?;
+        let (nodes, elements) = (writer.n_nodes, writer.n_elems);
         let frame = head.with_rows(
             |name, cols, per_node| {
-                writer.resumed_rows(name, cols, 0..per_node_rows(&writer, per_node))
+                writer.resumed_rows(name, cols, 0..if per_node { nodes } else { elements })
             },
-            || writer.resumed_tets(0..writer.n_elems),
+            || writer.resumed_tets(0..elements),
         )?;
         Ok((writer, frame))
     }
@@ -333,15 +334,6 @@ impl OutputWriter {
         self.file()?
             .dataset(&at)
             .ctx(path, || format!("opening {at}"))
-    }
-}
-
-/// Rows of `writer`'s per-node (`per_node`) or per-element datasets.
-fn per_node_rows(writer: &OutputWriter, per_node: bool) -> usize {
-    if per_node {
-        writer.n_nodes
-    } else {
-        writer.n_elems
     }
 }
 

@@ -167,7 +167,12 @@ pub fn run_on(
     let writer = if options.resume {
         match shared {
             Some((processes, part)) => {
-                let (writer, head) = resume_head(scene, &output, end_time, processes)?;
+                let (writer, head) = read_for_resume(
+                    (scene, &output),
+                    (Some(processes), processes.writes()),
+                    || OutputWriter::resume_head(&output, end_time),
+                    (FrameHead::to_bytes, FrameHead::from_bytes),
+                )?;
                 let mesh = &scene.model.mesh;
                 let frame = resumed_part(
                     processes,
@@ -179,7 +184,12 @@ pub fn run_on(
                 writer
             }
             None => {
-                let (writer, frame) = resume_frame(scene, &output, end_time, processes, writes)?;
+                let (writer, frame) = read_for_resume(
+                    (scene, &output),
+                    (processes, writes),
+                    || OutputWriter::resume_until(&output, end_time),
+                    (ResumeFrame::to_bytes, ResumeFrame::from_bytes),
+                )?;
                 restore(&mut sim, fracture.as_mut(), &output, &frame, &scene.text)?;
                 writer
             }
@@ -290,52 +300,33 @@ fn simulation_for(
     Ok((sim, part))
 }
 
-/// The last complete frame of the file `output` a run resumes (read by the writing process
-/// and given to the others), and the file's writer on the writing process (`writes`).
-fn resume_frame(
-    scene: &Scene,
-    output: &Path,
-    end_time: f64,
-    processes: Option<&dyn Processes>,
-    writes: bool,
-) -> Result<(Option<OutputWriter>, ResumeFrame), RunError> {
+/// How what process 0 reads when a run resumes travels to the other processes: as bytes, and
+/// back (`None`: the bytes are not one).
+type AsBytes<T> = (fn(&T) -> Vec<u8>, fn(&[u8]) -> Option<T>);
+
+/// What the writing process (`writes`) reads of the file `output` a run resumes with `read`
+/// (the last complete frame, or its head), given to the other processes as bytes
+/// (`to_bytes`, `from_bytes`), and the file's writer on the writing process.
+fn read_for_resume<T>(
+    (scene, output): (&Scene, &Path),
+    (processes, writes): (Option<&dyn Processes>, bool),
+    read: impl FnOnce() -> Result<(OutputWriter, T), OutputError>,
+    (to_bytes, from_bytes): AsBytes<T>,
+) -> Result<(Option<OutputWriter>, T), RunError> {
     if writes {
-        let (mut writer, frame) = OutputWriter::resume_until(output, end_time)?;
+        let (mut writer, read) = read()?;
         writer.set_frame_options(scene.frame_options);
         if let Some(processes) = processes {
-            processes.broadcast_bytes(frame.to_bytes());
+            processes.broadcast_bytes(to_bytes(&read));
         }
-        return Ok((Some(writer), frame));
+        return Ok((Some(writer), read));
     }
     let bytes = processes.map_or(Vec::new(), |p| p.broadcast_bytes(Vec::new()));
-    let frame = ResumeFrame::from_bytes(&bytes).ok_or_else(|| RunError::Resume {
+    let read = from_bytes(&bytes).ok_or_else(|| RunError::Resume {
         path: output.into(),
-        reason: "the frame process 0 read did not arrive whole".into(),
+        reason: "what process 0 read of the frame did not arrive whole".into(),
     })?;
-    Ok((None, frame))
-}
-
-/// The head of the last complete frame of the file `output` a distributed run resumes (read
-/// by the writing process and given to the others; see [`resumed_part`]), and the file's
-/// writer on the writing process.
-fn resume_head(
-    scene: &Scene,
-    output: &Path,
-    end_time: f64,
-    processes: &dyn Processes,
-) -> Result<(Option<OutputWriter>, FrameHead), RunError> {
-    if processes.writes() {
-        let (mut writer, head) = OutputWriter::resume_head(output, end_time)?;
-        writer.set_frame_options(scene.frame_options);
-        processes.broadcast_bytes(head.to_bytes());
-        return Ok((Some(writer), head));
-    }
-    let bytes = processes.broadcast_bytes(Vec::new());
-    let head = FrameHead::from_bytes(&bytes).ok_or_else(|| RunError::Resume {
-        path: output.into(),
-        reason: "the frame's head process 0 read did not arrive whole".into(),
-    })?;
-    Ok((None, head))
+    Ok((None, read))
 }
 
 /// A new output file `output` for `scene` (replacing an icefem file with `--force`), its
