@@ -3,10 +3,10 @@
 //! over all 3n dofs, whose rows the processes own by node; PETSc sums the parts, and
 //! conjugate gradients with algebraic multigrid (hypre's BoomerAMG; PETSc's GAMG, with the
 //! rigid-body modes as near-null space, on request) solve — or, where one process would
-//! factorise (the scene's `linear = "cholesky"`, or `auto` on a small system), MUMPS's
-//! symmetric factorisation across the processes. The constrained dofs are rows of
-//! the diagonal only (their update is zero), which keeps every node's 3 × 3 block for the
-//! multigrid. Each process gathers the solution on its part's dofs.
+//! factorise (the scene's `linear = "cholesky"`, or `auto` on a small system), every process
+//! factorises the whole matrix with MUMPS (see `Krylov::direct`). The constrained dofs are
+//! rows of the diagonal only (their update is zero), which keeps every node's 3 × 3 block for
+//! the multigrid. Each process gathers the solution on its part's dofs.
 
 use super::partition::Partition;
 use super::petsc::{Divergence, Gather, Int, Krylov, Matrix, PetscError, Vector};
