@@ -13,8 +13,8 @@
 # and, for runs on several processes (the `mpi` feature):
 #   make mpi      — installs OpenMPI, PETSc, parallel HDF5 and libclang (apt-get), builds
 #                   target/release/icefem with the feature: `mpirun -n N target/release/icefem run SCENE`
-#   make test-mpi — the distributed tests (2 processes against 1) and the scikit-fem
-#                   validation on 2 processes
+#   make test-mpi — the distributed tests (2, 3 and 4 processes against 1), the partition
+#                   on 3 processes, and the scikit-fem validation on 2 processes
 # The only system library the build needs is HDF5 (libhdf5-dev), installed with apt-get when
 # missing; the readers' Python venv (wheels only) is created in target/readers-venv, and
 # Gmsh's (the gmsh wheel, with the X and GL libraries it links, apt-get) in target/gmsh-venv,
@@ -72,7 +72,7 @@ mpi: mpi-deps
 # Processes as root (CI containers) need OpenMPI's consent; more processes than cores, too.
 MPIRUN := mpirun --oversubscribe --allow-run-as-root
 test-mpi: mpi-deps
-	cargo test --release --features mpi --test distributed
+	cargo test --release --features mpi --test distributed --test partition
 	$(MPIRUN) -n 2 $$(cargo test --release --features mpi --test validation --no-run 2>&1 \
 		| sed -n 's/.*Executable .*(\(.*validation-[0-9a-f]*\)).*/\1/p') --test-threads=1
 

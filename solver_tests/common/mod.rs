@@ -221,6 +221,13 @@ pub fn shared(model: icefem::physics::Model, settings: icefem::sim::StepSettings
     Simulation::new(model, settings).unwrap()
 }
 
+/// The processes of `mpirun`, if the test runs under it with more than one (the `mpi`
+/// feature), MPI and PETSc started.
+#[cfg(feature = "mpi")]
+pub fn mpi_launched() -> Option<&'static icefem::distributed::MpiProcesses> {
+    mpi_processes::get()
+}
+
 #[cfg(feature = "mpi")]
 mod mpi_processes {
     use icefem::distributed::MpiProcesses;
