@@ -477,7 +477,7 @@ pub(super) fn read_tet_rows(
 }
 
 /// Rows `rows` of the 1-D or 2-D dataset `ds` of `cols` columns, row-major, in `T` (HDF5
-/// converts the stored number type); the whole dataset is read at once.
+/// converts the stored number type); `rows` covering the dataset read it in one call.
 pub(super) fn read_range<T: H5Type>(
     path: &Path,
     ds: &Dataset,

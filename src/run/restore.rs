@@ -18,8 +18,8 @@ pub(super) const BLOCK_VALUES: usize = 1 << 20;
 /// process has: the writing process (the one with `writer`) reads each dataset of the frame a
 /// block of rows at a time and gives each block to every process, which keeps the rows of its
 /// part's nodes and elements — no process holds more of the frame than its part and a block
-/// (of at most `block` values). The frame's mesh must be the scene's `mesh` (each process checks its rows; any difference
-/// is every process's error).
+/// (of at most `block` values). The frame's mesh must be the scene's `mesh` (each process
+/// checks its rows; any difference is every process's error).
 pub(super) fn resumed_part(
     processes: &dyn Processes,
     (writer, path): (Option<&OutputWriter>, &Path),
@@ -85,9 +85,9 @@ pub(super) fn resumed_part(
 }
 
 /// Goes through the `whole` rows of `cols` columns of a dataset a block (of at most `block`
-/// values, or one row) at a time: `read`
-/// gives a block's rows on the writing process (nothing elsewhere), which every process
-/// receives, and `keep` is given the row of each of `rows` (ascending) as its block arrives.
+/// values, or one row) at a time: `read` gives a block's rows on the writing process (nothing
+/// elsewhere), which every process receives, and `keep` is given the row of each of `rows`
+/// (ascending) as its block arrives.
 fn blocks_of_rows(
     (processes, path): (&dyn Processes, &Path),
     (whole, cols, block): (usize, usize, usize),
