@@ -855,3 +855,61 @@ fn command_line_quiet_verbose_and_json() {
     assert_eq!(table["columns"][0], "tets");
     assert!(table["rows"][0][0].as_f64().unwrap() > 0.0, "{bench}");
 }
+
+/// A scene's model describes its elements without their rest data (most of a model's
+/// memory): a simulation builds it on the mesh it runs, and a process's part of a distributed
+/// run for its own elements only — the same numbers, to the bit, as built on the whole mesh.
+#[test]
+fn a_scene_describes_its_elements_and_a_simulation_builds_their_rest_data() {
+    use icefem::fem::ElementRest;
+    use icefem::physics::elasticity::Volumetric;
+    use icefem::sim::{part::Part, Simulation};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/freezing_container.toml");
+    let scene = Scene::load(&path).unwrap();
+    let described = &scene.model.elasticity;
+    assert!(!described.is_built() && described.rest.is_empty() && described.nodal.is_none());
+    assert_eq!(described.volumetric(), Volumetric::Nodal);
+    let mesh = &scene.model.mesh;
+    let whole = ElementRest::of_mesh(mesh);
+    let bits = |r: &ElementRest| {
+        let grads = r.grads.iter().flat_map(|g| g.iter().map(|x| x.to_bits()));
+        std::iter::once(r.volume.to_bits())
+            .chain(grads)
+            .collect::<Vec<_>>()
+    };
+    // The lumped masses come from the same volumes: ρ V / 4 a vertex, summed.
+    let density = described.material.density;
+    let from_rest: f64 = whole.iter().map(|r| density * r.volume).sum();
+    let total: f64 = scene.model.mass.iter().sum();
+    // The same 216 volumes summed in two orders (by node, by element): a few ulps apart.
+    assert!(
+        (total - from_rest).abs() <= 1e-14 * from_rest,
+        "{total} vs {from_rest}"
+    );
+    let sim = Simulation::new(scene.model.clone(), scene.settings).unwrap();
+    let built = &sim.model.elasticity;
+    assert!(built.is_built() && built.nodal.is_some());
+    assert!(built
+        .rest
+        .iter()
+        .zip(&whole)
+        .all(|(a, b)| bits(a) == bits(b)));
+    // A part of the elements numbered below half, owners the lowest part among a node's
+    // elements: the part's model holds the rest data of the part's elements only.
+    let m = mesh.num_tets();
+    let element_part: Vec<u32> = (0..m).map(|e| u32::from(e >= m / 2)).collect();
+    let mut owner = vec![1u32; mesh.num_nodes()];
+    for (tet, &p) in mesh.tets.iter().zip(&element_part) {
+        for &v in tet {
+            owner[v] = owner[v].min(p);
+        }
+    }
+    let part = Part::new(&mesh.tets, (&element_part, &owner), 0, (&[], false));
+    assert!(!part.is_whole());
+    let model = part.model(&scene.model).unwrap();
+    assert_eq!(model.elasticity.rest.len(), part.elements.len());
+    assert!(model.elasticity.nodal.is_some());
+    for (r, &e) in model.elasticity.rest.iter().zip(&part.elements) {
+        assert_eq!(bits(r), bits(&whole[e]));
+    }
+}

@@ -177,7 +177,11 @@ impl Half {
         }
         let part = Part::new(tets, (&element_part, &owner), rank as u32, (&[], whole));
         let whole_dofs = Arc::new(part.whole_dofs().collect::<Vec<_>>());
-        let couplings = model.elasticity.couplings();
+        // The scene's model describes its elements; their couplings (the nodal volumetric
+        // energy's stars) come with the rest data the whole mesh's solver builds.
+        let mut elasticity = model.elasticity.clone();
+        elasticity.build(&model.mesh);
+        let couplings = elasticity.couplings();
         let constrained = model.constrained_dofs();
         let whole_assembly =
             Assembly::with_couplings(&model.mesh, DofMap::new(&constrained), &couplings);

@@ -778,8 +778,9 @@ fn run_scene(scene_path: &Path, options: &RunOptions, verbosity: Verbosity) -> R
             let [sums, entries, gathered, halo] = report.traffic.map(|x| x as f64 / iterations);
             let [nodes, elements] = report.held;
             eprintln!(
-                "  process {p}: sums {sums:.0}, matrix entries {entries:.0}, gathered {gathered:.0}, CG halo {halo:.0}; peak memory {:.0} MB; holds {nodes} nodes, {elements} elements",
-                report.peak_memory as f64 / 1e6
+                "  process {p}: sums {sums:.0}, matrix entries {entries:.0}, gathered {gathered:.0}, CG halo {halo:.0}; peak memory {:.0} MB ({:.0} MB before the solvers' set-up); holds {nodes} nodes, {elements} elements",
+                report.peak_memory as f64 / 1e6,
+                report.set_up_memory as f64 / 1e6,
             );
         }
     }

@@ -84,6 +84,9 @@ pub struct ProcessReport {
     pub traffic: [u64; 4],
     /// Peak resident memory (bytes).
     pub peak_memory: u64,
+    /// Peak resident memory before the solvers are set up (bytes): what reading the scene,
+    /// partitioning the mesh and building the process's part took.
+    pub set_up_memory: u64,
     /// Nodes and elements of the process's part of the mesh.
     pub held: [u64; 2],
 }
@@ -101,6 +104,9 @@ pub struct MpiProcesses {
     held: Rc<Cell<[u64; 2]>>,
     /// Whether every process holds the whole mesh even where parts would do.
     whole_mesh: Cell<bool>,
+    /// Peak resident memory when the part was shared out (bytes; see
+    /// [`ProcessReport::set_up_memory`]).
+    set_up_memory: Cell<u64>,
 }
 
 impl MpiProcesses {
@@ -125,6 +131,7 @@ impl MpiProcesses {
             part: RefCell::new(None),
             held: Rc::new(Cell::new([0; 2])),
             whole_mesh: Cell::new(false),
+            set_up_memory: Cell::new(0),
         })
     }
 
@@ -161,18 +168,20 @@ impl MpiProcesses {
             mine[2],
             mine[3],
             peak_memory(),
+            self.set_up_memory.get(),
             nodes,
             elements,
         ];
         let root = self.world.process_at_rank(0);
         if self.rank() == 0 {
-            let mut all = vec![0u64; 7 * self.size()];
+            let mut all = vec![0u64; local.len() * self.size()];
             root.gather_into_root(&local[..], &mut all[..]);
-            all.chunks(7)
+            all.chunks(local.len())
                 .map(|c| ProcessReport {
                     traffic: [c[0], c[1], c[2], c[3]],
                     peak_memory: c[4],
-                    held: [c[5], c[6]],
+                    set_up_memory: c[5],
+                    held: [c[6], c[7]],
                 })
                 .collect()
         } else {
@@ -208,6 +217,7 @@ impl Processes for MpiProcesses {
     }
 
     fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError> {
+        self.set_up_memory.set(peak_memory());
         let Some((partition, part)) = self.part.borrow_mut().take() else {
             return Err(SimError::Setup(
                 "the simulation was not built on this process's part".into(),

@@ -47,7 +47,8 @@ pub struct Elasticity {
     pub material_index: Vec<u16>,
     /// Strain measure: the scene's elastic model, whose law [`Elasticity::law`] gives.
     pub model: ElasticModel,
-    /// Rest data per element.
+    /// Rest data per element; empty in the scene's model of a run on several processes,
+    /// which only describes the elements (see [`Elasticity::described`]).
     pub rest: Vec<ElementRest>,
     /// Prescribed isotropic eigenstrain per element (dimensionless), the scene's
     /// `[[eigenstrain]]`: the initial value of the history's eigenstrain, to which freezing
@@ -66,45 +67,71 @@ pub struct Elasticity {
     /// `ice_formation`): the inelastic strain then also carries what the ice was born with
     /// and the water's swelling.
     pub ice_formation: bool,
+    /// The volumetric discretisation.
+    volumetric: Volumetric,
     /// The nodal averaging of the volumetric energy, if on (`[material] volumetric =
-    /// "nodal"`; none: per element).
+    /// "nodal"`; none: per element, or where the elements' rest data is not built).
     pub nodal: Option<NodalVolume>,
 }
 
 impl Elasticity {
     /// Elasticity of `mesh` with zero eigenstrain and no water.
     pub fn new(mesh: &TetMesh, material: Material, model: ElasticModel) -> Self {
+        let mut elasticity = Self::described(mesh, material, model);
+        elasticity.rest = ElementRest::of_mesh(mesh);
+        elasticity
+    }
+
+    /// As [`Elasticity::new`], without the elements' rest data (104 bytes an element, most of
+    /// a model) or the nodal averaging built on it: what the elements are made of and how
+    /// they are discretised, for a model from which the processes of a distributed run each
+    /// build their part ([`Elasticity::remeshed`] builds the rest data of the part's
+    /// elements), so that no process builds the rest data of the whole mesh.
+    pub fn described(mesh: &TetMesh, material: Material, model: ElasticModel) -> Self {
         Elasticity {
             material,
             other_materials: Vec::new(),
             material_index: Vec::new(),
             model,
-            rest: ElementRest::of_mesh(mesh),
+            rest: Vec::new(),
             eigenstrain: vec![0.0; mesh.num_tets()],
             water_bulk: 0.0,
             water_shear: 0.0,
             plasticity: None,
             creep: None,
             ice_formation: false,
+            volumetric: Volumetric::Element,
             nodal: None,
         }
     }
 
-    /// Switches the volumetric discretisation of this elasticity on `mesh`.
+    /// Whether the elements' rest data is built (see [`Elasticity::described`]).
+    pub fn is_built(&self) -> bool {
+        self.rest.len() == self.eigenstrain.len()
+    }
+
+    /// Builds the rest data of `mesh`'s elements and the nodal averaging if the scene asks
+    /// for it, unless built already.
+    pub fn build(&mut self, mesh: &TetMesh) {
+        if !self.is_built() {
+            self.rest = ElementRest::of_mesh(mesh);
+            self.set_volumetric(mesh, self.volumetric);
+        }
+    }
+
+    /// Switches the volumetric discretisation of this elasticity on `mesh` (the nodal
+    /// averaging is built with the elements' rest data).
     pub fn set_volumetric(&mut self, mesh: &TetMesh, volumetric: Volumetric) {
+        self.volumetric = volumetric;
         self.nodal = match volumetric {
-            Volumetric::Element => None,
-            Volumetric::Nodal => Some(NodalVolume::new(mesh, &self.rest)),
+            Volumetric::Nodal if self.is_built() => Some(NodalVolume::new(mesh, &self.rest)),
+            _ => None,
         };
     }
 
     /// The volumetric discretisation.
     pub fn volumetric(&self) -> Volumetric {
-        if self.nodal.is_some() {
-            Volumetric::Nodal
-        } else {
-            Volumetric::Element
-        }
+        self.volumetric
     }
 
     /// Node pairs the elastic energy couples beyond the elements (the nodal volumetric
@@ -133,6 +160,7 @@ impl Elasticity {
                 inherit(&self.material_index)
             },
             other_materials: self.other_materials.clone(),
+            volumetric: self.volumetric,
             nodal: None,
             material: self.material,
             model: self.model,

@@ -1,7 +1,6 @@
 //! Mass and dead loads: lumped mass, gravity, surface traction.
 
 use super::Selection;
-use crate::fem::ElementRest;
 use crate::mesh::TetMesh;
 use nalgebra::Vector3;
 
@@ -18,15 +17,12 @@ pub struct Traction {
 }
 
 /// Row-sum lumped mass of P1 tets: each vertex gets ρV/4 of each tet (kg per node), with ρ
-/// = `density(e)` of element e (kg/m³).
-pub fn lumped_mass(
-    mesh: &TetMesh,
-    rest: &[ElementRest],
-    density: impl Fn(usize) -> f64,
-) -> Vec<f64> {
+/// = `density(e)` of element e (kg/m³) and V its rest volume (the same number as its
+/// `ElementRest::volume`, without needing the elements' rest data).
+pub fn lumped_mass(mesh: &TetMesh, density: impl Fn(usize) -> f64) -> Vec<f64> {
     let mut mass = vec![0.0; mesh.num_nodes()];
-    for (e, (tet, r)) in mesh.tets.iter().zip(rest).enumerate() {
-        let m = density(e) * r.volume;
+    for (e, tet) in mesh.tets.iter().enumerate() {
+        let m = density(e) * mesh.signed_volume(e);
         for &v in tet {
             mass[v] += 0.25 * m;
         }

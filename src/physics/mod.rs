@@ -113,9 +113,7 @@ impl Model {
         damping: Option<Rayleigh>,
         dirichlet: Vec<Dirichlet>,
     ) -> Result<Self, MeshError> {
-        let mass = loads::lumped_mass(&mesh, &elasticity.rest, |e| {
-            elasticity.base_material(e).density
-        });
+        let mass = loads::lumped_mass(&mesh, |e| elasticity.base_material(e).density);
         let mut model = Model {
             mesh,
             elasticity,

@@ -374,7 +374,9 @@ pub struct Scene {
     pub path: PathBuf,
     /// The scene text (stored in the output).
     pub text: String,
-    /// The mechanics.
+    /// The mechanics. Its elements are described (materials, eigenstrains, discretisation)
+    /// without their rest data, which the simulation builds on the mesh it runs: a run on
+    /// several processes builds it for each process's part only.
     pub model: Model,
     /// Stepping and solver settings.
     pub settings: StepSettings,
@@ -683,7 +685,7 @@ impl Validator<'_> {
         material: Material,
         model: ElasticModel,
     ) -> Result<Elasticity, SceneError> {
-        let mut elasticity = Elasticity::new(mesh, material, model);
+        let mut elasticity = Elasticity::described(mesh, material, model);
         self.other_materials(raw, mesh, bodies, &mut elasticity)?;
         elasticity.set_volumetric(mesh, raw.material.volumetric.unwrap_or_default());
         for (i, section) in raw.eigenstrain.iter().enumerate() {

@@ -394,6 +394,9 @@ impl Simulation {
     /// region may hold no node of a part), which the caller made on it.
     pub fn for_part(model: Model, settings: StepSettings) -> Result<Self, SimError> {
         let mut model = model;
+        // A scene read for several processes describes its elements without their rest
+        // data; a part that is the whole mesh (with fracture) is built here.
+        model.elasticity.build(&model.mesh);
         if let Some(f) = &model.freezing {
             // The water's constants, for the elements a freezing schedule leaves unfrozen.
             model.elasticity.water_bulk = f.water_bulk();
