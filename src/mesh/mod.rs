@@ -305,14 +305,30 @@ impl TetMesh {
     /// the tets `t` with `keep[t]`: the mesh's boundary faces of kept tets, and the faces
     /// between a kept tet and one that is not (a cut through the mesh).
     pub fn boundary_faces_of(&self, keep: &[bool]) -> Vec<BoundaryFace> {
-        // Every face is listed once per tet and sorted so that a face's copies meet: 4 entries
-        // a tet, the largest transient of building a scene. With 32-bit numbers an entry is
-        // 20 bytes instead of 40; the faces come out the same, in the same order.
-        if u32::try_from(self.num_nodes().max(self.tets.len())).is_ok() {
-            boundary_faces_by(&self.tets, keep, |i| i as u32, |i| i as usize)
-        } else {
-            boundary_faces_by(&self.tets, keep, |i| i, |i| i)
+        // A face is another kept tet's too only if that tet holds the face's lowest node:
+        // looking there needs the nodes' tets (8 bytes a tet's vertex), where sorting every
+        // face of the mesh to pair them needed 20 bytes a face and more.
+        let around = self.node_to_tets();
+        let mut faces = Vec::new();
+        for (t, tet) in self.tets.iter().enumerate().filter(|(t, _)| keep[*t]) {
+            for f in TET_FACES {
+                let nodes = f.map(|a| tet[a]);
+                let lowest = nodes[0].min(nodes[1]).min(nodes[2]);
+                let shared = around.of(lowest).iter().any(|&(other, _)| {
+                    let other = other as usize;
+                    other != t && keep[other] && nodes.iter().all(|v| self.tets[other].contains(v))
+                });
+                if !shared {
+                    faces.push(BoundaryFace { nodes, tet: t });
+                }
+            }
         }
+        faces.sort_unstable_by_key(|f| {
+            let mut key = f.nodes;
+            key.sort_unstable();
+            key
+        });
+        faces
     }
 
     /// Quality of every tet: the ratio of the inscribed-sphere radius to the circumscribed one,
@@ -355,38 +371,6 @@ pub struct BoundaryFace {
     pub nodes: [usize; 3],
     /// The tet this face belongs to.
     pub tet: usize,
-}
-
-/// [`TetMesh::boundary_faces_of`] for `tets`, nodes and tets numbered by `N` in the sort
-/// (`narrow` and `wide` convert).
-fn boundary_faces_by<N: Copy + Ord>(
-    tets: &[[usize; 4]],
-    keep: &[bool],
-    narrow: impl Fn(usize) -> N,
-    wide: impl Fn(N) -> usize,
-) -> Vec<BoundaryFace> {
-    // (the face's nodes ascending, its tet, which of the tet's faces).
-    let mut faces: Vec<([N; 3], N, u8)> = Vec::with_capacity(tets.len() * 4);
-    for (t, tet) in tets.iter().enumerate().filter(|(t, _)| keep[*t]) {
-        for (k, f) in TET_FACES.iter().enumerate() {
-            let mut key = f.map(|a| tet[a]);
-            key.sort_unstable();
-            faces.push((key.map(&narrow), narrow(t), k as u8));
-        }
-    }
-    faces.sort_unstable_by_key(|f| f.0);
-    faces
-        .chunk_by(|a, b| a.0 == b.0)
-        .filter(|copies| copies.len() == 1)
-        .map(|copies| {
-            let (_, t, k) = copies[0];
-            let tet = &tets[wide(t)];
-            BoundaryFace {
-                nodes: TET_FACES[k as usize].map(|a| tet[a]),
-                tet: wide(t),
-            }
-        })
-        .collect()
 }
 
 /// Normalised radius ratio 3 r_in / r_circ of a tet (1 for a regular tet, 0 when degenerate).
