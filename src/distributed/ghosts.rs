@@ -73,8 +73,8 @@ pub(super) fn exchange(world: &SimpleCommunicator, out: Vec<Vec<u64>>) -> (Vec<u
 
 impl Ghosts {
     /// The ghosts of a part whose nodes are the whole mesh's `nodes` (ascending), of which
-    /// this process owns those marked in `owned`, node `i` of the whole mesh being owned by
-    /// process `node_owner[i]`.
+    /// this process owns those marked in `owned`, the part's node `k` being owned by process
+    /// `node_owner[k]`.
     pub fn new(
         world: SimpleCommunicator,
         nodes: &[usize],
@@ -83,9 +83,9 @@ impl Ghosts {
     ) -> Self {
         let size = world.size() as usize;
         let mut by_owner = vec![Vec::new(); size];
-        for (k, &i) in nodes.iter().enumerate() {
+        for k in 0..nodes.len() {
             if !owned[k] {
-                by_owner[node_owner[i] as usize].push(k);
+                by_owner[node_owner[k] as usize].push(k);
             }
         }
         // Tell each owner which of its nodes this process holds.

@@ -5,7 +5,7 @@
 //! the solution on its part's free nodes. Sums, maxima and the union of the edges whose
 //! couplings are cancelled go over MPI.
 
-use super::partition::Partition;
+use super::partition::PartNumbering;
 use super::petsc::{Gather, Int, Krylov, Matrix, Vector};
 use crate::thermal::system::ScalarSystem;
 use crate::thermal::HeatShare;
@@ -44,20 +44,21 @@ pub struct HeatProcessShare {
 }
 
 impl HeatProcessShare {
-    /// The share of process `rank` of `partition` whose part holds the whole mesh's nodes
-    /// `nodes` (ascending), of which it owns those marked in `owned`, for the heat `system` on
+    /// The share of process `rank` whose part holds the whole mesh's nodes `nodes`
+    /// (ascending, numbered by `numbering`), of which it owns those marked in `owned`, for
+    /// the heat `system` on
     /// the part and each node's free number `free`; CG stops at the relative residual `rtol`
     /// or after `max_iterations`.
     pub fn new(
-        (partition, rank): (&Partition, u32),
+        (numbering, rank): (&PartNumbering, u32),
         (nodes, owned): (&[usize], &[bool]),
         (system, free): (&ScalarSystem, &[Option<usize>]),
         (rtol, max_iterations): (f64, usize),
     ) -> Result<Self, String> {
-        let petsc = |k: usize| partition.petsc_node[nodes[k]] as Int;
+        let petsc = |k: usize| numbering.petsc_node[k] as Int;
         let r = rank as usize;
-        let (start, end) = (partition.node_start[r], partition.node_start[r + 1]);
-        let global = partition.petsc_node.len();
+        let (start, end) = (numbering.node_start[r], numbering.node_start[r + 1]);
+        let global = numbering.whole_nodes();
         let in_range = |i: Int| (start..end).contains(&(i as usize));
         let mut node_of_free = vec![0; system.rows()];
         let mut row_free = vec![None; end - start];

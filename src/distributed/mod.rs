@@ -14,8 +14,8 @@
 //!
 //! Fracture splits the whole mesh, which every process then holds: each makes the same
 //! splits and shares the split mesh out again ([`Distribution::remeshed`]). Every process
-//! also keeps the scene's whole model (mesh, element data, loads), from which it builds its
-//! part.
+//! also reads the scene's whole mesh and keeps its whole model as a description (materials,
+//! loads, terms; not the elements' rest data), from which it builds its part.
 
 pub mod dual_graph;
 pub mod ghosts;
@@ -35,7 +35,7 @@ use ghosts::Ghosts;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
-use partition::Partition;
+use partition::{PartNumbering, Partition};
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
@@ -97,9 +97,9 @@ pub struct MpiProcesses {
     _petsc: petsc::Petsc,
     _universe: mpi::environment::Universe,
     world: SimpleCommunicator,
-    /// The partition and this process's part, from [`Processes::part_model`] until
-    /// [`Processes::distribute`].
-    part: RefCell<Option<(Partition, Part)>>,
+    /// The partition on this process's part, and the part, from [`Processes::part_model`]
+    /// until [`Processes::distribute`].
+    part: RefCell<Option<(PartNumbering, Part)>>,
     /// Nodes and elements of this process's part (its share's, once the mesh is split).
     held: Rc<Cell<[u64; 2]>>,
     /// Whether every process holds the whole mesh even where parts would do.
@@ -212,13 +212,13 @@ impl Processes for MpiProcesses {
         let model = part
             .model(model)
             .map_err(|e| SimError::Setup(e.to_string()))?;
-        *self.part.borrow_mut() = Some((partition, part.clone()));
+        *self.part.borrow_mut() = Some((partition.of_part(&part), part.clone()));
         Ok((part, model))
     }
 
     fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError> {
         self.set_up_memory.set(peak_memory());
-        let Some((partition, part)) = self.part.borrow_mut().take() else {
+        let Some((numbering, part)) = self.part.borrow_mut().take() else {
             return Err(SimError::Setup(
                 "the simulation was not built on this process's part".into(),
             ));
@@ -227,7 +227,7 @@ impl Processes for MpiProcesses {
         let solve = (iterative.tolerance, iterative.max_iterations);
         sim.distribute_heat(|system, free| {
             let share = heat::HeatProcessShare::new(
-                (&partition, self.rank()),
+                (&numbering, self.rank()),
                 (&part.nodes, &part.owned_nodes),
                 (system, free),
                 solve,
@@ -235,7 +235,7 @@ impl Processes for MpiProcesses {
             Ok(Box::new(share))
         })?;
         let share = ProcessShare::new(
-            (&part, partition),
+            (&part, numbering),
             &sim.model.mesh,
             self.rank(),
             (solve, self.held.clone()),
@@ -344,9 +344,9 @@ struct ProcessShare {
     owned_dofs: Vec<bool>,
     owned_elements: Vec<bool>,
     rank: u32,
-    partition: Partition,
-    /// The whole mesh's node of each node of this process's part.
-    nodes: Vec<usize>,
+    /// The partition on this process's part (its elements' processes: a remeshed share, with
+    /// fracture, is the whole mesh's, so its elements are the whole mesh's).
+    numbering: PartNumbering,
     tets: Vec<[usize; 4]>,
     rest: Vec<nalgebra::Vector3<f64>>,
     /// CG's relative tolerance and iteration cap.
@@ -356,10 +356,11 @@ struct ProcessShare {
 }
 
 impl ProcessShare {
-    /// The share of process `rank` holding `part` of `mesh` in `partition`, CG stopping at
-    /// `solve`'s relative tolerance or iteration cap, its part's size reported in `held`.
+    /// The share of process `rank` holding `part` of `mesh`, numbered by `numbering`, CG
+    /// stopping at `solve`'s relative tolerance or iteration cap, its part's size reported in
+    /// `held`.
     fn new(
-        (part, partition): (&Part, Partition),
+        (part, numbering): (&Part, PartNumbering),
         mesh: &TetMesh,
         rank: u32,
         (solve, held): ((f64, usize), Rc<Cell<[u64; 2]>>),
@@ -372,14 +373,13 @@ impl ProcessShare {
                     SimpleCommunicator::world(),
                     &part.nodes,
                     &part.owned_nodes,
-                    &partition.node_owner,
+                    &numbering.node_owner,
                 ),
             },
             owned_dofs: part.owned_dofs(),
             owned_elements: part.own_elements.clone(),
             rank,
-            partition,
-            nodes: part.nodes.clone(),
+            numbering,
             tets: mesh.tets.clone(),
             rest: mesh.rest.clone(),
             solve,
@@ -416,7 +416,7 @@ impl Distribution for ProcessShare {
         let (rtol, max_iterations) = self.solve;
         Ok(Box::new(solver::PetscSolver::new(
             assembly,
-            (&self.partition, &self.nodes),
+            &self.numbering,
             (self.rank, &self.owned_elements, &self.tets),
             &self.rest,
             (direct, rtol, max_iterations),
@@ -432,7 +432,7 @@ impl Distribution for ProcessShare {
         let size = self.collective.world.size() as usize;
         let element_part = parent
             .iter()
-            .map(|&p| self.partition.element_part[p])
+            .map(|&p| self.numbering.element_part[p])
             .collect();
         let partition = Partition::from_element_parts(mesh, element_part, size);
         let part = Part::new(
@@ -442,7 +442,7 @@ impl Distribution for ProcessShare {
             (&[], true),
         );
         let share = ProcessShare::new(
-            (&part, partition),
+            (&part, partition.of_part(&part)),
             mesh,
             self.rank,
             (self.solve, self.held.clone()),

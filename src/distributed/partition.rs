@@ -4,6 +4,7 @@
 //! lists each process's nodes contiguously.
 
 use crate::mesh::TetMesh;
+use crate::sim::part::Part;
 
 /// How the mesh is shared among `parts` processes.
 #[derive(Clone, Debug)]
@@ -17,6 +18,27 @@ pub struct Partition {
     pub petsc_node: Vec<usize>,
     /// For each process, its first PETSc node; one past the last node at the end.
     pub node_start: Vec<usize>,
+}
+
+/// The partition on one process's part only ([`Partition::of_part`]), which is what the
+/// process keeps while it runs: no array of the whole mesh's size.
+#[derive(Clone, Debug)]
+pub struct PartNumbering {
+    /// PETSc's index of each of the part's nodes.
+    pub petsc_node: Vec<usize>,
+    /// The process that owns each of the part's nodes.
+    pub node_owner: Vec<u32>,
+    /// The process of each of the part's elements.
+    pub element_part: Vec<u32>,
+    /// For each process, its first PETSc node; one past the last node at the end.
+    pub node_start: Vec<usize>,
+}
+
+impl PartNumbering {
+    /// Nodes of the whole mesh.
+    pub fn whole_nodes(&self) -> usize {
+        self.node_start.last().copied().unwrap_or(0)
+    }
 }
 
 /// Failure of the partitioner.
@@ -108,6 +130,20 @@ impl Partition {
         self.node_start.len() - 1
     }
 
+    /// What a process holding `part` keeps of the partition while it runs.
+    pub fn of_part(&self, part: &Part) -> PartNumbering {
+        PartNumbering {
+            petsc_node: part.nodes.iter().map(|&i| self.petsc_node[i]).collect(),
+            node_owner: part.nodes.iter().map(|&i| self.node_owner[i]).collect(),
+            element_part: part
+                .elements
+                .iter()
+                .map(|&e| self.element_part[e])
+                .collect(),
+            node_start: self.node_start.clone(),
+        }
+    }
+
     /// Element, node and interface counts of process `part`: its elements, the nodes it
     /// owns, and the nodes of its elements it does not own (its ghosts).
     pub fn counts(&self, mesh: &TetMesh, part: u32) -> (usize, usize, usize) {
@@ -150,6 +186,23 @@ mod tests {
             assert!(owned > 0);
             // A node on an interface belongs to the lower slab: the first has no ghosts.
             assert_eq!(ghosts > 0, part > 0, "{part}: {ghosts}");
+        }
+        // A process keeps the partition on its part: the same numbers at its nodes and
+        // elements.
+        let part = Part::new(
+            &mesh.tets,
+            (&p.element_part, &p.node_owner),
+            1,
+            (&[], false),
+        );
+        let numbering = p.of_part(&part);
+        assert_eq!(numbering.whole_nodes(), mesh.num_nodes());
+        for (k, &i) in part.nodes.iter().enumerate() {
+            assert_eq!(numbering.petsc_node[k], p.petsc_node[i]);
+            assert_eq!(numbering.node_owner[k], p.node_owner[i]);
+        }
+        for (k, &e) in part.elements.iter().enumerate() {
+            assert_eq!(numbering.element_part[k], p.element_part[e]);
         }
         let mut seen = vec![false; mesh.num_nodes()];
         for (v, &i) in p.petsc_node.iter().enumerate() {

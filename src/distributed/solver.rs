@@ -8,7 +8,7 @@
 //! rows of the diagonal only (their update is zero), which keeps every node's 3 × 3 block for
 //! the multigrid. Each process gathers the solution on its part's dofs.
 
-use super::partition::Partition;
+use super::partition::PartNumbering;
 use super::petsc::{Divergence, Gather, Int, Krylov, Matrix, PetscError, Vector};
 use super::traffic;
 use crate::assembly::Assembly;
@@ -51,35 +51,34 @@ pub struct PetscSolver {
 }
 
 impl PetscSolver {
-    /// The solver for `assembly`'s pattern on process `rank` of `partition`, on its part of
-    /// the mesh: the whole mesh's node of each of its nodes `nodes`, its elements `tets`
+    /// The solver for `assembly`'s pattern on process `rank`, on its part of the mesh
+    /// numbered by `numbering` (its nodes' PETSc numbers), its elements `tets`
     /// (those it evaluates marked in `owned_elements`), the nodes' rest positions `rest` (m);
     /// with `direct`, MUMPS factorises ([`Krylov::direct`]), else CG stops at the relative
     /// residual `rtol` or after `max_iterations`.
     pub fn new(
         assembly: &Assembly,
-        (partition, nodes): (&Partition, &[usize]),
+        numbering: &PartNumbering,
         (rank, owned_elements, tets): (u32, &[bool], &[[usize; 4]]),
         rest: &[Vector3<f64>],
         (direct, rtol, max_iterations): (bool, f64, usize),
     ) -> Result<Self, LinearError> {
         let n_nodes = rest.len();
-        let global = 3 * partition.petsc_node.len();
+        let global = 3 * numbering.whole_nodes();
         if global > Int::MAX as usize {
             return Err(LinearError::External(format!(
                 "{global} dofs exceed PETSc's 32-bit indices"
             )));
         }
         let dofs = assembly.dofs();
-        let petsc_dof = |d: usize| (3 * partition.petsc_node[nodes[d / 3]] + d % 3) as Int;
+        let petsc_dof = |d: usize| (3 * numbering.petsc_node[d / 3] + d % 3) as Int;
         let petsc_of_free: Vec<Int> = dofs.free_dofs().iter().map(|&d| petsc_dof(d)).collect();
         let r = rank as usize;
-        let (start, end) = (partition.node_start[r], partition.node_start[r + 1]);
+        let (start, end) = (numbering.node_start[r], numbering.node_start[r + 1]);
         let (first_row, local) = (3 * start, 3 * (end - start));
         // This process's rows in PETSc order: its nodes' dofs (all in its part).
         let mut node_of_row = vec![0usize; end - start];
-        for (v, &whole) in nodes.iter().enumerate() {
-            let i = partition.petsc_node[whole];
+        for (v, &i) in numbering.petsc_node.iter().enumerate() {
             if (start..end).contains(&i) {
                 node_of_row[i - start] = v;
             }

@@ -34,9 +34,9 @@ pub struct Part {
     pub own_elements: Vec<bool>,
     /// Whether the process owns each of the part's nodes.
     pub owned_nodes: Vec<bool>,
-    /// Each node of the whole mesh in the part (`usize::MAX`: not in it).
-    local_node: Vec<usize>,
-    /// Number of elements of the whole mesh.
+    /// Number of nodes and elements of the whole mesh (the part keeps no array of the whole
+    /// mesh's size: a process holds it for the whole run).
+    whole_nodes: usize,
     whole_elements: usize,
 }
 
@@ -68,29 +68,36 @@ impl Part {
         let elements: Vec<usize> = (0..tets.len())
             .filter(|&e| held[e] || tets[e].iter().any(|&v| near[v]))
             .collect();
-        let mut local_node = vec![NONE; n];
+        let mut in_part = vec![false; n];
         for &e in &elements {
             for &v in &tets[e] {
-                local_node[v] = 0;
+                in_part[v] = true;
             }
         }
-        let nodes: Vec<usize> = (0..n).filter(|&i| local_node[i] != NONE).collect();
-        for (k, &i) in nodes.iter().enumerate() {
-            local_node[i] = k;
-        }
+        let nodes: Vec<usize> = (0..n).filter(|&i| in_part[i]).collect();
         Part {
             own_elements: elements.iter().map(|&e| element_part[e] == rank).collect(),
             owned_nodes: nodes.iter().map(|&i| node_owner[i] == rank).collect(),
             elements,
             nodes,
-            local_node,
+            whole_nodes: n,
             whole_elements: tets.len(),
         }
     }
 
     /// The part's node of node `i` of the whole mesh, if the part holds it.
     pub fn local(&self, i: usize) -> Option<usize> {
-        Some(self.local_node[i]).filter(|&k| k != NONE)
+        self.nodes.binary_search(&i).ok()
+    }
+
+    /// [`Part::local`] of every node of the whole mesh (`usize::MAX`: not in the part), for
+    /// the set-up's passes over the whole mesh.
+    fn local_nodes(&self) -> Vec<usize> {
+        let mut local = vec![NONE; self.whole_nodes];
+        for (k, &i) in self.nodes.iter().enumerate() {
+            local[i] = k;
+        }
+        local
     }
 
     /// Whether the part is the whole mesh (every element of it, so every node).
@@ -100,7 +107,7 @@ impl Part {
 
     /// Number of nodes of the whole mesh.
     pub fn whole_nodes(&self) -> usize {
-        self.local_node.len()
+        self.whole_nodes
     }
 
     /// Whether the process owns each dof of the part (3 per node).
@@ -134,11 +141,13 @@ impl Part {
 
     /// The restriction of the whole mesh's per-node terms to the nodes this process owns.
     fn restriction(&self) -> NodeRestriction {
+        let local = self.local_nodes();
         NodeRestriction {
-            local: self.local_node.clone(),
-            kept: (0..self.whole_nodes())
-                .map(|i| self.local_node[i] != NONE && self.owned_nodes[self.local_node[i]])
+            kept: local
+                .iter()
+                .map(|&k| k != NONE && self.owned_nodes[k])
                 .collect(),
+            local,
             local_nodes: self.nodes.len(),
         }
     }
@@ -157,9 +166,10 @@ impl Part {
 
     /// The part's elements, numbered in the part, from the whole mesh's elements `tets`.
     pub fn tets_of(&self, tets: &[[usize; 4]]) -> Vec<[usize; 4]> {
+        let local = self.local_nodes();
         self.elements
             .iter()
-            .map(|&e| tets[e].map(|v| self.local_node[v]))
+            .map(|&e| tets[e].map(|v| local[v]))
             .collect()
     }
 
@@ -233,6 +243,9 @@ mod tests {
         );
         assert_eq!(apart.elements, vec![3]);
         assert_eq!(apart.nodes, vec![6, 7, 8, 9]);
+        assert_eq!((apart.local(7), apart.local(5)), (Some(1), None));
+        assert_eq!(apart.tets_of(&tets), vec![[0, 1, 2, 3]]);
+        assert_eq!(apart.whole_nodes(), 10);
         assert_eq!(apart.owned_dofs(), vec![true; 12]);
         let whole: Vec<f64> = (0..30).map(f64::from).collect();
         assert_eq!(apart.dofs_of(&whole)[..3], [18.0, 19.0, 20.0]);
