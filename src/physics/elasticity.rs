@@ -47,8 +47,8 @@ pub struct Elasticity {
     pub material_index: Vec<u16>,
     /// Strain measure: the scene's elastic model, whose law [`Elasticity::law`] gives.
     pub model: ElasticModel,
-    /// Rest data per element; empty in the scene's model of a run on several processes,
-    /// which only describes the elements (see [`Elasticity::described`]).
+    /// Rest data per element; empty in a scene's model, which only describes the elements
+    /// (see [`Elasticity::described`]) until a simulation builds it.
     pub rest: Vec<ElementRest>,
     /// Prescribed isotropic eigenstrain per element (dimensionless), the scene's
     /// `[[eigenstrain]]`: the initial value of the history's eigenstrain, to which freezing
@@ -84,9 +84,10 @@ impl Elasticity {
 
     /// As [`Elasticity::new`], without the elements' rest data (104 bytes an element, most of
     /// a model) or the nodal averaging built on it: what the elements are made of and how
-    /// they are discretised, for a model from which the processes of a distributed run each
-    /// build their part ([`Elasticity::remeshed`] builds the rest data of the part's
-    /// elements), so that no process builds the rest data of the whole mesh.
+    /// they are discretised — a scene's model. The simulation builds the rest data on the
+    /// mesh it runs ([`Elasticity::build`]): one process for the whole mesh, once; each
+    /// process of a distributed run for its part's elements only ([`Elasticity::remeshed`]),
+    /// so that none builds the whole mesh's.
     pub fn described(mesh: &TetMesh, material: Material, model: ElasticModel) -> Self {
         Elasticity {
             material,
