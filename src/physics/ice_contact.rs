@@ -124,10 +124,11 @@ impl Candidate {
 
 impl IceContact {
     /// The term for `mesh` with the given crack faces (node triples, any order), or `None` if
-    /// the mesh is one part without cracks (then nothing is paid).
+    /// the mesh is one part without cracks (then nothing is paid, not even `stiffness`, asked
+    /// for only when the term is on: a default stiffness takes a pass over the boundary).
     pub fn new(
         mesh: &TetMesh,
-        stiffness: f64,
+        stiffness: impl FnOnce() -> f64,
         friction: f64,
         smoothing_velocity: f64,
         cracks: &[[usize; 3]],
@@ -136,6 +137,7 @@ impl IceContact {
         if parts < 2 && cracks.is_empty() {
             return None;
         }
+        let stiffness = stiffness();
         let boundary = mesh.boundary_faces();
         let mut area = vec![0.0; mesh.num_nodes()];
         let mut edge = 0.0;
@@ -758,10 +760,12 @@ impl IceContactTerm {
         cracks: &[[usize; 3]],
         young: f64,
     ) -> Self {
-        let k = if stiffness > 0.0 {
-            stiffness
-        } else {
-            default_stiffness(mesh, young)
+        let k = || {
+            if stiffness > 0.0 {
+                stiffness
+            } else {
+                default_stiffness(mesh, young)
+            }
         };
         IceContactTerm {
             stiffness,

@@ -588,7 +588,12 @@ impl Validator<'_> {
             .map(|f| self.fracture(f, &model.mesh))
             .transpose()?;
         self.check_scheme(&settings, fracture.is_some())?;
-        let ice_contact = self.ice_contact(&raw.physics, &model.mesh, &material, smoothing)?;
+        let ice_contact = self.ice_contact(
+            &raw.physics,
+            (&model.mesh, &material),
+            smoothing,
+            fracture.is_some(),
+        )?;
         model.set_ice_contact(ice_contact);
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),
@@ -814,17 +819,23 @@ impl Validator<'_> {
         Ok(Plasticity { elastic_limit, cap })
     }
 
-    /// Ice–ice contact between the separate parts of `mesh` (of `material`), friction
-    /// smoothed over `smoothing` (m/s) as with the obstacles.
+    /// Ice–ice contact between the separate parts of `mesh` (of `material`), or across the
+    /// cracks if the scene has `fracture`, friction smoothed over `smoothing` (m/s) as with the
+    /// obstacles.
     fn ice_contact(
         &self,
         physics: &PhysicsSection,
-        mesh: &TetMesh,
-        material: &Material,
+        (mesh, material): (&TetMesh, &Material),
         smoothing: f64,
+        fracture: bool,
     ) -> Result<IceContactTerm, SceneError> {
         let ice_friction =
             self.non_negative("physics.ice_friction", physics.ice_friction.unwrap_or(0.0))?;
+        // The default stiffness (a pass over the whole boundary) only for a term that can
+        // come on: one part without fracture never has a pair.
+        if physics.ice_stiffness.is_none() && !fracture && crate::mesh::parts(mesh).1 < 2 {
+            return Ok(IceContactTerm::inactive(0.0, ice_friction, smoothing));
+        }
         let ice_stiffness = self.penalty(
             "physics.ice_stiffness",
             physics.ice_stiffness,
