@@ -46,9 +46,8 @@ pub struct HeatProcessShare {
 impl HeatProcessShare {
     /// The share of process `rank` whose part holds the whole mesh's nodes `nodes`
     /// (ascending, numbered by `numbering`), of which it owns those marked in `owned`, for
-    /// the heat `system` on
-    /// the part and each node's free number `free`; CG stops at the relative residual `rtol`
-    /// or after `max_iterations`.
+    /// the heat `system` on the part and each node's free number `free`; CG stops at the
+    /// relative residual `rtol` or after `max_iterations`.
     pub fn new(
         (numbering, rank): (&PartNumbering, u32),
         (nodes, owned): (&[usize], &[bool]),

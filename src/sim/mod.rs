@@ -394,8 +394,8 @@ impl Simulation {
     /// region may hold no node of a part), which the caller made on it.
     pub fn for_part(model: Model, settings: StepSettings) -> Result<Self, SimError> {
         let mut model = model;
-        // A scene read for several processes describes its elements without their rest
-        // data; a part that is the whole mesh (with fracture) is built here.
+        // A scene's model describes its elements without their rest data, built here for
+        // the mesh this simulation runs (a part's elements already have theirs).
         model.elasticity.build(&model.mesh);
         if let Some(f) = &model.freezing {
             // The water's constants, for the elements a freezing schedule leaves unfrozen.
