@@ -1,13 +1,15 @@
 //! The partition computed by all processes (`distributed::dual_graph`,
-//! `distributed::partition::Partition::in_parallel`), on three processes: each test runs
+//! `distributed::partition::parts_of_range`) and each process's part gathered from the
+//! ranges (`distributed::part_mesh`), on three processes: each test runs
 //! itself under `mpirun -n 3` (the `mpi` feature) and checks, on every process, what that
 //! process computed against the whole mesh.
 
 mod common;
 
-use icefem::distributed::dual_graph;
-use icefem::distributed::partition::Partition;
+use icefem::distributed::partition::{self, Partition};
+use icefem::distributed::{dual_graph, part_mesh};
 use icefem::mesh::{box_mesh, TetMesh, TET_FACES};
+use icefem::sim::part::Part;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use std::collections::HashMap;
@@ -21,6 +23,13 @@ const PROCESSES: usize = 3;
 /// `mpirun`; the world communicator there.
 fn on_three_processes(name: &str) -> Option<SimpleCommunicator> {
     if common::mpi_launched().is_some() {
+        // A failed check on one process aborts them all, or the others would wait for it in
+        // their next exchange.
+        let report = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            report(info);
+            SimpleCommunicator::world().abort(101);
+        }));
         return Some(SimpleCommunicator::world());
     }
     let me = std::env::current_exe().expect("the test binary's path");
@@ -105,15 +114,30 @@ fn each_process_builds_its_rows_of_the_dual_graph() {
     assert!(whole.iter().filter(|r| r.len() == 4).count() > n / 4);
 }
 
+/// Every element's process, gathered from the processes' ranges `starts`.
+fn gathered(world: &SimpleCommunicator, mine: &[u32], starts: &[usize]) -> Vec<u32> {
+    let counts: Vec<mpi::Count> = starts.windows(2).map(|w| (w[1] - w[0]) as _).collect();
+    let displs: Vec<mpi::Count> = starts[..PROCESSES].iter().map(|&s| s as _).collect();
+    let mut all = vec![0u32; starts[PROCESSES]];
+    world.all_gather_varcount_into(
+        mine,
+        &mut mpi::datatype::PartitionMut::new(&mut all[..], &counts[..], &displs[..]),
+    );
+    all
+}
+
 #[test]
 fn every_process_gets_the_same_valid_partition() {
     let Some(world) = on_three_processes("every_process_gets_the_same_valid_partition") else {
         return;
     };
     let mesh = shuffled_mesh();
-    let partition = Partition::in_parallel(&world, &mesh).unwrap();
-    let parts = &partition.element_part;
-    assert_eq!(parts.len(), mesh.num_tets());
+    let starts = partition::ranges(mesh.num_tets(), PROCESSES);
+    let rank = world.rank() as usize;
+    let mine =
+        partition::parts_of_range(&world, &mesh.tets[starts[rank]..starts[rank + 1]], &starts)
+            .unwrap();
+    let parts = gathered(&world, &mine, &starts);
     // Every part holds elements, and about a third of them (PT-Scotch balances to a few %).
     let mut sizes = [0usize; PROCESSES];
     parts.iter().for_each(|&p| sizes[p as usize] += 1);
@@ -121,17 +145,88 @@ fn every_process_gets_the_same_valid_partition() {
     for &size in &sizes {
         assert!((size as f64 - third).abs() <= 0.1 * third, "{sizes:?}");
     }
-    // A node belongs to the lowest part among its elements'.
-    let mut lowest = vec![u32::MAX; mesh.num_nodes()];
-    for (tet, &p) in mesh.tets.iter().zip(parts) {
-        tet.iter().for_each(|&v| lowest[v] = lowest[v].min(p));
-    }
-    assert_eq!(partition.node_owner, lowest);
     // The same partition on every process.
-    let mine: Vec<u32> = parts.clone();
-    let mut all = vec![0u32; PROCESSES * mine.len()];
-    world.all_gather_into(&mine[..], &mut all[..]);
-    for other in all.chunks(mine.len()) {
-        assert_eq!(other, &mine[..]);
+    let mut all = vec![0u32; PROCESSES * parts.len()];
+    world.all_gather_into(&parts[..], &mut all[..]);
+    for other in all.chunks(parts.len()) {
+        assert_eq!(other, &parts[..]);
     }
+}
+
+/// Checks, on every process, that the part gathered from the ranges (`part_mesh`) is the part
+/// `Part::new` and `Partition::of_part` give from the whole mesh, to the bit, when the
+/// elements `everywhere` (all if `None`) are held by every process.
+fn check_gathered_part(world: &SimpleCommunicator, everywhere: Option<&[usize]>) {
+    let mesh = shuffled_mesh();
+    let rank = world.rank() as usize;
+    // Uneven ranges of elements (one element on process 1) and of nodes (none on process 2).
+    let (ne, nn) = (mesh.num_tets(), mesh.num_nodes());
+    let element_starts = [0, ne / 2, ne / 2 + 1, ne];
+    let node_starts = [0, nn / 3, nn, nn];
+    let (first, end) = (element_starts[rank], element_starts[rank + 1]);
+    // Parts in slabs of two cells along x, a pattern the ranges (shuffled elements) do not
+    // follow: the middle slab's ring is a cell on either side, so no part is the whole mesh.
+    let part_of = |t: &[usize; 4]| {
+        let x = t.iter().map(|&v| mesh.rest[v].x).sum::<f64>() / 4.0;
+        ((x / 0.6 * PROCESSES as f64) as u32).min(PROCESSES as u32 - 1)
+    };
+    let mine: Vec<u32> = mesh.tets[first..end].iter().map(part_of).collect();
+    let got = part_mesh::part_mesh(
+        world,
+        part_mesh::ElementRange {
+            starts: &element_starts,
+            tets: &mesh.tets[first..end],
+            parts: &mine,
+        },
+        part_mesh::NodeRange {
+            starts: &node_starts,
+            rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
+        },
+        everywhere.map_or(
+            part_mesh::HeldEverywhere::All,
+            part_mesh::HeldEverywhere::These,
+        ),
+    );
+    let whole = Partition::from_element_parts(&mesh, mesh.tets.iter().map(part_of).collect(), 3);
+    let part = Part::new(
+        &mesh.tets,
+        (&whole.element_part, &whole.node_owner),
+        rank as u32,
+        (everywhere.unwrap_or(&[]), everywhere.is_none()),
+    );
+    let numbering = whole.of_part(&part);
+    assert_eq!(got.part.elements, part.elements);
+    assert_eq!(got.part.nodes, part.nodes);
+    assert_eq!(got.part.own_elements, part.own_elements);
+    assert_eq!(got.part.owned_nodes, part.owned_nodes);
+    assert_eq!(got.part.whole_nodes(), nn);
+    assert_eq!(got.part.is_whole(), everywhere.is_none());
+    assert_eq!(got.numbering.petsc_node, numbering.petsc_node);
+    assert_eq!(got.numbering.node_owner, numbering.node_owner);
+    assert_eq!(got.numbering.element_part, numbering.element_part);
+    assert_eq!(got.numbering.node_start, numbering.node_start);
+    let rest: Vec<_> = part.nodes.iter().map(|&i| mesh.rest[i]).collect();
+    assert_eq!(got.rest, rest);
+    assert_eq!(got.tets, part.tets_of(&mesh.tets));
+    // Each process holds a ring, not the whole mesh, unless asked to.
+    if everywhere.is_some() {
+        assert!(
+            got.part.elements.len() < ne,
+            "{rank}: {}",
+            got.part.elements.len()
+        );
+        assert!(got.part.own_elements.iter().any(|&o| !o), "{rank}: no ring");
+    }
+}
+
+#[test]
+fn each_process_gathers_its_part_from_the_ranges() {
+    let Some(world) = on_three_processes("each_process_gathers_its_part_from_the_ranges") else {
+        return;
+    };
+    // Elements every process holds (as ice contact's boundary elements): a few, scattered.
+    let everywhere: Vec<usize> = (0..shuffled_mesh().num_tets()).step_by(37).collect();
+    check_gathered_part(&world, Some(&[]));
+    check_gathered_part(&world, Some(&everywhere));
+    check_gathered_part(&world, None);
 }

@@ -6,6 +6,7 @@
 //! `partition`).
 
 use super::ghosts::exchange;
+use super::part_mesh::range_holder;
 use super::petsc::Int;
 use crate::mesh::TET_FACES;
 use mpi::topology::SimpleCommunicator;
@@ -41,7 +42,7 @@ pub fn rows(
     for group in received.chunk_by(|a, b| a[..3] == b[..3]) {
         for a in group {
             for b in group.iter().filter(|b| b[3] != a[3]) {
-                pairs[owner(a[3] as usize, ranges)].extend([a[3], b[3]]);
+                pairs[range_holder(a[3] as usize, ranges)].extend([a[3], b[3]]);
             }
         }
     }
@@ -59,11 +60,6 @@ pub fn rows(
         offsets[k + 1] += offsets[k];
     }
     (offsets, mine.iter().map(|&(_, b)| b as Int).collect())
-}
-
-/// The process holding element `e` when process `r` holds `ranges[r] .. ranges[r + 1]`.
-fn owner(e: usize, ranges: &[usize]) -> usize {
-    ranges.partition_point(|&s| s <= e) - 1
 }
 
 /// The process (of `size`) a face with ascending nodes `key` goes to.

@@ -1,8 +1,9 @@
 //! Runs on several processes (the `mpi` feature): `mpirun -n N icefem run SCENE.toml`.
 //!
-//! METIS splits the elements ([`partition`]); every process reads the scene and builds its
-//! part of the mesh and state (`sim::part`: its elements and the ring of elements around their
-//! nodes, or the whole mesh where a term needs it) and takes the same steps, with the same
+//! PT-Scotch splits the elements ([`partition`]) and each process gathers its part of the mesh
+//! from the ranges the processes hold ([`part_mesh`]); every process reads the scene and builds
+//! its part of the model and state (`sim::part`: its elements and the ring of elements around
+//! their nodes, or the whole mesh where a term needs it) and takes the same steps, with the same
 //! decisions: Newton's residuals, line searches and step lengths are the same numbers on
 //! every process. Each process evaluates the elastic energy, gradient and Hessian of its own
 //! elements and the other terms on the nodes it owns; energies and dof sums are added across
@@ -20,6 +21,7 @@
 pub mod dual_graph;
 pub mod ghosts;
 pub mod heat;
+pub mod part_mesh;
 pub mod partition;
 pub mod petsc;
 pub mod solver;
@@ -199,20 +201,44 @@ impl MpiProcesses {
 impl Processes for MpiProcesses {
     fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError> {
         let mesh = &model.mesh;
-        // Every process takes part in the partition and gets the same one.
-        let partition = Partition::in_parallel(&self.world, mesh)
-            .map_err(|e| SimError::Setup(e.to_string()))?;
-        let everywhere = model.elements_held_everywhere();
-        let part = Part::new(
-            &mesh.tets,
-            (&partition.element_part, &partition.node_owner),
-            self.rank(),
-            (&everywhere, whole || self.whole_mesh.get()),
+        let size = self.size();
+        let rank = self.rank() as usize;
+        // Each process takes a range of the elements and one of the nodes to the partitioner
+        // and the rendezvous that gathers its part (see `part_mesh`).
+        let element_starts = partition::ranges(mesh.num_tets(), size);
+        let node_starts = partition::ranges(mesh.num_nodes(), size);
+        let range = element_starts[rank]..element_starts[rank + 1];
+        let parts =
+            partition::parts_of_range(&self.world, &mesh.tets[range.clone()], &element_starts)
+                .map_err(|e| SimError::Setup(e.to_string()))?;
+        let whole = whole || self.whole_mesh.get();
+        let everywhere = match whole {
+            true => Vec::new(),
+            false => model.elements_held_everywhere(),
+        };
+        let gathered = part_mesh::part_mesh(
+            &self.world,
+            part_mesh::ElementRange {
+                starts: &element_starts,
+                tets: &mesh.tets[range],
+                parts: &parts,
+            },
+            part_mesh::NodeRange {
+                starts: &node_starts,
+                rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
+            },
+            match whole {
+                true => part_mesh::HeldEverywhere::All,
+                false => part_mesh::HeldEverywhere::These(&everywhere),
+            },
         );
-        let model = part
-            .model(model)
-            .map_err(|e| SimError::Setup(e.to_string()))?;
-        *self.part.borrow_mut() = Some((partition.of_part(&part), part.clone()));
+        let part = gathered.part;
+        let model = match part.is_whole() {
+            true => Ok(part.whole_model(model.clone())),
+            false => part.model_on(model, gathered.rest, gathered.tets),
+        }
+        .map_err(|e| SimError::Setup(e.to_string()))?;
+        *self.part.borrow_mut() = Some((gathered.numbering, part.clone()));
         Ok((part, model))
     }
 

@@ -46,49 +46,39 @@ impl PartNumbering {
 #[error("the mesh could not be partitioned ({0})")]
 pub struct PartitionError(pub String);
 
-impl Partition {
-    /// Splits `mesh` into as many parts as `world` has processes by PT-Scotch, every process
-    /// taking part: each builds the dual graph of its contiguous range of the elements
-    /// ([`super::dual_graph::rows`]) and the partitioner runs on all of them; each
-    /// element's part is then gathered onto every process.
-    pub fn in_parallel(
-        world: &mpi::topology::SimpleCommunicator,
-        mesh: &TetMesh,
-    ) -> Result<Self, PartitionError> {
-        use mpi::traits::*;
-        let (size, ne) = (world.size() as usize, mesh.num_tets());
-        if size > ne {
-            return Err(PartitionError(format!(
-                "{size} processes for {ne} elements: at most one process per element"
-            )));
-        }
-        if ne > super::petsc::Int::MAX as usize {
-            return Err(PartitionError(format!(
-                "{ne} elements exceed PETSc's 32-bit indices"
-            )));
-        }
-        let ranges: Vec<usize> = (0..=size).map(|r| r * ne / size).collect();
-        let rank = world.rank() as usize;
-        let range = ranges[rank]..ranges[rank + 1];
-        let (offsets, neighbours) = super::dual_graph::rows(world, &mesh.tets[range], &ranges);
-        let mine = super::petsc::ptscotch_parts(&offsets, &neighbours, ne)
-            .map_err(|e| PartitionError(e.to_string()))?;
-        let counts: Vec<mpi::Count> = ranges
-            .windows(2)
-            .map(|w| (w[1] - w[0]) as mpi::Count)
-            .collect();
-        let mut element_part = vec![0u32; ne];
-        world.all_gather_varcount_into(
-            &mine[..],
-            &mut mpi::datatype::PartitionMut::new(
-                &mut element_part[..],
-                &counts[..],
-                &super::ghosts::starts(&counts)[..],
-            ),
-        );
-        Ok(Self::from_element_parts(mesh, element_part, size))
-    }
+/// The contiguous ranges of `elements` (or nodes) that `processes` hold before the partition:
+/// process `r` holds `starts[r] .. starts[r + 1]`.
+pub fn ranges(elements: usize, processes: usize) -> Vec<usize> {
+    (0..=processes).map(|r| r * elements / processes).collect()
+}
 
+/// The process each element of this process's range goes to, by PT-Scotch, every process of
+/// `world` taking part: `tets` are the range's elements (nodes of the whole mesh) when
+/// process `r` holds the elements `starts[r] .. starts[r + 1]`. Each process builds the dual
+/// graph of its range ([`super::dual_graph::rows`]) and the partitioner runs on all of them.
+pub fn parts_of_range(
+    world: &mpi::topology::SimpleCommunicator,
+    tets: &[[usize; 4]],
+    starts: &[usize],
+) -> Result<Vec<u32>, PartitionError> {
+    let size = starts.len() - 1;
+    let ne = starts[size];
+    if size > ne {
+        return Err(PartitionError(format!(
+            "{size} processes for {ne} elements: at most one process per element"
+        )));
+    }
+    if ne > super::petsc::Int::MAX as usize {
+        return Err(PartitionError(format!(
+            "{ne} elements exceed PETSc's 32-bit indices"
+        )));
+    }
+    let (offsets, neighbours) = super::dual_graph::rows(world, tets, starts);
+    super::petsc::ptscotch_parts(&offsets, &neighbours, ne)
+        .map_err(|e| PartitionError(e.to_string()))
+}
+
+impl Partition {
     /// The partition given each element's process (`< parts`).
     pub fn from_element_parts(mesh: &TetMesh, element_part: Vec<u32>, parts: usize) -> Self {
         let n = mesh.num_nodes();

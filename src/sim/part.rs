@@ -19,6 +19,7 @@
 use crate::mesh::MeshError;
 use crate::physics::term::NodeRestriction;
 use crate::physics::Model;
+use nalgebra::Vector3;
 
 /// Marks a node that is not in a part's mesh.
 const NONE: usize = usize::MAX;
@@ -85,6 +86,25 @@ impl Part {
         }
     }
 
+    /// The part holding the whole mesh's `elements` and `nodes` (ascending), of which the
+    /// process evaluates the elements marked in `own_elements` and owns the nodes marked in
+    /// `owned_nodes`, in a mesh of `whole_nodes` nodes and `whole_elements` elements.
+    pub fn from_lists(
+        (elements, nodes): (Vec<usize>, Vec<usize>),
+        (own_elements, owned_nodes): (Vec<bool>, Vec<bool>),
+        (whole_nodes, whole_elements): (usize, usize),
+    ) -> Part {
+        debug_assert!(elements.is_sorted() && nodes.is_sorted());
+        Part {
+            elements,
+            nodes,
+            own_elements,
+            owned_nodes,
+            whole_nodes,
+            whole_elements,
+        }
+    }
+
     /// The part's node of node `i` of the whole mesh, if the part holds it.
     pub fn local(&self, i: usize) -> Option<usize> {
         self.nodes.binary_search(&i).ok()
@@ -123,7 +143,17 @@ impl Part {
             return Ok(self.whole_model(whole.clone()));
         }
         let rest: Vec<_> = self.nodes.iter().map(|&i| whole.mesh.rest[i]).collect();
-        let tets = self.tets_of(&whole.mesh.tets);
+        self.model_on(whole, rest, self.tets_of(&whole.mesh.tets))
+    }
+
+    /// [`Part::model`] of a part that is not the whole mesh, given its nodes' rest positions
+    /// (m) and its elements numbered in the part.
+    pub fn model_on(
+        &self,
+        whole: &Model,
+        rest: Vec<Vector3<f64>>,
+        tets: Vec<[usize; 4]>,
+    ) -> Result<Model, MeshError> {
         let mut model = whole.remeshed(&rest, tets, &self.elements, &[])?;
         model.initial_displacement = self.dofs_of(&whole.initial_displacement);
         model.initial_velocity = self.dofs_of(&whole.initial_velocity);

@@ -1,0 +1,333 @@
+//! A process's part of the mesh gathered from the ranges the processes hold, with no array
+//! of the whole mesh's size on any process.
+//!
+//! Before the partition, process `r` holds a contiguous range of the elements and one of the
+//! nodes (their rest positions). Each node's *home* is the process holding it in its range of
+//! nodes. The processes meet at the homes (a rendezvous, four all-to-all exchanges): each
+//! element's nodes go home with the element and its process; a home finds each node's owner
+//! (the lowest process among its elements', as in `sim::part`) and the processes of the
+//! node's elements, each of which holds all of them in its ring; the holders of the elements'
+//! ranges send every element to the processes that hold it; owners number their nodes for
+//! PETSc; and each process asks its nodes' homes for their owners, PETSc numbers and rest
+//! positions. The result is what `Part::new` and `Partition::of_part` give from the whole
+//! mesh, to the bit (tested on three processes in `solver_tests/partition.rs`).
+
+use super::ghosts::exchange;
+use super::partition::PartNumbering;
+use crate::sim::part::Part;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+use mpi::Count;
+use nalgebra::Vector3;
+
+/// The elements a process holds before the partition: a contiguous range of the whole
+/// mesh's.
+pub struct ElementRange<'a> {
+    /// Where each process's range starts, the number of elements of the whole mesh last.
+    pub starts: &'a [usize],
+    /// The range's elements' nodes, as nodes of the whole mesh.
+    pub tets: &'a [[usize; 4]],
+    /// The process each of the range's elements goes to (the partitioner's answer).
+    pub parts: &'a [u32],
+}
+
+/// The nodes a process holds before the partition: a contiguous range of the whole mesh's.
+pub struct NodeRange<'a> {
+    /// Where each process's range starts, the number of nodes of the whole mesh last.
+    pub starts: &'a [usize],
+    /// The range's rest positions (m).
+    pub rest: &'a [Vector3<f64>],
+}
+
+/// Which elements every process holds besides its part and ring.
+#[derive(Clone, Copy)]
+pub enum HeldEverywhere<'a> {
+    /// These elements of the whole mesh (ascending), as a term coupling nodes that share no
+    /// element needs (see `Term::elements_held_everywhere`).
+    These(&'a [usize]),
+    /// Every element: each process holds the whole mesh (fracture splits it).
+    All,
+}
+
+impl HeldEverywhere<'_> {
+    fn holds(&self, e: usize) -> bool {
+        match self {
+            HeldEverywhere::These(elements) => elements.binary_search(&e).is_ok(),
+            HeldEverywhere::All => true,
+        }
+    }
+}
+
+/// A process's part of the mesh.
+#[derive(Clone, Debug)]
+pub struct PartMesh {
+    /// Its elements and nodes, and which of them the process evaluates and owns.
+    pub part: Part,
+    /// The partition on its nodes and elements.
+    pub numbering: PartNumbering,
+    /// Rest positions of the part's nodes (m).
+    pub rest: Vec<Vector3<f64>>,
+    /// The part's elements, numbered in the part.
+    pub tets: Vec<[usize; 4]>,
+}
+
+/// The process holding item `i` when process `r` holds the items `starts[r] .. starts[r + 1]`.
+pub(super) fn range_holder(i: usize, starts: &[usize]) -> usize {
+    starts.partition_point(|&s| s <= i) - 1
+}
+
+/// This process's part of the mesh whose elements and nodes the processes of `world` hold in
+/// `elements` and `nodes` ranges, with the elements `everywhere` on every process. Every
+/// process calls it.
+pub fn part_mesh(
+    world: &SimpleCommunicator,
+    elements: ElementRange,
+    nodes: NodeRange,
+    everywhere: HeldEverywhere,
+) -> PartMesh {
+    let (size, rank) = (world.size() as usize, world.rank() as u32);
+    let first_element = elements.starts[rank as usize];
+    let first_node = nodes.starts[rank as usize];
+    // Each element's nodes go home, with the element and its process.
+    let mut incidences = vec![Vec::new(); size];
+    for (k, (tet, &p)) in elements.tets.iter().zip(elements.parts).enumerate() {
+        for &v in tet {
+            let e = (first_element + k) as u64;
+            incidences[range_holder(v, nodes.starts)].extend([v as u64, e, p as u64]);
+        }
+    }
+    let home = Home::new(
+        exchange(world, incidences).0,
+        (first_node, nodes.rest.len()),
+        (elements.starts, size),
+    );
+    let held = held_elements(world, &elements, home.rings, everywhere);
+    let (node_start, petsc_numbers) = petsc_numbering(world, home.owned, nodes.starts);
+    let part_nodes = {
+        let mut v: Vec<usize> = held.iter().flat_map(|h| h.tet).collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    };
+    let facts = node_facts(
+        world,
+        &part_nodes,
+        (nodes.starts, nodes.rest),
+        (&home.owner, &petsc_numbers),
+    );
+    let tets = held
+        .iter()
+        .map(|h| {
+            h.tet
+                .map(|v| part_nodes.binary_search(&v).expect("a held node"))
+        })
+        .collect();
+    let part = Part::from_lists(
+        (held.iter().map(|h| h.element).collect(), part_nodes),
+        (
+            held.iter().map(|h| h.part == rank).collect(),
+            facts.iter().map(|f| f.owner == rank).collect(),
+        ),
+        (
+            *nodes.starts.last().expect("a range per process"),
+            *elements.starts.last().expect("a range per process"),
+        ),
+    );
+    PartMesh {
+        numbering: PartNumbering {
+            petsc_node: facts.iter().map(|f| f.petsc).collect(),
+            node_owner: facts.iter().map(|f| f.owner).collect(),
+            element_part: held.iter().map(|h| h.part).collect(),
+            node_start,
+        },
+        rest: facts.iter().map(|f| f.rest).collect(),
+        tets,
+        part,
+    }
+}
+
+/// What a home learns of its nodes from their elements.
+struct Home {
+    /// Owner of each of the home's nodes.
+    owner: Vec<u32>,
+    /// For each process, the home's nodes it owns (ascending).
+    owned: Vec<Vec<u64>>,
+    /// For each process, pairs (element of its range, another process that holds the element
+    /// in its ring).
+    rings: Vec<Vec<u64>>,
+}
+
+impl Home {
+    /// From the triples (node, element, element's process) received at the home of the nodes
+    /// `first .. first + count`, the elements held by processes `element_starts` (`size`
+    /// processes).
+    fn new(
+        triples: Vec<u64>,
+        (first, count): (usize, usize),
+        (element_starts, size): (&[usize], usize),
+    ) -> Self {
+        let mut triples: Vec<[u64; 3]> = (triples.chunks_exact(3))
+            .map(|t| [t[0], t[1], t[2]])
+            .collect();
+        triples.sort_unstable();
+        let (mut owner, mut rings) = (vec![u32::MAX; count], vec![Vec::new(); size]);
+        let mut processes = Vec::new();
+        for node in triples.chunk_by(|a, b| a[0] == b[0]) {
+            processes.clear();
+            processes.extend(node.iter().map(|t| t[2]));
+            processes.sort_unstable();
+            processes.dedup();
+            owner[node[0][0] as usize - first] = processes[0] as u32;
+            // A node with elements of several processes: each holds all of its elements.
+            for &[_, e, p] in node.iter().filter(|_| processes.len() > 1) {
+                let holder = range_holder(e as usize, element_starts);
+                for &q in processes.iter().filter(|&&q| q != p) {
+                    rings[holder].extend([e, q]);
+                }
+            }
+        }
+        // A node of no element (none in a valid mesh) goes to process 0, as in `Partition`.
+        let mut owned = vec![Vec::new(); size];
+        for (k, o) in owner.iter_mut().enumerate() {
+            if *o == u32::MAX {
+                *o = 0;
+            }
+            owned[*o as usize].push((first + k) as u64);
+        }
+        Home {
+            owner,
+            owned,
+            rings,
+        }
+    }
+}
+
+/// An element a process holds.
+struct HeldElement {
+    element: usize,
+    /// The process it goes to.
+    part: u32,
+    /// Its nodes (the whole mesh's numbers).
+    tet: [usize; 4],
+}
+
+/// The elements this process holds, ascending: the holders of the ranges send each element to
+/// its process, to the processes holding it in their rings (`rings`, from the homes) and,
+/// if `everywhere` holds it, to every process.
+fn held_elements(
+    world: &SimpleCommunicator,
+    elements: &ElementRange,
+    rings: Vec<Vec<u64>>,
+    everywhere: HeldEverywhere,
+) -> Vec<HeldElement> {
+    let size = world.size() as usize;
+    let first = elements.starts[world.rank() as usize];
+    let ring_pairs = exchange(world, rings).0;
+    let mut destinations: Vec<(usize, u32)> = (ring_pairs.chunks_exact(2))
+        .map(|p| (p[0] as usize - first, p[1] as u32))
+        .collect();
+    for (k, &p) in elements.parts.iter().enumerate() {
+        if everywhere.holds(first + k) {
+            destinations.extend((0..size as u32).map(|q| (k, q)));
+        } else {
+            destinations.push((k, p));
+        }
+    }
+    destinations.sort_unstable();
+    destinations.dedup();
+    let mut out = vec![Vec::new(); size];
+    for (k, q) in destinations {
+        let t = elements.tets[k];
+        out[q as usize].extend([(first + k) as u64, elements.parts[k] as u64]);
+        out[q as usize].extend(t.map(|v| v as u64));
+    }
+    let mut held: Vec<HeldElement> = (exchange(world, out).0.chunks_exact(6))
+        .map(|h| HeldElement {
+            element: h[0] as usize,
+            part: h[1] as u32,
+            tet: [h[2], h[3], h[4], h[5]].map(|v| v as usize),
+        })
+        .collect();
+    held.sort_unstable_by_key(|h| h.element);
+    held
+}
+
+/// PETSc's numbering: where each process's nodes start (the number of nodes last), and the
+/// PETSc number of each node of this home. Each process numbers the nodes it owns — which
+/// their homes tell it (`owned`: for each process, nodes of this home, ascending) — in
+/// ascending order from its start, and tells their homes.
+fn petsc_numbering(
+    world: &SimpleCommunicator,
+    owned: Vec<Vec<u64>>,
+    node_starts: &[usize],
+) -> (Vec<usize>, Vec<u64>) {
+    let (size, rank) = (world.size() as usize, world.rank() as usize);
+    // In process order, and homes hold ascending ranges: ascending.
+    let (mine, _) = exchange(world, owned);
+    let mut counts = vec![0u64; size];
+    world.all_gather_into(&(mine.len() as u64), &mut counts[..]);
+    let node_start: Vec<usize> = std::iter::once(0)
+        .chain(counts.iter().scan(0usize, |at, &c| {
+            *at += c as usize;
+            Some(*at)
+        }))
+        .collect();
+    let mut answers = vec![Vec::new(); size];
+    for (k, &v) in mine.iter().enumerate() {
+        let petsc = (node_start[rank] + k) as u64;
+        answers[range_holder(v as usize, node_starts)].extend([v, petsc]);
+    }
+    let first = node_starts[rank];
+    let mut petsc = vec![0u64; node_starts[rank + 1] - first];
+    for pair in exchange(world, answers).0.chunks_exact(2) {
+        petsc[pair[0] as usize - first] = pair[1];
+    }
+    (node_start, petsc)
+}
+
+/// What a process learns of one of its nodes from the node's home.
+struct NodeFacts {
+    owner: u32,
+    petsc: usize,
+    rest: Vector3<f64>,
+}
+
+/// The owner, PETSc number and rest position of each of `wanted` (ascending), asked of their
+/// homes: the processes holding `starts` ranges of `rest`, whose owners and PETSc numbers are
+/// `numbers`.
+fn node_facts(
+    world: &SimpleCommunicator,
+    wanted: &[usize],
+    (starts, rest): (&[usize], &[Vector3<f64>]),
+    (owner, petsc): (&[u32], &[u64]),
+) -> Vec<NodeFacts> {
+    let size = world.size() as usize;
+    let first = starts[world.rank() as usize];
+    let mut asks = vec![Vec::new(); size];
+    for &v in wanted {
+        asks[range_holder(v, starts)].push(v as u64);
+    }
+    let (asked, from): (Vec<u64>, Vec<Count>) = exchange(world, asks);
+    let mut replies = vec![Vec::new(); size];
+    let mut asked = asked.into_iter();
+    for (q, &n) in from.iter().enumerate() {
+        for v in asked.by_ref().take(n as usize) {
+            let k = v as usize - first;
+            let x = rest[k];
+            replies[q].extend([owner[k] as u64, petsc[k], x.x.to_bits(), x.y.to_bits()]);
+            replies[q].push(x.z.to_bits());
+        }
+    }
+    // The replies come in process order, each in the order asked: `wanted`'s order.
+    (exchange(world, replies).0.chunks_exact(5))
+        .map(|r| NodeFacts {
+            owner: r[0] as u32,
+            petsc: r[1] as usize,
+            rest: Vector3::new(
+                f64::from_bits(r[2]),
+                f64::from_bits(r[3]),
+                f64::from_bits(r[4]),
+            ),
+        })
+        .collect()
+}
