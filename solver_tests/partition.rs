@@ -8,7 +8,7 @@ mod common;
 
 use icefem::distributed::partition::{self, Partition};
 use icefem::distributed::{dual_graph, part_mesh};
-use icefem::mesh::{box_mesh, TetMesh, TET_FACES};
+use icefem::mesh::{box_mesh, BoxGrid, TetMesh, TET_FACES};
 use icefem::sim::part::Part;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -229,4 +229,57 @@ fn each_process_gathers_its_part_from_the_ranges() {
     check_gathered_part(&world, Some(&[]));
     check_gathered_part(&world, Some(&everywhere));
     check_gathered_part(&world, None);
+}
+
+#[test]
+fn a_box_made_by_ranges_is_shared_out_as_the_whole_box() {
+    let Some(world) = on_three_processes("a_box_made_by_ranges_is_shared_out_as_the_whole_box")
+    else {
+        return;
+    };
+    // Each process makes its ranges of the box's elements and nodes, partitions them and
+    // gathers its part, without the whole mesh.
+    let grid = BoxGrid::new([0.0; 3], [0.6, 0.5, 0.4], [6, 5, 4], 6).unwrap();
+    let rank = world.rank() as usize;
+    let element_starts = partition::ranges(grid.num_tets(), PROCESSES);
+    let node_starts = partition::ranges(grid.num_nodes(), PROCESSES);
+    let tets: Vec<[usize; 4]> = (element_starts[rank]..element_starts[rank + 1])
+        .map(|e| grid.tet(e))
+        .collect();
+    let rest: Vec<_> = (node_starts[rank]..node_starts[rank + 1])
+        .map(|v| grid.node(v))
+        .collect();
+    let parts = partition::parts_of_range(&world, &tets, &element_starts).unwrap();
+    let got = part_mesh::part_mesh(
+        &world,
+        part_mesh::ElementRange {
+            starts: &element_starts,
+            tets: &tets,
+            parts: &parts,
+        },
+        part_mesh::NodeRange {
+            starts: &node_starts,
+            rest: &rest,
+        },
+        part_mesh::HeldEverywhere::These(&[]),
+    );
+    // The same part from the whole box and the gathered partition.
+    let mesh = box_mesh([0.0; 3], [0.6, 0.5, 0.4], [6, 5, 4], 6).unwrap();
+    let whole = Partition::from_element_parts(&mesh, gathered(&world, &parts, &element_starts), 3);
+    let part = Part::new(
+        &mesh.tets,
+        (&whole.element_part, &whole.node_owner),
+        rank as u32,
+        (&[], false),
+    );
+    assert_eq!(got.part.elements, part.elements);
+    assert_eq!(got.part.owned_nodes, part.owned_nodes);
+    assert_eq!(got.numbering.petsc_node, whole.of_part(&part).petsc_node);
+    assert_eq!(
+        got.rest,
+        part.nodes.iter().map(|&i| mesh.rest[i]).collect::<Vec<_>>()
+    );
+    assert_eq!(got.tets, part.tets_of(&mesh.tets));
+    // The part's mesh is a valid mesh (its elements positively oriented).
+    assert!(TetMesh::new(got.rest, got.tets).is_ok());
 }

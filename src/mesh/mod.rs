@@ -12,7 +12,7 @@ pub mod surface;
 mod surface_formats;
 pub mod tetrahedralise;
 
-pub use generate::box_mesh;
+pub use generate::{box_mesh, BoxGrid};
 pub use parts::{parts, parts_of};
 
 use nalgebra::{Matrix3, Vector3};
