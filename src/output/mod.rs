@@ -291,7 +291,7 @@ pub struct Frame<'a> {
     /// a resumed run continues from.
     pub attributes: &'a [(&'a str, f64)],
     /// Crack surfaces (fracture runs), group `cracks`: `vertices` f64 [k, 3] (m),
-    /// `triangles` i64 [t, 3] (indices into `vertices`), `crack` i64 [t] (which crack).
+    /// `triangles` i64 \[t, 3\] (indices into `vertices`), `crack` i64 \[t\] (which crack).
     pub cracks: Option<&'a CrackSurface>,
 }
 

@@ -310,7 +310,7 @@ const FOOTER: &str = "  </Domain>\n</Xdmf>\n";
 
 /// Writes `<file>.xdmf` next to the HDF5 file: an XDMF 3 temporal collection
 /// with one uniform grid per complete frame (incomplete frames are skipped), and with fracture
-/// `<file>.cracks.xdmf` (see [`write_sidecars`]).
+/// `<file>.cracks.xdmf` (see `write_sidecars`).
 ///
 /// Each grid has `Tetrahedron` topology from the frame's `tets`, `XYZ`
 /// geometry from `positions` (m), and attributes `velocity` (Node Vector,

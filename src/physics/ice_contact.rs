@@ -495,7 +495,7 @@ impl<'a> IceStep<'a> {
 
     /// Friction frames at `previous` (the start of the step) with each normal force
     /// extrapolated linearly in time from `earlier` (one step before, m): λ = max(0, 2 λ(uₙ) −
-    /// λ(uₙ₋₁)), as [`ContactStep::extrapolate_lagged`] does for obstacles.
+    /// λ(uₙ₋₁)), as [`crate::physics::contact::ContactStep::extrapolate_lagged`] does for obstacles.
     pub fn extrapolated_friction_frames(
         &self,
         rest: &[Vector3<f64>],

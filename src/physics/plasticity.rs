@@ -13,7 +13,7 @@
 //! potential of the mapping from the plastic strain of the step's start
 //! (`fem::solid_response`), a convex energy whose Hessian is the consistent tangent, so the
 //! solve converges to displacements whose stress is the returned one. After the step,
-//! [`Plasticity::update`] stores the mapped plastic strain for the next step. Every element
+//! [`crate::physics::Elasticity::update_inelastic_strain`] stores the mapped plastic strain for the next step. Every element
 //! containing ice yields, a partly frozen one at its ice's share of the yield stress (see
 //! `Elasticity::law_of`); water does not.
 //!

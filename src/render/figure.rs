@@ -16,7 +16,7 @@ pub const PAPER_STEPS: [u64; 4] = [1200, 1600, 2000, 2400];
 /// What a figure shows.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FigureOptions {
-    /// Frame indices, one panel each; empty: the frames written at [`PAPER_STEPS`] if the
+    /// Frame indices, one panel each; empty: the frames written at `PAPER_STEPS` if the
     /// file has them all, else four frames evenly spaced up to its last (a cut-off run).
     pub frames: Vec<usize>,
     /// View, style and colouring of each panel, and, without `size`, its size

@@ -8,7 +8,7 @@
 //! with a colour bar; flat shading colours each face by its element and lights it by its own
 //! normal. Rigid obstacles from the stored scene are drawn as lit glass (translucent, more
 //! opaque edge-on) with their outlines, half-spaces as ground planes to the horizon
-//! ([`scenery`]). Text, lines and the
+//! (`scenery`). Text, lines and the
 //! colour bar scale with the picture ([`overlay`]). Everything runs on the CPU: a z-buffered
 //! rasteriser with 2 × 2 supersampling ([`raster`]), PNG (RGBA when the background is
 //! transparent) and GIF encoders.

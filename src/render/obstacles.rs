@@ -6,7 +6,7 @@
 //! - a half-space: a square on its plane, two triangles facing out of the solid side, centred
 //!   on the ice's box projected onto the plane, 1.5 × that box's diagonal across — a plane is
 //!   infinite, an export needs an end (pictures draw the plane itself, see
-//!   [`super::scenery`]; this square only sizes their camera);
+//!   `super::scenery`; this square only sizes their camera);
 //! - a triangle mesh: the surface the file stores (`/obstacles`), or, in a file that stores
 //!   none, the scene's surface file where it is found.
 

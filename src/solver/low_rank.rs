@@ -143,7 +143,7 @@ impl LowRankCorrection {
         Ok(())
     }
 
-    /// z ← z − Y · gain · z[S]: turns z = F⁻¹ r into (F + E G Eᵀ)⁻¹ r.
+    /// z ← z − Y · gain · z\[S\]: turns z = F⁻¹ r into (F + E G Eᵀ)⁻¹ r.
     pub fn apply(&mut self, z: &mut [f64]) {
         let m = self.dofs.len();
         if m == 0 {
