@@ -314,4 +314,53 @@ mod tests {
             assert_eq!(given, (0..count).collect::<Vec<_>>());
         }
     }
+
+    #[test]
+    fn a_part_mesh_boundary_away_from_the_whole_boundary_touches_no_owned_node() {
+        // A part's mesh on its own has faces where the ring ends (cut faces); what a scene
+        // puts on the boundary at the nodes a process owns is whole on the part's mesh only
+        // if no cut face touches an owned node. Three slabs of a 5-tet box, and parts made of
+        // blocks of 2 cells in a pattern, each part touching the others along edges and
+        // corners as well as faces.
+        let mesh = crate::mesh::box_mesh([0.0; 3], [0.6, 0.5, 0.4], [6, 5, 4], 5).unwrap();
+        let sorted = |f: [usize; 3]| {
+            let mut f = f;
+            f.sort_unstable();
+            f
+        };
+        let whole: std::collections::HashSet<[usize; 3]> = mesh
+            .boundary_faces()
+            .iter()
+            .map(|f| sorted(f.nodes))
+            .collect();
+        let slabs: Vec<u32> = (mesh.tets.iter())
+            .map(|t| ((t.iter().map(|&v| mesh.rest[v].x).sum::<f64>() / 2.4 * 3.0) as u32).min(2))
+            .collect();
+        let blocks: Vec<u32> = (mesh.tets.iter())
+            .map(|t| {
+                let c = t.iter().fold(Vector3::zeros(), |c, &v| c + mesh.rest[v]) / 4.0;
+                ((c.x / 0.2) as u32 + (c.y / 0.25) as u32 + (c.z / 0.2) as u32) % 3
+            })
+            .collect();
+        for element_part in [slabs, blocks] {
+            let mut owner = vec![u32::MAX; mesh.num_nodes()];
+            for (t, &p) in mesh.tets.iter().zip(&element_part) {
+                t.iter().for_each(|&v| owner[v] = owner[v].min(p));
+            }
+            let mut cut_faces = 0;
+            for rank in 0..3 {
+                let part = Part::new(&mesh.tets, (&element_part, &owner), rank, (&[], false));
+                let rest = part.nodes.iter().map(|&i| mesh.rest[i]).collect();
+                let sub = crate::mesh::TetMesh::new(rest, part.tets_of(&mesh.tets)).unwrap();
+                for face in sub.boundary_faces() {
+                    if !whole.contains(&sorted(face.nodes.map(|k| part.nodes[k]))) {
+                        cut_faces += 1;
+                        assert!(face.nodes.iter().all(|&k| !part.owned_nodes[k]));
+                    }
+                }
+            }
+            // The parts are cut: the check is not empty.
+            assert!(cut_faces > 0);
+        }
+    }
 }
