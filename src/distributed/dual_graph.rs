@@ -5,8 +5,7 @@
 //! elements; the graph feeds a partitioner that runs on every process (PT-Scotch, see
 //! `partition`).
 
-use super::ghosts::exchange;
-use super::part_mesh::range_holder;
+use super::ghosts::{exchange, range_holder};
 use super::petsc::Int;
 use crate::mesh::TET_FACES;
 use mpi::topology::SimpleCommunicator;

@@ -56,6 +56,11 @@ pub(super) fn starts(counts: &[Count]) -> Vec<Count> {
         .collect()
 }
 
+/// The process holding item `i` when process `r` holds the items `starts[r] .. starts[r + 1]`.
+pub(super) fn range_holder(i: usize, starts: &[usize]) -> usize {
+    starts.partition_point(|&s| s <= i) - 1
+}
+
 /// Sends `out[r]` to process `r` of `world`; returns what every process sent this one, in
 /// process order, and how many values came from each.
 pub(super) fn exchange(world: &SimpleCommunicator, out: Vec<Vec<u64>>) -> (Vec<u64>, Vec<Count>) {

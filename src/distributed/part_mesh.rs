@@ -12,7 +12,7 @@
 //! positions. The result is what `Part::new` and `Partition::of_part` give from the whole
 //! mesh, to the bit (tested on three processes in `solver_tests/partition.rs`).
 
-use super::ghosts::exchange;
+use super::ghosts::{exchange, range_holder};
 use super::partition::PartNumbering;
 use crate::sim::part::Part;
 use mpi::topology::SimpleCommunicator;
@@ -69,11 +69,6 @@ pub struct PartMesh {
     pub rest: Vec<Vector3<f64>>,
     /// The part's elements, numbered in the part.
     pub tets: Vec<[usize; 4]>,
-}
-
-/// The process holding item `i` when process `r` holds the items `starts[r] .. starts[r + 1]`.
-pub(super) fn range_holder(i: usize, starts: &[usize]) -> usize {
-    starts.partition_point(|&s| s <= i) - 1
 }
 
 /// This process's part of the mesh whose elements and nodes the processes of `world` hold in
