@@ -125,12 +125,7 @@ impl BoxGrid {
         };
         let mut tet = pattern[t].map(corner);
         let corners = tet.map(|v| self.node(v));
-        let edges = nalgebra::Matrix3::from_columns(&[
-            corners[1] - corners[0],
-            corners[2] - corners[0],
-            corners[3] - corners[0],
-        ]);
-        if edges.determinant() < 0.0 {
+        if TetMesh::edge_matrix(&corners, &[0, 1, 2, 3]).determinant() < 0.0 {
             tet.swap(2, 3);
         }
         tet
