@@ -7,7 +7,7 @@
 mod common;
 
 use icefem::distributed::partition::{self, Partition};
-use icefem::distributed::{dual_graph, part_mesh};
+use icefem::distributed::{components, dual_graph, part_mesh};
 use icefem::mesh::{box_mesh, BoxGrid, TetMesh, TET_FACES};
 use icefem::sim::part::Part;
 use mpi::topology::SimpleCommunicator;
@@ -101,10 +101,12 @@ fn each_process_builds_its_rows_of_the_dual_graph() {
     let ranges = [0, n / 2, n / 2 + 1, n];
     let rank = world.rank() as usize;
     let (first, end) = (ranges[rank], ranges[rank + 1]);
-    let (offsets, neighbours) = dual_graph::rows(&world, &mesh.tets[first..end], &ranges);
+    let graph = dual_graph::rows(&world, &mesh.tets[first..end], &ranges);
+    let offsets = &graph.offsets;
     assert_eq!(offsets.len(), end - first + 1);
+    assert_eq!(graph.boundary, mesh.boundary_marks()[first..end]);
     for (k, e) in (first..end).enumerate() {
-        let row: Vec<usize> = neighbours[offsets[k] as usize..offsets[k + 1] as usize]
+        let row: Vec<usize> = graph.neighbours[offsets[k] as usize..offsets[k + 1] as usize]
             .iter()
             .map(|&b| b as usize)
             .collect();
@@ -134,9 +136,8 @@ fn every_process_gets_the_same_valid_partition() {
     let mesh = shuffled_mesh();
     let starts = partition::ranges(mesh.num_tets(), PROCESSES);
     let rank = world.rank() as usize;
-    let mine =
-        partition::parts_of_range(&world, &mesh.tets[starts[rank]..starts[rank + 1]], &starts)
-            .unwrap();
+    let graph = dual_graph::rows(&world, &mesh.tets[starts[rank]..starts[rank + 1]], &starts);
+    let mine = partition::parts_of_range(&graph, &starts).unwrap();
     let parts = gathered(&world, &mine, &starts);
     // Every part holds elements, and about a third of them (PT-Scotch balances to a few %).
     let mut sizes = [0usize; PROCESSES];
@@ -171,12 +172,14 @@ fn check_gathered_part(world: &SimpleCommunicator, everywhere: Option<&[usize]>)
         ((x / 0.6 * PROCESSES as f64) as u32).min(PROCESSES as u32 - 1)
     };
     let mine: Vec<u32> = mesh.tets[first..end].iter().map(part_of).collect();
+    let marks = mesh.boundary_marks();
     let got = part_mesh::part_mesh(
         world,
         part_mesh::ElementRange {
             starts: &element_starts,
             tets: &mesh.tets[first..end],
             parts: &mine,
+            boundary: &marks[first..end],
         },
         part_mesh::NodeRange {
             starts: &node_starts,
@@ -208,6 +211,7 @@ fn check_gathered_part(world: &SimpleCommunicator, everywhere: Option<&[usize]>)
     let rest: Vec<_> = part.nodes.iter().map(|&i| mesh.rest[i]).collect();
     assert_eq!(got.rest, rest);
     assert_eq!(got.tets, part.tets_of(&mesh.tets));
+    check_whole_boundary(&mesh, &got);
     // Each process holds a ring, not the whole mesh, unless asked to.
     if everywhere.is_some() {
         assert!(
@@ -217,6 +221,32 @@ fn check_gathered_part(world: &SimpleCommunicator, everywhere: Option<&[usize]>)
         );
         assert!(got.part.own_elements.iter().any(|&o| !o), "{rank}: no ring");
     }
+}
+
+/// Checks that the faces `got` marks on the whole boundary are the whole mesh's boundary
+/// faces of the part's elements, in the whole mesh's order, and that the part's own mesh has
+/// more (its cut) unless the part is the whole mesh.
+fn check_whole_boundary(mesh: &TetMesh, got: &part_mesh::PartMesh) {
+    let (nodes, elements) = (&got.part.nodes, &got.part.elements);
+    let marks = mesh.boundary_marks();
+    let want: Vec<u8> = elements.iter().map(|&e| marks[e]).collect();
+    assert_eq!(got.boundary, want);
+    let part_mesh = TetMesh::new(got.rest.clone(), got.tets.clone()).unwrap();
+    let faces: Vec<([usize; 3], usize)> = (part_mesh.faces_marked(&got.boundary).iter())
+        .map(|f| (f.nodes.map(|v| nodes[v]), elements[f.tet]))
+        .collect();
+    let whole: Vec<([usize; 3], usize)> = (mesh.boundary_faces().iter())
+        .filter(|f| elements.binary_search(&f.tet).is_ok())
+        .map(|f| (f.nodes, f.tet))
+        .collect();
+    assert_eq!(faces, whole);
+    assert!(!faces.is_empty());
+    let cut = part_mesh.boundary_faces().len() - faces.len();
+    assert_eq!(
+        cut == 0,
+        elements.len() == mesh.num_tets(),
+        "{cut} cut faces"
+    );
 }
 
 #[test]
@@ -249,13 +279,15 @@ fn a_box_made_by_ranges_is_shared_out_as_the_whole_box() {
     let rest: Vec<_> = (node_starts[rank]..node_starts[rank + 1])
         .map(|v| grid.node(v))
         .collect();
-    let parts = partition::parts_of_range(&world, &tets, &element_starts).unwrap();
+    let graph = dual_graph::rows(&world, &tets, &element_starts);
+    let parts = partition::parts_of_range(&graph, &element_starts).unwrap();
     let got = part_mesh::part_mesh(
         &world,
         part_mesh::ElementRange {
             starts: &element_starts,
             tets: &tets,
             parts: &parts,
+            boundary: &graph.boundary,
         },
         part_mesh::NodeRange {
             starts: &node_starts,
@@ -280,6 +312,91 @@ fn a_box_made_by_ranges_is_shared_out_as_the_whole_box() {
         part.nodes.iter().map(|&i| mesh.rest[i]).collect::<Vec<_>>()
     );
     assert_eq!(got.tets, part.tets_of(&mesh.tets));
+    check_whole_boundary(&mesh, &got);
     // The part's mesh is a valid mesh (its elements positively oriented).
     assert!(TetMesh::new(got.rest, got.tets).is_ok());
+}
+
+/// Three boxes apart (a mesh of three connected parts) whose nodes and elements are
+/// shuffled, so that the parts' lowest nodes are not in the boxes' order; and a node of
+/// each box.
+fn three_boxes() -> (TetMesh, [usize; 3]) {
+    let boxes = [
+        box_mesh([0.0; 3], [0.3, 0.2, 0.2], [3, 2, 2], 5).unwrap(),
+        box_mesh([1.0, 0.0, 0.0], [1.2, 0.2, 0.2], [2, 2, 2], 6).unwrap(),
+        box_mesh([0.0, 1.0, 0.0], [1.2, 1.1, 0.1], [12, 1, 1], 5).unwrap(),
+    ];
+    let (mut rest, mut tets, mut firsts) = (Vec::new(), Vec::new(), [0; 3]);
+    for (b, at) in boxes.iter().zip(&mut firsts) {
+        let first = rest.len();
+        *at = first;
+        rest.extend(&b.rest);
+        tets.extend(b.tets.iter().map(|t| t.map(|v| v + first)));
+    }
+    let (nn, ne) = (rest.len(), tets.len());
+    let shuffle = |n: usize| (n / 2..n).find(|k| gcd(*k, n) == 1).unwrap();
+    let (sn, se) = (shuffle(nn), shuffle(ne));
+    // Node i of the boxes becomes node i·sn mod nn.
+    let mut shuffled_rest = rest.clone();
+    for (i, x) in rest.iter().enumerate() {
+        shuffled_rest[(i * sn) % nn] = *x;
+    }
+    let tets = (0..ne)
+        .map(|e| tets[(e * se) % ne].map(|v| (v * sn) % nn))
+        .collect();
+    let mesh = TetMesh::new(shuffled_rest, tets).unwrap();
+    (mesh, firsts.map(|v| (v * sn) % nn))
+}
+
+#[test]
+fn the_processes_find_the_connected_parts_of_the_whole_mesh() {
+    let Some(world) =
+        on_three_processes("the_processes_find_the_connected_parts_of_the_whole_mesh")
+    else {
+        return;
+    };
+    let (mesh, of_box) = three_boxes();
+    let (want, count) = icefem::mesh::parts(&mesh);
+    assert_eq!(count, 3);
+    // The parts are not numbered in the boxes' order: a test of the numbering.
+    assert_ne!(of_box.map(|v| want[v]), [0, 1, 2]);
+    let rank = world.rank() as usize;
+    let (ne, nn) = (mesh.num_tets(), mesh.num_nodes());
+    let element_starts = [0, ne / 3, ne / 2, ne];
+    let node_starts = [0, nn / 2, nn / 2 + 1, nn];
+    let (first, end) = (element_starts[rank], element_starts[rank + 1]);
+    let marks = mesh.boundary_marks();
+    // Slabs 0.3 wide along x, dealt out in turn: process 0 holds both ends of the long box,
+    // two pieces with their rings, joined only through the other processes' parts.
+    let slab = |t: &[usize; 4]| {
+        let x = t.iter().map(|&v| mesh.rest[v].x).sum::<f64>() / 4.0;
+        (x / 0.3) as usize % 3
+    };
+    // And elements dealt out in turn, whose rings join nearly everything.
+    for deal in [None, Some(1), Some(7)] {
+        let mine: Vec<u32> = (first..end)
+            .map(|e| deal.map_or(slab(&mesh.tets[e]), |d| (e / d) % 3) as u32)
+            .collect();
+        let got = part_mesh::part_mesh(
+            &world,
+            part_mesh::ElementRange {
+                starts: &element_starts,
+                tets: &mesh.tets[first..end],
+                parts: &mine,
+                boundary: &marks[first..end],
+            },
+            part_mesh::NodeRange {
+                starts: &node_starts,
+                rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
+            },
+            part_mesh::HeldEverywhere::These(&[]),
+        );
+        let (labels, parts) = components::connected_parts(&world, &got);
+        assert_eq!(parts, 3);
+        let at_part: Vec<u32> = got.part.nodes.iter().map(|&i| want[i]).collect();
+        assert_eq!(
+            labels, at_part,
+            "process {rank}, elements dealt by {deal:?}"
+        );
+    }
 }

@@ -76,6 +76,18 @@ pub(super) fn exchange(world: &SimpleCommunicator, out: Vec<Vec<u64>>) -> (Vec<u
     (received, incoming)
 }
 
+/// Every process's `values`, in process order, on every process of `world`.
+pub(super) fn all_gathered(world: &SimpleCommunicator, values: &[u64]) -> Vec<u64> {
+    let mut counts = vec![0 as Count; world.size() as usize];
+    world.all_gather_into(&(values.len() as Count), &mut counts[..]);
+    let mut all = vec![0u64; counts.iter().sum::<Count>() as usize];
+    world.all_gather_varcount_into(
+        values,
+        &mut PartitionMut::new(&mut all[..], &counts[..], &starts(&counts)[..]),
+    );
+    all
+}
+
 impl Ghosts {
     /// The ghosts of a part whose nodes are the whole mesh's `nodes` (ascending), of which
     /// this process owns those marked in `owned`, the part's node `k` being owned by process

@@ -9,9 +9,7 @@ use super::partition::PartNumbering;
 use super::petsc::{Gather, Int, Krylov, Matrix, Vector};
 use crate::thermal::system::ScalarSystem;
 use crate::thermal::HeatShare;
-use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
-use mpi::traits::*;
 
 /// An owned free node's row: its PETSc index, its columns' PETSc indices and the slots of
 /// its entries in the heat system's values.
@@ -135,15 +133,7 @@ impl HeatShare for HeatProcessShare {
             .iter()
             .flat_map(|&(a, b)| [a as u64, b as u64])
             .collect();
-        let count = mine.len() as mpi::Count;
-        let mut counts = vec![0 as mpi::Count; self.world.size() as usize];
-        self.world.all_gather_into(&count, &mut counts[..]);
-        let starts = super::ghosts::starts(&counts);
-        let mut all = vec![0u64; counts.iter().sum::<mpi::Count>() as usize];
-        self.world.all_gather_varcount_into(
-            &mine[..],
-            &mut PartitionMut::new(&mut all[..], &counts[..], &starts[..]),
-        );
+        let all = super::ghosts::all_gathered(&self.world, &mine);
         let mut union: Vec<(usize, usize)> = all
             .chunks_exact(2)
             .map(|p| (p[0] as usize, p[1] as usize))

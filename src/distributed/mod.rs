@@ -18,6 +18,7 @@
 //! also reads the scene's whole mesh and keeps its whole model as a description (materials,
 //! loads, terms; not the elements' rest data), from which it builds its part.
 
+pub mod components;
 pub mod dual_graph;
 pub mod ghosts;
 pub mod heat;
@@ -208,13 +209,17 @@ impl Processes for MpiProcesses {
         let element_starts = partition::ranges(mesh.num_tets(), size);
         let node_starts = partition::ranges(mesh.num_nodes(), size);
         let range = element_starts[rank]..element_starts[rank + 1];
-        let parts =
-            partition::parts_of_range(&self.world, &mesh.tets[range.clone()], &element_starts)
-                .map_err(|e| SimError::Setup(e.to_string()))?;
+        let graph = dual_graph::rows(&self.world, &mesh.tets[range.clone()], &element_starts);
+        let parts = partition::parts_of_range(&graph, &element_starts)
+            .map_err(|e| SimError::Setup(e.to_string()))?;
         let whole = whole || self.whole_mesh.get();
-        let everywhere = match whole {
-            true => Vec::new(),
-            false => model.elements_held_everywhere(),
+        // The range's elements with a face on the whole mesh's boundary.
+        let everywhere: Vec<usize> = match !whole && model.holds_boundary_everywhere() {
+            true => (graph.boundary.iter().enumerate())
+                .filter(|(_, &faces)| faces != 0)
+                .map(|(k, _)| range.start + k)
+                .collect(),
+            false => Vec::new(),
         };
         let gathered = part_mesh::part_mesh(
             &self.world,
@@ -222,6 +227,7 @@ impl Processes for MpiProcesses {
                 starts: &element_starts,
                 tets: &mesh.tets[range],
                 parts: &parts,
+                boundary: &graph.boundary,
             },
             part_mesh::NodeRange {
                 starts: &node_starts,

@@ -29,6 +29,9 @@ pub struct ElementRange<'a> {
     pub tets: &'a [[usize; 4]],
     /// The process each of the range's elements goes to (the partitioner's answer).
     pub parts: &'a [u32],
+    /// The range's elements' faces on the whole mesh's boundary (see
+    /// [`super::dual_graph::DualGraph::boundary`]).
+    pub boundary: &'a [u8],
 }
 
 /// The nodes a process holds before the partition: a contiguous range of the whole mesh's.
@@ -43,7 +46,8 @@ pub struct NodeRange<'a> {
 #[derive(Clone, Copy)]
 pub enum HeldEverywhere<'a> {
     /// These elements of the whole mesh (ascending), as a term coupling nodes that share no
-    /// element needs (see `Term::elements_held_everywhere`).
+    /// element needs (see `Term::holds_boundary_everywhere`). Each process reads the ones of
+    /// its range, which is all it must be given.
     These(&'a [usize]),
     /// Every element: each process holds the whole mesh (fracture splits it).
     All,
@@ -69,6 +73,9 @@ pub struct PartMesh {
     pub rest: Vec<Vector3<f64>>,
     /// The part's elements, numbered in the part.
     pub tets: Vec<[usize; 4]>,
+    /// The part's elements' faces on the whole mesh's boundary (bit `f`: face
+    /// `TET_FACES[f]`): the part's own mesh cannot tell them from the faces of its cut.
+    pub boundary: Vec<u8>,
 }
 
 /// This process's part of the mesh whose elements and nodes the processes of `world` hold in
@@ -136,6 +143,7 @@ pub fn part_mesh(
             node_start,
         },
         rest: facts.iter().map(|f| f.rest).collect(),
+        boundary: held.iter().map(|h| h.boundary).collect(),
         tets,
         part,
     }
@@ -204,6 +212,8 @@ struct HeldElement {
     part: u32,
     /// Its nodes (the whole mesh's numbers).
     tet: [usize; 4],
+    /// Its faces on the whole mesh's boundary.
+    boundary: u8,
 }
 
 /// The elements this process holds, ascending: the holders of the ranges send each element to
@@ -235,12 +245,14 @@ fn held_elements(
         let t = elements.tets[k];
         out[q as usize].extend([(first + k) as u64, elements.parts[k] as u64]);
         out[q as usize].extend(t.map(|v| v as u64));
+        out[q as usize].push(elements.boundary[k] as u64);
     }
-    let mut held: Vec<HeldElement> = (exchange(world, out).0.chunks_exact(6))
+    let mut held: Vec<HeldElement> = (exchange(world, out).0.chunks_exact(7))
         .map(|h| HeldElement {
             element: h[0] as usize,
             part: h[1] as u32,
             tet: [h[2], h[3], h[4], h[5]].map(|v| v as usize),
+            boundary: h[6] as u8,
         })
         .collect();
     held.sort_unstable_by_key(|h| h.element);

@@ -54,13 +54,11 @@ pub fn ranges(elements: usize, processes: usize) -> Vec<usize> {
     (0..=processes).map(|r| r * elements / processes).collect()
 }
 
-/// The process each element of this process's range goes to, by PT-Scotch, every process of
-/// `world` taking part: `tets` are the range's elements (nodes of the whole mesh) when
-/// process `r` holds the elements `starts[r] .. starts[r + 1]`. Each process builds the dual
-/// graph of its range ([`super::dual_graph::rows`]) and the partitioner runs on all of them.
+/// The process each element of this process's range goes to, by PT-Scotch, every process
+/// taking part: `graph` is the range's rows of the dual graph ([`super::dual_graph::rows`])
+/// when process `r` holds the elements `starts[r] .. starts[r + 1]`.
 pub fn parts_of_range(
-    world: &mpi::topology::SimpleCommunicator,
-    tets: &[[usize; 4]],
+    graph: &super::dual_graph::DualGraph,
     starts: &[usize],
 ) -> Result<Vec<u32>, PartitionError> {
     let size = starts.len() - 1;
@@ -75,8 +73,7 @@ pub fn parts_of_range(
             "{ne} elements exceed PETSc's 32-bit indices"
         )));
     }
-    let (offsets, neighbours) = super::dual_graph::rows(world, tets, starts);
-    super::petsc::ptscotch_parts(&offsets, &neighbours, ne)
+    super::petsc::ptscotch_parts(&graph.offsets, &graph.neighbours, ne)
         .map_err(|e| PartitionError(e.to_string()))
 }
 

@@ -331,6 +331,42 @@ impl TetMesh {
         faces
     }
 
+    /// The boundary faces marked in `marks` (one per tet; bit `f` marks the face
+    /// `TET_FACES[f]`), ordered as [`TetMesh::boundary_faces`]: the boundary of a whole mesh
+    /// given its [`TetMesh::boundary_marks`], on a part of it that cannot tell the whole
+    /// boundary from its cut.
+    pub fn faces_marked(&self, marks: &[u8]) -> Vec<BoundaryFace> {
+        let mut faces: Vec<BoundaryFace> = (self.tets.iter().zip(marks).enumerate())
+            .flat_map(|(t, (tet, &m))| {
+                (TET_FACES.iter().enumerate())
+                    .filter(move |(f, _)| m & (1 << f) != 0)
+                    .map(move |(_, face)| BoundaryFace {
+                        nodes: face.map(|a| tet[a]),
+                        tet: t,
+                    })
+            })
+            .collect();
+        faces.sort_unstable_by_key(|f| {
+            let mut key = f.nodes;
+            key.sort_unstable();
+            key
+        });
+        faces
+    }
+
+    /// Which faces of each tet are on the boundary (bit `f`: `TET_FACES[f]`).
+    pub fn boundary_marks(&self) -> Vec<u8> {
+        let mut marks = vec![0u8; self.num_tets()];
+        for face in self.boundary_faces() {
+            let tet = self.tets[face.tet];
+            let f = (TET_FACES.iter())
+                .position(|s| s.map(|a| tet[a]) == face.nodes)
+                .expect("a boundary face is one of its tet's faces");
+            marks[face.tet] |= 1 << f;
+        }
+        marks
+    }
+
     /// Quality of every tet: the ratio of the inscribed-sphere radius to the circumscribed one,
     /// scaled so a regular tet has quality 1 (degenerate → 0).
     pub fn quality(&self) -> Vec<f64> {
@@ -427,6 +463,19 @@ mod tests {
         )
         .unwrap_err();
         assert!(matches!(err, MeshError::Inverted { tet: 0, .. }), "{err}");
+    }
+
+    #[test]
+    fn the_boundary_marks_give_back_the_boundary_faces() {
+        let mesh = box_mesh([0.0; 3], [1.0, 0.5, 0.5], [3, 2, 2], 6).unwrap();
+        let marks = mesh.boundary_marks();
+        // 2 triangles for each of the box's 2(3·2 + 3·2 + 2·2) cell faces.
+        assert_eq!(marks.iter().map(|m| m.count_ones()).sum::<u32>(), 64);
+        let (got, want) = (mesh.faces_marked(&marks), mesh.boundary_faces());
+        assert_eq!(got.len(), want.len());
+        for (a, b) in got.iter().zip(&want) {
+            assert_eq!((a.nodes, a.tet), (b.nodes, b.tet));
+        }
     }
 
     #[test]

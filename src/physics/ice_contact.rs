@@ -191,7 +191,7 @@ impl IceContact {
 
     /// The term on a process's part of a distributed run: numbered as the part's mesh, which
     /// holds every boundary node and face of the whole (see
-    /// [`Term::elements_held_everywhere`]), and evaluating only the pairs with a node the
+    /// [`Term::holds_boundary_everywhere`]), and evaluating only the pairs with a node the
     /// process owns among their four, whose forces and stiffness the process keeps on its
     /// owned nodes; the energy of a pair counts on the owner of its node. An owned node then
     /// gets the contributions of its pairs in the order one process adds them: the same
@@ -910,16 +910,10 @@ impl Term for IceContactTerm {
     fn as_contact(&self) -> Option<&dyn SceneContact> {
         Some(self)
     }
-    /// The elements of the boundary faces: every process holds every face and boundary node,
-    /// as a pair's node and face may lie in any two processes' parts.
-    fn elements_held_everywhere(&self, mesh: &TetMesh) -> Vec<usize> {
-        if self.active.is_none() {
-            return Vec::new();
-        }
-        let mut tets: Vec<usize> = mesh.boundary_faces().iter().map(|f| f.tet).collect();
-        tets.sort_unstable();
-        tets.dedup();
-        tets
+    /// When active: every process holds every boundary face and node, as a pair's node and
+    /// face may lie in any two processes' parts.
+    fn holds_boundary_everywhere(&self) -> bool {
+        self.active.is_some()
     }
     fn restricted(&self, part: &NodeRestriction) -> Box<dyn Term> {
         Box::new(IceContactTerm {

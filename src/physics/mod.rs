@@ -259,15 +259,11 @@ impl Model {
         history
     }
 
-    /// The elements every process of a distributed run holds beyond its part, for the terms
-    /// that couple nodes sharing no element (see `Term::elements_held_everywhere`), ascending.
-    pub fn elements_held_everywhere(&self) -> Vec<usize> {
-        let mut elements: Vec<usize> = (self.terms.iter())
-            .flat_map(|t| t.elements_held_everywhere(&self.mesh))
-            .collect();
-        elements.sort_unstable();
-        elements.dedup();
-        elements
+    /// Whether every process of a distributed run holds the boundary's elements beyond its
+    /// part, for a term that couples nodes sharing no element (see
+    /// `Term::holds_boundary_everywhere`).
+    pub fn holds_boundary_everywhere(&self) -> bool {
+        self.terms.iter().any(|t| t.holds_boundary_everywhere())
     }
 
     /// Adds contact with rigid obstacles, summed before the other contact terms.

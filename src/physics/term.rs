@@ -245,11 +245,11 @@ pub trait Term: Send + Sync + std::fmt::Debug {
     }
     /// The term on a mesh made by splitting elements of this one's.
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term>;
-    /// The elements of `mesh` (this term's) that every process of a distributed run must
-    /// hold beyond its part, because the term couples their nodes to nodes that share no
-    /// element with them (ice–ice contact: the boundary's); none by default.
-    fn elements_held_everywhere(&self, _mesh: &TetMesh) -> Vec<usize> {
-        Vec::new()
+    /// Whether every process of a distributed run must hold the elements of the mesh's
+    /// boundary faces beyond its part, because the term couples boundary nodes that share no
+    /// element (active ice–ice contact); not by default.
+    fn holds_boundary_everywhere(&self) -> bool {
+        false
     }
     /// The term on the nodes `part` keeps (a process's owned nodes in a distributed run),
     /// numbered as in its mesh: its per-node contributions on those nodes only.

@@ -12,7 +12,7 @@
 //!
 //! A term that couples nodes sharing no element (ice–ice contact: a boundary node with any
 //! boundary face) has every process hold the elements that carry those nodes besides (see
-//! `Term::elements_held_everywhere`); they are ghosts like the ring's. Where fracture splits
+//! `Term::holds_boundary_everywhere`); they are ghosts like the ring's. Where fracture splits
 //! the mesh, or on one process, a part is the whole mesh: every element and node, each
 //! process evaluating its own elements and owned nodes as above.
 
