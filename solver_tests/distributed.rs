@@ -158,6 +158,28 @@ fn frame_layout(path: &Path) -> Vec<(String, String, Vec<usize>)> {
 /// frame, with the same types and shapes, and sidecars describing the same grids.
 fn assert_same_layout(one: &Path, two: &Path) {
     assert_eq!(frame_layout(one), frame_layout(two));
+    // The header's mesh, which the writing process of a distributed run puts together from
+    // the processes' parts: the same values, types, chunks and filters.
+    let mesh = |p: &Path, name: &str| {
+        let ds = hdf5::File::open(p).unwrap().dataset(name).unwrap();
+        let values: Vec<u8> = match name.ends_with("tets") {
+            true => (ds.read_raw::<i64>().unwrap().iter())
+                .flat_map(|v| v.to_le_bytes())
+                .collect(),
+            false => (ds.read_raw::<f64>().unwrap().iter())
+                .flat_map(|v| v.to_le_bytes())
+                .collect(),
+        };
+        (
+            ds.shape(),
+            ds.chunk(),
+            format!("{:?}", ds.filters()),
+            values,
+        )
+    };
+    for name in ["mesh/rest_positions", "mesh/tets"] {
+        assert!(mesh(one, name) == mesh(two, name), "{name} differs");
+    }
     let sidecar = |p: &Path| {
         let name = p.file_name().unwrap().to_string_lossy().into_owned();
         std::fs::read_to_string(p.with_extension("xdmf"))

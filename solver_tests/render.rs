@@ -44,8 +44,10 @@ fn write_box_file_with_scene(
             scene_text,
             scene_path: "box.toml",
             version: "test",
-            rest_positions: &rest,
-            tets: &mesh.tets,
+            mesh: icefem::output::HeaderMesh::Whole {
+                rest_positions: &rest,
+                tets: &mesh.tets,
+            },
             obstacles: &[],
         },
     )
@@ -384,8 +386,10 @@ fn bad_files_and_frames_are_clear_errors() {
         scene_text: "",
         scene_path: "x.toml",
         version: "test",
-        rest_positions: &rest,
-        tets: &mesh.tets,
+        mesh: icefem::output::HeaderMesh::Whole {
+            rest_positions: &rest,
+            tets: &mesh.tets,
+        },
         obstacles: &[],
     };
     OutputWriter::create(&empty, &header)

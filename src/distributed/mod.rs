@@ -11,7 +11,7 @@
 //! ([`ghosts`]), and the Hessian's parts go into one PETSc matrix, solved by conjugate
 //! gradients with algebraic multigrid ([`solver`]); the heat model is shared the same way
 //! ([`heat`]). Process 0 gathers the processes' parts of
-//! each frame and writes the same file a run on one process writes.
+//! each frame, and of the header's mesh, and writes the same file a run on one process writes.
 //!
 //! Fracture splits the whole mesh, which every process then holds: each makes the same
 //! splits and shares the split mesh out again ([`Distribution::remeshed`]). Every process

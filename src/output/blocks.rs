@@ -5,7 +5,9 @@
 
 use hdf5::{Dataset, Group};
 
-use super::hdf5_io::{chunk_rows, create_values, vlen_str, write_attr, write_rows, Hdf5Context};
+use super::hdf5_io::{
+    chunk_rows, create_values, vlen_str, write_attr, write_rows, Hdf5Context, Stored,
+};
 use super::xdmf::FrameRecord;
 use super::{check_field_name, invalid, FrameOptions, OutputError, OutputWriter, TENSORS};
 
@@ -60,10 +62,10 @@ pub struct FrameColumn {
     /// Rows of a block: whole chunks of the dataset, about 8 MiB of values (the last block
     /// holds what is left).
     pub block_rows: usize,
-    /// Its path inside the frame group, and whether it is stored in single precision and
-    /// carries a `center` attribute.
+    /// Its path inside the frame group, how it is stored, and whether it carries a `center`
+    /// attribute.
     dataset: String,
-    single: bool,
+    stored: Stored,
     center: Option<&'static str>,
 }
 
@@ -79,18 +81,11 @@ pub fn frame_columns(frame: &FrameLayout, options: FrameOptions) -> Vec<FrameCol
             ColumnValues::Matrices(_) => options.drawn_single,
             _ => options.single(&dataset),
         };
-        FrameColumn {
-            values,
-            per_node,
-            rows,
-            cols,
-            block_rows: chunk_rows(rows, cols)
-                .map_or(rows, |c| c * BLOCK_CHUNKS)
-                .max(1),
-            dataset,
-            single,
-            center,
-        }
+        let stored = match single {
+            true => Stored::Single,
+            false => Stored::Double,
+        };
+        FrameColumn::new((values, per_node), (rows, cols), (dataset, stored), center)
     };
     let mut columns = vec![
         column(ColumnValues::Positions, true, 3, "positions".into(), None),
@@ -126,7 +121,50 @@ pub fn frame_columns(frame: &FrameLayout, options: FrameOptions) -> Vec<FrameCol
     columns
 }
 
-/// The frame being written in blocks.
+/// The datasets of the run header's `/mesh` of `nodes` nodes and `elements` elements written
+/// in blocks (see [`super::HeaderMesh::InBlocks`]): `rest_positions` (a field of the nodes'
+/// rest positions, m) and `tets` (the elements' nodes, stored as integers), in that order.
+pub fn mesh_columns(nodes: usize, elements: usize) -> Vec<FrameColumn> {
+    let field = |name: &str| ColumnValues::Field(name.into());
+    vec![
+        FrameColumn::new(
+            (field("rest_positions"), true),
+            (nodes, 3),
+            ("rest_positions".into(), Stored::Double),
+            None,
+        ),
+        FrameColumn::new(
+            (field("tets"), false),
+            (elements, 4),
+            ("tets".into(), Stored::Index),
+            None,
+        ),
+    ]
+}
+
+impl FrameColumn {
+    fn new(
+        (values, per_node): (ColumnValues, bool),
+        (rows, cols): (usize, usize),
+        (dataset, stored): (String, Stored),
+        center: Option<&'static str>,
+    ) -> Self {
+        FrameColumn {
+            values,
+            per_node,
+            rows,
+            cols,
+            block_rows: chunk_rows(rows, cols)
+                .map_or(rows, |c| c * BLOCK_CHUNKS)
+                .max(1),
+            dataset,
+            stored,
+            center,
+        }
+    }
+}
+
+/// A frame, or the header's mesh, being written in blocks.
 pub(super) struct OpenFrame {
     name: String,
     group: Group,
@@ -134,9 +172,30 @@ pub(super) struct OpenFrame {
     datasets: Vec<Dataset>,
     /// Rows written so far, per dataset.
     written: Vec<usize>,
-    record: FrameRecord,
+    /// The frame's sidecar record; none for the header's mesh.
+    record: Option<FrameRecord>,
     /// What the frame adds to the file at most.
     bytes: u64,
+}
+
+impl OpenFrame {
+    /// The header's `/mesh` group `group`, its datasets created empty (see [`mesh_columns`]).
+    pub(super) fn mesh(
+        path: &std::path::Path,
+        group: Group,
+        (nodes, elements): (usize, usize),
+    ) -> Result<Self, OutputError> {
+        let columns = mesh_columns(nodes, elements);
+        Ok(OpenFrame {
+            name: "/mesh".into(),
+            datasets: create_datasets(path, &group, &columns)?,
+            written: vec![0; columns.len()],
+            group,
+            columns,
+            record: None,
+            bytes: 0,
+        })
+    }
 }
 
 impl OutputWriter {
@@ -148,7 +207,10 @@ impl OutputWriter {
     pub fn begin_frame(&mut self, frame: &FrameLayout) -> Result<(), OutputError> {
         let path = self.location.clone();
         if self.open.is_some() {
-            return Err(invalid(&path, "a frame written in blocks is already open"));
+            return Err(invalid(
+                &path,
+                "a frame or the header's mesh written in blocks is already open",
+            ));
         }
         if (frame.nodes, frame.elements) != (self.n_nodes, self.n_elems) {
             return Err(invalid(
@@ -197,7 +259,7 @@ impl OutputWriter {
             written: vec![0; columns.len()],
             columns,
             datasets,
-            record,
+            record: Some(record),
             bytes,
         });
         Ok(())
@@ -229,7 +291,7 @@ impl OutputWriter {
                 ),
             ));
         }
-        write_rows(path, ds, (first, c.cols), values, c.single)?;
+        write_rows(path, ds, (first, c.cols), values, c.stored)?;
         open.written[column] += rows;
         Ok(())
     }
@@ -237,21 +299,53 @@ impl OutputWriter {
     /// Completes the frame begun by [`begin_frame`](Self::begin_frame): an error, and no
     /// frame, unless every row of every dataset was written.
     pub fn end_frame(&mut self) -> Result<(), OutputError> {
+        let open = self.take_written(true)?;
+        let record = open.record.expect("a frame's record");
+        drop(open.datasets);
+        let file = self.file()?.clone();
+        self.frame_written(&file, (open.name, record, open.group), open.bytes)
+    }
+
+    /// Completes the header's mesh of a file created with [`super::HeaderMesh::InBlocks`]: an
+    /// error unless every row of both datasets was written.
+    pub fn end_mesh(&mut self) -> Result<(), OutputError> {
+        let open = self.take_written(false)?;
+        drop(open.datasets);
         let path = self.location.clone();
+        (self.file()?.flush()).ctx(&path, || "flushing the header's mesh".into())
+    }
+
+    /// The open frame (the header's mesh unless `frame`), taken, if every row of every
+    /// dataset was written; left open if it is the other kind.
+    fn take_written(&mut self, frame: bool) -> Result<OpenFrame, OutputError> {
+        let path = self.location.clone();
+        match self.open.as_ref().map(|o| o.record.is_some()) {
+            None => return Err(invalid(&path, "no frame is open")),
+            Some(true) if !frame => {
+                return Err(invalid(&path, "a frame is open, not the header's mesh"))
+            }
+            Some(false) if frame => {
+                return Err(invalid(&path, "the header's mesh is open, not a frame"))
+            }
+            Some(_) => {}
+        }
         let open = (self.open.take()).ok_or_else(|| invalid(&path, "no frame is open"))?;
         let short = (open.columns.iter().zip(&open.written)).find(|(c, &w)| w != c.rows);
         if let Some((c, w)) = short {
             return Err(invalid(
                 &path,
                 format!(
-                    "frame {}: {w} of the {} rows of {} written",
-                    open.name, c.rows, c.dataset
+                    "{}: {w} of the {} rows of {} written",
+                    match open.record {
+                        Some(_) => format!("frame {}", open.name),
+                        None => "the header's /mesh".into(),
+                    },
+                    c.rows,
+                    c.dataset
                 ),
             ));
         }
-        drop(open.datasets);
-        let file = self.file()?.clone();
-        self.frame_written(&file, (open.name, open.record, open.group), open.bytes)
+        Ok(open)
     }
 }
 
@@ -276,7 +370,7 @@ fn create_datasets(
             }
             None => (g, c.dataset.as_str()),
         };
-        let ds = create_values(path, parent, (name, c.rows, c.cols), c.single)?;
+        let ds = create_values(path, parent, (name, c.rows, c.cols), c.stored)?;
         if let Some(center) = c.center {
             write_attr(path, &ds, "center", &vlen_str(path, "center", center)?)?;
         }

@@ -255,14 +255,25 @@ pub(super) fn chunk_rows(rows: usize, cols: usize) -> Option<usize> {
     (rows * cols >= COMPRESS_MIN_VALUES).then(|| (FRAME_CHUNK_VALUES / cols).clamp(1, rows))
 }
 
-/// Creates an empty dataset of `rows` × `cols` doubles (1-D when `cols == 1`; 32-bit floats
-/// when `single`), chunked and compressed as [`write_matrix`] would write it, for its rows to
-/// be written later by [`write_rows`].
+/// How a dataset written in blocks stores its values, which arrive as doubles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stored {
+    /// 64-bit floats.
+    Double,
+    /// 32-bit floats (values only drawn).
+    Single,
+    /// 64-bit integers (node numbers; the doubles hold them exactly below 2^53).
+    Index,
+}
+
+/// Creates an empty dataset of `rows` × `cols` values (1-D when `cols == 1`) stored as
+/// `stored`, chunked and compressed as [`write_matrix`] and [`write_indices`] would write
+/// it, for its rows to be written later by [`write_rows`].
 pub(super) fn create_values(
     path: &Path,
     g: &Group,
     (name, rows, cols): (&str, usize, usize),
-    single: bool,
+    stored: Stored,
 ) -> Result<Dataset, OutputError> {
     let mut b = g.new_dataset_builder();
     if let Some(chunk) = chunk_rows(rows, cols) {
@@ -276,20 +287,21 @@ pub(super) fn create_values(
         _ => (rows, cols).into(),
     };
     let ctx = || format!("creating {}/{name} [{rows}, {cols}]", g.name());
-    match single {
-        true => b.empty::<f32>().shape(shape).create(name).ctx(path, ctx),
-        false => b.empty::<f64>().shape(shape).create(name).ctx(path, ctx),
+    match stored {
+        Stored::Single => b.empty::<f32>().shape(shape).create(name).ctx(path, ctx),
+        Stored::Double => b.empty::<f64>().shape(shape).create(name).ctx(path, ctx),
+        Stored::Index => b.empty::<i64>().shape(shape).create(name).ctx(path, ctx),
     }
 }
 
-/// Writes `values`, rows of `cols` doubles (as 32-bit floats when `single`), into rows
-/// `first..` of dataset `ds` made by [`create_values`].
+/// Writes `values`, rows of `cols` doubles (stored as `stored`), into rows `first..` of
+/// dataset `ds` made by [`create_values`].
 pub(super) fn write_rows(
     path: &Path,
     ds: &Dataset,
     (first, cols): (usize, usize),
     values: &[f64],
-    single: bool,
+    stored: Stored,
 ) -> Result<(), OutputError> {
     let rows = values.len() / cols;
     let ctx = || format!("writing rows {first}..{} of {}", first + rows, ds.name());
@@ -305,11 +317,22 @@ pub(super) fn write_rows(
             ds.write_slice(view, (first..first + rows, ..))
         }
     }
-    if single {
-        let narrow: Vec<f32> = values.iter().map(|&x| x as f32).collect();
-        write(ds, (first, rows, cols), &narrow).ctx(path, ctx)
-    } else {
-        write(ds, (first, rows, cols), values).ctx(path, ctx)
+    match stored {
+        Stored::Double => write(ds, (first, rows, cols), values).ctx(path, ctx),
+        Stored::Single => {
+            let narrow: Vec<f32> = values.iter().map(|&x| x as f32).collect();
+            write(ds, (first, rows, cols), &narrow).ctx(path, ctx)
+        }
+        Stored::Index => {
+            if let Some(&x) = values
+                .iter()
+                .find(|&&x| !(x >= 0.0 && x < 2f64.powi(53) && x.fract() == 0.0))
+            {
+                return Err(invalid(path, format!("{}: {x} is not an index", ds.name())));
+            }
+            let indices: Vec<i64> = values.iter().map(|&x| x as i64).collect();
+            write(ds, (first, rows, cols), &indices).ctx(path, ctx)
+        }
     }
 }
 

@@ -91,7 +91,7 @@ mod writer;
 mod xdmf;
 
 pub use background::BackgroundWriter;
-pub use blocks::{frame_columns, ColumnValues, FrameColumn, FrameLayout};
+pub use blocks::{frame_columns, mesh_columns, ColumnValues, FrameColumn, FrameLayout};
 pub use describe::{describe, summary, DatasetSummary, FileSummary, FrameTime};
 pub use reader::{parse_frame_range, CrackTriangle, FrameReader, StoredFrame, StoredMesh};
 pub use resume::{FrameHead, ResumeFrame, StoredField};
@@ -234,12 +234,39 @@ pub struct RunHeader<'a> {
     pub scene_path: &'a str,
     /// icefem version that wrote the file, root attribute `icefem_version`.
     pub version: &'a str,
-    /// Initial reference node positions (m), `/mesh/rest_positions` [n, 3].
-    pub rest_positions: &'a [[f64; 3]],
-    /// Initial tetrahedra, 0-based node indices, `/mesh/tets` [m, 4] (i64).
-    pub tets: &'a [[usize; 4]],
+    /// The initial mesh, `/mesh`.
+    pub mesh: HeaderMesh<'a>,
     /// The triangle surfaces of the scene's mesh obstacles, `/obstacles/<index>`.
     pub obstacles: &'a [ObstacleMesh],
+}
+
+/// The run header's mesh: `/mesh/rest_positions` [n, 3] (m) and `/mesh/tets` [m, 4] (i64,
+/// 0-based node indices).
+#[derive(Clone, Copy, Debug)]
+pub enum HeaderMesh<'a> {
+    /// Given whole: initial reference node positions and tetrahedra.
+    Whole {
+        rest_positions: &'a [[f64; 3]],
+        tets: &'a [[usize; 4]],
+    },
+    /// Of `nodes` nodes and `elements` elements, whose rows arrive in blocks after the file
+    /// is created ([`OutputWriter::write_rows`] with the columns of [`mesh_columns`], then
+    /// [`OutputWriter::end_mesh`]): what the writing process of a distributed run does,
+    /// holding no whole mesh.
+    InBlocks { nodes: usize, elements: usize },
+}
+
+impl HeaderMesh<'_> {
+    /// Nodes and elements.
+    pub fn counts(&self) -> (usize, usize) {
+        match self {
+            HeaderMesh::Whole {
+                rest_positions,
+                tets,
+            } => (rest_positions.len(), tets.len()),
+            HeaderMesh::InBlocks { nodes, elements } => (*nodes, *elements),
+        }
+    }
 }
 
 /// A triangle-mesh obstacle's surface at t = 0, as the scene placed it (scaled and

@@ -7,7 +7,7 @@ use std::sync::{RwLock, RwLockReadGuard};
 
 use hdf5::File;
 
-use super::{Field, Frame, OutputWriter, RunHeader, StepStats};
+use super::{Field, Frame, HeaderMesh, OutputWriter, RunHeader, StepStats};
 
 /// HDF5 opens files without `O_CLOEXEC` and holds an `flock` on them, so a
 /// child process spawned while another test has a file open inherits the
@@ -50,8 +50,10 @@ pub(super) fn header<'a>(p: &'a [[f64; 3]], t: &'a [[usize; 4]]) -> RunHeader<'a
         scene_text: "[solver]\ndt = 1e-3 # ünïcode\n",
         scene_path: "scenes/box.toml",
         version: "0.1.0-test",
-        rest_positions: p,
-        tets: t,
+        mesh: HeaderMesh::Whole {
+            rest_positions: p,
+            tets: t,
+        },
         obstacles: &[],
     }
 }

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use hdf5::{Dataset, File, Group};
 
+use super::blocks::OpenFrame;
 use super::hdf5_io::{
     check_tets, close_on_exec, link_dataset, link_object, vlen_str, write_attr, write_indices,
     write_tets, write_values, write_vec3, Hdf5Context,
@@ -12,8 +13,8 @@ use super::hdf5_io::{
 use super::ownership::{check_target, partial_path, remove_stale_partials, take_place, RunLock};
 use super::xdmf::{write_sidecars, FrameRecord};
 use super::{
-    check_field_name, corrupt, invalid, voigt_to_matrices, Field, Frame, FrameOptions, OutputError,
-    RunHeader, StepStats, FORMAT_VERSION, TENSORS,
+    check_field_name, corrupt, invalid, voigt_to_matrices, Field, Frame, FrameOptions, HeaderMesh,
+    OutputError, RunHeader, StepStats, FORMAT_VERSION, TENSORS,
 };
 
 /// Rows appended to `/stats` per chunk; 4096 rows × 8 B = 32 KiB chunks keep
@@ -149,7 +150,7 @@ pub struct OutputWriter {
     /// frame is hard-linked to it instead of written again (`None` after a resume or reopen).
     pub(super) last_fields: Option<(Group, Vec<StoredValues>)>,
     /// The frame being written in blocks of rows ([`OutputWriter::begin_frame`]), if any.
-    pub(super) open: Option<super::blocks::OpenFrame>,
+    pub(super) open: Option<OpenFrame>,
 }
 
 /// A field's values as a frame stored them: name, columns, single precision, the values.
@@ -319,8 +320,9 @@ impl OutputWriter {
         check_target(target, replace)?;
         remove_stale_partials(target);
         let path = &partial_path(target);
+        let (n_nodes, n_elems) = header.mesh.counts();
         match Self::write_header(path, header) {
-            Ok((file, lock)) => Ok(Self {
+            Ok((file, lock, open)) => Ok(Self {
                 location: path.clone(),
                 target: target.to_path_buf(),
                 _lock: lock,
@@ -330,8 +332,8 @@ impl OutputWriter {
                 topology: "/mesh".into(),
                 unlinked_topology: None,
                 options: FrameOptions::default(),
-                n_nodes: header.rest_positions.len(),
-                n_elems: header.tets.len(),
+                n_nodes,
+                n_elems,
                 stats_rows: 0,
                 pending_stats: Vec::new(),
                 uncommitted: Vec::new(),
@@ -339,7 +341,7 @@ impl OutputWriter {
                 last_commit: None,
                 last_sidecars: None,
                 last_fields: None,
-                open: None,
+                open,
             }),
             Err(e) => {
                 let _ = std::fs::remove_file(path);
@@ -348,9 +350,19 @@ impl OutputWriter {
         }
     }
 
-    /// Creates the file at `path`, locks it and writes the run header.
-    fn write_header(path: &Path, header: &RunHeader) -> Result<(File, RunLock), OutputError> {
-        check_tets(path, "mesh", header.tets, header.rest_positions.len())?;
+    /// Creates the file at `path`, locks it and writes the run header; the header's mesh open
+    /// for its rows if they come in blocks.
+    fn write_header(
+        path: &Path,
+        header: &RunHeader,
+    ) -> Result<(File, RunLock, Option<OpenFrame>), OutputError> {
+        if let HeaderMesh::Whole {
+            rest_positions,
+            tets,
+        } = header.mesh
+        {
+            check_tets(path, "mesh", tets, rest_positions.len())?;
+        }
         for o in header.obstacles {
             let v = o.vertices.len();
             if o.triangles.as_flattened().iter().any(|&i| i >= v) {
@@ -378,8 +390,19 @@ impl OutputWriter {
         let mesh = file
             .create_group("mesh")
             .ctx(path, || "creating /mesh".into())?;
-        write_vec3(path, &mesh, "rest_positions", header.rest_positions)?;
-        write_tets(path, &mesh, "tets", header.tets)?;
+        let open = match header.mesh {
+            HeaderMesh::Whole {
+                rest_positions,
+                tets,
+            } => {
+                write_vec3(path, &mesh, "rest_positions", rest_positions)?;
+                write_tets(path, &mesh, "tets", tets)?;
+                None
+            }
+            HeaderMesh::InBlocks { nodes, elements } => {
+                Some(OpenFrame::mesh(path, mesh, (nodes, elements))?)
+            }
+        };
         if !header.obstacles.is_empty() {
             let obstacles = file
                 .create_group("obstacles")
@@ -401,7 +424,7 @@ impl OutputWriter {
             create_stats_column(path, &stats, name, col)?;
         }
         file.flush().ctx(path, || "flushing the header".into())?;
-        Ok((file, lock))
+        Ok((file, lock, open))
     }
 
     /// Number of frames in the file (the index the next frame will get).
@@ -429,7 +452,10 @@ impl OutputWriter {
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), OutputError> {
         self.validate_frame(frame)?;
         if self.open.is_some() {
-            return Err(invalid(&self.location, "a frame written in blocks is open"));
+            return Err(invalid(
+                &self.location,
+                "a frame or the header's mesh written in blocks is open",
+            ));
         }
         let bytes = frame_bytes(frame);
         let (file, name) = self.prepare_frame(bytes)?;

@@ -6,8 +6,8 @@ use crate::fem;
 use crate::fracture::Fracture;
 use crate::mesh::TetMesh;
 use crate::output::{
-    frame_columns, voigt_to_matrices, BackgroundWriter, ColumnValues, Field, Frame, FrameLayout,
-    FrameOptions, OutputError,
+    frame_columns, mesh_columns, voigt_to_matrices, BackgroundWriter, ColumnValues, Field, Frame,
+    FrameColumn, FrameLayout, FrameOptions, OutputError, OutputWriter,
 };
 use crate::physics::contact::ContactForces;
 use crate::sim::part::Part;
@@ -72,28 +72,88 @@ fn write_in_blocks(
         element_fields: names(&element_fields),
         node_fields: names(&node_fields),
     };
-    let (nodes, elements) = (part.given_rows(false), part.given_rows(true));
-    // The writer's first error; the blocks are still gathered after it, as the other
-    // processes send them.
-    let mut failed: Option<RunError> = None;
-    let mut write =
-        |writer: &mut BackgroundWriter,
-         job: &mut dyn FnMut(&mut BackgroundWriter) -> Result<(), RunError>| {
-            if failed.is_none() {
-                failed = job(writer).err();
-            }
-        };
-    if let Some(w) = writer.as_deref_mut() {
-        write(w, &mut |w| Ok(w.begin_frame(&layout)?));
-    }
-    for (index, column) in frame_columns(&layout, options).iter().enumerate() {
-        let values = column_values(
+    let given = (part.given_rows(false), part.given_rows(true));
+    let columns = frame_columns(&layout, options);
+    let values = |column: &FrameColumn| {
+        column_values(
             &column.values,
             (&source, &derived),
             (&element_fields, &node_fields),
-        );
+        )
+    };
+    let rows = (&columns[..], (&given.0[..], &given.1[..]));
+    let began = writer.as_deref_mut().map(|w| w.begin_frame(&layout));
+    let gathered = match (writer.as_deref_mut(), &began) {
+        (Some(w), Some(Ok(()))) => {
+            let mut write = |index, first, values| Ok(w.write_rows(index, first, values)?);
+            gather_in_blocks(processes, rows, &values, Some(&mut write))
+        }
+        _ => gather_in_blocks(processes, rows, &values, None),
+    };
+    began.transpose()?;
+    gathered?;
+    match writer {
+        Some(w) => Ok(w.end_frame()?),
+        None => Ok(()),
+    }
+}
+
+/// Writes the run header's mesh (`writer`'s, created with `HeaderMesh::InBlocks`) on the
+/// writing process of `processes`, from their parts: this process's `part`, whose mesh is
+/// `mesh` (numbered in the part), gives its owned nodes' rest positions and its own
+/// elements' nodes (numbered in the whole mesh).
+pub(super) fn write_mesh_in_blocks(
+    writer: Option<&mut OutputWriter>,
+    processes: &dyn Processes,
+    part: &Part,
+    mesh: &TetMesh,
+) -> Result<(), RunError> {
+    let given = (part.given_rows(false), part.given_rows(true));
+    let columns = mesh_columns(part.whole_nodes(), part.whole_elements());
+    let values = |column: &FrameColumn| -> std::borrow::Cow<[f64]> {
+        match column.per_node {
+            true => mesh.rest.iter().flat_map(|x| [x.x, x.y, x.z]).collect(),
+            false => (mesh.tets.iter())
+                .flat_map(|t| t.map(|v| part.nodes[v] as f64))
+                .collect(),
+        }
+    };
+    let rows = (&columns[..], (&given.0[..], &given.1[..]));
+    match writer {
+        Some(w) => {
+            let mut write =
+                |index, first, values: Vec<f64>| Ok(w.write_rows(index, first, &values)?);
+            gather_in_blocks(processes, rows, &values, Some(&mut write))?;
+            Ok(w.end_mesh()?)
+        }
+        None => gather_in_blocks(processes, rows, &values, None),
+    }
+}
+
+/// The rows a process gives to the datasets of its nodes and of its elements: (row of the
+/// dataset, row of the process's values).
+type GivenRows<'a> = (&'a [(usize, usize)], &'a [(usize, usize)]);
+
+/// Writes a block put together: the dataset's index, its first row, its values.
+type WriteBlock<'a> = &'a mut dyn FnMut(usize, usize, Vec<f64>) -> Result<(), RunError>;
+
+/// Gives the rows of `columns` this process holds to the writing process of `processes`,
+/// block by block: its nodes' and elements' rows (`given`: row of the dataset, row of
+/// `values(column)`). On the writing process, `write` writes each block put together (the
+/// dataset's index in `columns`, its first row, its values); it holds one block (at most
+/// 8 MiB of values) and one process's rows of it at a time. Returns `write`'s first error;
+/// the blocks are still gathered after it, as the other processes send them.
+pub(super) fn gather_in_blocks<'v>(
+    processes: &dyn Processes,
+    (columns, (nodes, elements)): (&[FrameColumn], GivenRows),
+    values: &dyn Fn(&FrameColumn) -> std::borrow::Cow<'v, [f64]>,
+    mut write: Option<WriteBlock>,
+) -> Result<(), RunError> {
+    let mut failed: Option<RunError> = None;
+    for (index, column) in columns.iter().enumerate() {
+        let values = values(column);
         let cols = column.cols;
-        let rows = if column.per_node { &nodes } else { &elements };
+        let rows = if column.per_node { nodes } else { elements };
         let mut at = 0;
         for first in (0..column.rows).step_by(column.block_rows) {
             let end = (first + column.block_rows).min(column.rows);
@@ -104,23 +164,19 @@ fn write_in_blocks(
                 share.extend_from_slice(&values[cols * k..cols * (k + 1)]);
             }
             at = stop;
-            let mut block = BlockRows::new(first, end, cols, writer.is_some());
+            let mut block = BlockRows::new(first, end, cols, write.is_some());
             processes.gather_values(share, &mut |rows| block.place(&rows));
-            if let Some(w) = writer.as_deref_mut() {
-                write(w, &mut |w| {
-                    let values = block.take().ok_or_else(|| {
-                        SimError::Setup(format!(
-                            "rows {first}..{end} of the frame's {:?} did not arrive whole",
-                            column.values
-                        ))
-                    })?;
-                    Ok(w.write_rows(index, first, values)?)
-                });
-            }
+            let Some(write) = write.as_deref_mut().filter(|_| failed.is_none()) else {
+                continue;
+            };
+            failed = match block.take() {
+                Some(values) => write(index, first, values).err(),
+                None => Some(RunError::from(SimError::Setup(format!(
+                    "rows {first}..{end} of {:?} did not arrive whole",
+                    column.values
+                )))),
+            };
         }
-    }
-    if let Some(w) = writer {
-        write(w, &mut |w| Ok(w.end_frame()?));
     }
     failed.map_or(Ok(()), Err)
 }

@@ -8,7 +8,7 @@ pub use outcome::{FractureOutcome, Outcome};
 
 use crate::fracture::{Fracture, FractureReport};
 use crate::output::{
-    BackgroundWriter, FrameHead, FrameOptions, ObstacleMesh, OutputError, OutputWriter,
+    BackgroundWriter, FrameHead, FrameOptions, HeaderMesh, ObstacleMesh, OutputError, OutputWriter,
     ResumeFrame, RunHeader, StepStats,
 };
 use crate::physics::contact::Shape;
@@ -194,10 +194,31 @@ pub fn run_on(
                 writer
             }
         }
-    } else if !writes {
-        None
     } else {
-        Some(new_writer(scene, options, &output)?)
+        // Where the processes hold parts, the writing process gets the header's mesh from
+        // them in blocks, as it gets frames.
+        let rest = match shared {
+            Some(_) => Vec::new(),
+            None => rows(&scene.model.mesh.rest),
+        };
+        let mesh = match shared {
+            Some((_, part)) => HeaderMesh::InBlocks {
+                nodes: part.whole_nodes(),
+                elements: part.whole_elements(),
+            },
+            None => HeaderMesh::Whole {
+                rest_positions: &rest,
+                tets: &scene.model.mesh.tets,
+            },
+        };
+        let mut writer = match writes {
+            true => Some(new_writer(scene, options, &output, mesh)?),
+            false => None,
+        };
+        if let Some((processes, part)) = shared {
+            frame::write_mesh_in_blocks(writer.as_mut(), processes, part, &sim.model.mesh)?;
+        }
+        writer
     };
     let counts = (scene.model.mesh.num_nodes(), scene.model.mesh.num_tets());
     let mut run = Run {
@@ -330,21 +351,20 @@ fn read_for_resume<T>(
 }
 
 /// A new output file `output` for `scene` (replacing an icefem file with `--force`), its
-/// header written: the scene's mesh, which a process of a distributed run may hold a part of.
+/// header written, with the initial `mesh`.
 fn new_writer(
     scene: &Scene,
     options: &RunOptions,
     output: &Path,
+    mesh: HeaderMesh,
 ) -> Result<OutputWriter, RunError> {
-    let rest = rows(&scene.model.mesh.rest);
     let obstacles = obstacle_meshes(&scene.model);
     let scene_path = absolute(&scene.path);
     let header = RunHeader {
         scene_text: &scene.text,
         scene_path: &scene_path.to_string_lossy(),
         version: env!("CARGO_PKG_VERSION"),
-        rest_positions: &rest,
-        tets: &scene.model.mesh.tets,
+        mesh,
         obstacles: &obstacles,
     };
     let mut writer = if options.force {

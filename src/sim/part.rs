@@ -130,6 +130,11 @@ impl Part {
         self.whole_nodes
     }
 
+    /// Elements of the whole mesh.
+    pub fn whole_elements(&self) -> usize {
+        self.whole_elements
+    }
+
     /// Whether the process owns each dof of the part (3 per node).
     pub fn owned_dofs(&self) -> Vec<bool> {
         self.owned_nodes.iter().flat_map(|&o| [o; 3]).collect()

@@ -238,3 +238,86 @@ fn a_frame_missing_rows_or_given_misplaced_rows_is_refused() {
         .unwrap()
         .is_empty());
 }
+
+/// The test header with its mesh `d` to come in blocks.
+fn header_in_blocks(d: &FrameData) -> super::super::RunHeader<'static> {
+    super::super::RunHeader {
+        mesh: super::super::HeaderMesh::InBlocks {
+            nodes: d.rest.len(),
+            elements: d.tets.len(),
+        },
+        ..header(&[], &[])
+    }
+}
+
+#[test]
+fn a_header_mesh_written_in_blocks_is_the_mesh_written_at_once() {
+    let _guard = hdf5_guard();
+    let (rest, tets) = large_mesh();
+    let d = frame_data(2, &rest, &tets);
+    let (da, db) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let (pa, pb) = (da.path().join("run.h5"), db.path().join("run.h5"));
+    write_at_once(&pa, &d, FrameOptions::default());
+    let mut w = OutputWriter::create(&pb, &header_in_blocks(&d)).unwrap();
+    let layout = layout(&d);
+    assert!(w.begin_frame(&layout).is_err(), "the mesh is open");
+    let columns = super::mesh_columns(d.rest.len(), d.tets.len());
+    let flat: [Vec<f64>; 2] = [
+        d.rest.as_flattened().to_vec(),
+        d.tets.as_flattened().iter().map(|&v| v as f64).collect(),
+    ];
+    // Each dataset in two blocks, the second half first.
+    for (k, c) in columns.iter().enumerate() {
+        let half = c.rows / 2;
+        w.write_rows(k, half, &flat[k][half * c.cols..]).unwrap();
+        w.write_rows(k, 0, &flat[k][..half * c.cols]).unwrap();
+    }
+    assert!(w.end_frame().is_err(), "the mesh is not a frame");
+    w.end_mesh().unwrap();
+    w.begin_frame(&layout).unwrap();
+    for (k, c) in frame_columns(&layout, FrameOptions::default())
+        .iter()
+        .enumerate()
+    {
+        w.write_rows(k, 0, &values(&d, &c.values)).unwrap();
+    }
+    w.end_frame().unwrap();
+    w.finish().unwrap();
+    let (a, b) = (File::open(&pa).unwrap(), File::open(&pb).unwrap());
+    for name in ["mesh/rest_positions", "mesh/tets"] {
+        let (x, y) = (a.dataset(name).unwrap(), b.dataset(name).unwrap());
+        assert_eq!(
+            x.dtype().unwrap().to_descriptor().unwrap(),
+            y.dtype().unwrap().to_descriptor().unwrap(),
+            "{name}"
+        );
+        assert_eq!((x.shape(), x.chunk()), (y.shape(), y.chunk()), "{name}");
+        assert_eq!(x.filters(), y.filters(), "{name}");
+        assert!(x.chunk().is_some(), "{name}: chunked and compressed");
+    }
+    let rows = |f: &File| f.dataset("mesh/rest_positions").unwrap().read_raw::<f64>();
+    assert_eq!(rows(&a).unwrap(), rows(&b).unwrap());
+    let tets = |f: &File| f.dataset("mesh/tets").unwrap().read_raw::<i64>();
+    assert_eq!(tets(&a).unwrap(), tets(&b).unwrap());
+    // The frames link the same topology.
+    assert_same_frame(&a, &b);
+}
+
+#[test]
+fn a_header_mesh_missing_rows_or_given_no_index_is_refused() {
+    let _guard = hdf5_guard();
+    let (rest, tets) = large_mesh();
+    let d = frame_data(1, &rest, &tets);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("run.h5");
+    let mut w = OutputWriter::create(&path, &header_in_blocks(&d)).unwrap();
+    // A node number that is not one.
+    let e = w.write_rows(1, 0, &[0.0, 1.0, 2.5, 3.0]).unwrap_err();
+    assert!(e.to_string().contains("2.5 is not an index"), "{e}");
+    w.write_rows(0, 0, d.rest.as_flattened()).unwrap();
+    let e = w.end_mesh().unwrap_err().to_string();
+    assert!(e.contains("0 of the 3000 rows of tets"), "{e}");
+    // The file never took its place.
+    drop(w);
+    assert!(!path.exists());
+}
