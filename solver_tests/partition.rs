@@ -9,6 +9,8 @@ mod common;
 use icefem::distributed::partition::{self, Partition};
 use icefem::distributed::{components, dual_graph, part_mesh};
 use icefem::mesh::{box_mesh, BoxGrid, TetMesh, TET_FACES};
+use icefem::run::Processes;
+use icefem::scene::Scene;
 use icefem::sim::part::Part;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -399,4 +401,127 @@ fn the_processes_find_the_connected_parts_of_the_whole_mesh() {
             "process {rank}, elements dealt by {deal:?}"
         );
     }
+}
+
+/// A box scene with every section a scene built on parts takes: two materials, an
+/// eigenstrain, gravity in time, Rayleigh damping, supports and a traction in time, and a
+/// traction region `traction_region`.
+fn scene_on_parts(traction_region: &str) -> String {
+    format!(
+        r#"
+[mesh]
+box = {{ origin = [0.0, 0.0, 0.0], size = [0.3, 0.2, 0.1], cells = [6, 4, 2], tets_per_cell = 6 }}
+[material]
+density = 916.0
+youngs_modulus = 9.0e9
+poisson_ratio = 0.3
+model = "corotated"
+volumetric = "nodal"
+[materials.soft]
+density = 500.0
+youngs_modulus = 1.0e9
+poisson_ratio = 0.25
+min = [0.0, 0.0, 0.0]
+max = [0.12, 0.2, 0.1]
+[physics]
+gravity = [0.0, -3.0, -9.81]
+gravity_amplitude = [[0.0, 0.5], [1.0, 1.0]]
+damping = {{ mass = 0.1, stiffness = 1e-4 }}
+[[dirichlet]]
+min = [-1.0, -1.0, -1.0]
+max = [1e-9, 1.0, 1.0]
+[[traction]]
+{traction_region}
+traction = [1.0e5, 0.0, -2.0e4]
+amplitude = [[0.0, 0.0], [1.0, 1.0]]
+[[eigenstrain]]
+min = [0.2, 0.0, 0.0]
+max = [0.3, 0.1, 0.1]
+value = 0.01
+[time]
+dt = 0.01
+end_time = 0.02
+"#
+    )
+}
+
+#[test]
+fn a_scene_built_on_parts_is_the_part_of_the_whole_scene() {
+    let Some(world) = on_three_processes("a_scene_built_on_parts_is_the_part_of_the_whole_scene")
+    else {
+        return;
+    };
+    let processes = common::mpi_launched().expect("under mpirun");
+    let path = std::path::Path::new("parts.toml");
+    let text = scene_on_parts("min = [0.2999, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]");
+    let shared = Scene::parse_shared(&text, path, Some(processes)).unwrap();
+    let whole = Scene::parse(&text, path).unwrap();
+    let part = shared.part.as_ref().expect("the scene is built on parts");
+    assert!(part.elements.len() < whole.model.mesh.num_tets(), "a part");
+    assert_eq!(
+        shared.counts(),
+        (whole.model.mesh.num_nodes(), whole.model.mesh.num_tets())
+    );
+    // The part's model restricted from the whole scene's: the same to the bit.
+    let want = part.model(&whole.model).unwrap();
+    let got = &shared.model;
+    assert_eq!(got.mesh.rest, want.mesh.rest);
+    assert_eq!(got.mesh.tets, want.mesh.tets);
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&got.mass), bits(&want.mass));
+    for t in [0.0, 0.5, 1.0] {
+        assert_eq!(
+            bits(&got.dead_loads_at(t)),
+            bits(&want.dead_loads_at(t)),
+            "t = {t}"
+        );
+    }
+    // The traction pulls along x on the processes whose parts reach x = 0.3.
+    let pulled = got.dead_loads_at(1.0).iter().step_by(3).any(|&f| f > 0.0);
+    assert!(Processes::any(processes, pulled), "the traction");
+    let (e, w) = (&got.elasticity, &want.elasticity);
+    assert_eq!(e.material_index, w.material_index);
+    assert!(e.material_index.contains(&1) || e.material_index.iter().all(|&k| k == 0));
+    assert_eq!(bits(&e.eigenstrain), bits(&w.eigenstrain));
+    assert_eq!(got.constrained_dofs(), want.constrained_dofs());
+    assert_eq!(got.damping, want.damping);
+    // The whole mesh's bounding box sets the step tolerance.
+    let tolerance = |s: &Scene| s.settings.newton.step_tolerance.to_bits();
+    assert_eq!(tolerance(&shared), tolerance(&whole));
+    // Masses at the owned nodes only, and the whole mass over the processes.
+    let owned_mass: f64 = (got.mass.iter().zip(&part.owned_nodes))
+        .filter(|(_, &o)| o)
+        .map(|(m, _)| m)
+        .sum();
+    let mut all = [0.0; PROCESSES];
+    world.all_gather_into(&owned_mass, &mut all[..]);
+    let total: f64 = all.iter().sum();
+    let whole_mass: f64 = whole.model.mass.iter().sum();
+    assert!(
+        (total - whole_mass).abs() <= 1e-12 * whole_mass,
+        "{total} vs {whole_mass}"
+    );
+}
+
+#[test]
+fn a_region_that_selects_nothing_anywhere_is_every_processs_error() {
+    let Some(_world) =
+        on_three_processes("a_region_that_selects_nothing_anywhere_is_every_processs_error")
+    else {
+        return;
+    };
+    let processes = common::mpi_launched().expect("under mpirun");
+    let path = std::path::Path::new("parts.toml");
+    // Inside the box: no boundary face on any process, which each must say alike (one
+    // process erring alone would leave the others waiting for it).
+    let inside = scene_on_parts("min = [0.1, 0.05, 0.03]\nmax = [0.2, 0.15, 0.07]");
+    let e = Scene::parse_shared(&inside, path, Some(processes)).unwrap_err();
+    assert!(
+        e.to_string().contains("contains no boundary-face centroid"),
+        "{e}"
+    );
+    // A corner's faces, on one or two processes' parts only: no error anywhere.
+    let corner = scene_on_parts("min = [0.25, 0.15, 0.09]\nmax = [1.0, 1.0, 1.0]");
+    let shared = Scene::parse_shared(&corner, path, Some(processes)).unwrap();
+    assert!(shared.part.is_some());
 }

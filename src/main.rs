@@ -795,7 +795,7 @@ fn run_command(
     processes: Option<&dyn Processes>,
     verbosity: Verbosity,
 ) -> Result<icefem::run::RunSummary> {
-    let scene = Scene::load(scene_path)?;
+    let scene = Scene::load_shared(scene_path, processes.and_then(|p| p.mesh_sharing()))?;
     let interrupt = Arc::new(AtomicBool::new(false));
     {
         let flag = interrupt.clone();
@@ -816,17 +816,17 @@ fn run_command(
     unsafe {
         libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
     }
-    let m = &scene.model;
+    let (nodes, tets) = scene.counts();
     let talk = verbosity != Verbosity::Quiet;
     if talk {
         eprintln!(
             "icefem {}: {} — {} nodes, {} tets, {:?} {:?}, dt = {:e} s",
             env!("CARGO_PKG_VERSION"),
             scene_path.display(),
-            m.num_nodes(),
-            m.mesh.num_tets(),
+            nodes,
+            tets,
             scene.settings.analysis,
-            m.elasticity.model,
+            scene.model.elasticity.model,
             options.dt.unwrap_or(scene.settings.dt),
         );
         for notice in &scene.notices {

@@ -13,10 +13,12 @@
 //! ([`heat`]). Process 0 gathers the processes' parts of
 //! each frame, and of the header's mesh, and writes the same file a run on one process writes.
 //!
-//! Fracture splits the whole mesh, which every process then holds: each makes the same
-//! splits and shares the split mesh out again ([`Distribution::remeshed`]). Every process
-//! also reads the scene's whole mesh and keeps its whole model as a description (materials,
-//! loads, terms; not the elements' rest data), from which it builds its part.
+//! A scene whose set-up needs no whole mesh is built on each process's part
+//! (`scene::shared`, through [`MeshSharing`]); any other is read whole by every process,
+//! which keeps the whole model as a description (materials, loads, terms; not the elements'
+//! rest data) until it has built its part from it. Fracture splits the whole mesh, which
+//! every process then holds: each makes the same splits and shares the split mesh out again
+//! ([`Distribution::remeshed`]).
 
 pub mod components;
 pub mod dual_graph;
@@ -31,6 +33,7 @@ use crate::assembly::Assembly;
 use crate::mesh::TetMesh;
 use crate::physics::Model;
 use crate::run::Processes;
+use crate::scene::{MeshRanges, MeshSharing, SharedMesh};
 use crate::sim::part::Part;
 use crate::sim::{Collective, Distribution, SimError, Simulation};
 use crate::solver::{ExternalSolver, LinearError, LinearSolverKind};
@@ -248,6 +251,10 @@ impl Processes for MpiProcesses {
         Ok((part, model))
     }
 
+    fn mesh_sharing(&self) -> Option<&dyn MeshSharing> {
+        (!self.whole_mesh.get()).then_some(self)
+    }
+
     fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError> {
         self.set_up_memory.set(peak_memory());
         let Some((numbering, part)) = self.part.borrow_mut().take() else {
@@ -317,6 +324,55 @@ impl Processes for MpiProcesses {
         self.world
             .all_reduce_into(&u8::from(flag), &mut any, SystemOperation::max());
         any != 0
+    }
+}
+
+impl MeshSharing for MpiProcesses {
+    fn rank_and_size(&self) -> (usize, usize) {
+        (self.rank() as usize, self.size())
+    }
+
+    fn share(&self, ranges: MeshRanges) -> Result<SharedMesh, String> {
+        let rank = self.rank() as usize;
+        let graph = dual_graph::rows(&self.world, ranges.tets, ranges.element_starts);
+        let parts =
+            partition::parts_of_range(&graph, ranges.element_starts).map_err(|e| e.to_string())?;
+        let gathered = part_mesh::part_mesh(
+            &self.world,
+            part_mesh::ElementRange {
+                starts: ranges.element_starts,
+                tets: ranges.tets,
+                parts: &parts,
+                boundary: &graph.boundary,
+            },
+            part_mesh::NodeRange {
+                starts: ranges.node_starts,
+                rest: ranges.rest,
+            },
+            part_mesh::HeldEverywhere::These(&[]),
+        );
+        debug_assert_eq!(
+            ranges.rest.len(),
+            ranges.node_starts[rank + 1] - ranges.node_starts[rank]
+        );
+        *self.part.borrow_mut() = Some((gathered.numbering, gathered.part.clone()));
+        Ok(SharedMesh {
+            part: gathered.part,
+            rest: gathered.rest,
+            tets: gathered.tets,
+            boundary: gathered.boundary,
+        })
+    }
+
+    fn total(&self, n: usize) -> usize {
+        let mut sum = 0u64;
+        self.world
+            .all_reduce_into(&(n as u64), &mut sum, SystemOperation::sum());
+        sum as usize
+    }
+
+    fn largest(&self, x: f64) -> f64 {
+        largest(&self.world, x)
     }
 }
 

@@ -48,11 +48,7 @@ impl PartNumbering {
 #[error("the mesh could not be partitioned ({0})")]
 pub struct PartitionError(pub String);
 
-/// The contiguous ranges of `elements` (or nodes) that `processes` hold before the partition:
-/// process `r` holds `starts[r] .. starts[r + 1]`.
-pub fn ranges(elements: usize, processes: usize) -> Vec<usize> {
-    (0..=processes).map(|r| r * elements / processes).collect()
-}
+pub use crate::sim::part::ranges;
 
 /// The process each element of this process's range goes to, by PT-Scotch, every process
 /// taking part: `graph` is the range's rows of the dual graph ([`super::dual_graph::rows`])

@@ -1,7 +1,7 @@
 //! Mass and dead loads: lumped mass, gravity, surface traction.
 
 use super::Selection;
-use crate::mesh::TetMesh;
+use crate::mesh::{BoundaryFace, TetMesh};
 use nalgebra::Vector3;
 
 /// A traction (Pa, force per rest area) on the boundary faces `region` selects (centroid in a
@@ -58,9 +58,18 @@ pub fn add_traction(mesh: &TetMesh, traction: &Traction, force: &mut [f64]) {
 
 /// Number of boundary faces a traction acts on, and their total area (m²).
 pub fn traction_faces(mesh: &TetMesh, region: &Selection) -> (usize, f64) {
+    traction_faces_among(mesh, &mesh.boundary_faces(), region)
+}
+
+/// [`traction_faces`] among the boundary faces `faces` of `mesh`.
+pub fn traction_faces_among(
+    mesh: &TetMesh,
+    faces: &[BoundaryFace],
+    region: &Selection,
+) -> (usize, f64) {
     let mut count = 0;
     let mut area = 0.0;
-    for face in mesh.boundary_faces() {
+    for face in faces {
         let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
         if region.contains_face(&[a, b, c]) {
             count += 1;

@@ -270,6 +270,15 @@ pub struct NodeRestriction {
 }
 
 impl NodeRestriction {
+    /// The restriction of a mesh to itself, keeping the nodes marked in `kept`.
+    pub fn all(kept: &[bool]) -> Self {
+        NodeRestriction {
+            local: (0..kept.len()).collect(),
+            kept: kept.to_vec(),
+            local_nodes: kept.len(),
+        }
+    }
+
     /// Node `i` of the whole mesh in the process's mesh, if it is in it.
     pub fn held(&self, i: usize) -> Option<usize> {
         Some(self.local[i]).filter(|&k| k != usize::MAX)

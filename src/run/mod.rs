@@ -113,8 +113,13 @@ pub trait Processes {
     /// This process's part of `model` and its model (see `sim::part`): the whole mesh if
     /// `whole`, else its elements and those around their nodes.
     fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError>;
-    /// Shares `sim`, built on [`Processes::part_model`], among the processes before its
-    /// first step.
+    /// The processes building a scene on their parts of its mesh (see
+    /// [`crate::scene::MeshSharing`]), if they do.
+    fn mesh_sharing(&self) -> Option<&dyn crate::scene::MeshSharing> {
+        None
+    }
+    /// Shares `sim`, built on [`Processes::part_model`] (or on the part a scene was built on),
+    /// among the processes before its first step.
     fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError>;
     /// Number of processes.
     fn count(&self) -> usize;
@@ -173,12 +178,11 @@ pub fn run_on(
                     || OutputWriter::resume_head(&output, end_time),
                     (FrameHead::to_bytes, FrameHead::from_bytes),
                 )?;
-                let mesh = &scene.model.mesh;
                 let frame = resumed_part(
                     processes,
                     (writer.as_ref(), &output),
                     (head, restore::BLOCK_VALUES),
-                    (part, mesh),
+                    (part, &sim.model.mesh),
                 )?;
                 restore(&mut sim, None, &output, &frame, &scene.text)?;
                 writer
@@ -220,7 +224,7 @@ pub fn run_on(
         }
         writer
     };
-    let counts = (scene.model.mesh.num_nodes(), scene.model.mesh.num_tets());
+    let counts = scene.counts();
     let mut run = Run {
         frames: (scene.frame_options, scene.output_every, scene.restart_every),
         settings,
@@ -282,10 +286,18 @@ fn simulation_for(
             None,
         ),
         Some(processes) => {
-            Simulation::check(&scene.model, &settings).map_err(setup)?;
-            let (part, model) = processes
-                .part_model(&scene.model, needs_whole_mesh(scene))
-                .map_err(setup)?;
+            let (part, model) = match &scene.part {
+                // Built on this process's part: its checks are the processes' together.
+                Some(part) => {
+                    Simulation::check_shared(&scene.model, &settings, &|f| processes.any(f))
+                        .map_err(setup)?;
+                    (part.clone(), scene.model.clone())
+                }
+                None => {
+                    Simulation::check(&scene.model, &settings).map_err(setup)?;
+                    (processes.part_model(&scene.model, needs_whole_mesh(scene))).map_err(setup)?
+                }
+            };
             (
                 Simulation::for_part(model, settings).map_err(setup)?,
                 Some(part),

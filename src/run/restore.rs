@@ -18,8 +18,9 @@ pub(super) const BLOCK_VALUES: usize = 1 << 20;
 /// process has: the writing process (the one with `writer`) reads each dataset of the frame a
 /// block of rows at a time and gives each block to every process, which keeps the rows of its
 /// part's nodes and elements — no process holds more of the frame than its part and a block
-/// (of at most `block` values). The frame's mesh must be the scene's `mesh` (each process
-/// checks its rows; any difference is every process's error).
+/// (of at most `block` values). The frame's mesh must be the scene's, of which `mesh` is the
+/// part (numbered in the part; each process checks its rows, and any difference is every
+/// process's error).
 pub(super) fn resumed_part(
     processes: &dyn Processes,
     (writer, path): (Option<&OutputWriter>, &Path),
@@ -30,15 +31,16 @@ pub(super) fn resumed_part(
         path: path.into(),
         reason: "its mesh differs from the scene's mesh".into(),
     };
-    if head.nodes != mesh.num_nodes() || head.elements != mesh.num_tets() {
+    let (nodes, elements) = (part.whole_nodes(), part.whole_elements());
+    if head.nodes != nodes || head.elements != elements {
         return Err(differs());
     }
     let frame = head.with_rows(
         |name, cols, per_node| {
             let (rows, whole) = if per_node {
-                (&part.nodes, mesh.num_nodes())
+                (&part.nodes, nodes)
             } else {
-                (&part.elements, mesh.num_tets())
+                (&part.elements, elements)
             };
             let mut kept = Vec::with_capacity(rows.len() * cols);
             blocks_of_rows(
@@ -54,7 +56,7 @@ pub(super) fn resumed_part(
             let mut kept = Vec::with_capacity(part.elements.len());
             blocks_of_rows(
                 (processes, path),
-                (mesh.num_tets(), 4, block),
+                (elements, 4, block),
                 &part.elements,
                 |block| {
                     let tets = writer.map_or(Ok(Vec::new()), |w| w.resumed_tets(block))?;
@@ -65,21 +67,17 @@ pub(super) fn resumed_part(
             Ok::<_, OutputError>(kept)
         },
     )?;
-    let rest_differs = frame
-        .rest_positions
-        .iter()
-        .zip(&part.nodes)
-        .any(|(p, &i)| *p != <[f64; 3]>::from(mesh.rest[i]));
-    let tets_differ = frame
-        .tets
-        .iter()
-        .zip(&part.elements)
-        .any(|(t, &e)| *t != mesh.tets[e]);
+    let rest_differs = (frame.rest_positions.iter())
+        .zip(&mesh.rest)
+        .any(|(p, x)| *p != <[f64; 3]>::from(*x));
+    let tets_differ = (frame.tets.iter())
+        .zip(&mesh.tets)
+        .any(|(t, local)| *t != local.map(|v| part.nodes[v]));
     if processes.any(rest_differs || tets_differ) {
         return Err(differs());
     }
     Ok(ResumeFrame {
-        tets: part.tets_of(&mesh.tets),
+        tets: mesh.tets.clone(),
         ..frame
     })
 }

@@ -22,14 +22,16 @@
 
 use crate::fem::{ElasticModel, Material};
 use crate::fracture::FractureSettings;
-use crate::mesh::{box_mesh, gmsh, MeshError, TetMesh};
+use crate::mesh::{box_mesh, gmsh, BoxGrid, MeshError, TetMesh};
 use crate::output::FrameOptions;
 use crate::physics::freezing::Freezing;
 use crate::physics::ice_contact::IceContactTerm;
 use crate::physics::plasticity::Plasticity;
+use crate::physics::term::NodeRestriction;
 use crate::physics::{
     Amplitude, Contact, Dirichlet, Elasticity, Group, Model, Rayleigh, Region, Traction,
 };
+use crate::sim::part::Part;
 use crate::sim::{Analysis, StepSettings};
 use crate::solver::{FactorPrecision, FillOrdering, LinearSolverKind};
 use bodies::Bodies;
@@ -48,6 +50,7 @@ mod materials;
 mod obstacles;
 mod output;
 mod regions;
+mod shared;
 mod stepping;
 mod thermal;
 
@@ -56,6 +59,7 @@ pub use freezing::FreezingSection;
 pub use materials::MaterialSection;
 pub use obstacles::ObstacleSection;
 pub use output::{DrawnPrecision, OutputSection};
+pub use shared::{builds_on_parts, MeshRanges, MeshSharing, SharedMesh};
 pub use thermal::{HeatSetup, ThermalSection};
 
 /// A scene that could not be read or is not valid.
@@ -395,6 +399,10 @@ pub struct Scene {
     pub thermal: Option<HeatSetup>,
     /// Fracture, if on.
     pub fracture: Option<FractureSettings>,
+    /// The process's part of the mesh `model` is built on, where the scene was built on parts
+    /// (a run shared among processes, see [`MeshSharing`]); none: on the whole mesh. A
+    /// part's model has its masses and dead loads at the nodes the process owns only.
+    pub part: Option<Part>,
     /// What the user should know about the input that is not an error (one line each), such
     /// as mesh elements that were reoriented.
     pub notices: Vec<String>,
@@ -415,17 +423,53 @@ impl Scene {
 
     /// Validates scene `text` as if read from `path` (mesh files are relative to its folder).
     pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
+        Scene::parse_shared(text, path, None)
+    }
+
+    /// As [`Scene::load`], built on this process's part of the mesh where the processes
+    /// `sharing` are given and the scene [`builds_on_parts`]. Every process calls it.
+    pub fn load_shared(
+        path: &Path,
+        sharing: Option<&dyn MeshSharing>,
+    ) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.into(),
+            source,
+        })?;
+        Scene::parse_shared(&text, path, sharing)
+    }
+
+    /// As [`Scene::parse`], built on this process's part of the mesh as [`Scene::load_shared`].
+    pub fn parse_shared(
+        text: &str,
+        path: &Path,
+        sharing: Option<&dyn MeshSharing>,
+    ) -> Result<Scene, SceneError> {
         let raw: SceneFile = toml::from_str(text).map_err(|e| SceneError::Parse {
             path: path.into(),
             message: e.to_string(),
         })?;
-        Validator {
+        let whole = shared::needs_whole_mesh(&raw);
+        let validator = Validator {
             path,
             notices: Default::default(),
             warnings: Default::default(),
             groups: Default::default(),
+            sharing: std::cell::Cell::new(sharing.filter(|_| whole.is_none())),
+            part: Default::default(),
+        };
+        if let (Some(_), Some(section)) = (sharing, whole) {
+            validator.whole_on_every_process(section);
         }
-        .scene(raw, text)
+        validator.scene(raw, text)
+    }
+
+    /// Nodes and elements of the whole mesh.
+    pub fn counts(&self) -> (usize, usize) {
+        match &self.part {
+            Some(part) => (part.whole_nodes(), part.whole_elements()),
+            None => (self.model.mesh.num_nodes(), self.model.mesh.num_tets()),
+        }
     }
 }
 
@@ -437,6 +481,11 @@ struct Validator<'a> {
     warnings: std::cell::RefCell<Vec<String>>,
     /// The mesh files' named physical groups, placed as the scene places the mesh.
     groups: std::cell::RefCell<Vec<Arc<Group>>>,
+    /// The processes that build the scene on their parts of the mesh, if it is built so.
+    sharing: std::cell::Cell<Option<&'a dyn MeshSharing>>,
+    /// This process's part of the mesh, and its elements' faces on the whole mesh's boundary,
+    /// once shared out (see `shared`).
+    part: std::cell::RefCell<Option<(Part, Vec<u8>)>>,
 }
 
 impl Validator<'_> {
@@ -595,6 +644,17 @@ impl Validator<'_> {
             fracture.is_some(),
         )?;
         model.set_ice_contact(ice_contact);
+        let part = self.part.take().map(|(part, _)| part);
+        if let Some(part) = &part {
+            // Masses, dead loads and terms at the owned nodes only, whose elements are all
+            // the part's.
+            let terms = std::mem::take(&mut model.terms);
+            model.restrict(
+                &part.owned_nodes,
+                &terms,
+                &NodeRestriction::all(&part.owned_nodes),
+            );
+        }
         let output = match &raw.output.file {
             Some(f) => PathBuf::from(f),
             None => PathBuf::from(self.path.file_stem().unwrap_or_default()).with_extension("h5"),
@@ -611,6 +671,7 @@ impl Validator<'_> {
             frame_options: output::frame_options(&raw.output, stepping.output_every),
             fracture,
             thermal,
+            part,
             notices: self.notices.take(),
             warnings: self.warnings.take(),
         })
@@ -665,7 +726,9 @@ impl Validator<'_> {
                 traction: self.vector(&format!("{field}.traction"), t.traction)?,
                 amplitude: self.amplitude(&format!("{field}.amplitude"), &t.amplitude)?,
             };
-            if crate::physics::loads::traction_faces(mesh, &region).0 == 0 {
+            let faces = self.whole_boundary(mesh);
+            let found = crate::physics::loads::traction_faces_among(mesh, &faces, &region).0;
+            if self.found_anywhere(found) == 0 {
                 return Err(self.invalid(
                     &field,
                     format!(
@@ -833,7 +896,9 @@ impl Validator<'_> {
             self.non_negative("physics.ice_friction", physics.ice_friction.unwrap_or(0.0))?;
         // The default stiffness (a pass over the whole boundary) only for a term that can
         // come on: one part without fracture never has a pair.
-        if physics.ice_stiffness.is_none() && !fracture && crate::mesh::parts(mesh).1 < 2 {
+        // A scene built on parts is one connected part (see `shared::builds_on_parts`).
+        let one_part = self.sharing.get().is_some() || crate::mesh::parts(mesh).1 < 2;
+        if physics.ice_stiffness.is_none() && !fracture && one_part {
             return Ok(IceContactTerm::inactive(0.0, ice_friction, smoothing));
         }
         let ice_stiffness = self.penalty(
@@ -913,6 +978,13 @@ impl Validator<'_> {
                     }
                 };
                 self.check_boxes(&boxes, field)?;
+                if self.sharing.get().is_some() {
+                    // One box (`builds_on_parts`): each process makes its ranges only.
+                    let b = boxes[0];
+                    let tpc = b.tets_per_cell.unwrap_or(6);
+                    let grid = BoxGrid::new(b.origin, b.size, b.cells, tpc).map_err(mesh_err)?;
+                    return self.share_grid(&grid);
+                }
                 let mut parts = Vec::with_capacity(boxes.len());
                 for b in &boxes {
                     let tpc = b.tets_per_cell.unwrap_or(6);
@@ -925,7 +997,15 @@ impl Validator<'_> {
                 let (mesh, groups) = self.gmsh_file("mesh.file", file, scale)?;
                 self.check_parts_apart("mesh.file", &mesh)?;
                 self.add_groups("mesh.file", bodies::geometric_groups(&mesh, &groups))?;
-                Ok(mesh)
+                // Several parts (ice–ice contact between them): built whole on every process.
+                if self.sharing.get().is_some() && crate::mesh::parts(&mesh).1 > 1 {
+                    self.sharing.set(None);
+                    self.whole_on_every_process("a mesh of several parts (ice–ice contact)");
+                }
+                match self.sharing.get() {
+                    Some(_) => self.share_mesh(mesh),
+                    None => Ok(mesh),
+                }
             }
             _ => Err(self.invalid(
                 "mesh",

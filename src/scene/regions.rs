@@ -67,7 +67,8 @@ impl Validator<'_> {
         }
     }
 
-    /// The elements `region` selects (at least one, else an error naming `field`).
+    /// The elements of `mesh` `region` selects (at least one in the whole mesh, else an error
+    /// naming `field`).
     pub(super) fn selected_elements(
         &self,
         field: &str,
@@ -77,7 +78,7 @@ impl Validator<'_> {
         let selected: Vec<usize> = (0..mesh.num_tets())
             .filter(|&t| region.contains_element(&mesh.tets[t].map(|v| mesh.rest[v])))
             .collect();
-        if selected.is_empty() {
+        if self.found_anywhere(selected.len()) == 0 {
             return Err(self.invalid(
                 field,
                 format!(

@@ -31,7 +31,8 @@ struct SolverLimits {
 }
 
 impl Validator<'_> {
-    /// The step settings of `time` and `solver` for a body whose bounding box is `mesh`'s.
+    /// The step settings of `time` and `solver` for a body whose bounding box is `mesh`'s (the
+    /// whole mesh's, of which `mesh` may be a part).
     pub(super) fn stepping(
         &self,
         time: &TimeSection,
@@ -46,7 +47,7 @@ impl Validator<'_> {
         }
         let restart_every = self.restart_every(time, output_every)?;
         let limits = self.solver_limits(solver)?;
-        let (lo, hi) = mesh.bounding_box();
+        let (lo, hi) = self.bounding_box(mesh);
         let adaptive = time
             .adaptive
             .as_ref()

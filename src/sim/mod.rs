@@ -375,15 +375,26 @@ impl Simulation {
     /// The checks [`Simulation::new`] makes on a model: every support holds a node, and a
     /// static analysis has one.
     pub fn check(model: &Model, settings: &StepSettings) -> Result<(), SimError> {
+        Simulation::check_shared(model, settings, &|flag| flag)
+    }
+
+    /// [`Simulation::check`] of a process's part `model` of a model built on parts: a check
+    /// fails when it fails on every process (`anywhere` tells whether a flag is set on any).
+    pub fn check_shared(
+        model: &Model,
+        settings: &StepSettings,
+        anywhere: &dyn Fn(bool) -> bool,
+    ) -> Result<(), SimError> {
         for (index, bc) in model.dirichlet.iter().enumerate() {
-            if bc.nodes(&model.mesh).next().is_none() {
+            if !anywhere(bc.nodes(&model.mesh).next().is_some()) {
                 return Err(SimError::EmptyDirichlet {
                     index,
                     region: bc.region.describe(),
                 });
             }
         }
-        if settings.analysis == Analysis::Static && !model.constrained_dofs().iter().any(|c| *c) {
+        let constrained = model.constrained_dofs().iter().any(|c| *c);
+        if settings.analysis == Analysis::Static && !anywhere(constrained) {
             return Err(SimError::NoDirichlet);
         }
         Ok(())

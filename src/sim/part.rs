@@ -41,6 +41,12 @@ pub struct Part {
     whole_elements: usize,
 }
 
+/// The contiguous ranges of `items` (elements or nodes) that `processes` hold before a
+/// partition: process `r` holds `starts[r] .. starts[r + 1]`.
+pub fn ranges(items: usize, processes: usize) -> Vec<usize> {
+    (0..=processes).map(|r| r * items / processes).collect()
+}
+
 impl Part {
     /// The part of process `rank` when element `e` is in partition part `element_part[e]`
     /// and node `i` is owned by process `node_owner[i]` (one of its elements' processes): its

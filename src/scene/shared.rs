@@ -1,0 +1,172 @@
+//! A scene built on one process's part of its mesh, in a run shared among processes (see
+//! `distributed`): no process builds the whole model, and with a `[mesh] box` no process
+//! makes the whole mesh either.
+//!
+//! Each process makes (or, for a mesh file, reads and slices) a contiguous range of the
+//! elements and one of the nodes; the processes partition the ranges together and each
+//! gathers its part ([`MeshSharing::share`]). The scene is then built on the part's mesh by
+//! the builders a one-process run uses. What a part cannot tell alone is asked of the
+//! processes: the bounding box, whether a region selects anything anywhere (so that every
+//! process gives the same error), and which faces are on the whole mesh's boundary (a part's
+//! own boundary also has the faces of its cut). Masses and dead loads are kept at the nodes
+//! the process owns, all of whose elements its part holds.
+//!
+//! Scenes with sections whose set-up needs the whole mesh — bodies, obstacles, heat,
+//! freezing, fracture, an initial state read from a file, ice–ice contact between several
+//! parts — are built whole on every process and shared out afterwards
+//! ([`builds_on_parts`]).
+
+use super::{SceneError, SceneFile, Validator};
+use crate::mesh::{BoundaryFace, BoxGrid, TetMesh};
+use crate::sim::part::Part;
+use nalgebra::Vector3;
+
+/// The ranges of a mesh one process holds before the partition: process `r` holds the
+/// elements `element_starts[r] .. element_starts[r + 1]` and the nodes
+/// `node_starts[r] .. node_starts[r + 1]`.
+pub struct MeshRanges<'a> {
+    /// Where each process's elements start; the number of elements last.
+    pub element_starts: &'a [usize],
+    /// This process's elements' nodes (the whole mesh's numbers).
+    pub tets: &'a [[usize; 4]],
+    /// Where each process's nodes start; the number of nodes last.
+    pub node_starts: &'a [usize],
+    /// This process's nodes' rest positions (m).
+    pub rest: &'a [Vector3<f64>],
+}
+
+/// A process's part of a scene's mesh, gathered by [`MeshSharing::share`].
+pub struct SharedMesh {
+    /// Its elements and nodes as the whole mesh's, and which the process evaluates and owns.
+    pub part: Part,
+    /// The part's mesh: rest positions of its nodes (m) and its elements, numbered in the part.
+    pub rest: Vec<Vector3<f64>>,
+    pub tets: Vec<[usize; 4]>,
+    /// For each of the part's elements, its faces on the whole mesh's boundary (bit `f`:
+    /// `TET_FACES[f]`).
+    pub boundary: Vec<u8>,
+}
+
+/// What the processes of a distributed run do together to build a scene on their parts.
+/// Every process calls each method, in the same order.
+pub trait MeshSharing {
+    /// This process's number and the number of processes.
+    fn rank_and_size(&self) -> (usize, usize);
+    /// This process's part of the mesh the processes hold in `ranges`, partitioned among
+    /// them.
+    fn share(&self, ranges: MeshRanges) -> Result<SharedMesh, String>;
+    /// The sum over the processes of `n`.
+    fn total(&self, n: usize) -> usize;
+    /// The largest `x` over the processes.
+    fn largest(&self, x: f64) -> f64;
+}
+
+/// Whether the scene `raw` is built on each process's part of its mesh: a single `[mesh]`
+/// box or mesh file (of one connected part: checked once read) with materials, eigenstrains,
+/// gravity, damping, supports, tractions, plasticity or creep. Other sections' set-up needs
+/// the whole mesh (see the module docs).
+pub fn builds_on_parts(raw: &SceneFile) -> bool {
+    needs_whole_mesh(raw).is_none()
+}
+
+/// The first section of `raw` whose set-up needs the whole mesh on every process, if any.
+pub(super) fn needs_whole_mesh(raw: &SceneFile) -> Option<&'static str> {
+    let several_boxes = raw.mesh.as_ref().is_none_or(|m| {
+        m.boxes.as_ref().is_some_and(|b| b.len() != 1) || (m.box_.is_some() == m.file.is_some())
+    });
+    [
+        (!raw.body.is_empty(), "[[body]]"),
+        (several_boxes, "[mesh] with several boxes"),
+        (raw.initial.is_some(), "[initial]"),
+        (!raw.obstacle.is_empty(), "[[obstacle]]"),
+        (raw.freezing.is_some(), "[freezing]"),
+        (raw.thermal.is_some(), "[thermal]"),
+        (raw.fracture.is_some(), "[fracture]"),
+        (raw.physics.ice_stiffness.is_some(), "physics.ice_stiffness"),
+    ]
+    .into_iter()
+    .find_map(|(needs, section)| needs.then_some(section))
+}
+
+impl Validator<'_> {
+    /// The part of the mesh of `grid` (a `[mesh] box`) this process holds, made from its
+    /// ranges alone.
+    pub(super) fn share_grid(&self, grid: &BoxGrid) -> Result<TetMesh, SceneError> {
+        let sharing = self.sharing.get().expect("a shared scene");
+        let (rank, size) = sharing.rank_and_size();
+        let element_starts = crate::sim::part::ranges(grid.num_tets(), size);
+        let node_starts = crate::sim::part::ranges(grid.num_nodes(), size);
+        let tets: Vec<[usize; 4]> = (element_starts[rank]..element_starts[rank + 1])
+            .map(|e| grid.tet(e))
+            .collect();
+        let rest: Vec<Vector3<f64>> = (node_starts[rank]..node_starts[rank + 1])
+            .map(|v| grid.node(v))
+            .collect();
+        self.share(MeshRanges {
+            element_starts: &element_starts,
+            tets: &tets,
+            node_starts: &node_starts,
+            rest: &rest,
+        })
+    }
+
+    /// The part of `mesh` (read whole) this process holds.
+    pub(super) fn share_mesh(&self, mesh: TetMesh) -> Result<TetMesh, SceneError> {
+        let sharing = self.sharing.get().expect("a shared scene");
+        let (rank, size) = sharing.rank_and_size();
+        let element_starts = crate::sim::part::ranges(mesh.num_tets(), size);
+        let node_starts = crate::sim::part::ranges(mesh.num_nodes(), size);
+        self.share(MeshRanges {
+            tets: &mesh.tets[element_starts[rank]..element_starts[rank + 1]],
+            rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
+            element_starts: &element_starts,
+            node_starts: &node_starts,
+        })
+    }
+
+    fn share(&self, ranges: MeshRanges) -> Result<TetMesh, SceneError> {
+        let sharing = self.sharing.get().expect("a shared scene");
+        let shared = sharing.share(ranges).map_err(|e| self.invalid("mesh", e))?;
+        let mesh = TetMesh::new(shared.rest, shared.tets).map_err(|source| SceneError::Mesh {
+            path: self.path.into(),
+            source,
+        })?;
+        *self.part.borrow_mut() = Some((shared.part, shared.boundary));
+        Ok(mesh)
+    }
+
+    /// Notes that every process builds the whole scene, as `reason`'s set-up needs.
+    pub(super) fn whole_on_every_process(&self, reason: &str) {
+        self.notices.borrow_mut().push(format!(
+            "every process builds the whole scene and then keeps its part: {reason} needs the whole mesh while setting up"
+        ));
+    }
+
+    /// The bounding box of the whole mesh, of which `mesh` is this process's part or the
+    /// whole (m).
+    pub(super) fn bounding_box(&self, mesh: &TetMesh) -> (Vector3<f64>, Vector3<f64>) {
+        let (lo, hi) = mesh.bounding_box();
+        match self.sharing.get().filter(|_| self.part.borrow().is_some()) {
+            Some(s) => (lo.map(|x| -s.largest(-x)), hi.map(|x| s.largest(x))),
+            None => (lo, hi),
+        }
+    }
+
+    /// The faces of `mesh` on the whole mesh's boundary.
+    pub(super) fn whole_boundary(&self, mesh: &TetMesh) -> Vec<BoundaryFace> {
+        match &*self.part.borrow() {
+            Some((_, marks)) => mesh.faces_marked(marks),
+            None => mesh.boundary_faces(),
+        }
+    }
+
+    /// `n` (items this process found) summed over the processes of a shared scene: what
+    /// decides an error every process must give alike. Items a ring holds count on every
+    /// process holding them.
+    pub(super) fn found_anywhere(&self, n: usize) -> usize {
+        match self.sharing.get().filter(|_| self.part.borrow().is_some()) {
+            Some(s) => s.total(n),
+            None => n,
+        }
+    }
+}
