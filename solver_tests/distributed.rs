@@ -493,7 +493,7 @@ fn without_fracture(scene: &Path, dir: &Path) -> PathBuf {
 /// `extra` arguments): nodal temperatures to the heat Newton's tolerance, the same heat
 /// iterations, passes and cancelled couplings in every step, positions as for the scenes
 /// without heat.
-fn heat_on_two_matches_one(path: &Path, extra: &[&str]) {
+fn heat_on_two_matches_one(path: &Path, extra: &[&str]) -> String {
     let name = path.file_name().unwrap().to_string_lossy();
     let runs = on_one_and_two(path, extra);
     let (one, two, report) = (&runs.one, &runs.two, &runs.report);
@@ -514,6 +514,7 @@ fn heat_on_two_matches_one(path: &Path, extra: &[&str]) {
     ] {
         assert_eq!(stat(one, column), stat(two, column), "{name}: {column}");
     }
+    report.clone()
 }
 
 #[test]
@@ -522,11 +523,37 @@ fn heat_conduction_on_two_processes_matches_one() {
     // The container frozen by its walls (box mesh, nodal volumetric energy, the container):
     // its first hour.
     let container = without_fracture(&scene("freezing_container_thermal.toml"), dir.path());
-    heat_on_two_matches_one(&container, &["--end-time", "3600"]);
+    let report = heat_on_two_matches_one(&container, &["--end-time", "3600"]);
+    assert!(
+        report.contains("[[obstacle]] needs the whole mesh"),
+        "{report}"
+    );
     // A Gmsh bottle, whose obtuse elements make the heat step cancel couplings (13 edges in
     // its first step): 20 minutes.
     let bottle = without_fracture(&scene("gallery/bottle_thermal.toml"), dir.path());
     heat_on_two_matches_one(&bottle, &["--end-time", "1200"]);
+}
+
+#[test]
+fn heat_on_a_scene_built_on_parts_on_two_processes_matches_one() {
+    // The container frozen by its walls with the walls as supports and fixed temperatures
+    // instead of an obstacle: a scene each process builds on its part, the boundary's fixed
+    // nodes told by their owners to the processes holding them in their rings.
+    let dir = tempfile::tempdir().unwrap();
+    let container = without_fracture(&scene("freezing_container_thermal.toml"), dir.path());
+    let text = std::fs::read_to_string(&container).unwrap();
+    let start = text.find("[[obstacle]]").unwrap();
+    let end = start + text[start..].find("\n\n").unwrap();
+    let walls = "[[dirichlet]]\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1e-9]\n\n\
+                 [[thermal.fixed]]\nfaces = [\"-x\", \"bottom\"]\ntemperature = -10.0\n";
+    let text = format!("{}{}", &text[..start], &text[end..]).replace(
+        "faces = [\"walls\", \"bottom\"]",
+        "faces = [\"+x\", \"-y\", \"+y\"]",
+    ) + walls;
+    let path = dir.path().join("walls.toml");
+    std::fs::write(&path, text).unwrap();
+    let report = heat_on_two_matches_one(&path, &["--end-time", "3600"]);
+    assert!(!report.contains("needs the whole mesh"), "{report}");
 }
 
 #[test]

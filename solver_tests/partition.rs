@@ -525,3 +525,94 @@ fn a_region_that_selects_nothing_anywhere_is_every_processs_error() {
     let shared = Scene::parse_shared(&corner, path, Some(processes)).unwrap();
     assert!(shared.part.is_some());
 }
+
+#[test]
+fn a_heat_model_built_on_parts_is_the_part_of_the_whole_one() {
+    let Some(_world) =
+        on_three_processes("a_heat_model_built_on_parts_is_the_part_of_the_whole_one")
+    else {
+        return;
+    };
+    let processes = common::mpi_launched().expect("under mpirun");
+    let path = std::path::Path::new("parts.toml");
+    // Heat freezes the `[material]` water only: the box without its second material, cooled
+    // through fixed temperatures on two faces and convection on a third.
+    let base = scene_on_parts("min = [0.2999, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]");
+    let start = base.find("[materials.soft]").unwrap();
+    let end = start + base[start..].find("[physics]").unwrap();
+    let text = format!(
+        "{}{}[thermal]\ninitial_temperature = 2.0\n\
+         [[thermal.initial]]\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\ntemperature = 1.0\n\
+         [[thermal.fixed]]\nfaces = [\"-x\", \"bottom\"]\ntemperature = -10.0\n\
+         [[thermal.fixed]]\nfaces = [\"-y\"]\ntemperature = -5.0\n\
+         [[thermal.convection]]\nfaces = [\"+x\"]\nh = 500.0\nambient_temperature = -10.0\n\
+         [freezing]\nwater = \"bulk\"\n",
+        &base[..start],
+        &base[end..]
+    );
+    let shared = Scene::parse_shared(&text, path, Some(processes)).unwrap();
+    let whole = Scene::parse(&text, path).unwrap();
+    let part = shared.part.as_ref().expect("the scene is built on parts");
+    let (got, want) = (
+        shared.thermal.as_ref().unwrap(),
+        whole.thermal.as_ref().unwrap(),
+    );
+    // Every node of the part with its whole mass and its fixed temperature, ghosts too: told
+    // by their owners.
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&got.mass), bits(&part.rows_of(&want.mass, 1, false)));
+    assert_eq!(
+        bits(&got.initial),
+        bits(&part.rows_of(&want.initial, 1, false))
+    );
+    let final_fixed = |fixed: &[(usize, f64)]| {
+        let mut last = std::collections::BTreeMap::new();
+        for &(i, t) in fixed {
+            last.insert(i, t.to_bits());
+        }
+        last
+    };
+    let restricted = want.boundary.restricted(|i| part.local(i));
+    assert_eq!(
+        final_fixed(&got.boundary.fixed),
+        final_fixed(&restricted.fixed)
+    );
+    assert!(
+        got.boundary.fixed.iter().any(|&(_, t)| t == -5.0) || {
+            // A part away from the -y face.
+            part.nodes.iter().all(|&i| whole.model.mesh.rest[i].y > 0.0)
+        }
+    );
+    // The convecting faces with an owned node: the same as the whole's, in the same order.
+    let with_owned = |b: &icefem::thermal::HeatBoundary| -> Vec<[usize; 3]> {
+        (b.convection.iter())
+            .filter(|(f, _, _)| f.iter().any(|&k| part.owned_nodes[k]))
+            .map(|(f, _, _)| *f)
+            .collect()
+    };
+    assert_eq!(with_owned(&got.boundary), with_owned(&restricted));
+    // The freezing starts from the same states.
+    let (f, w) = (
+        got_freezing(&shared),
+        part.rows_of(&got_freezing(&whole), 2, true),
+    );
+    assert_eq!(bits(&f), bits(&w));
+}
+
+/// The ice fraction and temperature each element of `scene` starts from.
+fn got_freezing(scene: &Scene) -> Vec<f64> {
+    let freezing = scene
+        .model
+        .freezing
+        .as_ref()
+        .expect("heat freezes the water");
+    (0..scene.model.mesh.num_tets())
+        .flat_map(|e| {
+            let temperature = freezing.schedule.temperature(e, 0.0);
+            [
+                freezing.schedule.state(e, 0.0),
+                temperature.expect("from heat"),
+            ]
+        })
+        .collect()
+}

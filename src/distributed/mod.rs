@@ -374,6 +374,23 @@ impl MeshSharing for MpiProcesses {
     fn largest(&self, x: f64) -> f64 {
         largest(&self.world, x)
     }
+
+    fn copy_from_owners(&self, values: &mut [f64]) {
+        let shared = self.part.borrow();
+        let (numbering, part) = shared.as_ref().expect("a part shared out");
+        for (k, &owned) in part.owned_nodes.iter().enumerate() {
+            if !owned {
+                values[3 * k..3 * k + 3].fill(0.0);
+            }
+        }
+        let ghosts = Ghosts::new(
+            SimpleCommunicator::world(),
+            &part.nodes,
+            &part.owned_nodes,
+            &numbering.node_owner,
+        );
+        ghosts.exchange(values);
+    }
 }
 
 /// This process's peak resident memory (bytes).

@@ -309,15 +309,15 @@ fn simulation_for(
         // this process's part of it (with the whole masses: a process's part of a
         // distributed run has those of its owned nodes only).
         let mesh = &sim.model.mesh;
-        let whole_mass = &scene.model.mass;
-        let (mass, boundary, initial) = match &part {
+        let (mass, boundary, initial) = match part.as_ref().filter(|_| scene.part.is_none()) {
             Some(part) => (
-                part.rows_of(whole_mass, 1, false),
+                part.rows_of(&thermal.mass, 1, false),
                 thermal.boundary.restricted(|i| part.local(i)),
                 part.rows_of(&thermal.initial, 1, false),
             ),
+            // The whole mesh, or the part the scene was built on.
             None => (
-                whole_mass.clone(),
+                thermal.mass.clone(),
                 thermal.boundary.clone(),
                 thermal.initial.clone(),
             ),

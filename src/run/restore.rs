@@ -393,12 +393,14 @@ mod tests {
             .element_fields
             .iter()
             .any(|f| f.name == "plastic_strain"));
-        // Blocks of 20 values: several for every dataset.
+        // Blocks of 20 values: several for every dataset; the part's mesh numbered in the part.
+        let rest = part.nodes.iter().map(|&i| mesh.rest[i]).collect();
+        let part_mesh = crate::mesh::TetMesh::new(rest, part.tets_of(&mesh.tets)).unwrap();
         let mine = resumed_part(
             &Alone,
             (Some(&writer), &output),
             (head.clone(), 20),
-            (&part, mesh),
+            (&part, &part_mesh),
         )
         .unwrap();
         let pick =

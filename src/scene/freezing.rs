@@ -117,16 +117,14 @@ impl Validator<'_> {
             };
             selections.push(self.selection(field, keys, Some(2))?);
         }
-        let faces: Vec<[usize; 3]> = mesh
-            .boundary_faces()
-            .iter()
+        let faces: Vec<[usize; 3]> = (self.whole_boundary(mesh).iter())
             .map(|f| f.nodes)
             .filter(|f| {
                 let corners = f.map(|i| mesh.rest[i]);
                 selections.iter().any(|s| s.contains_face(&corners))
             })
             .collect();
-        if faces.is_empty() {
+        if self.found_anywhere(faces.len()) == 0 {
             return Err(self.invalid(
                 field,
                 "the named surfaces hold no boundary face of the mesh",

@@ -608,7 +608,7 @@ impl Validator<'_> {
         let thermal = raw
             .thermal
             .as_ref()
-            .map(|t| self.thermal(t, &model.mesh))
+            .map(|t| self.thermal(t, (&model.mesh, &model.mass)))
             .transpose()?;
         if let Some(mut freezing) =
             self.model_freezing(&raw, thermal.as_ref(), &model, &material)?

@@ -11,8 +11,8 @@
 //! own boundary also has the faces of its cut). Masses and dead loads are kept at the nodes
 //! the process owns, all of whose elements its part holds.
 //!
-//! Scenes with sections whose set-up needs the whole mesh — bodies, obstacles, heat,
-//! freezing, fracture, an initial state read from a file, ice–ice contact between several
+//! Scenes with sections whose set-up needs the whole mesh — bodies, obstacles, a prescribed
+//! freezing front, fracture, an initial state read from a file, ice–ice contact between several
 //! parts — are built whole on every process and shared out afterwards
 //! ([`builds_on_parts`]).
 
@@ -59,12 +59,15 @@ pub trait MeshSharing {
     fn total(&self, n: usize) -> usize;
     /// The largest `x` over the processes.
     fn largest(&self, x: f64) -> f64;
+    /// Gives each node of this process's part (the last [`MeshSharing::share`]d) that it does
+    /// not own the values its owner has in `values` (3 per node).
+    fn copy_from_owners(&self, values: &mut [f64]);
 }
 
 /// Whether the scene `raw` is built on each process's part of its mesh: a single `[mesh]`
 /// box or mesh file (of one connected part: checked once read) with materials, eigenstrains,
-/// gravity, damping, supports, tractions, plasticity or creep. Other sections' set-up needs
-/// the whole mesh (see the module docs).
+/// gravity, damping, supports, tractions, plasticity, creep, and heat with the freezing it
+/// drives. Other sections' set-up needs the whole mesh (see the module docs).
 pub fn builds_on_parts(raw: &SceneFile) -> bool {
     needs_whole_mesh(raw).is_none()
 }
@@ -79,8 +82,10 @@ pub(super) fn needs_whole_mesh(raw: &SceneFile) -> Option<&'static str> {
         (several_boxes, "[mesh] with several boxes"),
         (raw.initial.is_some(), "[initial]"),
         (!raw.obstacle.is_empty(), "[[obstacle]]"),
-        (raw.freezing.is_some(), "[freezing]"),
-        (raw.thermal.is_some(), "[thermal]"),
+        (
+            raw.freezing.is_some() && raw.thermal.is_none(),
+            "[freezing]'s prescribed front",
+        ),
         (raw.fracture.is_some(), "[fracture]"),
         (raw.physics.ice_stiffness.is_some(), "physics.ice_stiffness"),
     ]
@@ -157,6 +162,18 @@ impl Validator<'_> {
         match &*self.part.borrow() {
             Some((_, marks)) => mesh.faces_marked(marks),
             None => mesh.boundary_faces(),
+        }
+    }
+
+    /// Gives each node of this process's part it does not own the values its owner has in
+    /// `values` (3 per node); whether the scene is built on a part (else nothing changes).
+    pub(super) fn copy_from_owners(&self, values: &mut [f64]) -> bool {
+        match self.sharing.get().filter(|_| self.part.borrow().is_some()) {
+            Some(s) => {
+                s.copy_from_owners(values);
+                true
+            }
+            None => false,
         }
     }
 

@@ -86,6 +86,9 @@ pub struct HeatSetup {
     pub boundary: HeatBoundary,
     /// Initial temperature per node (°C).
     pub initial: Vec<f64>,
+    /// Lumped mass per node (kg): the model's, and at the nodes of a process's part it does
+    /// not own (whose mass the model leaves out, see `Scene::part`) the owner's.
+    pub mass: Vec<f64>,
 }
 
 /// Temperatures below absolute zero are not temperatures (°C).
@@ -100,14 +103,16 @@ impl Validator<'_> {
         names: &[String],
         mesh: &TetMesh,
     ) -> Result<Vec<[usize; 3]>, SceneError> {
-        let boundary: Vec<[usize; 3]> = mesh.boundary_faces().iter().map(|f| f.nodes).collect();
+        let boundary: Vec<[usize; 3]> = (self.whole_boundary(mesh).iter())
+            .map(|f| f.nodes)
+            .collect();
         match names {
             [] => Err(self.invalid(field, "name at least one face")),
             // A physical surface of the mesh file wins over a word of the same name.
             list if list.iter().any(|n| self.is_group(n)) => self.named_faces(field, list, mesh),
             [one] if one == "surface" => Ok(boundary),
             list if list.iter().all(|n| BOX_FACES.contains(&n.as_str())) => {
-                let (lo, hi) = mesh.bounding_box();
+                let (lo, hi) = self.bounding_box(mesh);
                 let tolerance = 1e-9 * (hi - lo).norm();
                 let mut on = [false; 6];
                 for name in list {
@@ -127,7 +132,7 @@ impl Validator<'_> {
                         })
                     })
                     .collect();
-                if faces.is_empty() {
+                if self.found_anywhere(faces.len()) == 0 {
                     return Err(self.invalid(
                         field,
                         "no boundary face lies on those faces of the mesh's bounding box",
@@ -150,11 +155,11 @@ impl Validator<'_> {
         }
     }
 
-    /// The heat model of `[thermal]` on `mesh`.
+    /// The heat model of `[thermal]` on `mesh`, whose nodes' lumped masses are `mass`.
     pub(super) fn thermal(
         &self,
         t: &ThermalSection,
-        mesh: &TetMesh,
+        (mesh, mass): (&TetMesh, &[f64]),
     ) -> Result<HeatSetup, SceneError> {
         let d = Phases::WATER_ICE;
         let positive = |field: &str, v: Option<f64>, default: f64| {
@@ -205,14 +210,14 @@ impl Validator<'_> {
                 region: entry.region.as_ref(),
             };
             let selection = self.selection(&field, keys, Some(3))?;
-            let mut any = false;
+            let mut found = 0;
             for (i, x) in mesh.rest.iter().enumerate() {
                 if selection.contains_node(x) {
                     initial[i] = value;
-                    any = true;
+                    found += 1;
                 }
             }
-            if !any {
+            if self.found_anywhere(found) == 0 {
                 return Err(self.invalid(&field, "holds no node of the mesh"));
             }
         }
@@ -228,6 +233,21 @@ impl Validator<'_> {
             nodes.sort_unstable();
             nodes.dedup();
             boundary.fixed.extend(nodes.into_iter().map(|i| (i, value)));
+        }
+        // On a part, a node it does not own may lie on a fixed face only its owner holds: the
+        // owners' fixed temperatures and whole masses, at every node.
+        let mut held = vec![0.0; 3 * mesh.num_nodes()];
+        for (i, &m) in mass.iter().enumerate() {
+            held[3 * i] = m;
+        }
+        for &(i, t) in &boundary.fixed {
+            held[3 * i + 1..3 * i + 3].copy_from_slice(&[1.0, t]);
+        }
+        if self.copy_from_owners(&mut held) {
+            boundary.fixed = (0..mesh.num_nodes())
+                .filter(|&i| held[3 * i + 1] == 1.0)
+                .map(|i| (i, held[3 * i + 2]))
+                .collect();
         }
         for (k, entry) in t.convection.iter().enumerate() {
             let field = format!("thermal.convection[{k}]");
@@ -245,6 +265,7 @@ impl Validator<'_> {
             phases,
             boundary,
             initial,
+            mass: held.iter().step_by(3).copied().collect(),
         })
     }
 
