@@ -156,6 +156,32 @@ fn every_process_gets_the_same_valid_partition() {
     }
 }
 
+/// This process's part gathered (`part_mesh`) from the ranges `element_starts` and
+/// `node_starts` of the whole `mesh`, its range's elements going to the processes `mine`.
+fn gathered_part(
+    world: &SimpleCommunicator,
+    mesh: &TetMesh,
+    (element_starts, node_starts, mine): (&[usize], &[usize], &[u32]),
+    everywhere: part_mesh::HeldEverywhere,
+) -> part_mesh::PartMesh {
+    let rank = world.rank() as usize;
+    let elements = element_starts[rank]..element_starts[rank + 1];
+    part_mesh::part_mesh(
+        world,
+        part_mesh::ElementRange {
+            starts: element_starts,
+            tets: &mesh.tets[elements.clone()],
+            parts: mine,
+            boundary: &mesh.boundary_marks()[elements],
+        },
+        part_mesh::NodeRange {
+            starts: node_starts,
+            rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
+        },
+        everywhere,
+    )
+}
+
 /// Checks, on every process, that the part gathered from the ranges (`part_mesh`) is the part
 /// `Part::new` and `Partition::of_part` give from the whole mesh, to the bit, when the
 /// elements `everywhere` (all if `None`) are held by every process.
@@ -174,19 +200,10 @@ fn check_gathered_part(world: &SimpleCommunicator, everywhere: Option<&[usize]>)
         ((x / 0.6 * PROCESSES as f64) as u32).min(PROCESSES as u32 - 1)
     };
     let mine: Vec<u32> = mesh.tets[first..end].iter().map(part_of).collect();
-    let marks = mesh.boundary_marks();
-    let got = part_mesh::part_mesh(
+    let got = gathered_part(
         world,
-        part_mesh::ElementRange {
-            starts: &element_starts,
-            tets: &mesh.tets[first..end],
-            parts: &mine,
-            boundary: &marks[first..end],
-        },
-        part_mesh::NodeRange {
-            starts: &node_starts,
-            rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
-        },
+        &mesh,
+        (&element_starts, &node_starts, &mine),
         everywhere.map_or(
             part_mesh::HeldEverywhere::All,
             part_mesh::HeldEverywhere::These,
@@ -367,7 +384,6 @@ fn the_processes_find_the_connected_parts_of_the_whole_mesh() {
     let element_starts = [0, ne / 3, ne / 2, ne];
     let node_starts = [0, nn / 2, nn / 2 + 1, nn];
     let (first, end) = (element_starts[rank], element_starts[rank + 1]);
-    let marks = mesh.boundary_marks();
     // Slabs 0.3 wide along x, dealt out in turn: process 0 holds both ends of the long box,
     // two pieces with their rings, joined only through the other processes' parts.
     let slab = |t: &[usize; 4]| {
@@ -379,18 +395,10 @@ fn the_processes_find_the_connected_parts_of_the_whole_mesh() {
         let mine: Vec<u32> = (first..end)
             .map(|e| deal.map_or(slab(&mesh.tets[e]), |d| (e / d) % 3) as u32)
             .collect();
-        let got = part_mesh::part_mesh(
+        let got = gathered_part(
             &world,
-            part_mesh::ElementRange {
-                starts: &element_starts,
-                tets: &mesh.tets[first..end],
-                parts: &mine,
-                boundary: &marks[first..end],
-            },
-            part_mesh::NodeRange {
-                starts: &node_starts,
-                rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
-            },
+            &mesh,
+            (&element_starts, &node_starts, &mine),
             part_mesh::HeldEverywhere::These(&[]),
         );
         let (labels, parts) = components::connected_parts(&world, &got);
@@ -401,6 +409,21 @@ fn the_processes_find_the_connected_parts_of_the_whole_mesh() {
             "process {rank}, elements dealt by {deal:?}"
         );
     }
+}
+
+/// Where the scenes built by the tests below say they were read from.
+const SCENE: &str = "parts.toml";
+
+/// [`on_three_processes`] for a test that builds scenes on the processes' parts: the world
+/// and the processes.
+fn sharing_on_three_processes(
+    name: &str,
+) -> Option<(
+    SimpleCommunicator,
+    &'static icefem::distributed::MpiProcesses,
+)> {
+    let world = on_three_processes(name)?;
+    Some((world, common::mpi_launched().expect("under mpirun")))
 }
 
 /// A box scene with every section a scene built on parts takes: two materials, an
@@ -447,15 +470,31 @@ end_time = 0.02
 
 #[test]
 fn a_scene_built_on_parts_is_the_part_of_the_whole_scene() {
-    let Some(world) = on_three_processes("a_scene_built_on_parts_is_the_part_of_the_whole_scene")
+    let Some((world, processes)) =
+        sharing_on_three_processes("a_scene_built_on_parts_is_the_part_of_the_whole_scene")
     else {
         return;
     };
-    let processes = common::mpi_launched().expect("under mpirun");
-    let path = std::path::Path::new("parts.toml");
     let text = scene_on_parts("min = [0.2999, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]");
-    let shared = Scene::parse_shared(&text, path, Some(processes)).unwrap();
-    let whole = Scene::parse(&text, path).unwrap();
+    check_built_on_parts(&world, processes, &text, std::path::Path::new(SCENE));
+    // A Gmsh mesh read whole and sliced, its physical groups selecting the second material,
+    // the support and the traction.
+    let gmsh = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes/gallery/two_material_block.toml");
+    let text = std::fs::read_to_string(&gmsh).unwrap();
+    check_built_on_parts(&world, processes, &text, &gmsh);
+}
+
+/// Checks that the scene `text` (read from `path`) built on this process's part is the part
+/// of the whole scene: its model restricted from the whole one, to the bit.
+fn check_built_on_parts(
+    world: &SimpleCommunicator,
+    processes: &icefem::distributed::MpiProcesses,
+    text: &str,
+    path: &std::path::Path,
+) {
+    let shared = Scene::parse_shared(text, path, Some(processes)).unwrap();
+    let whole = Scene::parse(text, path).unwrap();
     let part = shared.part.as_ref().expect("the scene is built on parts");
     assert!(part.elements.len() < whole.model.mesh.num_tets(), "a part");
     assert_eq!(
@@ -469,19 +508,23 @@ fn a_scene_built_on_parts_is_the_part_of_the_whole_scene() {
     assert_eq!(got.mesh.tets, want.mesh.tets);
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&got.mass), bits(&want.mass));
-    for t in [0.0, 0.5, 1.0] {
+    for t in [0.0, 0.05, 0.5, 1.0] {
         assert_eq!(
             bits(&got.dead_loads_at(t)),
             bits(&want.dead_loads_at(t)),
             "t = {t}"
         );
     }
-    // The traction pulls along x on the processes whose parts reach x = 0.3.
-    let pulled = got.dead_loads_at(1.0).iter().step_by(3).any(|&f| f > 0.0);
+    // The traction pulls along x on the processes whose parts reach its faces.
+    let pulled = got.dead_loads_at(0.2).iter().step_by(3).any(|&f| f > 0.0);
     assert!(Processes::any(processes, pulled), "the traction");
     let (e, w) = (&got.elasticity, &want.elasticity);
     assert_eq!(e.material_index, w.material_index);
-    assert!(e.material_index.contains(&1) || e.material_index.iter().all(|&k| k == 0));
+    let second = e.material_index.iter().filter(|&&k| k == 1).count();
+    assert!(
+        icefem::scene::MeshSharing::total(processes, second) > 0,
+        "the second material"
+    );
     assert_eq!(bits(&e.eigenstrain), bits(&w.eigenstrain));
     assert_eq!(got.constrained_dofs(), want.constrained_dofs());
     assert_eq!(got.damping, want.damping);
@@ -505,13 +548,12 @@ fn a_scene_built_on_parts_is_the_part_of_the_whole_scene() {
 
 #[test]
 fn a_region_that_selects_nothing_anywhere_is_every_processs_error() {
-    let Some(_world) =
-        on_three_processes("a_region_that_selects_nothing_anywhere_is_every_processs_error")
-    else {
+    let Some((_world, processes)) = sharing_on_three_processes(
+        "a_region_that_selects_nothing_anywhere_is_every_processs_error",
+    ) else {
         return;
     };
-    let processes = common::mpi_launched().expect("under mpirun");
-    let path = std::path::Path::new("parts.toml");
+    let path = std::path::Path::new(SCENE);
     // Inside the box: no boundary face on any process, which each must say alike (one
     // process erring alone would leave the others waiting for it).
     let inside = scene_on_parts("min = [0.1, 0.05, 0.03]\nmax = [0.2, 0.15, 0.07]");
@@ -528,13 +570,12 @@ fn a_region_that_selects_nothing_anywhere_is_every_processs_error() {
 
 #[test]
 fn a_heat_model_built_on_parts_is_the_part_of_the_whole_one() {
-    let Some(_world) =
-        on_three_processes("a_heat_model_built_on_parts_is_the_part_of_the_whole_one")
+    let Some((_world, processes)) =
+        sharing_on_three_processes("a_heat_model_built_on_parts_is_the_part_of_the_whole_one")
     else {
         return;
     };
-    let processes = common::mpi_launched().expect("under mpirun");
-    let path = std::path::Path::new("parts.toml");
+    let path = std::path::Path::new(SCENE);
     // Heat freezes the `[material]` water only: the box without its second material, cooled
     // through fixed temperatures on two faces and convection on a third.
     let base = scene_on_parts("min = [0.2999, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]");

@@ -281,6 +281,12 @@ fn simulation_for(
         error,
     };
     let (mut sim, part) = match processes {
+        None if scene.part.is_some() => {
+            return Err(setup(SimError::Setup(
+                "the scene was built on a process's part of its mesh: run it with its processes"
+                    .into(),
+            )))
+        }
         None => (
             Simulation::new(scene.model.clone(), settings).map_err(setup)?,
             None,
