@@ -9,6 +9,7 @@ mod common;
 use icefem::distributed::partition::{self, Partition};
 use icefem::distributed::{components, dual_graph, part_mesh};
 use icefem::mesh::{box_mesh, BoxGrid, TetMesh, TET_FACES};
+use icefem::physics::contact::ObstacleContact;
 use icefem::run::Processes;
 use icefem::scene::Scene;
 use icefem::sim::part::Part;
@@ -477,6 +478,14 @@ fn a_scene_built_on_parts_is_the_part_of_the_whole_scene() {
     };
     let text = scene_on_parts("min = [0.2999, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]");
     check_built_on_parts(&world, processes, &text, std::path::Path::new(SCENE));
+    // With obstacles: contact at the owned boundary nodes, with penalties and reach from
+    // sums over the whole boundary.
+    let obstacles = "[[obstacle]]\ntype = \"container\"\nmin = [0.0, 0.0, 0.0]\n\
+                     max = [0.3, 0.2, 0.15]\nfriction = 0.3\n\
+                     [[obstacle]]\ntype = \"halfspace\"\npoint = [0.0, 0.0, -0.01]\n\
+                     normal = [0.0, 0.0, 1.0]\n";
+    let with = format!("{text}{obstacles}");
+    check_built_on_parts(&world, processes, &with, std::path::Path::new(SCENE));
     // A Gmsh mesh read whole and sliced, its physical groups selecting the second material,
     // the support and the traction.
     let gmsh = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -528,6 +537,20 @@ fn check_built_on_parts(
     assert_eq!(bits(&e.eigenstrain), bits(&w.eigenstrain));
     assert_eq!(got.constrained_dofs(), want.constrained_dofs());
     assert_eq!(got.damping, want.damping);
+    let contact = |m: &icefem::physics::Model| {
+        (m.term::<ObstacleContact>()).map(|t| {
+            let c = &t.contact;
+            let stiffness: Vec<u64> = c.obstacles.iter().map(|o| o.stiffness.to_bits()).collect();
+            (
+                c.nodes.clone(),
+                bits(&c.area),
+                stiffness,
+                c.edge.to_bits(),
+                c.obstacle_speed.to_bits(),
+            )
+        })
+    };
+    assert_eq!(contact(got), contact(&want));
     // The whole mesh's bounding box sets the step tolerance.
     let tolerance = |s: &Scene| s.settings.newton.step_tolerance.to_bits();
     assert_eq!(tolerance(&shared), tolerance(&whole));
@@ -566,6 +589,18 @@ fn a_region_that_selects_nothing_anywhere_is_every_processs_error() {
     let corner = scene_on_parts("min = [0.25, 0.15, 0.09]\nmax = [1.0, 1.0, 1.0]");
     let shared = Scene::parse_shared(&corner, path, Some(processes)).unwrap();
     assert!(shared.part.is_some());
+    // A floor through the ice: the same error as on one process (nodes inside counted once,
+    // the deepest named where one process names it).
+    let floor = "[[obstacle]]\ntype = \"halfspace\"\npoint = [0.0, 0.0, 0.05]\n\
+                 normal = [0.0, 0.0, 1.0]\n";
+    let cut = format!("{corner}{floor}");
+    let on_parts = Scene::parse_shared(&cut, path, Some(processes)).unwrap_err();
+    let whole = Scene::parse(&cut, path).unwrap_err();
+    assert!(
+        whole.to_string().contains("start inside this obstacle"),
+        "{whole}"
+    );
+    assert_eq!(on_parts.to_string(), whole.to_string());
 }
 
 #[test]

@@ -29,7 +29,7 @@ use super::obstacle_mesh::ObstacleSurface;
 use super::term::{LagChange, NodeRestriction, Remesh, Solve, StepTerm, Term};
 use super::Region;
 use crate::assembly::Assembly;
-use crate::mesh::TetMesh;
+use crate::mesh::{BoundaryFace, TetMesh};
 use nalgebra::{Matrix3, Vector3};
 use std::sync::Arc;
 use std::time::Instant;
@@ -202,7 +202,21 @@ pub struct Contact {
 /// micrometre for ice under its own weight), while Newton still converges in a few iterations
 /// when contacts open and close.
 pub fn default_stiffness(mesh: &TetMesh, young: f64) -> f64 {
-    10.0 * young / mesh.mean_boundary_edge()
+    stiffness_for_edge(mesh.mean_boundary_edge(), young)
+}
+
+/// [`default_stiffness`] for the mean boundary edge `edge` (m).
+pub fn stiffness_for_edge(edge: f64, young: f64) -> f64 {
+    10.0 * young / edge
+}
+
+/// What contact needs of the whole boundary that a part of the mesh cannot tell alone.
+#[derive(Clone, Copy, Debug)]
+pub struct WholeBoundary {
+    /// The mean of the boundary triangles' mean edges (m): Σ (perimeter / 3) / faces.
+    pub edge: f64,
+    /// The mesh's rest bounding box (m).
+    pub bounds: (Vector3<f64>, Vector3<f64>),
 }
 
 impl Contact {
@@ -241,9 +255,32 @@ impl Contact {
     /// Contact of `mesh`'s boundary with `obstacles`.
     pub fn new(mesh: &TetMesh, obstacles: Vec<Obstacle>, smoothing_velocity: f64) -> Self {
         let boundary = mesh.boundary_faces();
+        let edge = boundary
+            .iter()
+            .map(|face| {
+                let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
+                ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0
+            })
+            .sum::<f64>()
+            / boundary.len().max(1) as f64;
+        let whole = WholeBoundary {
+            edge,
+            bounds: mesh.bounding_box(),
+        };
+        Contact::on_boundary((mesh, &boundary), whole, obstacles, smoothing_velocity)
+    }
+
+    /// Contact of the faces `boundary` of `mesh` (on the whole mesh's boundary, of which
+    /// `mesh` may be a process's part: `whole`) with `obstacles`.
+    pub fn on_boundary(
+        (mesh, boundary): (&TetMesh, &[BoundaryFace]),
+        whole: WholeBoundary,
+        obstacles: Vec<Obstacle>,
+        smoothing_velocity: f64,
+    ) -> Self {
         let mut index = vec![usize::MAX; mesh.num_nodes()];
         let mut nodes = Vec::new();
-        for f in &boundary {
+        for f in boundary {
             for &i in &f.nodes {
                 if index[i] == usize::MAX {
                     index[i] = 0;
@@ -258,12 +295,10 @@ impl Contact {
         let mut area = vec![0.0; nodes.len()];
         let mut node_faces = vec![Vec::new(); nodes.len()];
         let mut face_areas = Vec::with_capacity(boundary.len());
-        let mut edge = 0.0;
         for (f, face) in boundary.iter().enumerate() {
             let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
             let face_area = 0.5 * (b - a).cross(&(c - a)).norm();
             face_areas.push(face_area);
-            edge += ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0;
             for &i in &face.nodes {
                 area[index[i]] += face_area / 3.0;
                 node_faces[index[i]].push(f as u32);
@@ -276,11 +311,11 @@ impl Contact {
             faces: boundary.iter().map(|f| f.nodes).collect(),
             face_areas,
             node_faces,
-            edge: edge / boundary.len().max(1) as f64,
+            edge: whole.edge,
             smoothing_velocity,
             obstacle_speed: 0.0,
         };
-        let (lo, hi) = mesh.bounding_box();
+        let (lo, hi) = whole.bounds;
         contact.obstacle_speed = contact
             .obstacles
             .iter()

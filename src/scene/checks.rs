@@ -8,7 +8,7 @@ use super::{BoxSection, SceneError, Validator};
 use crate::fem::Material;
 use crate::mesh::parts;
 use crate::mesh::TetMesh;
-use crate::physics::contact::{default_stiffness, Shape};
+use crate::physics::contact::{stiffness_for_edge, Shape};
 use crate::physics::grid::BoxGrid;
 use crate::physics::Obstacle;
 
@@ -96,7 +96,7 @@ impl Validator<'_> {
         mesh: &TetMesh,
         material: &Material,
     ) -> Result<f64, SceneError> {
-        let default = default_stiffness(mesh, material.young());
+        let default = stiffness_for_edge(self.mean_boundary_edge(mesh), material.young());
         let Some(k) = given else {
             return Ok(default);
         };
@@ -146,9 +146,11 @@ impl Validator<'_> {
         mesh: &TetMesh,
         obstacles: &[Obstacle],
     ) -> Result<(), SceneError> {
-        let (lo, hi) = mesh.bounding_box();
+        let (lo, hi) = self.bounding_box(mesh);
         let tolerance = 1e-6 * (hi - lo).norm();
-        let element = element_size(mesh);
+        let (nodes, tets) = self.whole_counts(mesh);
+        let extent = hi - lo;
+        let element = (extent.x * extent.y * extent.z / tets as f64).cbrt();
         let mut planes = Vec::new();
         for (i, o) in obstacles.iter().enumerate() {
             planes.clear();
@@ -164,26 +166,26 @@ impl Validator<'_> {
                     .map_or(f64::NEG_INFINITY, |c| -c.gap);
                 behind_planes.max(behind_surface)
             };
-            let mut inside: Vec<(f64, &Vector3<f64>)> = mesh
-                .rest
-                .iter()
-                .map(|x| (depth(x), x))
+            // On a part, its owned nodes: each node is counted once over the processes.
+            let mut inside: Vec<(f64, usize)> = (mesh.rest.iter().enumerate())
+                .filter(|&(k, _)| self.owns_node(k))
+                .map(|(k, x)| (depth(x), k))
                 .filter(|(d, _)| *d > tolerance)
                 .collect();
             if let Some(surface) = o.surface().filter(|s| s.is_closed()) {
-                let (part, count) = parts(mesh);
-                let mut first = vec![usize::MAX; count];
-                for (node, &p) in part.iter().enumerate().rev() {
-                    first[p as usize] = node;
-                }
+                let first = self.first_node_of_each_part(mesh);
                 inside.extend(
                     first
                         .iter()
-                        .map(|&node| (-surface.signed_distance(mesh.rest[node]), &mesh.rest[node]))
+                        .map(|&node| (-surface.signed_distance(mesh.rest[node]), node))
                         .filter(|(d, _)| *d > tolerance),
                 );
             }
-            if let Some((deepest, at)) = inside.iter().copied().max_by(|a, b| a.0.total_cmp(&b.0)) {
+            let found = self.found_anywhere(inside.len());
+            if found > 0 {
+                // The deepest, and of equally deep nodes the last.
+                let local = inside.iter().copied().max_by(|a, b| a.0.total_cmp(&b.0));
+                let (deepest, at) = self.deepest(mesh, local);
                 // A mesh far larger than the container it is put in was most likely written
                 // in other units.
                 let units = match &o.shape {
@@ -203,8 +205,8 @@ impl Validator<'_> {
                     &format!("obstacle[{i}]"),
                     format!(
                         "{} of the mesh's {} nodes (at least) start inside this obstacle, the deepest {deepest:.3e} m behind its surface at ({:.4}, {:.4}, {:.4}) m; the ice must start outside every obstacle (move the mesh or the obstacle){units}",
-                        inside.len(),
-                        mesh.rest.len(),
+                        found,
+                        nodes,
                         at.x,
                         at.y,
                         at.z
@@ -219,7 +221,7 @@ impl Validator<'_> {
     /// written in other units: a warning names the scale key. Half-spaces have no size; only
     /// containers and mesh obstacles are compared, by the diagonals of their boxes.
     pub(super) fn check_sizes(&self, mesh: &TetMesh, obstacles: &[Obstacle], scale_key: &str) {
-        let (lo, hi) = mesh.bounding_box();
+        let (lo, hi) = self.bounding_box(mesh);
         let body = (hi - lo).norm();
         let largest = obstacles
             .iter()

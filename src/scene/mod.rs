@@ -28,9 +28,7 @@ use crate::physics::freezing::Freezing;
 use crate::physics::ice_contact::IceContactTerm;
 use crate::physics::plasticity::Plasticity;
 use crate::physics::term::NodeRestriction;
-use crate::physics::{
-    Amplitude, Contact, Dirichlet, Elasticity, Group, Model, Rayleigh, Region, Traction,
-};
+use crate::physics::{Amplitude, Dirichlet, Elasticity, Group, Model, Rayleigh, Region, Traction};
 use crate::sim::part::Part;
 use crate::sim::{Analysis, StepSettings};
 use crate::solver::{FactorPrecision, FillOrdering, LinearSolverKind};
@@ -590,7 +588,7 @@ impl Validator<'_> {
             "physics.friction_smoothing_velocity",
             raw.physics.friction_smoothing_velocity.unwrap_or(1e-4),
         )?;
-        let contact = (!obstacles.is_empty()).then(|| Contact::new(&mesh, obstacles, smoothing));
+        let contact = (!obstacles.is_empty()).then(|| self.contact(&mesh, obstacles, smoothing));
         let mut model = Model::new(mesh, elasticity, gravity, &tractions, damping, dirichlet)
             .map_err(|source| SceneError::Mesh {
                 path: self.path.into(),

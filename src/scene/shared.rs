@@ -11,13 +11,15 @@
 //! own boundary also has the faces of its cut). Masses and dead loads are kept at the nodes
 //! the process owns, all of whose elements its part holds.
 //!
-//! Scenes with sections whose set-up needs the whole mesh — bodies, obstacles, a prescribed
-//! freezing front, fracture, an initial state read from a file, ice–ice contact between several
+//! Scenes with sections whose set-up needs the whole mesh — bodies, a prescribed freezing
+//! front, fracture, an initial state read from a file, ice–ice contact between several
 //! parts — are built whole on every process and shared out afterwards
 //! ([`builds_on_parts`]).
 
 use super::{SceneError, SceneFile, Validator};
 use crate::mesh::{BoundaryFace, BoxGrid, TetMesh};
+use crate::physics::contact::{Contact, WholeBoundary};
+use crate::physics::Obstacle;
 use crate::sim::part::Part;
 use nalgebra::Vector3;
 
@@ -62,12 +64,15 @@ pub trait MeshSharing {
     /// Gives each node of this process's part (the last [`MeshSharing::share`]d) that it does
     /// not own the values its owner has in `values` (3 per node).
     fn copy_from_owners(&self, values: &mut [f64]);
+    /// Every process's `items`, keyed by distinct node triples, on every process: their
+    /// values in the order of their keys.
+    fn gathered_by_key(&self, items: &[([usize; 3], f64)]) -> Vec<f64>;
 }
 
 /// Whether the scene `raw` is built on each process's part of its mesh: a single `[mesh]`
 /// box or mesh file (of one connected part: checked once read) with materials, eigenstrains,
-/// gravity, damping, supports, tractions, plasticity, creep, and heat with the freezing it
-/// drives. Other sections' set-up needs the whole mesh (see the module docs).
+/// gravity, damping, supports, tractions, obstacles, plasticity, creep, and heat with the
+/// freezing it drives. Other sections' set-up needs the whole mesh (see the module docs).
 pub fn builds_on_parts(raw: &SceneFile) -> bool {
     needs_whole_mesh(raw).is_none()
 }
@@ -81,7 +86,6 @@ pub(super) fn needs_whole_mesh(raw: &SceneFile) -> Option<&'static str> {
         (!raw.body.is_empty(), "[[body]]"),
         (several_boxes, "[mesh] with several boxes"),
         (raw.initial.is_some(), "[initial]"),
-        (!raw.obstacle.is_empty(), "[[obstacle]]"),
         (
             raw.freezing.is_some() && raw.thermal.is_none(),
             "[freezing]'s prescribed front",
@@ -175,6 +179,112 @@ impl Validator<'_> {
             }
             None => false,
         }
+    }
+
+    /// Nodes and elements of the whole mesh, of which `mesh` is this process's part or the
+    /// whole.
+    pub(super) fn whole_counts(&self, mesh: &TetMesh) -> (usize, usize) {
+        match &*self.part.borrow() {
+            Some((part, _)) => (part.whole_nodes(), part.whole_elements()),
+            None => (mesh.num_nodes(), mesh.num_tets()),
+        }
+    }
+
+    /// Whether this process owns node `k` of `mesh` (every node, on the whole mesh).
+    pub(super) fn owns_node(&self, k: usize) -> bool {
+        (self.part.borrow().as_ref()).is_none_or(|(part, _)| part.owned_nodes[k])
+    }
+
+    /// The lowest node of each connected part of the whole mesh that this process holds
+    /// (and owns, on a part: each is then checked by one process), numbered in `mesh`.
+    pub(super) fn first_node_of_each_part(&self, mesh: &TetMesh) -> Vec<usize> {
+        match &*self.part.borrow() {
+            // A scene built on parts is one connected part (`builds_on_parts`).
+            Some((part, _)) => (part.nodes.first() == Some(&0) && part.owned_nodes[0])
+                .then_some(0)
+                .into_iter()
+                .collect(),
+            None => {
+                let (part, count) = crate::mesh::parts(mesh);
+                let mut first = vec![usize::MAX; count];
+                for (node, &p) in part.iter().enumerate().rev() {
+                    first[p as usize] = node;
+                }
+                first
+            }
+        }
+    }
+
+    /// The deepest of the processes' `local` (depth, node of `mesh`) findings, of equally deep
+    /// ones the highest-numbered node (as the last of one process's): its depth and position.
+    pub(super) fn deepest(
+        &self,
+        mesh: &TetMesh,
+        local: Option<(f64, usize)>,
+    ) -> (f64, Vector3<f64>) {
+        let part = self.part.borrow();
+        let (Some(s), Some((part, _))) = (self.sharing.get(), part.as_ref()) else {
+            let (depth, k) = local.expect("a finding on the only process");
+            return (depth, mesh.rest[k]);
+        };
+        let depth = s.largest(local.map_or(f64::NEG_INFINITY, |(d, _)| d));
+        let at = local.filter(|(d, _)| *d == depth).map(|(_, k)| k);
+        let node = s.largest(at.map_or(-1.0, |k| part.nodes[k] as f64));
+        let mine = at.filter(|&k| part.nodes[k] as f64 == node);
+        let x =
+            Vector3::from_fn(|a, _| s.largest(mine.map_or(f64::NEG_INFINITY, |k| mesh.rest[k][a])));
+        (depth, x)
+    }
+
+    /// The perimeters of the whole mesh's boundary triangles (m), in the order of
+    /// `TetMesh::boundary_faces` of the whole mesh: on a part, each process gives those of its
+    /// own elements and every process gets all of them, so that sums over them have the bits
+    /// of one process's.
+    fn boundary_perimeters(&self, mesh: &TetMesh) -> Vec<f64> {
+        let perimeter = |f: &BoundaryFace| {
+            let [a, b, c] = f.nodes.map(|i| mesh.rest[i]);
+            (b - a).norm() + (c - b).norm() + (a - c).norm()
+        };
+        match (self.sharing.get(), &*self.part.borrow()) {
+            (Some(s), Some((part, marks))) => {
+                let items: Vec<([usize; 3], f64)> = (mesh.faces_marked(marks).iter())
+                    .filter(|f| part.own_elements[f.tet])
+                    .map(|f| {
+                        let mut key = f.nodes.map(|v| part.nodes[v]);
+                        key.sort_unstable();
+                        (key, perimeter(f))
+                    })
+                    .collect();
+                s.gathered_by_key(&items)
+            }
+            _ => mesh.boundary_faces().iter().map(perimeter).collect(),
+        }
+    }
+
+    /// The whole mesh's mean boundary edge (m), as `TetMesh::mean_boundary_edge` of it.
+    pub(super) fn mean_boundary_edge(&self, mesh: &TetMesh) -> f64 {
+        let perimeters = self.boundary_perimeters(mesh);
+        perimeters.iter().sum::<f64>() / (3.0 * perimeters.len().max(1) as f64)
+    }
+
+    /// Contact of the whole mesh's boundary with `obstacles`, on `mesh` (its part or the
+    /// whole).
+    pub(super) fn contact(
+        &self,
+        mesh: &TetMesh,
+        obstacles: Vec<Obstacle>,
+        smoothing: f64,
+    ) -> Contact {
+        if self.part.borrow().is_none() {
+            return Contact::new(mesh, obstacles, smoothing);
+        }
+        let perimeters = self.boundary_perimeters(mesh);
+        let whole = WholeBoundary {
+            edge: perimeters.iter().map(|p| p / 3.0).sum::<f64>() / perimeters.len().max(1) as f64,
+            bounds: self.bounding_box(mesh),
+        };
+        let faces = self.whole_boundary(mesh);
+        Contact::on_boundary((mesh, &faces), whole, obstacles, smoothing)
     }
 
     /// `n` (items this process found) summed over the processes of a shared scene: what
