@@ -486,6 +486,13 @@ fn a_scene_built_on_parts_is_the_part_of_the_whole_scene() {
                      normal = [0.0, 0.0, 1.0]\n";
     let with = format!("{text}{obstacles}");
     check_built_on_parts(&world, processes, &with, std::path::Path::new(SCENE));
+    // With a freezing front from the faces of the whole mesh's bounding box.
+    let front = "[freezing]\ncooling = [\"walls\", \"bottom\"]\nfront_speed = 0.01\n\
+                 transition_time = 1.0\n";
+    let start = with.find("[materials.soft]").unwrap();
+    let end = start + with[start..].find("[physics]").unwrap();
+    let freezing = format!("{}{}{front}", &with[..start], &with[end..]);
+    check_built_on_parts(&world, processes, &freezing, std::path::Path::new(SCENE));
     // A Gmsh mesh read whole and sliced, its physical groups selecting the second material,
     // the support and the traction.
     let gmsh = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -530,8 +537,10 @@ fn check_built_on_parts(
     let (e, w) = (&got.elasticity, &want.elasticity);
     assert_eq!(e.material_index, w.material_index);
     let second = e.material_index.iter().filter(|&&k| k == 1).count();
-    assert!(
-        icefem::scene::MeshSharing::total(processes, second) > 0,
+    let seconds = icefem::scene::MeshSharing::total(processes, second);
+    assert_eq!(
+        seconds > 0,
+        text.contains("[materials."),
         "the second material"
     );
     assert_eq!(bits(&e.eigenstrain), bits(&w.eigenstrain));
@@ -551,6 +560,17 @@ fn check_built_on_parts(
         })
     };
     assert_eq!(contact(got), contact(&want));
+    let states = |m: &icefem::physics::Model, t: f64| -> Vec<u64> {
+        let Some(f) = &m.freezing else {
+            return Vec::new();
+        };
+        (0..m.mesh.num_tets())
+            .map(|e| f.schedule.state(e, t).to_bits())
+            .collect()
+    };
+    for t in [0.0, 1.0, 3.0, 30.0] {
+        assert_eq!(states(got, t), states(&want, t), "freeze states at {t} s");
+    }
     // The whole mesh's bounding box sets the step tolerance.
     let tolerance = |s: &Scene| s.settings.newton.step_tolerance.to_bits();
     assert_eq!(tolerance(&shared), tolerance(&whole));

@@ -243,7 +243,7 @@ impl Validator<'_> {
         }
         let region = match (f.min, f.max) {
             (None, None) => {
-                let (min, max) = mesh.bounding_box();
+                let (min, max) = self.bounding_box(mesh);
                 Region { min, max }
             }
             (Some(min), Some(max)) => self.region("freezing", min, max)?,

@@ -7,12 +7,15 @@
 //! gathers its part ([`MeshSharing::share`]). The scene is then built on the part's mesh by
 //! the builders a one-process run uses. What a part cannot tell alone is asked of the
 //! processes: the bounding box, whether a region selects anything anywhere (so that every
-//! process gives the same error), and which faces are on the whole mesh's boundary (a part's
-//! own boundary also has the faces of its cut). Masses and dead loads are kept at the nodes
-//! the process owns, all of whose elements its part holds.
+//! process gives the same error), which faces are on the whole mesh's boundary (a part's own
+//! boundary also has the faces of its cut), sums over the whole boundary (gathered and added
+//! in one process's order, so that penalties have its bits), and the owners' values at the
+//! nodes a part holds but does not own (fixed temperatures, whole masses). Masses, dead loads
+//! and contact nodes are kept at the nodes the process owns, all of whose elements its part
+//! holds.
 //!
-//! Scenes with sections whose set-up needs the whole mesh — bodies, a prescribed freezing
-//! front, fracture, an initial state read from a file, ice–ice contact between several
+//! Scenes with sections whose set-up needs the whole mesh — bodies, a freezing front
+//! prescribed from a surface, fracture, an initial state read from a file, ice–ice contact between several
 //! parts — are built whole on every process and shared out afterwards
 //! ([`builds_on_parts`]).
 
@@ -71,8 +74,8 @@ pub trait MeshSharing {
 
 /// Whether the scene `raw` is built on each process's part of its mesh: a single `[mesh]`
 /// box or mesh file (of one connected part: checked once read) with materials, eigenstrains,
-/// gravity, damping, supports, tractions, obstacles, plasticity, creep, and heat with the
-/// freezing it drives. Other sections' set-up needs the whole mesh (see the module docs).
+/// gravity, damping, supports, tractions, obstacles, plasticity, creep, heat with the
+/// freezing it drives, or a freezing front from a box's faces. Other sections' set-up needs the whole mesh (see the module docs).
 pub fn builds_on_parts(raw: &SceneFile) -> bool {
     needs_whole_mesh(raw).is_none()
 }
@@ -87,14 +90,27 @@ pub(super) fn needs_whole_mesh(raw: &SceneFile) -> Option<&'static str> {
         (several_boxes, "[mesh] with several boxes"),
         (raw.initial.is_some(), "[initial]"),
         (
-            raw.freezing.is_some() && raw.thermal.is_none(),
-            "[freezing]'s prescribed front",
+            raw.thermal.is_none() && !front_from_box_faces(raw),
+            "[freezing]'s front from a surface",
         ),
         (raw.fracture.is_some(), "[fracture]"),
         (raw.physics.ice_stiffness.is_some(), "physics.ice_stiffness"),
     ]
     .into_iter()
     .find_map(|(needs, section)| needs.then_some(section))
+}
+
+/// Whether `raw`'s prescribed freezing front (if any) comes from faces of a box only, which
+/// each element's place alone decides: a `[mesh] box` cooled through box faces (a mesh file's
+/// physical surface of a box face's name would take its place).
+fn front_from_box_faces(raw: &SceneFile) -> bool {
+    let Some(front) = &raw.freezing else {
+        return true;
+    };
+    let box_mesh = raw.mesh.as_ref().is_some_and(|m| m.file.is_none());
+    let box_faces =
+        (front.cooling.iter().flatten()).all(|n| super::freezing::BOX_FACES.contains(&n.as_str()));
+    box_mesh && box_faces
 }
 
 impl Validator<'_> {
