@@ -201,9 +201,9 @@ pub fn run_on(
     } else {
         // Where the processes hold parts, the writing process gets the header's mesh from
         // them in blocks, as it gets frames.
-        let rest = match shared {
-            Some(_) => Vec::new(),
-            None => rows(&scene.model.mesh.rest),
+        let rest = match (shared, writes) {
+            (None, true) => rows(&scene.model.mesh.rest),
+            _ => Vec::new(),
         };
         let mesh = match shared {
             Some((_, part)) => HeaderMesh::InBlocks {
