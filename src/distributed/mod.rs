@@ -202,52 +202,95 @@ impl MpiProcesses {
     }
 }
 
-impl Processes for MpiProcesses {
-    fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError> {
-        let mesh = &model.mesh;
-        let size = self.size();
-        let rank = self.rank() as usize;
-        // Each process takes a range of the elements and one of the nodes to the partitioner
-        // and the rendezvous that gathers its part (see `part_mesh`).
-        let element_starts = partition::ranges(mesh.num_tets(), size);
-        let node_starts = partition::ranges(mesh.num_nodes(), size);
-        let range = element_starts[rank]..element_starts[rank + 1];
-        let graph = dual_graph::rows(&self.world, &mesh.tets[range.clone()], &element_starts);
-        let parts = partition::parts_of_range(&graph, &element_starts)
-            .map_err(|e| SimError::Setup(e.to_string()))?;
-        let whole = whole || self.whole_mesh.get();
+/// Which elements every process holds besides its part and ring.
+#[derive(Clone, Copy)]
+enum Held {
+    /// None.
+    Nothing,
+    /// Those with a face on the whole mesh's boundary (ice–ice contact's).
+    Boundary,
+    /// All: every process holds the whole mesh (fracture splits it).
+    All,
+}
+
+impl MpiProcesses {
+    /// This process's part of the mesh the processes hold in `ranges`, partitioned by
+    /// PT-Scotch, with the elements `held` on every process; its partition is kept for
+    /// [`Processes::distribute`]. Every process calls it.
+    fn gather_part(
+        &self,
+        ranges: &MeshRanges,
+        held: Held,
+    ) -> Result<SharedMesh, partition::PartitionError> {
+        let starts = ranges.element_starts;
+        let graph = dual_graph::rows(&self.world, ranges.tets, starts);
+        let parts = partition::parts_of_range(&graph, starts)?;
+        let first = starts[self.rank() as usize];
         // The range's elements with a face on the whole mesh's boundary.
-        let everywhere: Vec<usize> = match !whole && model.holds_boundary_everywhere() {
-            true => (graph.boundary.iter().enumerate())
+        let boundary: Vec<usize> = match held {
+            Held::Boundary => (graph.boundary.iter().enumerate())
                 .filter(|(_, &faces)| faces != 0)
-                .map(|(k, _)| range.start + k)
+                .map(|(k, _)| first + k)
                 .collect(),
-            false => Vec::new(),
+            Held::Nothing | Held::All => Vec::new(),
         };
         let gathered = part_mesh::part_mesh(
             &self.world,
             part_mesh::ElementRange {
-                starts: &element_starts,
-                tets: &mesh.tets[range],
+                starts,
+                tets: ranges.tets,
                 parts: &parts,
                 boundary: &graph.boundary,
             },
             part_mesh::NodeRange {
-                starts: &node_starts,
-                rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
+                starts: ranges.node_starts,
+                rest: ranges.rest,
             },
-            match whole {
-                true => part_mesh::HeldEverywhere::All,
-                false => part_mesh::HeldEverywhere::These(&everywhere),
+            match held {
+                Held::All => part_mesh::HeldEverywhere::All,
+                Held::Nothing | Held::Boundary => part_mesh::HeldEverywhere::These(&boundary),
             },
         );
+        *self.part.borrow_mut() = Some((gathered.numbering, gathered.part.clone()));
+        Ok(SharedMesh {
+            part: gathered.part,
+            rest: gathered.rest,
+            tets: gathered.tets,
+            boundary: gathered.boundary,
+        })
+    }
+}
+
+impl Processes for MpiProcesses {
+    fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError> {
+        let mesh = &model.mesh;
+        let (size, rank) = (self.size(), self.rank() as usize);
+        // Each process takes a range of the elements and one of the nodes to the partitioner
+        // and the rendezvous that gathers its part (see `part_mesh`).
+        let element_starts = partition::ranges(mesh.num_tets(), size);
+        let node_starts = partition::ranges(mesh.num_nodes(), size);
+        let ranges = MeshRanges {
+            element_starts: &element_starts,
+            tets: &mesh.tets[element_starts[rank]..element_starts[rank + 1]],
+            node_starts: &node_starts,
+            rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
+        };
+        let held = match (
+            whole || self.whole_mesh.get(),
+            model.holds_boundary_everywhere(),
+        ) {
+            (true, _) => Held::All,
+            (false, true) => Held::Boundary,
+            (false, false) => Held::Nothing,
+        };
+        let gathered =
+            (self.gather_part(&ranges, held)).map_err(|e| SimError::Setup(e.to_string()))?;
         let part = gathered.part;
         let model = match part.is_whole() {
             true => Ok(part.whole_model(model.clone())),
             false => part.model_on(model, gathered.rest, gathered.tets),
         }
         .map_err(|e| SimError::Setup(e.to_string()))?;
-        *self.part.borrow_mut() = Some((gathered.numbering, part.clone()));
         Ok((part, model))
     }
 
@@ -333,35 +376,7 @@ impl MeshSharing for MpiProcesses {
     }
 
     fn share(&self, ranges: MeshRanges) -> Result<SharedMesh, String> {
-        let rank = self.rank() as usize;
-        let graph = dual_graph::rows(&self.world, ranges.tets, ranges.element_starts);
-        let parts =
-            partition::parts_of_range(&graph, ranges.element_starts).map_err(|e| e.to_string())?;
-        let gathered = part_mesh::part_mesh(
-            &self.world,
-            part_mesh::ElementRange {
-                starts: ranges.element_starts,
-                tets: ranges.tets,
-                parts: &parts,
-                boundary: &graph.boundary,
-            },
-            part_mesh::NodeRange {
-                starts: ranges.node_starts,
-                rest: ranges.rest,
-            },
-            part_mesh::HeldEverywhere::These(&[]),
-        );
-        debug_assert_eq!(
-            ranges.rest.len(),
-            ranges.node_starts[rank + 1] - ranges.node_starts[rank]
-        );
-        *self.part.borrow_mut() = Some((gathered.numbering, gathered.part.clone()));
-        Ok(SharedMesh {
-            part: gathered.part,
-            rest: gathered.rest,
-            tets: gathered.tets,
-            boundary: gathered.boundary,
-        })
+        (self.gather_part(&ranges, Held::Nothing)).map_err(|e| e.to_string())
     }
 
     fn total(&self, n: usize) -> usize {

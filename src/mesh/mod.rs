@@ -176,15 +176,17 @@ impl TetMesh {
     /// Mean edge length of the boundary triangles at rest (m): the size contact penalties
     /// are scaled by.
     pub fn mean_boundary_edge(&self) -> f64 {
-        let faces = self.boundary_faces();
-        let sum: f64 = faces
-            .iter()
+        mean_edge(&self.perimeters(&self.boundary_faces()))
+    }
+
+    /// The rest perimeter of each of `faces` (m), its edges added in the face's node order.
+    pub fn perimeters(&self, faces: &[BoundaryFace]) -> Vec<f64> {
+        (faces.iter())
             .map(|f| {
                 let [a, b, c] = f.nodes.map(|i| self.rest[i]);
                 (b - a).norm() + (c - b).norm() + (a - c).norm()
             })
-            .sum();
-        sum / (3.0 * faces.len().max(1) as f64)
+            .collect()
     }
 
     /// Signed rest volume of tet `t` (m³).
@@ -407,6 +409,12 @@ pub struct BoundaryFace {
     pub nodes: [usize; 3],
     /// The tet this face belongs to.
     pub tet: usize,
+}
+
+/// The mean edge length of triangles of `perimeters` (m), added in their order: what
+/// [`TetMesh::mean_boundary_edge`] gives for a mesh's boundary.
+pub fn mean_edge(perimeters: &[f64]) -> f64 {
+    perimeters.iter().sum::<f64>() / (3.0 * perimeters.len().max(1) as f64)
 }
 
 /// Normalised radius ratio 3 r_in / r_circ of a tet (1 for a regular tet, 0 when degenerate).

@@ -219,6 +219,15 @@ pub struct WholeBoundary {
     pub bounds: (Vector3<f64>, Vector3<f64>),
 }
 
+impl WholeBoundary {
+    /// The whole boundary of triangles of `perimeters` (m, in the order of
+    /// `TetMesh::boundary_faces`) in the bounding box `bounds`.
+    pub fn new(perimeters: &[f64], bounds: (Vector3<f64>, Vector3<f64>)) -> Self {
+        let edge = perimeters.iter().map(|p| p / 3.0).sum::<f64>() / perimeters.len().max(1) as f64;
+        WholeBoundary { edge, bounds }
+    }
+}
+
 impl Contact {
     /// The contact of the nodes `part` keeps, numbered as in its mesh (a process's share of
     /// a distributed run). Areas, faces and the mean edge stay those of the whole boundary:
@@ -255,18 +264,7 @@ impl Contact {
     /// Contact of `mesh`'s boundary with `obstacles`.
     pub fn new(mesh: &TetMesh, obstacles: Vec<Obstacle>, smoothing_velocity: f64) -> Self {
         let boundary = mesh.boundary_faces();
-        let edge = boundary
-            .iter()
-            .map(|face| {
-                let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
-                ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0
-            })
-            .sum::<f64>()
-            / boundary.len().max(1) as f64;
-        let whole = WholeBoundary {
-            edge,
-            bounds: mesh.bounding_box(),
-        };
+        let whole = WholeBoundary::new(&mesh.perimeters(&boundary), mesh.bounding_box());
         Contact::on_boundary((mesh, &boundary), whole, obstacles, smoothing_velocity)
     }
 

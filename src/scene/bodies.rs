@@ -1,16 +1,102 @@
-//! `[[body]]`: several bodies, each a box or a Gmsh mesh placed by scale, rotation and
-//! translation, with an initial velocity and spin; `[initial]`: a start from a frame of an
-//! earlier run; and the reading of Gmsh meshes for bodies and for `[mesh] file`.
+//! The scene's mesh: `[mesh]` (boxes or a Gmsh file), or `[[body]]`: several bodies, each a
+//! box or a Gmsh mesh placed by scale, rotation and translation, with an initial velocity and
+//! spin; `[initial]`: a start from a frame of an earlier run; and the reading of Gmsh meshes
+//! for bodies and for `[mesh] file`.
 
 use nalgebra::{Rotation3, Unit, Vector3};
 use serde::Deserialize;
 use std::path::Path;
 
-use super::{BoxSection, SceneError, Validator};
-use crate::mesh::{box_mesh, gmsh, reorient, MeshError, TetMesh};
+use super::{BoxSection, MeshSection, SceneError, SceneFile, Validator};
+use crate::mesh::{box_mesh, gmsh, reorient, BoxGrid, MeshError, TetMesh};
 use crate::physics::Group;
 use std::ops::Range;
 use std::sync::Arc;
+
+impl Validator<'_> {
+    /// The mesh of `[mesh]` (everything at rest, one body), or of the `[[body]]` entries.
+    pub(super) fn mesh_or_bodies(&self, raw: &SceneFile) -> Result<Bodies, SceneError> {
+        match (&raw.mesh, raw.body.is_empty()) {
+            (Some(m), true) => Ok(Bodies {
+                mesh: self.mesh(m)?,
+                velocity: Vec::new(),
+                elements: Vec::new(),
+            }),
+            (None, false) => self.bodies(&raw.body),
+            (Some(_), false) => {
+                Err(self.invalid("body", "give `[mesh]` or `[[body]]` entries, not both"))
+            }
+            (None, true) => {
+                Err(self.invalid("mesh", "missing: give `[mesh]` or `[[body]]` entries"))
+            }
+        }
+    }
+
+    /// The mesh of `[mesh]`: the built-in boxes or a Gmsh file; on this process's part only
+    /// where the scene is built on parts (see `shared`).
+    fn mesh(&self, m: &MeshSection) -> Result<TetMesh, SceneError> {
+        let mesh_err = |source| SceneError::Mesh {
+            path: self.path.into(),
+            source,
+        };
+        let boxes: Vec<&BoxSection> = match (&m.box_, &m.boxes) {
+            (Some(b), None) => vec![b],
+            (None, Some(list)) if !list.is_empty() => list.iter().collect(),
+            (None, Some(_)) => return Err(self.invalid("mesh.boxes", "must list at least one box")),
+            (Some(_), Some(_)) => {
+                return Err(self.invalid("mesh", "give `box` or `boxes`, not both"))
+            }
+            (None, None) => Vec::new(),
+        };
+        match (boxes.is_empty(), &m.file) {
+            (false, None) => {
+                if m.scale.is_some() {
+                    return Err(self.invalid("mesh.scale", "applies to mesh files only"));
+                }
+                let field = |k: usize| {
+                    if m.boxes.is_some() {
+                        format!("mesh.boxes[{k}]")
+                    } else {
+                        "mesh.box".into()
+                    }
+                };
+                self.check_boxes(&boxes, field)?;
+                if self.sharing.get().is_some() {
+                    // One box (`builds_on_parts`): each process makes its ranges only.
+                    let b = boxes[0];
+                    let tpc = b.tets_per_cell.unwrap_or(6);
+                    let grid = BoxGrid::new(b.origin, b.size, b.cells, tpc).map_err(mesh_err)?;
+                    return self.share_grid(&grid);
+                }
+                let mut parts = Vec::with_capacity(boxes.len());
+                for b in &boxes {
+                    let tpc = b.tets_per_cell.unwrap_or(6);
+                    parts.push(box_mesh(b.origin, b.size, b.cells, tpc).map_err(mesh_err)?);
+                }
+                TetMesh::concat(parts).map_err(mesh_err)
+            }
+            (true, Some(file)) => {
+                let scale = self.positive("mesh.scale", m.scale.unwrap_or(1.0))?;
+                let (mesh, groups) = self.gmsh_file("mesh.file", file, scale)?;
+                self.check_parts_apart("mesh.file", &mesh)?;
+                self.add_groups("mesh.file", geometric_groups(&mesh, &groups))?;
+                // Several parts (ice–ice contact between them): built whole on every process.
+                if self.sharing.get().is_some() && crate::mesh::parts(&mesh).1 > 1 {
+                    self.sharing.set(None);
+                    self.whole_on_every_process("a mesh of several parts (ice–ice contact)");
+                }
+                match self.sharing.get() {
+                    Some(_) => self.share_mesh(mesh),
+                    None => Ok(mesh),
+                }
+            }
+            _ => Err(self.invalid(
+                "mesh",
+                "give exactly one of `box`/`boxes` (built-in generator) or `file` (Gmsh .msh)",
+            )),
+        }
+    }
+}
 
 /// `[[body]]`: one body — a box or a Gmsh file — placed in the scene and set moving.
 #[derive(Debug, Deserialize)]

@@ -82,12 +82,12 @@ pub fn builds_on_parts(raw: &SceneFile) -> bool {
 
 /// The first section of `raw` whose set-up needs the whole mesh on every process, if any.
 pub(super) fn needs_whole_mesh(raw: &SceneFile) -> Option<&'static str> {
-    let several_boxes = raw.mesh.as_ref().is_none_or(|m| {
+    let not_one_mesh = raw.mesh.as_ref().is_none_or(|m| {
         m.boxes.as_ref().is_some_and(|b| b.len() != 1) || (m.box_.is_some() == m.file.is_some())
     });
     [
         (!raw.body.is_empty(), "[[body]]"),
-        (several_boxes, "[mesh] with several boxes"),
+        (not_one_mesh, "[mesh] with several boxes"),
         (raw.initial.is_some(), "[initial]"),
         (
             raw.thermal.is_none() && !front_from_box_faces(raw),
@@ -257,30 +257,26 @@ impl Validator<'_> {
     /// own elements and every process gets all of them, so that sums over them have the bits
     /// of one process's.
     fn boundary_perimeters(&self, mesh: &TetMesh) -> Vec<f64> {
-        let perimeter = |f: &BoundaryFace| {
-            let [a, b, c] = f.nodes.map(|i| mesh.rest[i]);
-            (b - a).norm() + (c - b).norm() + (a - c).norm()
-        };
         match (self.sharing.get(), &*self.part.borrow()) {
             (Some(s), Some((part, marks))) => {
-                let items: Vec<([usize; 3], f64)> = (mesh.faces_marked(marks).iter())
-                    .filter(|f| part.own_elements[f.tet])
-                    .map(|f| {
+                let mut own = mesh.faces_marked(marks);
+                own.retain(|f| part.own_elements[f.tet]);
+                let items: Vec<([usize; 3], f64)> = (own.iter().zip(mesh.perimeters(&own)))
+                    .map(|(f, p)| {
                         let mut key = f.nodes.map(|v| part.nodes[v]);
                         key.sort_unstable();
-                        (key, perimeter(f))
+                        (key, p)
                     })
                     .collect();
                 s.gathered_by_key(&items)
             }
-            _ => mesh.boundary_faces().iter().map(perimeter).collect(),
+            _ => mesh.perimeters(&mesh.boundary_faces()),
         }
     }
 
     /// The whole mesh's mean boundary edge (m), as `TetMesh::mean_boundary_edge` of it.
     pub(super) fn mean_boundary_edge(&self, mesh: &TetMesh) -> f64 {
-        let perimeters = self.boundary_perimeters(mesh);
-        perimeters.iter().sum::<f64>() / (3.0 * perimeters.len().max(1) as f64)
+        crate::mesh::mean_edge(&self.boundary_perimeters(mesh))
     }
 
     /// Contact of the whole mesh's boundary with `obstacles`, on `mesh` (its part or the
@@ -294,11 +290,7 @@ impl Validator<'_> {
         if self.part.borrow().is_none() {
             return Contact::new(mesh, obstacles, smoothing);
         }
-        let perimeters = self.boundary_perimeters(mesh);
-        let whole = WholeBoundary {
-            edge: perimeters.iter().map(|p| p / 3.0).sum::<f64>() / perimeters.len().max(1) as f64,
-            bounds: self.bounding_box(mesh),
-        };
+        let whole = WholeBoundary::new(&self.boundary_perimeters(mesh), self.bounding_box(mesh));
         let faces = self.whole_boundary(mesh);
         Contact::on_boundary((mesh, &faces), whole, obstacles, smoothing)
     }
