@@ -30,6 +30,7 @@
 use super::cracks::{
     crack_area, crack_faces, crack_polygons, CrackFace, CrackSurface, OriginalBoundary,
 };
+use super::patch::Patch;
 use super::split::Fracturable;
 use super::{separation, Averaging, NodeSeparation};
 use crate::mesh::parts_of;
@@ -116,8 +117,9 @@ struct SplitAttempt {
     normal: Vector3<f64>,
     /// The step's start state (on the mesh before the split).
     start: Option<State>,
-    /// The split node, its copy, and the nodes the split added.
-    touched: Vec<usize>,
+    /// The nodes sharing an element with the split node, its copy, or a node the split
+    /// added: their stars changed.
+    lapsed: Vec<usize>,
 }
 
 /// Fracture parameters of a scene (`[fracture]`).
@@ -312,12 +314,13 @@ impl Fracture {
         )
     }
 
-    /// The crack normal for splitting `node` of `f` with separation normal `normal`: a node on
+    /// The crack normal for splitting `node` of `patch` with separation normal `normal`: a node on
     /// an existing crack whose faces there (area-weighted) are within [`CONTINUE_ANGLE`] of
     /// the plane continues that crack in its plane. The separation eigenvector at a crack
     /// front is resolved by one ring of elements only; without this, mesh-scale noise in it
     /// (10–20° at a bar's corner) kinks a straight crack and chips off single elements.
-    fn continued(&self, f: &Fracturable, node: usize, normal: &Vector3<f64>) -> Vector3<f64> {
+    fn continued(&self, patch: &Patch, node: usize, normal: &Vector3<f64>) -> Vector3<f64> {
+        let f = &patch.mesh;
         let star: Vec<usize> = (0..f.tets.len())
             .filter(|&e| f.tets[e].contains(&node))
             .collect();
@@ -335,7 +338,11 @@ impl Fracture {
                     .iter()
                     .any(|&o| o != e && key.iter().all(|i| f.tets[o].contains(i)));
                 let points = nodes.map(|i| f.rest[i]);
-                if shared || self.original.on_boundary(self.origin[f.parent[e]], &points) {
+                if shared
+                    || self
+                        .original
+                        .on_boundary(patch.origin[f.parent[e]], &points)
+                {
                     continue;
                 }
                 let [a, b, c] = nodes.map(|i| f.position(i));
@@ -429,13 +436,9 @@ impl Fracture {
             let clock = Instant::now();
             let f = attempt.mesh;
             // The star of every node around the split changed: their refusals lapse.
-            for tet in &f.tets {
-                if tet.iter().any(|i| attempt.touched.contains(i)) {
-                    for &i in tet {
-                        if let Some(r) = self.refused.get_mut(i) {
-                            *r = None;
-                        }
-                    }
+            for &i in &attempt.lapsed {
+                if let Some(r) = self.refused.get_mut(i) {
+                    *r = None;
                 }
             }
             let origin = f.parent.iter().map(|&p| self.origin[p]).collect();
@@ -496,25 +499,33 @@ impl Fracture {
         if let Some(start) = &start {
             f.extra = vec![start.u.clone(), start.v.clone()];
         }
-        let normal = self.continued(&f, node, &s.normal);
+        // The split reads and changes the elements around the node only (see `patch`).
+        let (mut patch, local) = Patch::of(&f, &self.origin, node);
+        let normal = self.continued(&patch, local, &s.normal);
         let refused = |reason| RefusedNode {
             reason,
             normal: s.normal,
         };
-        let split = f
-            .split_node(node, &normal, self.settings.snap, self.settings.min_quality)
+        let split = (patch.mesh)
+            .split_node(
+                local,
+                &normal,
+                self.settings.snap,
+                self.settings.min_quality,
+            )
             .ok_or(refused(Refusal::PlaneMissesStar))?;
+        patch.apply(&mut f);
         if self.smallest_piece(&f) < self.min_piece_volume {
             return Err(refused(Refusal::PieceTooSmall));
         }
         let mut touched = split.edge_nodes;
         touched.extend(split.pinched);
-        touched.extend([node, split.new_node]);
+        touched.extend([local, split.new_node]);
         Ok(SplitAttempt {
             mesh: f,
             normal,
             start,
-            touched,
+            lapsed: patch.neighbours(&touched),
         })
     }
 

@@ -38,6 +38,7 @@
 pub mod cracks;
 pub mod driver;
 pub mod nonlocal;
+pub mod patch;
 pub mod split;
 
 pub use driver::{Fracture, FractureEvent, FractureReport, FractureSettings};

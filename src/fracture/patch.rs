@@ -1,0 +1,575 @@
+//! The neighbourhood a node split reads and changes (see [`super::split`]), taken out of the
+//! mesh, split on its own, and the change put back.
+//!
+//! A split of node n reads n's star (the plane's crossings and each element's side), cuts each
+//! crossed edge in every element sharing it, and separates the nodes around n where material
+//! is left joined at a point (reading each such node's star). Every element involved shares a
+//! node with n's star: the patch is those elements (two rings around n) and their nodes. They
+//! are numbered locally in the mesh's own order, and the nodes and elements the split adds are
+//! numbered after the mesh's, so the split of the patch takes the same decisions in the same
+//! order as the split of the whole mesh, and its change put back is the whole mesh's split to
+//! the bit (tested on an unstructured mesh, with edges cut, crossings snapped and pinched
+//! nodes separated). A process holding only its part of a mesh can split a patch gathered
+//! from the processes that hold its elements.
+
+use super::split::{Fracturable, NodeSplit};
+use crate::sim::part::Part;
+use nalgebra::Vector3;
+
+/// The elements and nodes a split of one node involves, with their state, numbered locally.
+#[derive(Clone, Debug)]
+pub struct Patch {
+    /// The mesh's elements in the patch, ascending: patch element `k` is `elements[k]`.
+    elements: Vec<usize>,
+    /// The mesh's nodes in the patch, ascending: patch node `k` is `nodes[k]`.
+    nodes: Vec<usize>,
+    /// Number of nodes and elements of the mesh the patch was taken from: what the split adds
+    /// is numbered from there.
+    whole_nodes: usize,
+    whole_elements: usize,
+    /// The patch's mesh and nodal state (the mesh's `extra` fields too) in local numbering;
+    /// its `parent` and `node_parent` are local as well.
+    pub mesh: Fracturable,
+    /// For each patch element, the scene element it lies in.
+    pub origin: Vec<usize>,
+    /// The patch nodes of the split node's elements (ascending): every element around them
+    /// is in the patch.
+    star: Vec<usize>,
+}
+
+impl Patch {
+    /// The elements of `tets` that a split of `node` involves: every element sharing a node
+    /// with one of `node`'s elements (ascending).
+    pub fn elements_around(tets: &[[usize; 4]], node: usize) -> Vec<usize> {
+        let mut star_nodes: Vec<usize> = tets
+            .iter()
+            .filter(|t| t.contains(&node))
+            .flatten()
+            .copied()
+            .collect();
+        star_nodes.sort_unstable();
+        star_nodes.dedup();
+        (0..tets.len())
+            .filter(|&e| tets[e].iter().any(|i| star_nodes.binary_search(i).is_ok()))
+            .collect()
+    }
+
+    /// The patch of `node` in `whole`, whose element `e` lies in scene element `origin[e]`.
+    /// Returns it with `node`'s number in it.
+    pub fn of(whole: &Fracturable, origin: &[usize], node: usize) -> (Patch, usize) {
+        let elements = Self::elements_around(&whole.tets, node);
+        let mut nodes: Vec<usize> = elements.iter().flat_map(|&e| whole.tets[e]).collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        let local = |i: usize| nodes.binary_search(&i).expect("a node of a patch element");
+        let tets = elements.iter().map(|&e| whole.tets[e].map(local)).collect();
+        let rows = |field: &[f64]| -> Vec<f64> {
+            nodes
+                .iter()
+                .flat_map(|&i| field[3 * i..3 * i + 3].iter().copied())
+                .collect()
+        };
+        let rest: Vec<Vector3<f64>> = nodes.iter().map(|&i| whole.rest[i]).collect();
+        let mut mesh = Fracturable::new(rest, tets, rows(&whole.u), rows(&whole.v));
+        mesh.extra = whole.extra.iter().map(|f| rows(f)).collect();
+        mesh.min_volume = whole.min_volume;
+        let mut star: Vec<usize> = (mesh.tets.iter())
+            .filter(|t| t.contains(&local(node)))
+            .flatten()
+            .copied()
+            .collect();
+        star.sort_unstable();
+        star.dedup();
+        let patch = Patch {
+            origin: elements.iter().map(|&e| origin[e]).collect(),
+            star,
+            whole_nodes: whole.rest.len(),
+            whole_elements: whole.tets.len(),
+            mesh,
+            elements,
+            nodes: nodes.clone(),
+        };
+        (patch, local(node))
+    }
+
+    /// The mesh's number of patch node `k` (a node the split added is numbered after the
+    /// mesh's nodes, in the order it was added).
+    pub fn node(&self, k: usize) -> usize {
+        match self.nodes.get(k) {
+            Some(&i) => i,
+            None => self.whole_nodes + (k - self.nodes.len()),
+        }
+    }
+
+    /// The mesh's number of patch element `k` (as [`Patch::node`]).
+    pub fn element(&self, k: usize) -> usize {
+        match self.elements.get(k) {
+            Some(&e) => e,
+            None => self.whole_elements + (k - self.elements.len()),
+        }
+    }
+
+    /// `split` (of this patch's mesh) numbered as the mesh's nodes.
+    pub fn numbered(&self, split: &NodeSplit) -> NodeSplit {
+        let node = |k: &usize| self.node(*k);
+        NodeSplit {
+            new_node: self.node(split.new_node),
+            edge_nodes: split.edge_nodes.iter().map(node).collect(),
+            crack_faces: (split.crack_faces.iter())
+                .map(|f| f.map(|k| self.node(k)))
+                .collect(),
+            pinched: split.pinched.iter().map(node).collect(),
+        }
+    }
+
+    /// The mesh's nodes that share an element of the patch with one of `nodes` (patch
+    /// nodes), ascending: after a split of the patch, the nodes whose stars it changed when
+    /// `nodes` are the nodes it touched.
+    pub fn neighbours(&self, nodes: &[usize]) -> Vec<usize> {
+        let mut around: Vec<usize> = (self.mesh.tets.iter())
+            .filter(|t| t.iter().any(|i| nodes.contains(i)))
+            .flatten()
+            .map(|&k| self.node(k))
+            .collect();
+        around.sort_unstable();
+        around.dedup();
+        around
+    }
+
+    /// Puts the patch's mesh back into `whole`, the mesh it was taken from by [`Patch::of`]:
+    /// its elements changed in place, and the elements and nodes the split added appended in
+    /// order with their parents.
+    pub fn apply(&self, whole: &mut Fracturable) {
+        let f = &self.mesh;
+        debug_assert_eq!(whole.rest.len(), self.whole_nodes);
+        debug_assert_eq!(whole.tets.len(), self.whole_elements);
+        for (k, tet) in f.tets.iter().enumerate() {
+            let nodes = tet.map(|i| self.node(i));
+            match self.elements.get(k) {
+                Some(&e) => whole.tets[e] = nodes,
+                None => {
+                    whole.tets.push(nodes);
+                    whole.parent.push(whole.parent[self.element(f.parent[k])]);
+                }
+            }
+        }
+        for k in self.nodes.len()..f.rest.len() {
+            whole.rest.push(f.rest[k]);
+            // A node the split added is its own parent (an edge's), or a copy of a patch node.
+            let root = f.node_parent[k];
+            whole.node_parent.push(match self.nodes.get(root) {
+                Some(&i) => whole.node_parent[i],
+                None => self.node(root),
+            });
+            let rows = 3 * k..3 * k + 3;
+            whole.u.extend_from_slice(&f.u[rows.clone()]);
+            whole.v.extend_from_slice(&f.v[rows.clone()]);
+            for (field, local) in whole.extra.iter_mut().zip(&f.extra) {
+                field.extend_from_slice(&local[rows.clone()]);
+            }
+        }
+    }
+
+    /// Puts the split of this patch into a process's part of the mesh the patch was taken
+    /// from: `part`, whose mesh and state `mesh` holds numbered in the part, with `processes`
+    /// the process of each of the patch's elements before the split (their partition parts);
+    /// the process is `rank`. Returns the part after the split.
+    ///
+    /// A child element stays with its parent's process, and a node the split's stars changed
+    /// (the split node's neighbours, and every node the split added) belongs to the lowest
+    /// process among its elements', as when the part was made. The part holds, as before, every
+    /// element around the nodes of its own elements and of its owned nodes: of the elements
+    /// the split added, those around such a node. Every one of them lies in an element the part
+    /// held already (a node of an own child is a node of its parent or was added on it, and the
+    /// part held every element around its parent's nodes), so `mesh` gets each new element's
+    /// parent and each new node's origin from what it holds. The part only grows: its elements
+    /// and nodes keep their numbers, and those it gains are numbered after them, as a split of
+    /// the whole mesh numbers them (elements it no longer needs stay, as ghosts). Elements held
+    /// by every process (`Term::holds_boundary_everywhere`) are not added: a part with them
+    /// cannot be split this way.
+    pub fn apply_to_part(
+        &self,
+        part: &Part,
+        mesh: &mut Fracturable,
+        processes: &[u32],
+        rank: u32,
+    ) -> Result<Part, String> {
+        let f = &self.mesh;
+        let process = |k: usize| processes[f.parent[k]];
+        let nodes = f.rest.len();
+        // Nodes whose every element is in the patch: the split node's star's, and those added.
+        let mut complete = vec![false; nodes];
+        for &k in &self.star {
+            complete[k] = true;
+        }
+        complete[self.nodes.len()..].fill(true);
+        // Where the part's own elements were: the nodes they touch.
+        let mut near_before = vec![false; mesh.rest.len()];
+        for (tet, _) in mesh.tets.iter().zip(&part.own_elements).filter(|(_, &o)| o) {
+            tet.iter().for_each(|&i| near_before[i] = true);
+        }
+        let mut near = vec![false; nodes];
+        let mut owner = vec![u32::MAX; nodes];
+        for (k, tet) in f.tets.iter().enumerate() {
+            for &i in tet {
+                owner[i] = owner[i].min(process(k));
+                near[i] |= process(k) == rank;
+            }
+        }
+        let mut owned = vec![false; nodes];
+        for k in 0..nodes {
+            let held = self.nodes.get(k).and_then(|&i| part.local(i));
+            if complete[k] {
+                owned[k] = owner[k] == rank;
+            } else {
+                near[k] = held.is_some_and(|i| near_before[i]);
+                owned[k] = held.is_some_and(|i| part.owned_nodes[i]);
+            }
+            near[k] |= owned[k];
+        }
+        // The part's number of each patch node, new ones numbered after the part's.
+        let mut local: Vec<Option<usize>> = (0..nodes)
+            .map(|k| self.nodes.get(k).and_then(|&i| part.local(i)))
+            .collect();
+        // The patch elements the part holds after the split, and the nodes it gains.
+        let mut held = Vec::new();
+        let mut gained = vec![false; nodes];
+        for (k, tet) in f.tets.iter().enumerate() {
+            let needed = tet.iter().any(|&i| near[i]);
+            let existing = self
+                .elements
+                .get(k)
+                .map(|&e| part.elements.binary_search(&e));
+            match existing {
+                Some(Ok(e)) => held.push((k, Some(e))),
+                Some(Err(_)) if needed => {
+                    return Err(format!(
+                        "element {} is needed but not held",
+                        self.element(k)
+                    ))
+                }
+                None if needed => held.push((k, None)),
+                _ => continue,
+            }
+            for &i in tet.iter().filter(|&&i| local[i].is_none()) {
+                if i < self.nodes.len() {
+                    return Err(format!("node {} is needed but not held", self.node(i)));
+                }
+                gained[i] = true;
+            }
+        }
+        // Gained nodes are added ones: numbered in the order the split added them.
+        let added_nodes: Vec<usize> = (0..nodes).filter(|&k| gained[k]).collect();
+        for (n, &k) in added_nodes.iter().enumerate() {
+            local[k] = Some(mesh.rest.len() + n);
+        }
+        let numbered = |tet: &[usize; 4]| tet.map(|i| local[i].expect("held or gained"));
+        let mut added_elements = Vec::new();
+        for &(k, existing) in &held {
+            match existing {
+                Some(e) => mesh.tets[e] = numbered(&f.tets[k]),
+                None => added_elements.push(k),
+            }
+        }
+        for &k in &added_nodes {
+            let root = f.node_parent[k];
+            // A copy of a node the split added that the part does not hold is named past
+            // every number of the part, the same for all its copies.
+            let copied = match self.nodes.get(root) {
+                Some(_) => local[root].map(|i| mesh.node_parent[i]),
+                None => Some(local[root].unwrap_or(usize::MAX - self.node(root))),
+            };
+            let rows = 3 * k..3 * k + 3;
+            mesh.rest.push(f.rest[k]);
+            mesh.node_parent
+                .push(copied.ok_or(format!("the node {} copies is not held", self.node(k)))?);
+            mesh.u.extend_from_slice(&f.u[rows.clone()]);
+            mesh.v.extend_from_slice(&f.v[rows.clone()]);
+            for (field, patch) in mesh.extra.iter_mut().zip(&f.extra) {
+                field.extend_from_slice(&patch[rows.clone()]);
+            }
+        }
+        for &k in &added_elements {
+            let parent = self.element(f.parent[k]);
+            let e = (part.elements.binary_search(&parent))
+                .map_err(|_| format!("the parent {parent} of a new element is not held"))?;
+            mesh.tets.push(numbered(&f.tets[k]));
+            mesh.parent.push(mesh.parent[e]);
+        }
+        let mut owned_nodes = part.owned_nodes.clone();
+        for k in 0..self.nodes.len() {
+            if let (true, Some(i)) = (complete[k], local[k]) {
+                owned_nodes[i] = owned[k];
+            }
+        }
+        owned_nodes.extend(added_nodes.iter().map(|&k| owned[k]));
+        let own_elements = (part.own_elements.iter().copied())
+            .chain(added_elements.iter().map(|&k| process(k) == rank))
+            .collect();
+        let elements = (part.elements.iter().copied())
+            .chain(added_elements.iter().map(|&k| self.element(k)))
+            .collect();
+        let node_numbers = (part.nodes.iter().copied())
+            .chain(added_nodes.iter().map(|&k| self.node(k)))
+            .collect();
+        let added = (
+            f.rest.len() - self.nodes.len(),
+            f.tets.len() - self.elements.len(),
+        );
+        Ok(Part::from_lists(
+            (elements, node_numbers),
+            (own_elements, owned_nodes),
+            (
+                part.whole_nodes() + added.0,
+                part.whole_elements() + added.1,
+            ),
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::box_mesh;
+    use crate::sim::part::Part;
+
+    /// A 3 × 3 × 2 cm box of 1 cm cells, its interior nodes moved by up to a fifth of a cell
+    /// (so its elements are of many shapes, as an unstructured mesh's), stretched along a
+    /// skew direction, with one extra nodal field.
+    fn skewed_block() -> Fracturable {
+        let mesh = box_mesh([0.0; 3], [0.03, 0.03, 0.02], [3, 3, 2], 6).unwrap();
+        let (lo, hi) = mesh.bounding_box();
+        let mut state = 12345u64;
+        let mut random = move || {
+            // A linear congruential sequence: the same mesh in every run.
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let rest: Vec<Vector3<f64>> = (mesh.rest.iter())
+            .map(|x| {
+                let inside = (0..3).all(|k| x[k] > lo[k] + 1e-9 && x[k] < hi[k] - 1e-9);
+                let shift = Vector3::new(random(), random(), random()) * 0.004;
+                if inside {
+                    x + shift
+                } else {
+                    *x
+                }
+            })
+            .collect();
+        let stretch = Vector3::new(1.0, 0.4, 0.2).normalize();
+        let u: Vec<f64> = (rest.iter())
+            .flat_map(|x| {
+                (stretch * (1e-3 * stretch.dot(x)))
+                    .iter()
+                    .copied()
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let v: Vec<f64> = (0..u.len()).map(|k| k as f64 * 1e-3).collect();
+        let mut f = Fracturable::new(rest, mesh.tets, u, v);
+        f.extra = vec![(0..f.u.len()).map(|k| (k as f64).sin()).collect()];
+        f.min_volume = 1e-9;
+        f
+    }
+
+    #[test]
+    fn a_split_of_the_patch_put_back_is_the_split_of_the_whole_mesh() {
+        // Every node with three planes, two snaps and two quality bounds: the split of its
+        // patch, numbered back and put into the mesh, equals the whole mesh's split exactly
+        // (mesh, state, parents, and what the split reports). Several cut edges, snapped
+        // crossings and pinched nodes are among them (counted below).
+        let whole = skewed_block();
+        let origin: Vec<usize> = (0..whole.tets.len()).map(|e| 1000 + e).collect();
+        let normals = [
+            Vector3::new(1.0, 0.3, 0.2).normalize(),
+            Vector3::new(-0.2, 1.0, 0.7).normalize(),
+            Vector3::z(),
+        ];
+        let (mut splits, mut cut, mut pinched) = (0, 0, 0);
+        for node in 0..whole.rest.len() {
+            for normal in &normals {
+                for (snap, quality) in [(0.1, 0.05), (0.25, 0.3)] {
+                    let mut expected = whole.clone();
+                    let split = expected.split_node(node, normal, snap, quality);
+                    let (mut patch, local) = Patch::of(&whole, &origin, node);
+                    assert_eq!(patch.origin.len(), patch.mesh.tets.len());
+                    let patch_split = patch.mesh.split_node(local, normal, snap, quality);
+                    let mut applied = whole.clone();
+                    patch.apply(&mut applied);
+                    assert_eq!(split, patch_split.as_ref().map(|s| patch.numbered(s)));
+                    assert_eq!(applied, expected, "node {node}");
+                    if let Some(split) = split {
+                        splits += 1;
+                        cut += usize::from(!split.edge_nodes.is_empty());
+                        pinched += usize::from(!split.pinched.is_empty());
+                    }
+                }
+            }
+        }
+        eprintln!("{splits} splits, {cut} with cut edges, {pinched} with pinched nodes");
+        assert!(splits > 100 && cut > 20 && pinched > 5);
+    }
+
+    #[test]
+    fn the_neighbours_of_a_split_are_those_of_the_whole_mesh() {
+        // The nodes sharing an element with those a split touched, found on the patch, are
+        // those found on the whole split mesh.
+        let whole = skewed_block();
+        let origin: Vec<usize> = (0..whole.tets.len()).collect();
+        let normal = Vector3::new(1.0, 0.3, 0.2).normalize();
+        let node = (whole.rest.iter())
+            .position(|x| (x - Vector3::new(0.01, 0.01, 0.01)).norm() < 0.004)
+            .unwrap();
+        let (mut patch, local) = Patch::of(&whole, &origin, node);
+        let split = patch.mesh.split_node(local, &normal, 0.1, 0.05).unwrap();
+        let mut touched = split.edge_nodes.clone();
+        touched.extend(&split.pinched);
+        touched.extend([local, split.new_node]);
+        let found = patch.neighbours(&touched);
+        let mut applied = whole.clone();
+        patch.apply(&mut applied);
+        let touched: Vec<usize> = touched.iter().map(|&k| patch.node(k)).collect();
+        let mut expected: Vec<usize> = (applied.tets.iter())
+            .filter(|t| t.iter().any(|i| touched.contains(i)))
+            .flatten()
+            .copied()
+            .collect();
+        expected.sort_unstable();
+        expected.dedup();
+        assert_eq!(found, expected);
+    }
+
+    #[test]
+    fn a_split_put_into_each_part_is_the_part_of_the_split_mesh() {
+        // The skewed block in three slabs along x, split at nodes near the slabs' cuts one
+        // after another. After each split, each process's part put through the patch holds
+        // the part the split whole mesh gives it (`Part::new`: its own elements, every element
+        // around their nodes, the same owned nodes) and perhaps elements it no longer needs,
+        // and its mesh and state are the whole mesh's rows, parents and copies included.
+        let mut whole = skewed_block();
+        let mut processes: Vec<u32> = (whole.tets.iter())
+            .map(|t| {
+                let x = t.iter().map(|&i| whole.rest[i].x).sum::<f64>() / 4.0;
+                ((x / 0.01) as u32).min(2)
+            })
+            .collect();
+        let owners = |tets: &[[usize; 4]], processes: &[u32], nodes: usize| {
+            let mut owner = vec![u32::MAX; nodes];
+            for (t, &p) in tets.iter().zip(processes) {
+                t.iter().for_each(|&i| owner[i] = owner[i].min(p));
+            }
+            owner
+        };
+        let owner = owners(&whole.tets, &processes, whole.rest.len());
+        let first: Vec<Part> = (0..3)
+            .map(|r| Part::new(&whole.tets, (&processes, &owner), r, (&[], false)))
+            .collect();
+        let restricted = |part: &Part, whole: &Fracturable| {
+            let rows = |field: &[f64]| part.rows_of(field, 3, false);
+            let mut f = Fracturable::new(
+                part.nodes.iter().map(|&i| whole.rest[i]).collect(),
+                part.tets_of(&whole.tets),
+                rows(&whole.u),
+                rows(&whole.v),
+            );
+            f.extra = whole.extra.iter().map(|x| rows(x)).collect();
+            f
+        };
+        let mut parts = first.clone();
+        let mut meshes: Vec<Fracturable> = parts.iter().map(|p| restricted(p, &whole)).collect();
+        let (mut splits, mut moved) = (0, 0);
+        let skew = Vector3::new(1.0, 0.3, 0.2).normalize();
+        let targets = [
+            ([0.01, 0.01, 0.01], skew),
+            ([0.02, 0.02, 0.01], skew),
+            ([0.01, 0.0, 0.0], Vector3::x()),
+            ([0.02, 0.03, 0.02], Vector3::x()),
+            ([0.01, 0.02, 0.01], skew),
+            ([0.01, 0.01, 0.01], skew),
+        ];
+        for (target, normal) in targets {
+            let node = (whole.rest.iter())
+                .position(|x| (x - Vector3::from(target)).norm() < 0.004)
+                .unwrap();
+            let origin: Vec<usize> = (0..whole.tets.len()).collect();
+            let (mut patch, local) = Patch::of(&whole, &origin, node);
+            let patch_processes: Vec<u32> = patch.elements.iter().map(|&e| processes[e]).collect();
+            if patch.mesh.split_node(local, &normal, 0.1, 0.05).is_none() {
+                continue;
+            }
+            splits += 1;
+            let before = owners(&whole.tets, &processes, whole.rest.len());
+            patch.apply(&mut whole);
+            processes = whole
+                .parent
+                .iter()
+                .map(|&e| first_processes(&first, e))
+                .collect();
+            let owner = owners(&whole.tets, &processes, whole.rest.len());
+            moved += (before.iter().zip(&owner)).filter(|(a, b)| a != b).count();
+            for r in 0..3u32 {
+                let part = &parts[r as usize];
+                let mesh = &mut meshes[r as usize];
+                let after = patch
+                    .apply_to_part(part, mesh, &patch_processes, r)
+                    .unwrap();
+                let expected = Part::new(&whole.tets, (&processes, &owner), r, (&[], false));
+                assert!(expected
+                    .elements
+                    .iter()
+                    .all(|e| after.elements.binary_search(e).is_ok()));
+                assert!(expected
+                    .nodes
+                    .iter()
+                    .all(|i| after.nodes.binary_search(i).is_ok()));
+                let own = |p: &Part| -> Vec<usize> {
+                    (p.elements.iter().zip(&p.own_elements))
+                        .filter(|(_, &o)| o)
+                        .map(|(&e, _)| e)
+                        .collect()
+                };
+                let owned = |p: &Part| -> Vec<usize> {
+                    (p.nodes.iter().zip(&p.owned_nodes))
+                        .filter(|(_, &o)| o)
+                        .map(|(&i, _)| i)
+                        .collect()
+                };
+                assert_eq!(own(&after), own(&expected), "process {r}");
+                assert_eq!(owned(&after), owned(&expected), "process {r}");
+                // The part's mesh and state are the whole mesh's rows; parents and copies are
+                // the whole mesh's, through the first part's numbers.
+                let mut rows = restricted(&after, &whole);
+                let start = &first[r as usize];
+                rows.parent = (after.elements.iter())
+                    .map(|&e| start.elements.binary_search(&whole.parent[e]).unwrap())
+                    .collect();
+                rows.node_parent = (after.nodes.iter())
+                    .map(|&i| {
+                        let p = whole.node_parent[i];
+                        (start.local(p).or(after.local(p))).unwrap_or(usize::MAX - p)
+                    })
+                    .collect();
+                assert_eq!(*mesh, rows, "process {r}");
+                parts[r as usize] = after;
+            }
+        }
+        // Some nodes changed owner (the split node when its copy took the lower process's
+        // elements): the parts' ownership is recomputed, not kept.
+        eprintln!("{splits} splits, {moved} nodes changed owner");
+        assert!(splits >= 3 && moved > 0, "{splits} splits, {moved} moved");
+
+        /// The process of the scene element `e` in the first partition.
+        fn first_processes(first: &[Part], e: usize) -> u32 {
+            (0..3u32)
+                .find(|&r| {
+                    let p = &first[r as usize];
+                    p.elements
+                        .binary_search(&e)
+                        .is_ok_and(|k| p.own_elements[k])
+                })
+                .unwrap()
+        }
+    }
+}
