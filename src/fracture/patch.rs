@@ -37,59 +37,165 @@ pub struct Patch {
     star: Vec<usize>,
 }
 
-impl Patch {
-    /// The elements of `tets` that a split of `node` involves: every element sharing a node
-    /// with one of `node`'s elements (ascending).
-    pub fn elements_around(tets: &[[usize; 4]], node: usize) -> Vec<usize> {
-        let mut star_nodes: Vec<usize> = tets
-            .iter()
-            .filter(|t| t.contains(&node))
-            .flatten()
-            .copied()
-            .collect();
-        star_nodes.sort_unstable();
-        star_nodes.dedup();
-        (0..tets.len())
-            .filter(|&e| tets[e].iter().any(|i| star_nodes.binary_search(i).is_ok()))
-            .collect()
-    }
+/// An element of a patch as a process gives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PatchElement {
+    /// Its number in the mesh.
+    pub element: usize,
+    /// Its nodes, numbered in the mesh.
+    pub nodes: [usize; 4],
+    /// The scene element it lies in.
+    pub origin: usize,
+    /// The process that evaluates it.
+    pub process: u32,
+    /// The smallest rest volume a split may create (m³, [`Fracturable::min_volume`]).
+    pub min_volume: f64,
+}
 
+/// A node of a patch as a process gives it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PatchNode {
+    /// Its number in the mesh.
+    pub node: usize,
+    /// Its rest position (m).
+    pub rest: Vector3<f64>,
+    /// Its displacement (m), velocity (m/s) and further fields ([`Fracturable::extra`]), three
+    /// values each.
+    pub fields: Vec<f64>,
+}
+
+/// A mesh a process holds (the whole mesh, or its part) with the mesh's numbers of its
+/// elements and nodes and the scene element each element lies in.
+pub struct HeldMesh<'a> {
+    /// The held mesh and state, numbered locally.
+    pub mesh: &'a Fracturable,
+    /// The mesh's number of each held element.
+    pub elements: &'a [usize],
+    /// The mesh's number of each held node.
+    pub nodes: &'a [usize],
+    /// The scene element each held element lies in.
+    pub origin: &'a [usize],
+}
+
+impl HeldMesh<'_> {
+    /// The rows this process gives to the patch around the nodes `star` (the mesh's numbers,
+    /// ascending; the split node's star's nodes): every element `process` says it evaluates
+    /// (the process's number, `None` for an element it holds only) that touches one of them,
+    /// and their nodes. Each element of the patch is so given by one process.
+    pub fn patch_rows(
+        &self,
+        process: impl Fn(usize) -> Option<u32>,
+        star: &[usize],
+    ) -> (Vec<PatchElement>, Vec<PatchNode>) {
+        let f = self.mesh;
+        let mut elements = Vec::new();
+        let mut nodes: Vec<usize> = Vec::new();
+        for (e, tet) in f.tets.iter().enumerate() {
+            let Some(p) = process(e) else { continue };
+            if !tet
+                .iter()
+                .any(|&i| star.binary_search(&self.nodes[i]).is_ok())
+            {
+                continue;
+            }
+            elements.push(PatchElement {
+                element: self.elements[e],
+                nodes: tet.map(|i| self.nodes[i]),
+                origin: self.origin[e],
+                process: p,
+                min_volume: f.min_volume,
+            });
+            nodes.extend(tet);
+        }
+        nodes.sort_unstable();
+        nodes.dedup();
+        let node_rows = (nodes.iter())
+            .map(|&i| {
+                let fields = [&f.u, &f.v].into_iter().chain(&f.extra);
+                PatchNode {
+                    node: self.nodes[i],
+                    rest: f.rest[i],
+                    fields: fields.flat_map(|x| x[3 * i..3 * i + 3].to_vec()).collect(),
+                }
+            })
+            .collect();
+        (elements, node_rows)
+    }
+}
+
+impl Patch {
     /// The patch of `node` in `whole`, whose element `e` lies in scene element `origin[e]`.
     /// Returns it with `node`'s number in it.
     pub fn of(whole: &Fracturable, origin: &[usize], node: usize) -> (Patch, usize) {
-        let elements = Self::elements_around(&whole.tets, node);
-        let mut nodes: Vec<usize> = elements.iter().flat_map(|&e| whole.tets[e]).collect();
-        nodes.sort_unstable();
-        nodes.dedup();
-        let local = |i: usize| nodes.binary_search(&i).expect("a node of a patch element");
-        let tets = elements.iter().map(|&e| whole.tets[e].map(local)).collect();
-        let rows = |field: &[f64]| -> Vec<f64> {
-            nodes
-                .iter()
-                .flat_map(|&i| field[3 * i..3 * i + 3].iter().copied())
-                .collect()
+        let star = Self::star_nodes(&whole.tets, node);
+        let numbers: Vec<usize> = (0..whole.rest.len().max(whole.tets.len())).collect();
+        let mesh = HeldMesh {
+            mesh: whole,
+            elements: &numbers[..whole.tets.len()],
+            nodes: &numbers[..whole.rest.len()],
+            origin,
         };
-        let rest: Vec<Vector3<f64>> = nodes.iter().map(|&i| whole.rest[i]).collect();
-        let mut mesh = Fracturable::new(rest, tets, rows(&whole.u), rows(&whole.v));
-        mesh.extra = whole.extra.iter().map(|f| rows(f)).collect();
-        mesh.min_volume = whole.min_volume;
-        let mut star: Vec<usize> = (mesh.tets.iter())
-            .filter(|t| t.contains(&local(node)))
+        let (elements, nodes) = mesh.patch_rows(|_| Some(0), &star);
+        let whole_counts = (whole.rest.len(), whole.tets.len());
+        let (patch, local, _) = Self::from_rows(elements, nodes, node, whole_counts);
+        (patch, local)
+    }
+
+    /// The nodes of `node`'s elements in `tets` (ascending).
+    pub fn star_nodes(tets: &[[usize; 4]], node: usize) -> Vec<usize> {
+        let mut star: Vec<usize> = (tets.iter())
+            .filter(|t| t.contains(&node))
             .flatten()
             .copied()
             .collect();
         star.sort_unstable();
         star.dedup();
-        let patch = Patch {
-            origin: elements.iter().map(|&e| origin[e]).collect(),
-            star,
-            whole_nodes: whole.rest.len(),
-            whole_elements: whole.tets.len(),
-            mesh,
-            elements,
-            nodes: nodes.clone(),
+        star
+    }
+
+    /// The patch of `node` made of the rows the processes gave ([`HeldMesh::patch_rows`]) of
+    /// a mesh of `whole` nodes and elements; each element and node may come more than once
+    /// (the same values). Returns it with `node`'s number in it and each patch element's
+    /// process.
+    pub fn from_rows(
+        mut elements: Vec<PatchElement>,
+        mut nodes: Vec<PatchNode>,
+        node: usize,
+        (whole_nodes, whole_elements): (usize, usize),
+    ) -> (Patch, usize, Vec<u32>) {
+        elements.sort_by_key(|e| e.element);
+        elements.dedup_by_key(|e| e.element);
+        nodes.sort_by_key(|n| n.node);
+        nodes.dedup_by_key(|n| n.node);
+        let numbers: Vec<usize> = nodes.iter().map(|n| n.node).collect();
+        let local = |i: usize| {
+            numbers
+                .binary_search(&i)
+                .expect("a node of a patch element")
         };
-        (patch, local(node))
+        let tets = elements.iter().map(|e| e.nodes.map(local)).collect();
+        let column = |k: usize| -> Vec<f64> {
+            (nodes.iter())
+                .flat_map(|n| n.fields[3 * k..3 * k + 3].iter().copied())
+                .collect()
+        };
+        let fields = nodes.first().map_or(2, |n| n.fields.len() / 3);
+        let rest = nodes.iter().map(|n| n.rest).collect();
+        let mut mesh = Fracturable::new(rest, tets, column(0), column(1));
+        mesh.extra = (2..fields).map(column).collect();
+        mesh.min_volume = elements.first().map_or(0.0, |e| e.min_volume);
+        let star = Self::star_nodes(&mesh.tets, local(node));
+        let patch = Patch {
+            origin: elements.iter().map(|e| e.origin).collect(),
+            star,
+            whole_nodes,
+            whole_elements,
+            mesh,
+            elements: elements.iter().map(|e| e.element).collect(),
+            nodes: numbers.clone(),
+        };
+        let processes = elements.iter().map(|e| e.process).collect();
+        (patch, local(node), processes)
     }
 
     /// The mesh's number of patch node `k` (a node the split added is numbered after the
@@ -570,6 +676,64 @@ mod tests {
                         .is_ok_and(|k| p.own_elements[k])
                 })
                 .unwrap()
+        }
+    }
+
+    #[test]
+    fn a_patch_given_by_the_parts_is_the_patch_of_the_whole_mesh() {
+        // Three slab parts each give their own elements around the star's nodes, with their
+        // nodes: put together, the patch of every node is the whole mesh's, and each patch
+        // element comes with its process.
+        let whole = skewed_block();
+        let processes: Vec<u32> = (whole.tets.iter())
+            .map(|t| ((t.iter().map(|&i| whole.rest[i].x).sum::<f64>() / 0.04) as u32).min(2))
+            .collect();
+        let mut owner = vec![u32::MAX; whole.rest.len()];
+        for (t, &p) in whole.tets.iter().zip(&processes) {
+            t.iter().for_each(|&i| owner[i] = owner[i].min(p));
+        }
+        let origin: Vec<usize> = (0..whole.tets.len()).map(|e| 7 * e + 1).collect();
+        let parts: Vec<(Part, Fracturable, Vec<usize>)> = (0..3)
+            .map(|r| {
+                let part = Part::new(&whole.tets, (&processes, &owner), r, (&[], false));
+                let rows = |x: &[f64]| part.rows_of(x, 3, false);
+                let mut f = Fracturable::new(
+                    part.nodes.iter().map(|&i| whole.rest[i]).collect(),
+                    part.tets_of(&whole.tets),
+                    rows(&whole.u),
+                    rows(&whole.v),
+                );
+                f.extra = whole.extra.iter().map(|x| rows(x)).collect();
+                f.min_volume = whole.min_volume;
+                let origin = part.elements.iter().map(|&e| origin[e]).collect();
+                (part, f, origin)
+            })
+            .collect();
+        for node in 0..whole.rest.len() {
+            let star = Patch::star_nodes(&whole.tets, node);
+            let (mut elements, mut nodes) = (Vec::new(), Vec::new());
+            for (r, (part, f, origin)) in parts.iter().enumerate() {
+                let held = HeldMesh {
+                    mesh: f,
+                    elements: &part.elements,
+                    nodes: &part.nodes,
+                    origin,
+                };
+                let given = held.patch_rows(|e| part.own_elements[e].then_some(r as u32), &star);
+                elements.extend(given.0);
+                nodes.extend(given.1);
+            }
+            let counts = (whole.rest.len(), whole.tets.len());
+            let (patch, local, patch_processes) = Patch::from_rows(elements, nodes, node, counts);
+            let (expected, expected_local) = Patch::of(&whole, &origin, node);
+            assert_eq!(local, expected_local);
+            assert_eq!(patch.elements, expected.elements);
+            assert_eq!(patch.nodes, expected.nodes);
+            assert_eq!(patch.star, expected.star);
+            assert_eq!(patch.origin, expected.origin);
+            assert_eq!(patch.mesh, expected.mesh, "node {node}");
+            let by_element: Vec<u32> = patch.elements.iter().map(|&e| processes[e]).collect();
+            assert_eq!(patch_processes, by_element);
         }
     }
 }
