@@ -9,8 +9,13 @@
 //! numbered after the mesh's, so the split of the patch takes the same decisions in the same
 //! order as the split of the whole mesh, and its change put back is the whole mesh's split to
 //! the bit (tested on an unstructured mesh, with edges cut, crossings snapped and pinched
-//! nodes separated). A process holding only its part of a mesh can split a patch gathered
-//! from the processes that hold its elements.
+//! nodes separated).
+//!
+//! A patch can also be put together from the rows that processes holding parts of the mesh
+//! give ([`HeldMesh::patch_rows`], [`Patch::from_rows`]), and its split put into each
+//! process's part ([`Patch::apply_to_part`]); both are tested against the whole mesh on one
+//! process. A fractured run on several processes still holds the whole mesh on each and
+//! splits it there (docs/distributed.md).
 
 use super::split::{Fracturable, NodeSplit};
 use crate::sim::part::Part;
