@@ -485,6 +485,29 @@ mod tests {
         f
     }
 
+    /// The rows of `whole` (mesh and state) that `part` holds, numbered in the part.
+    fn restricted(part: &Part, whole: &Fracturable) -> Fracturable {
+        let rows = |field: &[f64]| part.rows_of(field, 3, false);
+        let mut f = Fracturable::new(
+            part.nodes.iter().map(|&i| whole.rest[i]).collect(),
+            part.tets_of(&whole.tets),
+            rows(&whole.u),
+            rows(&whole.v),
+        );
+        f.extra = whole.extra.iter().map(|x| rows(x)).collect();
+        f.min_volume = whole.min_volume;
+        f
+    }
+
+    /// Each node's owner: the lowest process among its elements'.
+    fn owners(tets: &[[usize; 4]], processes: &[u32], nodes: usize) -> Vec<u32> {
+        let mut owner = vec![u32::MAX; nodes];
+        for (t, &p) in tets.iter().zip(processes) {
+            t.iter().for_each(|&i| owner[i] = owner[i].min(p));
+        }
+        owner
+    }
+
     #[test]
     fn a_split_of_the_patch_put_back_is_the_split_of_the_whole_mesh() {
         // Every node with three planes, two snaps and two quality bounds: the split of its
@@ -566,28 +589,10 @@ mod tests {
                 ((x / 0.01) as u32).min(2)
             })
             .collect();
-        let owners = |tets: &[[usize; 4]], processes: &[u32], nodes: usize| {
-            let mut owner = vec![u32::MAX; nodes];
-            for (t, &p) in tets.iter().zip(processes) {
-                t.iter().for_each(|&i| owner[i] = owner[i].min(p));
-            }
-            owner
-        };
         let owner = owners(&whole.tets, &processes, whole.rest.len());
         let first: Vec<Part> = (0..3)
             .map(|r| Part::new(&whole.tets, (&processes, &owner), r, (&[], false)))
             .collect();
-        let restricted = |part: &Part, whole: &Fracturable| {
-            let rows = |field: &[f64]| part.rows_of(field, 3, false);
-            let mut f = Fracturable::new(
-                part.nodes.iter().map(|&i| whole.rest[i]).collect(),
-                part.tets_of(&whole.tets),
-                rows(&whole.u),
-                rows(&whole.v),
-            );
-            f.extra = whole.extra.iter().map(|x| rows(x)).collect();
-            f
-        };
         let mut parts = first.clone();
         let mut meshes: Vec<Fracturable> = parts.iter().map(|p| restricted(p, &whole)).collect();
         let (mut splits, mut moved) = (0, 0);
@@ -693,23 +698,12 @@ mod tests {
         let processes: Vec<u32> = (whole.tets.iter())
             .map(|t| ((t.iter().map(|&i| whole.rest[i].x).sum::<f64>() / 0.04) as u32).min(2))
             .collect();
-        let mut owner = vec![u32::MAX; whole.rest.len()];
-        for (t, &p) in whole.tets.iter().zip(&processes) {
-            t.iter().for_each(|&i| owner[i] = owner[i].min(p));
-        }
+        let owner = owners(&whole.tets, &processes, whole.rest.len());
         let origin: Vec<usize> = (0..whole.tets.len()).map(|e| 7 * e + 1).collect();
         let parts: Vec<(Part, Fracturable, Vec<usize>)> = (0..3)
             .map(|r| {
                 let part = Part::new(&whole.tets, (&processes, &owner), r, (&[], false));
-                let rows = |x: &[f64]| part.rows_of(x, 3, false);
-                let mut f = Fracturable::new(
-                    part.nodes.iter().map(|&i| whole.rest[i]).collect(),
-                    part.tets_of(&whole.tets),
-                    rows(&whole.u),
-                    rows(&whole.v),
-                );
-                f.extra = whole.extra.iter().map(|x| rows(x)).collect();
-                f.min_volume = whole.min_volume;
+                let f = restricted(&part, &whole);
                 let origin = part.elements.iter().map(|&e| origin[e]).collect();
                 (part, f, origin)
             })
