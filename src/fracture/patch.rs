@@ -441,49 +441,8 @@ impl Patch {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::box_mesh;
+    use crate::fracture::split::tests::skewed_block;
     use crate::sim::part::Part;
-
-    /// A 3 × 3 × 2 cm box of 1 cm cells, its interior nodes moved by up to a fifth of a cell
-    /// (so its elements are of many shapes, as an unstructured mesh's), stretched along a
-    /// skew direction, with one extra nodal field.
-    fn skewed_block() -> Fracturable {
-        let mesh = box_mesh([0.0; 3], [0.03, 0.03, 0.02], [3, 3, 2], 6).unwrap();
-        let (lo, hi) = mesh.bounding_box();
-        let mut state = 12345u64;
-        let mut random = move || {
-            // A linear congruential sequence: the same mesh in every run.
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
-        let rest: Vec<Vector3<f64>> = (mesh.rest.iter())
-            .map(|x| {
-                let inside = (0..3).all(|k| x[k] > lo[k] + 1e-9 && x[k] < hi[k] - 1e-9);
-                let shift = Vector3::new(random(), random(), random()) * 0.004;
-                if inside {
-                    x + shift
-                } else {
-                    *x
-                }
-            })
-            .collect();
-        let stretch = Vector3::new(1.0, 0.4, 0.2).normalize();
-        let u: Vec<f64> = (rest.iter())
-            .flat_map(|x| {
-                (stretch * (1e-3 * stretch.dot(x)))
-                    .iter()
-                    .copied()
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        let v: Vec<f64> = (0..u.len()).map(|k| k as f64 * 1e-3).collect();
-        let mut f = Fracturable::new(rest, mesh.tets, u, v);
-        f.extra = vec![(0..f.u.len()).map(|k| (k as f64).sin()).collect()];
-        f.min_volume = 1e-9;
-        f
-    }
 
     /// The rows of `whole` (mesh and state) that `part` holds, numbered in the part.
     fn restricted(part: &Part, whole: &Fracturable) -> Fracturable {
