@@ -1,13 +1,17 @@
 //! The partition computed by all processes (`distributed::dual_graph`,
 //! `distributed::partition::parts_of_range`) and each process's part gathered from the
-//! ranges (`distributed::part_mesh`), on three processes: each test runs
-//! itself under `mpirun -n 3` (the `mpi` feature) and checks, on every process, what that
-//! process computed against the whole mesh.
+//! ranges (`distributed::part_mesh`), and what a process computes on its part (the scene's
+//! model, the fracture criterion), on three processes: each test runs itself under
+//! `mpirun -n 3` (the `mpi` feature) and checks, on every process, what that process
+//! computed against the whole mesh.
 
 mod common;
 
 use icefem::distributed::partition::{self, Partition};
 use icefem::distributed::{components, dual_graph, part_mesh};
+use icefem::fracture::{
+    area_floor, separation, separation_on_part, Averaging, NodeSeparation, OnPart,
+};
 use icefem::mesh::{box_mesh, BoxGrid, TetMesh, TET_FACES};
 use icefem::physics::contact::ObstacleContact;
 use icefem::run::Processes;
@@ -711,4 +715,143 @@ fn got_freezing(scene: &Scene) -> Vec<f64> {
             ]
         })
         .collect()
+}
+
+/// The fracture criterion's separations of `sim`'s nodes evaluated by this process on its
+/// part of the mesh (processes by slabs across the container), its part holding the nodes
+/// within `length` (m) of its owned nodes when averaging over `length` (`halo`), or only its
+/// ring: the part's node numbers and the separations of its owned nodes.
+fn separations_on_part(
+    world: &SimpleCommunicator,
+    sim: &icefem::sim::Simulation,
+    pressing: &[f64],
+    (length, halo): (Option<f64>, bool),
+) -> (Part, Vec<(usize, NodeSeparation)>) {
+    let mesh = &sim.model.mesh;
+    let rank = world.rank() as u32;
+    // Slabs along a skew direction, so that the cuts run across the mesh's cells.
+    let element_part: Vec<u32> = (mesh.tets.iter())
+        .map(|t| {
+            let c = t
+                .iter()
+                .map(|&v| mesh.rest[v])
+                .sum::<nalgebra::Vector3<f64>>()
+                / 4.0;
+            let s = (c.x + 0.5 * c.y) / 0.15;
+            ((s * PROCESSES as f64) as u32).min(PROCESSES as u32 - 1)
+        })
+        .collect();
+    let partition = Partition::from_element_parts(mesh, element_part, PROCESSES);
+    let owned: Vec<bool> = partition.node_owner.iter().map(|&o| o == rank).collect();
+    let halo: Vec<usize> = match (length, halo) {
+        (Some(length), true) => {
+            let near = icefem::fracture::nonlocal::within(mesh, length, &owned);
+            (0..mesh.num_tets())
+                .filter(|&e| mesh.tets[e].iter().any(|&v| near[v]))
+                .collect()
+        }
+        _ => Vec::new(),
+    };
+    let part = Part::new(
+        &mesh.tets,
+        (&partition.element_part, &partition.node_owner),
+        rank,
+        (&halo, false),
+    );
+    let model = part.model(&sim.model).unwrap();
+    let history = sim.state.history.inherit(&part.elements);
+    let (u, pressing) = (part.dofs_of(&sim.state.u), part.dofs_of(pressing));
+    let collective =
+        icefem::distributed::MpiCollective::new(&part, &partition.of_part(&part).node_owner);
+    let averaging = length.map(|l| Averaging::of(&model.mesh, l, Some(&part.owned_nodes)));
+    let separations = separation_on_part(
+        &model.elasticity,
+        &history,
+        (&model.mesh.tets, &u, &pressing),
+        area_floor(mesh),
+        averaging.as_ref(),
+        &OnPart {
+            collective: &collective,
+            owned_nodes: &part.owned_nodes,
+        },
+    );
+    let owned = (0..part.nodes.len())
+        .filter(|&k| part.owned_nodes[k])
+        .map(|k| (part.nodes[k], separations[k]))
+        .collect();
+    (part, owned)
+}
+
+#[test]
+fn the_fracture_criterion_on_a_part_is_the_whole_meshs_at_its_owned_nodes() {
+    let Some(world) = on_three_processes(
+        "the_fracture_criterion_on_a_part_is_the_whole_meshs_at_its_owned_nodes",
+    ) else {
+        return;
+    };
+    // The 1 728-tet container 15 s into its freezing: a frozen shell (plastic, with the nodal
+    // volumetric energy) around water, pressed by the container's walls.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes/freezing_container_fracture_1728.toml");
+    let scene = Scene::load(&path).unwrap();
+    let mut sim = icefem::sim::Simulation::new(scene.model.clone(), scene.settings).unwrap();
+    while sim.state.time < 15.0 {
+        sim.step().unwrap();
+    }
+    let pressing: Vec<f64> = sim.contact_forces().map_or(Vec::new(), |c| {
+        (c.normal.iter().zip(&c.friction))
+            .map(|(n, f)| n + f)
+            .collect()
+    });
+    let mesh = &sim.model.mesh;
+    let whole = |length: Option<f64>| {
+        let averaging = length.map(|l| Averaging::new(mesh, l));
+        separation(
+            &sim.model.elasticity,
+            &sim.state.history,
+            &mesh.tets,
+            &sim.state.u,
+            &pressing,
+            area_floor(mesh),
+            averaging.as_ref(),
+        )
+    };
+    // The local criterion, and averaged over two cells (1.67 cm): the halo is then three
+    // layers of elements deep, beyond the ring.
+    for length in [None, Some(0.035)] {
+        let expected = whole(length);
+        let (part, got) = separations_on_part(&world, &sim, &pressing, (length, true));
+        let eligible = got
+            .iter()
+            .filter(|(_, s)| s.eligible && s.largest > 0.0)
+            .count();
+        eprintln!(
+            "process {}, averaged over {length:?} m: {} of {} elements held, {} owned nodes, \
+             {eligible} eligible in tension",
+            world.rank(),
+            part.elements.len(),
+            mesh.num_tets(),
+            got.len()
+        );
+        let mut total = 0u64;
+        world.all_reduce_into(
+            &(eligible as u64),
+            &mut total,
+            mpi::collective::SystemOperation::sum(),
+        );
+        assert!(total > 20, "a frozen shell in tension: {total} nodes");
+        for (i, s) in &got {
+            // To the bit: the same elements in the same order, the same pressures.
+            assert_eq!(*s, expected[*i], "node {i}");
+        }
+        if length.is_some() {
+            // The ring alone is not enough: without the halo some owned node reads less.
+            let (_, ring) = separations_on_part(&world, &sim, &pressing, (length, false));
+            assert!(
+                ring.iter().any(|(i, s)| *s != expected[*i]),
+                "the halo matters"
+            );
+            assert!(part.elements.len() < mesh.num_tets(), "a part");
+        }
+    }
 }

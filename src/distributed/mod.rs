@@ -435,9 +435,26 @@ fn peak_memory() -> u64 {
 
 /// Sums across the processes over MPI, made the same on every process: scalars gathered and
 /// added in process order, vectors through the processes holding each node ([`Ghosts`]).
-struct MpiCollective {
+pub struct MpiCollective {
     world: SimpleCommunicator,
     ghosts: Ghosts,
+}
+
+impl MpiCollective {
+    /// The sums of the processes of the world communicator, this process holding `part`,
+    /// whose node `k` is owned by process `node_owner[k]`. Every process calls it.
+    pub fn new(part: &Part, node_owner: &[u32]) -> Self {
+        let ghosts = Ghosts::new(
+            SimpleCommunicator::world(),
+            &part.nodes,
+            &part.owned_nodes,
+            node_owner,
+        );
+        MpiCollective {
+            world: SimpleCommunicator::world(),
+            ghosts,
+        }
+    }
 }
 
 impl Collective for MpiCollective {
@@ -499,15 +516,7 @@ impl ProcessShare {
     ) -> Self {
         held.set([part.nodes.len() as u64, part.elements.len() as u64]);
         ProcessShare {
-            collective: MpiCollective {
-                world: SimpleCommunicator::world(),
-                ghosts: Ghosts::new(
-                    SimpleCommunicator::world(),
-                    &part.nodes,
-                    &part.owned_nodes,
-                    &numbering.node_owner,
-                ),
-            },
+            collective: MpiCollective::new(part, &numbering.node_owner),
             owned_dofs: part.owned_dofs(),
             owned_elements: part.own_elements.clone(),
             rank,

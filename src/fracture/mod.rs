@@ -44,9 +44,10 @@ pub mod split;
 pub use driver::{Fracture, FractureEvent, FractureReport, FractureSettings};
 pub use nonlocal::Averaging;
 
-use crate::fem::stress_forces;
+use crate::fem::{stress_forces, StrainOffset};
 use crate::physics::elasticity::Elasticity;
 use crate::physics::history::ElementHistory;
+use crate::sim::Collective;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
 /// The separation tensor of one node and what the criterion needs from it.
@@ -139,6 +140,103 @@ pub fn separation(
     area_floor: f64,
     averaging: Option<&Averaging>,
 ) -> Vec<NodeSeparation> {
+    let offsets = history.offsets();
+    let pressure = elasticity
+        .nodal_pressures(tets, history, &offsets, u, None)
+        .map(|(p, _)| p);
+    let forces = node_forces(
+        elasticity,
+        history,
+        (tets, u, pressing),
+        (&offsets, pressure),
+    );
+    read(&forces, area_floor, averaging)
+}
+
+/// A process's part of the mesh, on which [`separation_on_part`] evaluates the criterion.
+#[derive(Clone, Copy)]
+pub struct OnPart<'a> {
+    /// The sums across the processes: its exchange adds each node's parts at the node's owner
+    /// and gives every process holding the node the sum.
+    pub collective: &'a dyn Collective,
+    /// Whether this process owns each node of its part.
+    pub owned_nodes: &'a [bool],
+}
+
+impl OnPart<'_> {
+    /// Gives every node of `values` (one per node of the part) its owner's value.
+    fn owners_values(&self, values: &mut [f64]) {
+        let mut dofs = vec![0.0; 3 * values.len()];
+        for (a, &x) in values.iter().enumerate() {
+            if self.owned_nodes[a] {
+                dofs[3 * a] = x;
+            }
+        }
+        // The owner's value plus the zeros of the other holders: the owner's value exactly.
+        self.collective.exchange(&mut dofs);
+        for (a, x) in values.iter_mut().enumerate() {
+            *x = dofs[3 * a];
+        }
+    }
+}
+
+/// [`separation`] on a process's part of the mesh (`tets`, `u` and `pressing` of its nodes,
+/// `elasticity` and `history` of its elements), for the nodes it owns: they alone are
+/// eligible in the result. The part must hold every element around its owned nodes, and with
+/// `averaging` (made for the owned nodes, [`Averaging::of`]) every element around the nodes
+/// within the averaging length of them ([`nonlocal::within`]). Each such node's separation
+/// then reads the elements the whole mesh's does, in the same order; the element pressures
+/// of the nodal volumetric energy read the nodal pressures of the nodes' owners, which hold
+/// their stars. So an owned node's separation is the whole mesh's, to the bit, when the
+/// state is. Every process of `on_part` calls it (it exchanges the nodal pressures).
+pub fn separation_on_part(
+    elasticity: &Elasticity,
+    history: &ElementHistory,
+    (tets, u, pressing): (&[[usize; 4]], &[f64], &[f64]),
+    area_floor: f64,
+    averaging: Option<&Averaging>,
+    on_part: &OnPart,
+) -> Vec<NodeSeparation> {
+    let from_owners = |p: &mut [f64]| on_part.owners_values(p);
+    let offsets = history.offsets();
+    let pressure =
+        elasticity.element_pressures_from_owners(tets, history, &offsets, u, &from_owners);
+    let forces = node_forces(
+        elasticity,
+        history,
+        (tets, u, pressing),
+        (&offsets, pressure),
+    );
+    let mut separations = read(&forces, area_floor, averaging);
+    // The averages read the neighbours' eligibility; only then are the owned nodes kept.
+    for (node, &owned) in separations.iter_mut().zip(on_part.owned_nodes) {
+        node.eligible &= owned;
+    }
+    separations
+}
+
+/// Each node's separation from its forces `nodes`, A(n) at least `area_floor` (m²), averaged
+/// with `averaging`.
+fn read(
+    nodes: &[NodeForces],
+    area_floor: f64,
+    averaging: Option<&Averaging>,
+) -> Vec<NodeSeparation> {
+    match averaging {
+        Some(averaging) => averaging.average(nodes, area_floor),
+        None => nodes.iter().map(|n| n.local(area_floor)).collect(),
+    }
+}
+
+/// What the criterion needs of every node of `tets` at displacements `u` with the contact
+/// forces `pressing` (see [`separation`]), the elements' pressures of the nodal volumetric
+/// energy `pressure` (Pa; `None` without it) and the strain `offsets` of `history`.
+fn node_forces(
+    elasticity: &Elasticity,
+    history: &ElementHistory,
+    (tets, u, pressing): (&[[usize; 4]], &[f64], &[f64]),
+    (offsets, pressure): (&[StrainOffset], Option<Vec<f64>>),
+) -> Vec<NodeForces> {
     let nodes = u.len() / 3;
     let mut f_plus = vec![Vector3::zeros(); nodes];
     let mut f_minus = vec![Vector3::zeros(); nodes];
@@ -153,12 +251,6 @@ pub fn separation(
     let mut weighted_grads: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nodes];
     let mut touches_water = vec![false; nodes];
     let mut has_ice = vec![false; nodes];
-    // With the nodal volumetric energy the elements' own laws are deviatoric: their pressure
-    // p̄ₑ acts through their volume change θₑ.
-    let offsets = history.offsets();
-    let pressure = elasticity
-        .nodal_pressures(tets, history, &offsets, u, None)
-        .map(|(p, _)| p);
     for (e, tet) in tets.iter().enumerate() {
         if !history.holds_ice(e) {
             for &i in tet {
@@ -168,8 +260,9 @@ pub fn separation(
         }
         let rest = &elasticity.rest[e];
         let local = Elasticity::local(u, tet);
-        // The stress as the solve balanced it (returned onto the yield surface, with the
-        // element pressure of the nodal volumetric energy) and the simulation's nodal force
+        // The stress as the solve balanced it (returned onto the yield surface; with the
+        // nodal volumetric energy the elements' own laws are deviatoric, and their pressure p̄ₑ
+        // acts through their volume change θₑ) and the simulation's nodal force
         // formula for a stress in the element's frame.
         let law = elasticity.law_of(history, e);
         let element = stress_forces(
@@ -191,7 +284,7 @@ pub fn separation(
             has_ice[i] = true;
         }
     }
-    let nodes: Vec<NodeForces> = (0..nodes)
+    (0..nodes)
         .map(|i| NodeForces {
             tensor: if touches_water[i] {
                 Matrix3::zeros()
@@ -201,11 +294,7 @@ pub fn separation(
             weighted_grads: std::mem::take(&mut weighted_grads[i]),
             eligible: has_ice[i] && !touches_water[i],
         })
-        .collect();
-    match averaging {
-        Some(averaging) => averaging.average(&nodes, area_floor),
-        None => nodes.iter().map(|n| n.local(area_floor)).collect(),
-    }
+        .collect()
 }
 
 /// What the criterion needs of one node before any averaging.

@@ -22,6 +22,7 @@
 
 use super::{largest_eigen, NodeForces, NodeSeparation};
 use crate::mesh::TetMesh;
+use nalgebra::Vector3;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
@@ -36,61 +37,29 @@ pub struct Averaging {
 impl Averaging {
     /// The neighbourhoods of `mesh`'s nodes for the averaging length `length` (m, > 0).
     pub fn new(mesh: &TetMesh, length: f64) -> Self {
-        let n = mesh.num_nodes();
-        let mut edges: Vec<(u32, u32)> = Vec::with_capacity(12 * mesh.num_tets());
-        for tet in &mesh.tets {
-            for a in 0..4 {
-                for b in 0..4 {
-                    if a != b {
-                        edges.push((tet[a] as u32, tet[b] as u32));
-                    }
-                }
-            }
-        }
-        edges.sort_unstable();
-        edges.dedup();
-        let mut start = vec![0usize; n + 1];
-        for &(a, _) in &edges {
-            start[a as usize + 1] += 1;
-        }
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        let rest = &mesh.rest;
+        Self::of(mesh, length, None)
+    }
+
+    /// As [`Averaging::new`], for the nodes `sources` marks only (every other node has no
+    /// neighbours): on a process's part, the nodes it owns, whose neighbourhoods are whole
+    /// when the part holds every element around the nodes within `length` of them (see
+    /// [`within`]).
+    pub fn of(mesh: &TetMesh, length: f64, sources: Option<&[bool]>) -> Self {
+        let graph = EdgeGraph::new(mesh);
         let mut averaging = Averaging {
             ptr: vec![0],
             neighbours: Vec::new(),
         };
-        // Bounded Dijkstra from every node; distances as integer nanometres for the heap's
-        // ordering (exact enough for weights, and no float ordering to work around).
-        let mut distance: Vec<f64> = vec![f64::INFINITY; n];
-        let mut reached: Vec<u32> = Vec::new();
-        let mut heap = BinaryHeap::new();
-        for source in 0..n {
-            distance[source] = 0.0;
-            reached.push(source as u32);
-            heap.push(Reverse((0u64, source as u32)));
-            while let Some(Reverse((_, a))) = heap.pop() {
-                let a = a as usize;
-                let da = distance[a];
-                for &(_, b) in &edges[start[a]..start[a + 1]] {
-                    let b = b as usize;
-                    let d = da + (rest[a] - rest[b]).norm();
-                    if d < length && d < distance[b] {
-                        if distance[b].is_infinite() {
-                            reached.push(b as u32);
-                        }
-                        distance[b] = d;
-                        heap.push(Reverse(((d * 1e9) as u64, b as u32)));
-                    }
+        let mut search = BoundedSearch::new(mesh.num_nodes());
+        for source in 0..mesh.num_nodes() {
+            if sources.is_none_or(|s| s[source]) {
+                search.run(&graph, &mesh.rest, &[source], length);
+                for &j in &search.reached {
+                    let r = search.distance[j as usize] / length;
+                    averaging.neighbours.push((j, (1.0 - r * r).powi(2)));
                 }
+                search.clear();
             }
-            for &j in &reached {
-                let r = distance[j as usize] / length;
-                averaging.neighbours.push((j, (1.0 - r * r).powi(2)));
-                distance[j as usize] = f64::INFINITY;
-            }
-            reached.clear();
             averaging.ptr.push(averaging.neighbours.len());
         }
         averaging
@@ -127,6 +96,106 @@ impl Averaging {
                 }
             })
             .collect()
+    }
+}
+
+/// Whether each node of `mesh` lies within `length` (m) of a node `sources` marks, along the
+/// mesh's edges (rest lengths): the nodes whose separations the sources' averages read. A
+/// process whose part holds every element around these nodes finds its owned nodes'
+/// neighbourhoods, and their separations, as the whole mesh gives them.
+pub fn within(mesh: &TetMesh, length: f64, sources: &[bool]) -> Vec<bool> {
+    let graph = EdgeGraph::new(mesh);
+    let mut search = BoundedSearch::new(mesh.num_nodes());
+    let from: Vec<usize> = (0..mesh.num_nodes()).filter(|&i| sources[i]).collect();
+    search.run(&graph, &mesh.rest, &from, length);
+    let mut reached = vec![false; mesh.num_nodes()];
+    for &j in &search.reached {
+        reached[j as usize] = true;
+    }
+    reached
+}
+
+/// The mesh's edges, both ways, sorted: node a's neighbours are `edges[start[a]..start[a + 1]]`.
+struct EdgeGraph {
+    start: Vec<usize>,
+    edges: Vec<(u32, u32)>,
+}
+
+impl EdgeGraph {
+    fn new(mesh: &TetMesh) -> Self {
+        let mut edges: Vec<(u32, u32)> = Vec::with_capacity(12 * mesh.num_tets());
+        for tet in &mesh.tets {
+            for a in 0..4 {
+                for b in 0..4 {
+                    if a != b {
+                        edges.push((tet[a] as u32, tet[b] as u32));
+                    }
+                }
+            }
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        let mut start = vec![0usize; mesh.num_nodes() + 1];
+        for &(a, _) in &edges {
+            start[a as usize + 1] += 1;
+        }
+        for i in 0..mesh.num_nodes() {
+            start[i + 1] += start[i];
+        }
+        EdgeGraph { start, edges }
+    }
+}
+
+/// Dijkstra's search bounded by a length, its arrays kept from search to search.
+struct BoundedSearch {
+    /// Shortest path length from the sources (m; infinite where not reached).
+    distance: Vec<f64>,
+    /// Reached nodes, in the order first reached.
+    reached: Vec<u32>,
+}
+
+impl BoundedSearch {
+    fn new(nodes: usize) -> Self {
+        BoundedSearch {
+            distance: vec![f64::INFINITY; nodes],
+            reached: Vec::new(),
+        }
+    }
+
+    /// Finds every node closer than `length` to one of `sources` along the edges of `graph`
+    /// (rest positions `rest`). Distances are ordered as integer nanometres in the heap
+    /// (exact enough for weights, and no float ordering to work around); ties go to the
+    /// lower node.
+    fn run(&mut self, graph: &EdgeGraph, rest: &[Vector3<f64>], sources: &[usize], length: f64) {
+        let mut heap = BinaryHeap::new();
+        for &source in sources {
+            self.distance[source] = 0.0;
+            self.reached.push(source as u32);
+            heap.push(Reverse((0u64, source as u32)));
+        }
+        while let Some(Reverse((_, a))) = heap.pop() {
+            let a = a as usize;
+            let da = self.distance[a];
+            for &(_, b) in &graph.edges[graph.start[a]..graph.start[a + 1]] {
+                let b = b as usize;
+                let d = da + (rest[a] - rest[b]).norm();
+                if d < length && d < self.distance[b] {
+                    if self.distance[b].is_infinite() {
+                        self.reached.push(b as u32);
+                    }
+                    self.distance[b] = d;
+                    heap.push(Reverse(((d * 1e9) as u64, b as u32)));
+                }
+            }
+        }
+    }
+
+    /// Forgets the last search.
+    fn clear(&mut self) {
+        for &j in &self.reached {
+            self.distance[j as usize] = f64::INFINITY;
+        }
+        self.reached.clear();
     }
 }
 
@@ -202,5 +271,30 @@ mod tests {
                 .all(|&(j, _)| (j as usize >= first) == (i >= first)));
             assert_eq!(around[0], (i as u32, 1.0), "itself first, at full weight");
         }
+    }
+
+    #[test]
+    fn the_nodes_within_reach_of_some_nodes_are_their_neighbourhoods() {
+        // Every other node of a 4 cm cube of 1 cm cells, ℓ = 2.5 cm: `of` keeps their
+        // neighbourhoods (and no other node's), and `within` is the union of them.
+        let mesh = box_mesh([0.0; 3], [0.04; 3], [4, 4, 4], 6).unwrap();
+        let sources: Vec<bool> = (0..mesh.num_nodes()).map(|i| i % 7 == 0).collect();
+        let all = Averaging::new(&mesh, 0.025);
+        let some = Averaging::of(&mesh, 0.025, Some(&sources));
+        let reached = within(&mesh, 0.025, &sources);
+        let mut union = vec![false; mesh.num_nodes()];
+        for (i, &source) in sources.iter().enumerate() {
+            let got = &some.neighbours[some.ptr[i]..some.ptr[i + 1]];
+            if source {
+                assert_eq!(got, &all.neighbours[all.ptr[i]..all.ptr[i + 1]]);
+                for &(j, _) in got {
+                    union[j as usize] = true;
+                }
+            } else {
+                assert!(got.is_empty());
+            }
+        }
+        assert_eq!(reached, union);
+        assert!(reached.iter().filter(|&&r| r).count() > sources.iter().filter(|&&s| s).count());
     }
 }

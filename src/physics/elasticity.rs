@@ -14,7 +14,7 @@ use super::creep::{Creep, CreepStep};
 use super::history::ElementHistory;
 use super::plasticity::Plasticity;
 use super::term::StepTerm;
-use super::volumetric::NodalVolume;
+use super::volumetric::{self, NodalVolume};
 use crate::assembly::{Assembly, ElementSubset};
 use crate::fem::{
     element_eval, element_stress, ElasticLaw, ElasticModel, ElementEval, ElementRest, Flow, Law,
@@ -340,6 +340,26 @@ impl Elasticity {
         let (change, bulk) = self.volume_changes(tets, history, offsets, u, false);
         let theta: Vec<f64> = change.iter().map(|c| c.theta).collect();
         Some(nodal.pressures(&theta, &bulk, &self.rest, tets, owned))
+    }
+
+    /// As [`Elasticity::nodal_pressures`], the element pressures only, with the nodal
+    /// pressures passed through `from_owners` before they are averaged over the elements: on
+    /// a process's part, a node's pressure is whole only where the part holds its star (at
+    /// the nodes of its own elements), and `from_owners` gives every node its owner's.
+    pub fn element_pressures_from_owners(
+        &self,
+        tets: &[[usize; 4]],
+        history: &ElementHistory,
+        offsets: &[StrainOffset],
+        u: &[f64],
+        from_owners: &dyn Fn(&mut [f64]),
+    ) -> Option<Vec<f64>> {
+        let nodal = self.nodal.as_ref()?;
+        let (change, bulk) = self.volume_changes(tets, history, offsets, u, false);
+        let theta: Vec<f64> = change.iter().map(|c| c.theta).collect();
+        let (mut node_pressure, _) = nodal.node_pressures(&theta, &bulk, &self.rest, None);
+        from_owners(&mut node_pressure);
+        Some(volumetric::element_pressures(&node_pressure, tets))
     }
 
     /// Energy, gradient and optionally the exact stiffness of element `e` for displacements `u`.

@@ -136,6 +136,20 @@ impl NodalVolume {
         tets: &[[usize; 4]],
         owned: Option<&[bool]>,
     ) -> (Vec<f64>, f64) {
+        let (node_pressure, energy) = self.node_pressures(theta, bulk, rest, owned);
+        (element_pressures(&node_pressure, tets), energy)
+    }
+
+    /// Nodal pressures pₐ = κₐ θ̄ₐ (Pa) for element volume changes `theta` and bulk moduli
+    /// `bulk` (Pa), and the volumetric energy U_vol (J) of the nodes whose dofs `owned` marks
+    /// (all if `None`).
+    pub fn node_pressures(
+        &self,
+        theta: &[f64],
+        bulk: &[f64],
+        rest: &[ElementRest],
+        owned: Option<&[bool]>,
+    ) -> (Vec<f64>, f64) {
         let mut node_pressure = vec![0.0; self.node_volume.len()];
         let mut energy = 0.0;
         for (a, p) in node_pressure.iter_mut().enumerate() {
@@ -154,11 +168,7 @@ impl NodalVolume {
                 energy += 0.5 * va * k * t * t;
             }
         }
-        let pressure = tets
-            .iter()
-            .map(|tet| tet.iter().map(|&a| node_pressure[a]).sum::<f64>() / 4.0)
-            .collect();
-        (pressure, energy)
+        (node_pressure, energy)
     }
 
     /// Adds Σₐ Vₐ κₐ ∇θ̄ₐ ∇θ̄ₐᵀ to the CSC values `hessian`, for the elements' volume changes
@@ -214,4 +224,12 @@ impl NodalVolume {
             }
         }
     }
+}
+
+/// Element pressures p̄ₑ = ¼ Σₐ pₐ (Pa) over the element's nodes, from the nodal pressures
+/// `node_pressure` (Pa).
+pub fn element_pressures(node_pressure: &[f64], tets: &[[usize; 4]]) -> Vec<f64> {
+    tets.iter()
+        .map(|tet| tet.iter().map(|&a| node_pressure[a]).sum::<f64>() / 4.0)
+        .collect()
 }

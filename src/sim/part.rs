@@ -50,14 +50,14 @@ pub fn ranges(items: usize, processes: usize) -> Vec<usize> {
 impl Part {
     /// The part of process `rank` when element `e` is in partition part `element_part[e]`
     /// and node `i` is owned by process `node_owner[i]` (one of its elements' processes): its
-    /// elements, every element around their nodes, the elements `everywhere` (every process
-    /// holds them), and those elements' nodes (`tets`: the whole mesh's elements). With
-    /// `whole`, every element and node.
+    /// elements, every element around their nodes, the elements `besides` (those every
+    /// process holds, or a wider halo of the process's own), and those elements' nodes
+    /// (`tets`: the whole mesh's elements). With `whole`, every element and node.
     pub fn new(
         tets: &[[usize; 4]],
         (element_part, node_owner): (&[u32], &[u32]),
         rank: u32,
-        (everywhere, whole): (&[usize], bool),
+        (besides, whole): (&[usize], bool),
     ) -> Part {
         let n = node_owner.len();
         let mut near = vec![whole; n];
@@ -69,7 +69,7 @@ impl Part {
             }
         }
         let mut held = vec![false; tets.len()];
-        for &e in everywhere {
+        for &e in besides {
             held[e] = true;
         }
         let elements: Vec<usize> = (0..tets.len())
