@@ -8,7 +8,10 @@
 mod common;
 
 use icefem::distributed::partition::{self, Partition};
+use icefem::distributed::splits::{gathered_patch, plan_from_owner, SplitPlan};
 use icefem::distributed::{components, dual_graph, part_mesh};
+use icefem::fracture::patch::{HeldMesh, Patch};
+use icefem::fracture::split::Fracturable;
 use icefem::fracture::{
     area_floor, separation, separation_on_part, Averaging, NodeSeparation, OnPart,
 };
@@ -16,7 +19,7 @@ use icefem::mesh::{box_mesh, BoxGrid, TetMesh, TET_FACES};
 use icefem::physics::contact::ObstacleContact;
 use icefem::run::Processes;
 use icefem::scene::Scene;
-use icefem::sim::part::Part;
+use icefem::sim::part::{lowest_owners, Part};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use std::collections::HashMap;
@@ -717,6 +720,41 @@ fn got_freezing(scene: &Scene) -> Vec<f64> {
         .collect()
 }
 
+/// The 1 728-tet container 15 s into its freezing: a frozen shell (plastic, with the nodal
+/// volumetric energy) around water, pressed by the container's walls; and the contact forces
+/// on its nodes (N, 3 per node).
+fn frozen_container() -> (icefem::sim::Simulation, Vec<f64>) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes/freezing_container_fracture_1728.toml");
+    let scene = Scene::load(&path).unwrap();
+    let mut sim = icefem::sim::Simulation::new(scene.model.clone(), scene.settings).unwrap();
+    while sim.state.time < 15.0 {
+        sim.step().unwrap();
+    }
+    let pressing: Vec<f64> = sim.contact_forces().map_or(Vec::new(), |c| {
+        (c.normal.iter().zip(&c.friction))
+            .map(|(n, f)| n + f)
+            .collect()
+    });
+    (sim, pressing)
+}
+
+/// Each element's process: slabs of the 10 cm container along a skew direction, so that the
+/// cuts run across the mesh's cells.
+fn slabs(mesh: &TetMesh) -> Vec<u32> {
+    (mesh.tets.iter())
+        .map(|t| {
+            let c = t
+                .iter()
+                .map(|&v| mesh.rest[v])
+                .sum::<nalgebra::Vector3<f64>>()
+                / 4.0;
+            let s = (c.x + 0.5 * c.y) / 0.15;
+            ((s * PROCESSES as f64) as u32).min(PROCESSES as u32 - 1)
+        })
+        .collect()
+}
+
 /// The fracture criterion's separations of `sim`'s nodes evaluated by this process on its
 /// part of the mesh (processes by slabs across the container), its part holding the nodes
 /// within `length` (m) of its owned nodes when averaging over `length` (`halo`), or only its
@@ -729,19 +767,7 @@ fn separations_on_part(
 ) -> (Part, Vec<(usize, NodeSeparation)>) {
     let mesh = &sim.model.mesh;
     let rank = world.rank() as u32;
-    // Slabs along a skew direction, so that the cuts run across the mesh's cells.
-    let element_part: Vec<u32> = (mesh.tets.iter())
-        .map(|t| {
-            let c = t
-                .iter()
-                .map(|&v| mesh.rest[v])
-                .sum::<nalgebra::Vector3<f64>>()
-                / 4.0;
-            let s = (c.x + 0.5 * c.y) / 0.15;
-            ((s * PROCESSES as f64) as u32).min(PROCESSES as u32 - 1)
-        })
-        .collect();
-    let partition = Partition::from_element_parts(mesh, element_part, PROCESSES);
+    let partition = Partition::from_element_parts(mesh, slabs(mesh), PROCESSES);
     let owned: Vec<bool> = partition.node_owner.iter().map(|&o| o == rank).collect();
     let halo: Vec<usize> = match (length, halo) {
         (Some(length), true) => {
@@ -789,20 +815,7 @@ fn the_fracture_criterion_on_a_part_is_the_whole_meshs_at_its_owned_nodes() {
     ) else {
         return;
     };
-    // The 1 728-tet container 15 s into its freezing: a frozen shell (plastic, with the nodal
-    // volumetric energy) around water, pressed by the container's walls.
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes/freezing_container_fracture_1728.toml");
-    let scene = Scene::load(&path).unwrap();
-    let mut sim = icefem::sim::Simulation::new(scene.model.clone(), scene.settings).unwrap();
-    while sim.state.time < 15.0 {
-        sim.step().unwrap();
-    }
-    let pressing: Vec<f64> = sim.contact_forces().map_or(Vec::new(), |c| {
-        (c.normal.iter().zip(&c.friction))
-            .map(|(n, f)| n + f)
-            .collect()
-    });
+    let (sim, pressing) = frozen_container();
     let mesh = &sim.model.mesh;
     let whole = |length: Option<f64>| {
         let averaging = length.map(|l| Averaging::new(mesh, l));
@@ -854,4 +867,149 @@ fn the_fracture_criterion_on_a_part_is_the_whole_meshs_at_its_owned_nodes() {
             assert!(part.elements.len() < mesh.num_tets(), "a part");
         }
     }
+}
+
+#[test]
+fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
+    let Some(world) =
+        on_three_processes("a_split_made_on_the_parts_is_the_split_of_the_whole_mesh")
+    else {
+        return;
+    };
+    // The frozen container's most separated nodes split one after another, each with its
+    // separation normal: once on the whole mesh, and once by the processes holding their
+    // parts, the node's owner telling the others its star and normal. The patch the
+    // processes put together is the whole mesh's, and after each split each process's part
+    // holds its part of the split whole mesh, with the whole mesh's rows.
+    let (sim, pressing) = frozen_container();
+    let mesh = &sim.model.mesh;
+    let separations = separation(
+        &sim.model.elasticity,
+        &sim.state.history,
+        &mesh.tets,
+        &sim.state.u,
+        &pressing,
+        area_floor(mesh),
+        None,
+    );
+    let mut targets: Vec<(usize, NodeSeparation)> = (separations.iter().copied())
+        .enumerate()
+        .filter(|(_, s)| s.eligible)
+        .collect();
+    targets.sort_by(|a, b| b.1.stress().total_cmp(&a.1.stress()));
+    let rank = world.rank() as u32;
+    let mut whole = Fracturable::new(
+        mesh.rest.clone(),
+        mesh.tets.clone(),
+        sim.state.u.clone(),
+        sim.state.v.clone(),
+    );
+    whole.min_volume = 1e-2 * mesh.volume() / mesh.num_tets() as f64;
+    let first_processes = slabs(mesh);
+    let mut processes = first_processes.clone();
+    let first = Part::new(
+        &mesh.tets,
+        (
+            &processes,
+            &lowest_owners(&mesh.tets, &processes, mesh.num_nodes()),
+        ),
+        rank,
+        (&[], false),
+    );
+    let mut part = first.clone();
+    let mut held = whole.rows_of(&part);
+    let (mut splits, mut cut, mut shared) = (0, 0, 0);
+    for &(node, s) in targets.iter().take(8) {
+        // On the whole mesh (each element's scene element is its parent there).
+        let (mut expected, expected_local) = Patch::of(&whole, &whole.parent, node);
+        // On the parts.
+        let owner = lowest_owners(&whole.tets, &processes, whole.rest.len())[node];
+        let plan = (owner == rank).then(|| {
+            let star = Patch::star_nodes(&held.tets, part.local(node).unwrap());
+            SplitPlan {
+                star: star.iter().map(|&k| part.nodes[k]).collect(),
+                normal: s.normal,
+            }
+        });
+        let plan = plan_from_owner(&world, owner, plan);
+        assert_eq!(plan.normal, s.normal);
+        let origin: Vec<usize> = held.parent.iter().map(|&e| first.elements[e]).collect();
+        let on_part = HeldMesh {
+            mesh: &held,
+            elements: &part.elements,
+            nodes: &part.nodes,
+            origin: &origin,
+        };
+        let counts = (whole.rest.len(), whole.tets.len());
+        let (mut patch, local, patch_processes) = gathered_patch(
+            &world,
+            &on_part,
+            &part.own_elements,
+            (&plan.star, node),
+            counts,
+        );
+        assert!(patch == expected, "node {node}: another patch");
+        assert_eq!(local, expected_local);
+        let expected_processes: Vec<u32> = (0..expected.origin.len())
+            .map(|k| processes[expected.element(k)])
+            .collect();
+        assert_eq!(patch_processes, expected_processes);
+        let split = patch.mesh.split_node(local, &plan.normal, 0.2, 0.1);
+        let expected_split = (expected.mesh).split_node(expected_local, &s.normal, 0.2, 0.1);
+        assert_eq!(split, expected_split);
+        let Some(split) = split else { continue };
+        splits += 1;
+        cut += split.edge_nodes.len();
+        shared += usize::from(patch_processes.iter().any(|&p| p != patch_processes[0]));
+        expected.apply(&mut whole);
+        // A child stays with its parent's process.
+        processes = whole.parent.iter().map(|&e| first_processes[e]).collect();
+        let after = patch
+            .apply_to_part(&part, &mut held, &patch_processes, rank)
+            .unwrap();
+        let owners = lowest_owners(&whole.tets, &processes, whole.rest.len());
+        let wanted = Part::new(&whole.tets, (&processes, &owners), rank, (&[], false));
+        let own = |p: &Part| -> Vec<usize> {
+            (p.elements.iter().zip(&p.own_elements))
+                .filter(|(_, &o)| o)
+                .map(|(&e, _)| e)
+                .collect()
+        };
+        let owned = |p: &Part| -> Vec<usize> {
+            (p.nodes.iter().zip(&p.owned_nodes))
+                .filter(|(_, &o)| o)
+                .map(|(&i, _)| i)
+                .collect()
+        };
+        assert_eq!(own(&after), own(&wanted));
+        assert_eq!(owned(&after), owned(&wanted));
+        assert!(wanted
+            .elements
+            .iter()
+            .all(|e| after.elements.binary_search(e).is_ok()));
+        // The part's mesh and state are the whole mesh's rows (parents through the first
+        // part's numbers; copies of nodes the part never held named past its numbers).
+        let mut rows = whole.rows_of(&after);
+        rows.parent = (after.elements.iter())
+            .map(|&e| first.elements.binary_search(&whole.parent[e]).unwrap())
+            .collect();
+        rows.node_parent = (after.nodes.iter())
+            .map(|&i| {
+                let p = whole.node_parent[i];
+                (first.local(p).or(after.local(p))).unwrap_or(usize::MAX - p)
+            })
+            .collect();
+        assert!(held == rows, "process {rank}: other rows");
+        part = after;
+    }
+    eprintln!(
+        "process {rank}: {splits} splits ({shared} on patches of several processes), {cut} \
+         edges cut, {} of {} elements held",
+        part.elements.len(),
+        whole.tets.len()
+    );
+    assert!(
+        splits >= 4 && cut > 0 && shared > 0,
+        "{splits} splits, {cut} cut, {shared}"
+    );
 }

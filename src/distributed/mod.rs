@@ -28,6 +28,7 @@ pub mod part_mesh;
 pub mod partition;
 pub mod petsc;
 pub mod solver;
+pub mod splits;
 
 use crate::assembly::Assembly;
 use crate::mesh::TetMesh;

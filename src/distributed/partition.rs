@@ -77,13 +77,8 @@ impl Partition {
     /// The partition given each element's process (`< parts`).
     pub fn from_element_parts(mesh: &TetMesh, element_part: Vec<u32>, parts: usize) -> Self {
         let n = mesh.num_nodes();
+        let mut node_owner = crate::sim::part::lowest_owners(&mesh.tets, &element_part, n);
         // Nodes of no element (none in a valid mesh) go to process 0.
-        let mut node_owner = vec![u32::MAX; n];
-        for (tet, &p) in mesh.tets.iter().zip(&element_part) {
-            for &v in tet {
-                node_owner[v] = node_owner[v].min(p);
-            }
-        }
         for owner in &mut node_owner {
             if *owner == u32::MAX {
                 *owner = 0;

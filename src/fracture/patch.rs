@@ -22,7 +22,7 @@ use crate::sim::part::Part;
 use nalgebra::Vector3;
 
 /// The elements and nodes a split of one node involves, with their state, numbered locally.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Patch {
     /// The mesh's elements in the patch, ascending: patch element `k` is `elements[k]`.
     elements: Vec<usize>,
@@ -126,6 +126,55 @@ impl HeldMesh<'_> {
             .collect();
         (elements, node_rows)
     }
+}
+
+/// The rows `elements` and `nodes` a process gives to a patch, as words to send to the other
+/// processes (read back by [`rows_from_words`]): a count of each and of a node's fields, then
+/// per element its number, nodes, scene element, process and smallest volume, per node its
+/// number, rest position and fields (floating-point values by their bits).
+pub fn rows_to_words(elements: &[PatchElement], nodes: &[PatchNode]) -> Vec<u64> {
+    let fields = nodes.first().map_or(0, |n| n.fields.len());
+    let mut words = vec![elements.len() as u64, nodes.len() as u64, fields as u64];
+    for e in elements {
+        words.push(e.element as u64);
+        words.extend(e.nodes.map(|i| i as u64));
+        words.extend([e.origin as u64, e.process as u64, e.min_volume.to_bits()]);
+    }
+    for n in nodes {
+        words.push(n.node as u64);
+        words.extend(n.rest.iter().chain(&n.fields).map(|x| x.to_bits()));
+    }
+    words
+}
+
+/// The rows in `words`: one or more processes' [`rows_to_words`] one after another.
+pub fn rows_from_words(words: &[u64]) -> (Vec<PatchElement>, Vec<PatchNode>) {
+    let (mut elements, mut nodes) = (Vec::new(), Vec::new());
+    let mut rest = words;
+    while let [count, node_count, fields, tail @ ..] = rest {
+        let (count, node_count, fields) = (*count as usize, *node_count as usize, *fields as usize);
+        let (element_words, tail) = tail.split_at(8 * count);
+        for w in element_words.chunks_exact(8) {
+            elements.push(PatchElement {
+                element: w[0] as usize,
+                nodes: [w[1], w[2], w[3], w[4]].map(|i| i as usize),
+                origin: w[5] as usize,
+                process: w[6] as u32,
+                min_volume: f64::from_bits(w[7]),
+            });
+        }
+        let (node_words, tail) = tail.split_at((4 + fields) * node_count);
+        for w in node_words.chunks_exact(4 + fields) {
+            let value = |k: usize| f64::from_bits(w[k]);
+            nodes.push(PatchNode {
+                node: w[0] as usize,
+                rest: Vector3::new(value(1), value(2), value(3)),
+                fields: (4..4 + fields).map(value).collect(),
+            });
+        }
+        rest = tail;
+    }
+    (elements, nodes)
 }
 
 impl Patch {
@@ -442,30 +491,7 @@ impl Patch {
 mod tests {
     use super::*;
     use crate::fracture::split::tests::skewed_block;
-    use crate::sim::part::Part;
-
-    /// The rows of `whole` (mesh and state) that `part` holds, numbered in the part.
-    fn restricted(part: &Part, whole: &Fracturable) -> Fracturable {
-        let rows = |field: &[f64]| part.rows_of(field, 3, false);
-        let mut f = Fracturable::new(
-            part.nodes.iter().map(|&i| whole.rest[i]).collect(),
-            part.tets_of(&whole.tets),
-            rows(&whole.u),
-            rows(&whole.v),
-        );
-        f.extra = whole.extra.iter().map(|x| rows(x)).collect();
-        f.min_volume = whole.min_volume;
-        f
-    }
-
-    /// Each node's owner: the lowest process among its elements'.
-    fn owners(tets: &[[usize; 4]], processes: &[u32], nodes: usize) -> Vec<u32> {
-        let mut owner = vec![u32::MAX; nodes];
-        for (t, &p) in tets.iter().zip(processes) {
-            t.iter().for_each(|&i| owner[i] = owner[i].min(p));
-        }
-        owner
-    }
+    use crate::sim::part::{lowest_owners, Part};
 
     #[test]
     fn a_split_of_the_patch_put_back_is_the_split_of_the_whole_mesh() {
@@ -548,12 +574,12 @@ mod tests {
                 ((x / 0.01) as u32).min(2)
             })
             .collect();
-        let owner = owners(&whole.tets, &processes, whole.rest.len());
+        let owner = lowest_owners(&whole.tets, &processes, whole.rest.len());
         let first: Vec<Part> = (0..3)
             .map(|r| Part::new(&whole.tets, (&processes, &owner), r, (&[], false)))
             .collect();
         let mut parts = first.clone();
-        let mut meshes: Vec<Fracturable> = parts.iter().map(|p| restricted(p, &whole)).collect();
+        let mut meshes: Vec<Fracturable> = parts.iter().map(|p| whole.rows_of(p)).collect();
         let (mut splits, mut moved) = (0, 0);
         let skew = Vector3::new(1.0, 0.3, 0.2).normalize();
         let targets = [
@@ -575,14 +601,14 @@ mod tests {
                 continue;
             }
             splits += 1;
-            let before = owners(&whole.tets, &processes, whole.rest.len());
+            let before = lowest_owners(&whole.tets, &processes, whole.rest.len());
             patch.apply(&mut whole);
             processes = whole
                 .parent
                 .iter()
                 .map(|&e| first_processes(&first, e))
                 .collect();
-            let owner = owners(&whole.tets, &processes, whole.rest.len());
+            let owner = lowest_owners(&whole.tets, &processes, whole.rest.len());
             moved += (before.iter().zip(&owner)).filter(|(a, b)| a != b).count();
             for r in 0..3u32 {
                 let part = &parts[r as usize];
@@ -615,7 +641,7 @@ mod tests {
                 assert_eq!(owned(&after), owned(&expected), "process {r}");
                 // The part's mesh and state are the whole mesh's rows; parents and copies are
                 // the whole mesh's, through the first part's numbers.
-                let mut rows = restricted(&after, &whole);
+                let mut rows = whole.rows_of(&after);
                 let start = &first[r as usize];
                 rows.parent = (after.elements.iter())
                     .map(|&e| start.elements.binary_search(&whole.parent[e]).unwrap())
@@ -657,12 +683,12 @@ mod tests {
         let processes: Vec<u32> = (whole.tets.iter())
             .map(|t| ((t.iter().map(|&i| whole.rest[i].x).sum::<f64>() / 0.04) as u32).min(2))
             .collect();
-        let owner = owners(&whole.tets, &processes, whole.rest.len());
+        let owner = lowest_owners(&whole.tets, &processes, whole.rest.len());
         let origin: Vec<usize> = (0..whole.tets.len()).map(|e| 7 * e + 1).collect();
         let parts: Vec<(Part, Fracturable, Vec<usize>)> = (0..3)
             .map(|r| {
                 let part = Part::new(&whole.tets, (&processes, &owner), r, (&[], false));
-                let f = restricted(&part, &whole);
+                let f = whole.rows_of(&part);
                 let origin = part.elements.iter().map(|&e| origin[e]).collect();
                 (part, f, origin)
             })
@@ -693,5 +719,28 @@ mod tests {
             let by_element: Vec<u32> = patch.elements.iter().map(|&e| processes[e]).collect();
             assert_eq!(patch_processes, by_element);
         }
+    }
+
+    #[test]
+    fn rows_sent_as_words_read_back_the_same() {
+        // Two processes' rows of one patch, one after the other as a gathering gives them.
+        let whole = skewed_block();
+        let origin: Vec<usize> = (0..whole.tets.len()).map(|e| 7 * e).collect();
+        let numbers: Vec<usize> = (0..whole.rest.len().max(whole.tets.len())).collect();
+        let held = HeldMesh {
+            mesh: &whole,
+            elements: &numbers[..whole.tets.len()],
+            nodes: &numbers[..whole.rest.len()],
+            origin: &origin,
+        };
+        let star = Patch::star_nodes(&whole.tets, 21);
+        let first = held.patch_rows(|e| (e % 2 == 0).then_some(0), &star);
+        let second = held.patch_rows(|e| (e % 2 == 1).then_some(1), &star);
+        let mut words = rows_to_words(&first.0, &first.1);
+        words.extend(rows_to_words(&second.0, &second.1));
+        let (elements, nodes) = rows_from_words(&words);
+        assert_eq!(elements, [first.0, second.0].concat());
+        assert_eq!(nodes, [first.1, second.1].concat());
+        assert!(!elements.is_empty() && nodes[0].fields.len() == 9);
     }
 }

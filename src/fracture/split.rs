@@ -15,6 +15,7 @@
 //! the lumped mass when it is recomputed from the rest volumes.
 
 use crate::mesh::radius_ratio;
+use crate::sim::part::Part;
 use nalgebra::Vector3;
 use std::collections::{HashMap, HashSet};
 
@@ -69,6 +70,21 @@ impl Fracturable {
             extra: Vec::new(),
             min_volume: 0.0,
         }
+    }
+
+    /// The rows of this mesh and state that `part` holds, numbered in the part (each element
+    /// its own parent, each node its own copy).
+    pub fn rows_of(&self, part: &Part) -> Fracturable {
+        let rows = |field: &[f64]| part.rows_of(field, 3, false);
+        let mut f = Fracturable::new(
+            part.nodes.iter().map(|&i| self.rest[i]).collect(),
+            part.tets_of(&self.tets),
+            rows(&self.u),
+            rows(&self.v),
+        );
+        f.extra = self.extra.iter().map(|x| rows(x)).collect();
+        f.min_volume = self.min_volume;
+        f
     }
 
     /// Current position of node `i` (m).

@@ -47,6 +47,19 @@ pub fn ranges(items: usize, processes: usize) -> Vec<usize> {
     (0..=processes).map(|r| r * items / processes).collect()
 }
 
+/// Each of `nodes` nodes' owner when element `e` of `tets` is in partition part
+/// `element_part[e]`: the lowest process among its elements' (`u32::MAX` for a node of no
+/// element).
+pub fn lowest_owners(tets: &[[usize; 4]], element_part: &[u32], nodes: usize) -> Vec<u32> {
+    let mut owner = vec![u32::MAX; nodes];
+    for (tet, &p) in tets.iter().zip(element_part) {
+        for &v in tet {
+            owner[v] = owner[v].min(p);
+        }
+    }
+    owner
+}
+
 impl Part {
     /// The part of process `rank` when element `e` is in partition part `element_part[e]`
     /// and node `i` is owned by process `node_owner[i]` (one of its elements' processes): its
