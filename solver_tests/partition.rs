@@ -8,7 +8,7 @@
 mod common;
 
 use icefem::distributed::partition::{self, Partition};
-use icefem::distributed::splits::{gathered_patch, plan_from_owner, SplitPlan};
+use icefem::distributed::splits::{gathered_patch, plan_from_owner, smallest_piece, SplitPlan};
 use icefem::distributed::{components, dual_graph, part_mesh};
 use icefem::fracture::patch::{HeldMesh, Patch};
 use icefem::fracture::split::Fracturable;
@@ -409,7 +409,8 @@ fn the_processes_find_the_connected_parts_of_the_whole_mesh() {
             (&element_starts, &node_starts, &mine),
             part_mesh::HeldEverywhere::These(&[]),
         );
-        let (labels, parts) = components::connected_parts(&world, &got);
+        let (labels, parts) =
+            components::connected_parts(&world, &got.part, &got.tets, &got.numbering.node_owner);
         assert_eq!(parts, 3);
         let at_part: Vec<u32> = got.part.nodes.iter().map(|&i| want[i]).collect();
         assert_eq!(
@@ -918,6 +919,8 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
     );
     let mut part = first.clone();
     let mut held = whole.rows_of(&part);
+    let owners = lowest_owners(&mesh.tets, &processes, mesh.num_nodes());
+    let mut node_owner: Vec<u32> = part.nodes.iter().map(|&i| owners[i]).collect();
     let (mut splits, mut cut, mut shared) = (0, 0, 0);
     for &(node, s) in targets.iter().take(8) {
         // On the whole mesh (each element's scene element is its parent there).
@@ -965,10 +968,25 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         // A child stays with its parent's process.
         processes = whole.parent.iter().map(|&e| first_processes[e]).collect();
         let after = patch
-            .apply_to_part(&part, &mut held, &patch_processes, rank)
+            .apply_to_part(&part, (&mut held, &mut node_owner), &patch_processes, rank)
             .unwrap();
         let owners = lowest_owners(&whole.tets, &processes, whole.rest.len());
         let wanted = Part::new(&whole.tets, (&processes, &owners), rank, (&[], false));
+        let at_part: Vec<u32> = after.nodes.iter().map(|&i| owners[i]).collect();
+        assert_eq!(node_owner, at_part);
+        // The smallest piece, from the parts: the whole mesh's, to round-off (sums of
+        // volumes in another order; a piece is ~1e-3 m³).
+        let on_parts = smallest_piece(&world, &after, &held, &node_owner);
+        let (piece, count) = icefem::mesh::parts_of(whole.rest.len(), &whole.tets);
+        let mut volumes = vec![0.0; count];
+        for (t, v) in whole.tets.iter().zip(whole.volumes()) {
+            volumes[piece[t[0]] as usize] += v;
+        }
+        let smallest = volumes.into_iter().fold(f64::INFINITY, f64::min);
+        assert!(
+            (on_parts - smallest).abs() <= 1e-12 * smallest,
+            "{on_parts} vs {smallest}"
+        );
         let own = |p: &Part| -> Vec<usize> {
             (p.elements.iter().zip(&p.own_elements))
                 .filter(|(_, &o)| o)

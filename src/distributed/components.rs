@@ -10,19 +10,25 @@
 //! its lowest node, and parts are numbered in the order of it, as on one process.
 
 use super::ghosts::{all_gathered, exchange};
-use super::part_mesh::PartMesh;
+use crate::sim::part::Part;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use petgraph::unionfind::UnionFind;
 
-/// The connected part of the whole mesh each node of this process's part `mesh` is in, and the
-/// number of parts: what `mesh::parts` gives on the whole mesh, at the part's nodes. Every
-/// process calls it.
-pub fn connected_parts(world: &SimpleCommunicator, mesh: &PartMesh) -> (Vec<u32>, usize) {
+/// The connected part of the whole mesh each node of this process's `part` is in, and the
+/// number of parts: what `mesh::parts` gives on the whole mesh, at the part's nodes. `tets`
+/// are the part's elements numbered in the part, and `node_owner` the process owning each of
+/// its nodes. Every process calls it.
+pub fn connected_parts(
+    world: &SimpleCommunicator,
+    part: &Part,
+    tets: &[[usize; 4]],
+    node_owner: &[u32],
+) -> (Vec<u32>, usize) {
     let (size, rank) = (world.size() as usize, world.rank() as u32);
-    let nodes = &mesh.part.nodes;
+    let nodes = &part.nodes;
     // The part's pieces, each labelled by its lowest node (the part's nodes ascend).
-    let (piece, pieces) = crate::mesh::parts_of(nodes.len(), &mesh.tets);
+    let (piece, pieces) = crate::mesh::parts_of(nodes.len(), tets);
     let mut lowest = vec![u64::MAX; pieces];
     for (k, &p) in piece.iter().enumerate() {
         lowest[p as usize] = lowest[p as usize].min(nodes[k] as u64);
@@ -30,7 +36,7 @@ pub fn connected_parts(world: &SimpleCommunicator, mesh: &PartMesh) -> (Vec<u32>
     let label = |k: usize| lowest[piece[k] as usize];
     // (node, this process's label there) to the node's owner.
     let mut told = vec![Vec::new(); size];
-    for (k, &owner) in mesh.numbering.node_owner.iter().enumerate() {
+    for (k, &owner) in node_owner.iter().enumerate() {
         if owner != rank {
             told[owner as usize].extend([nodes[k] as u64, label(k)]);
         }

@@ -6,8 +6,12 @@
 //! all of them, and each puts the same patch together ([`gathered_patch`]), splits it the same
 //! way and puts the split into its own part (`Patch::apply_to_part`).
 
+use super::components::connected_parts;
 use super::ghosts::all_gathered;
 use crate::fracture::patch::{rows_from_words, rows_to_words, HeldMesh, Patch};
+use crate::fracture::split::Fracturable;
+use crate::sim::part::Part;
+use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use nalgebra::Vector3;
@@ -65,4 +69,28 @@ pub fn gathered_patch(
     let words = all_gathered(world, &rows_to_words(&elements, &nodes));
     let (elements, nodes) = rows_from_words(&words);
     Patch::from_rows(elements, nodes, node, whole)
+}
+
+/// Rest volume (m³) of the smallest connected piece of the mesh the processes of `world` hold,
+/// this process holding `part` with its mesh `mesh` (numbered in the part) and its nodes'
+/// owners `node_owner`: each process adds up its own elements' volumes by piece, and the
+/// pieces' sums are added over the processes (in another order than one process adds them:
+/// the same to round-off). Every process calls it.
+pub fn smallest_piece(
+    world: &SimpleCommunicator,
+    part: &Part,
+    mesh: &Fracturable,
+    node_owner: &[u32],
+) -> f64 {
+    let (piece, count) = connected_parts(world, part, &mesh.tets, node_owner);
+    let mut volume = vec![0.0; count];
+    for ((tet, v), _) in (mesh.tets.iter().zip(mesh.volumes()))
+        .zip(&part.own_elements)
+        .filter(|(_, &own)| own)
+    {
+        volume[piece[tet[0]] as usize] += v;
+    }
+    let mut total = vec![0.0; count];
+    world.all_reduce_into(&volume[..], &mut total[..], SystemOperation::sum());
+    total.into_iter().fold(f64::INFINITY, f64::min)
 }

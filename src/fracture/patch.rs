@@ -331,9 +331,10 @@ impl Patch {
     }
 
     /// Puts the split of this patch into a process's part of the mesh the patch was taken
-    /// from: `part`, whose mesh and state `mesh` holds numbered in the part, with `processes`
-    /// the process of each of the patch's elements before the split (their partition parts);
-    /// the process is `rank`. Returns the part after the split.
+    /// from: `part`, whose mesh and state `mesh` holds numbered in the part and whose nodes'
+    /// owners are `node_owner`, with `processes` the process of each of the patch's elements
+    /// before the split (their partition parts); the process is `rank`. Returns the part
+    /// after the split (`mesh` and `node_owner` are then its).
     ///
     /// A child element stays with its parent's process, and a node the split's stars changed
     /// (the split node's neighbours, and every node the split added) belongs to the lowest
@@ -350,7 +351,7 @@ impl Patch {
     pub fn apply_to_part(
         &self,
         part: &Part,
-        mesh: &mut Fracturable,
+        (mesh, node_owner): (&mut Fracturable, &mut Vec<u32>),
         processes: &[u32],
         rank: u32,
     ) -> Result<Part, String> {
@@ -460,9 +461,11 @@ impl Patch {
         for k in 0..self.nodes.len() {
             if let (true, Some(i)) = (complete[k], local[k]) {
                 owned_nodes[i] = owned[k];
+                node_owner[i] = owner[k];
             }
         }
         owned_nodes.extend(added_nodes.iter().map(|&k| owned[k]));
+        node_owner.extend(added_nodes.iter().map(|&k| owner[k]));
         let own_elements = (part.own_elements.iter().copied())
             .chain(added_elements.iter().map(|&k| process(k) == rank))
             .collect();
@@ -580,6 +583,9 @@ mod tests {
             .collect();
         let mut parts = first.clone();
         let mut meshes: Vec<Fracturable> = parts.iter().map(|p| whole.rows_of(p)).collect();
+        let mut node_owners: Vec<Vec<u32>> = (parts.iter())
+            .map(|p| p.nodes.iter().map(|&i| owner[i]).collect())
+            .collect();
         let (mut splits, mut moved) = (0, 0);
         let skew = Vector3::new(1.0, 0.3, 0.2).normalize();
         let targets = [
@@ -613,9 +619,12 @@ mod tests {
             for r in 0..3u32 {
                 let part = &parts[r as usize];
                 let mesh = &mut meshes[r as usize];
+                let node_owner = &mut node_owners[r as usize];
                 let after = patch
-                    .apply_to_part(part, mesh, &patch_processes, r)
+                    .apply_to_part(part, (mesh, node_owner), &patch_processes, r)
                     .unwrap();
+                let owners: Vec<u32> = after.nodes.iter().map(|&i| owner[i]).collect();
+                assert_eq!(*node_owner, owners, "process {r}");
                 let expected = Part::new(&whole.tets, (&processes, &owner), r, (&[], false));
                 assert!(expected
                     .elements
