@@ -10,6 +10,8 @@ mod common;
 use icefem::distributed::partition::{self, Partition};
 use icefem::distributed::splits::{gathered_patch, plan_from_owner, smallest_piece, SplitPlan};
 use icefem::distributed::{components, dual_graph, part_mesh};
+use icefem::fracture::cracks::OriginalBoundary;
+use icefem::fracture::driver::continued;
 use icefem::fracture::patch::{HeldMesh, Patch};
 use icefem::fracture::split::Fracturable;
 use icefem::fracture::{
@@ -921,21 +923,32 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
     let mut held = whole.rows_of(&part);
     let owners = lowest_owners(&mesh.tets, &processes, mesh.num_nodes());
     let mut node_owner: Vec<u32> = part.nodes.iter().map(|&i| owners[i]).collect();
-    let (mut splits, mut cut, mut shared) = (0, 0, 0);
-    for &(node, s) in targets.iter().take(8) {
+    // The scene mesh's boundary, and the part of it each process's scene elements have.
+    let scene_boundary = OriginalBoundary::new(mesh);
+    let (lo, hi) = mesh.bounding_box();
+    let marks: Vec<u8> = (first.elements.iter())
+        .map(|&e| mesh.boundary_marks()[e])
+        .collect();
+    let first_mesh = TetMesh::new(held.rest.clone(), held.tets.clone()).unwrap();
+    let part_boundary = OriginalBoundary::of_part(
+        &first_mesh,
+        (&first.elements, &marks),
+        mesh.num_tets(),
+        (hi - lo).norm(),
+    );
+    let (mut splits, mut cut, mut shared, mut turned) = (0, 0, 0, 0);
+    // The 8 most separated nodes, each split followed by a split of a node its cut put on
+    // the crack, with the normal turned by 10°: that split continues the crack in its plane.
+    let mut queue: std::collections::VecDeque<(usize, nalgebra::Vector3<f64>, bool)> =
+        (targets.iter().take(8))
+            .map(|(i, s)| (*i, s.normal, true))
+            .collect();
+    while let Some((node, given, follow)) = queue.pop_front() {
         // On the whole mesh (each element's scene element is its parent there).
         let (mut expected, expected_local) = Patch::of(&whole, &whole.parent, node);
-        // On the parts.
+        let normal = continued(&scene_boundary, &expected, expected_local, &given);
+        // On the parts: the owner reads the star and the normal from the elements it holds.
         let owner = lowest_owners(&whole.tets, &processes, whole.rest.len())[node];
-        let plan = (owner == rank).then(|| {
-            let star = Patch::star_nodes(&held.tets, part.local(node).unwrap());
-            SplitPlan {
-                star: star.iter().map(|&k| part.nodes[k]).collect(),
-                normal: s.normal,
-            }
-        });
-        let plan = plan_from_owner(&world, owner, plan);
-        assert_eq!(plan.normal, s.normal);
         let origin: Vec<usize> = held.parent.iter().map(|&e| first.elements[e]).collect();
         let on_part = HeldMesh {
             mesh: &held,
@@ -944,6 +957,21 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
             origin: &origin,
         };
         let counts = (whole.rest.len(), whole.tets.len());
+        let plan = (owner == rank).then(|| {
+            let star: Vec<usize> = (Patch::star_nodes(&held.tets, part.local(node).unwrap()))
+                .iter()
+                .map(|&k| part.nodes[k])
+                .collect();
+            let (rows, nodes) = on_part.patch_rows(|_| Some(rank), &star);
+            let (held_patch, local, _) = Patch::from_rows(rows, nodes, node, counts);
+            SplitPlan {
+                normal: continued(&part_boundary, &held_patch, local, &given),
+                star,
+            }
+        });
+        let plan = plan_from_owner(&world, owner, plan);
+        assert_eq!(plan.normal, normal, "node {node}");
+        turned += usize::from(normal != given);
         let (mut patch, local, patch_processes) = gathered_patch(
             &world,
             &on_part,
@@ -958,9 +986,14 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
             .collect();
         assert_eq!(patch_processes, expected_processes);
         let split = patch.mesh.split_node(local, &plan.normal, 0.2, 0.1);
-        let expected_split = (expected.mesh).split_node(expected_local, &s.normal, 0.2, 0.1);
+        let expected_split = (expected.mesh).split_node(expected_local, &normal, 0.2, 0.1);
         assert_eq!(split, expected_split);
         let Some(split) = split else { continue };
+        if let (true, Some(&on_crack)) = (follow, split.edge_nodes.first()) {
+            let across = given.cross(&nalgebra::Vector3::z()).normalize();
+            let turned = (given + (10f64).to_radians().tan() * across).normalize();
+            queue.push_front((expected.node(on_crack), turned, false));
+        }
         splits += 1;
         cut += split.edge_nodes.len();
         shared += usize::from(patch_processes.iter().any(|&p| p != patch_processes[0]));
@@ -1021,13 +1054,13 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         part = after;
     }
     eprintln!(
-        "process {rank}: {splits} splits ({shared} on patches of several processes), {cut} \
-         edges cut, {} of {} elements held",
+        "process {rank}: {splits} splits ({shared} on patches of several processes, {turned} \
+         continuing a crack), {cut} edges cut, {} of {} elements held",
         part.elements.len(),
         whole.tets.len()
     );
     assert!(
-        splits >= 4 && cut > 0 && shared > 0,
-        "{splits} splits, {cut} cut, {shared}"
+        splits >= 8 && cut > 0 && shared > 0 && turned > 0,
+        "{splits} splits, {cut} cut, {shared} shared, {turned} turned"
     );
 }

@@ -21,8 +21,13 @@ use std::collections::HashMap;
 /// Boundary planes of the scene's mesh, per scene element.
 #[derive(Clone, Debug)]
 pub struct OriginalBoundary {
-    /// For each scene element, (point, unit outward normal) of its boundary faces.
+    /// The scene elements whose planes are kept (ascending; `None`: all, `planes` indexed by
+    /// scene element).
+    held: Option<Vec<usize>>,
+    /// For each scene element kept, (point, unit outward normal) of its boundary faces.
     planes: Vec<Vec<(Vector3<f64>, Vector3<f64>)>>,
+    /// Number of scene elements.
+    scene_elements: usize,
     /// Length below which a rest distance counts as zero (m).
     tolerance: f64,
 }
@@ -30,30 +35,70 @@ pub struct OriginalBoundary {
 impl OriginalBoundary {
     /// Records the boundary of the scene's mesh.
     pub fn new(mesh: &TetMesh) -> Self {
+        let (lo, hi) = mesh.bounding_box();
+        Self::of_faces(mesh, &mesh.boundary_faces(), None, (hi - lo).norm())
+    }
+
+    /// The boundary planes of a process's part of the scene's mesh: `mesh` is the part, whose
+    /// element `k` is scene element `elements[k]` (ascending), `marks` its elements' faces on
+    /// the scene mesh's boundary ([`TetMesh::faces_marked`]), in a scene mesh of
+    /// `scene_elements` elements whose bounding box has the diagonal `diagonal` (m).
+    pub fn of_part(
+        mesh: &TetMesh,
+        (elements, marks): (&[usize], &[u8]),
+        scene_elements: usize,
+        diagonal: f64,
+    ) -> Self {
+        let mut original = Self::of_faces(
+            mesh,
+            &mesh.faces_marked(marks),
+            Some(elements.to_vec()),
+            diagonal,
+        );
+        original.scene_elements = scene_elements;
+        original
+    }
+
+    /// The planes of `faces` of `mesh`, whose elements are the scene elements `held` (all,
+    /// by number, if `None`), in a scene mesh whose bounding box has the diagonal `diagonal`.
+    fn of_faces(
+        mesh: &TetMesh,
+        faces: &[crate::mesh::BoundaryFace],
+        held: Option<Vec<usize>>,
+        diagonal: f64,
+    ) -> Self {
         let mut planes = vec![Vec::new(); mesh.num_tets()];
-        for face in mesh.boundary_faces() {
+        for face in faces {
             let [a, b, c] = face.nodes.map(|i| mesh.rest[i]);
             let normal = (b - a).cross(&(c - a)).normalize();
             planes[face.tet].push((a, normal));
         }
-        let (lo, hi) = mesh.bounding_box();
         OriginalBoundary {
+            held,
             planes,
+            scene_elements: mesh.num_tets(),
             // Rest positions of split nodes are convex combinations of scene nodes: coplanar
             // points are off the plane by round-off only (1e-16 relative per operation).
-            tolerance: 1e-9 * (hi - lo).norm(),
+            tolerance: 1e-9 * diagonal,
         }
     }
 
     /// Number of scene elements (the valid `origin` values are below it).
     pub fn num_elements(&self) -> usize {
-        self.planes.len()
+        self.scene_elements
     }
 
     /// Whether the rest triangle `points` of an element lying in scene element `origin` is on
-    /// the scene mesh's boundary.
+    /// the scene mesh's boundary (on a part: `origin` one of its scene elements).
     pub fn on_boundary(&self, origin: usize, points: &[Vector3<f64>; 3]) -> bool {
-        self.planes[origin].iter().any(|(p, n)| {
+        let planes = match &self.held {
+            None => &self.planes[origin],
+            Some(held) => match held.binary_search(&origin) {
+                Ok(k) => &self.planes[k],
+                Err(_) => return false,
+            },
+        };
+        planes.iter().any(|(p, n)| {
             points
                 .iter()
                 .all(|x| (x - p).dot(n).abs() <= self.tolerance)

@@ -90,6 +90,53 @@ fn averaging(settings: &FractureSettings, mesh: &TetMesh) -> Option<Averaging> {
     (settings.nonlocal_length > 0.0).then(|| Averaging::new(mesh, settings.nonlocal_length))
 }
 
+/// The crack normal for splitting `node` of `patch` with separation normal `normal`, the
+/// scene mesh's boundary being `original` (it must have the planes of the scene elements of
+/// `node`'s elements): a node on an existing crack whose faces there (area-weighted) are
+/// within [`CONTINUE_ANGLE`] of the plane continues that crack in its plane. The separation
+/// eigenvector at a crack front is resolved by one ring of elements only; without this,
+/// mesh-scale noise in it (10–20° at a bar's corner) kinks a straight crack and chips off
+/// single elements.
+pub fn continued(
+    original: &OriginalBoundary,
+    patch: &Patch,
+    node: usize,
+    normal: &Vector3<f64>,
+) -> Vector3<f64> {
+    let f = &patch.mesh;
+    let star: Vec<usize> = (0..f.tets.len())
+        .filter(|&e| f.tets[e].contains(&node))
+        .collect();
+    let mut sum = Vector3::zeros();
+    for &e in &star {
+        let t = f.tets[e];
+        for face in [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]] {
+            let nodes = face.map(|k| t[k]);
+            if !nodes.contains(&node) {
+                continue;
+            }
+            let mut key = nodes;
+            key.sort_unstable();
+            let shared = star
+                .iter()
+                .any(|&o| o != e && key.iter().all(|i| f.tets[o].contains(i)));
+            let points = nodes.map(|i| f.rest[i]);
+            if shared || original.on_boundary(patch.origin[f.parent[e]], &points) {
+                continue;
+            }
+            let [a, b, c] = nodes.map(|i| f.position(i));
+            let area_normal = 0.5 * (b - a).cross(&(c - a));
+            // Both sides of the crack count, oriented alike.
+            sum += area_normal * area_normal.dot(normal).signum();
+        }
+    }
+    if sum.norm() > 0.0 && sum.normalize().dot(normal).abs() > CONTINUE_ANGLE.cos() {
+        sum.normalize()
+    } else {
+        *normal
+    }
+}
+
 /// Why a node's split was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Refusal {
@@ -314,50 +361,6 @@ impl Fracture {
         )
     }
 
-    /// The crack normal for splitting `node` of `patch` with separation normal `normal`: a node on
-    /// an existing crack whose faces there (area-weighted) are within [`CONTINUE_ANGLE`] of
-    /// the plane continues that crack in its plane. The separation eigenvector at a crack
-    /// front is resolved by one ring of elements only; without this, mesh-scale noise in it
-    /// (10–20° at a bar's corner) kinks a straight crack and chips off single elements.
-    fn continued(&self, patch: &Patch, node: usize, normal: &Vector3<f64>) -> Vector3<f64> {
-        let f = &patch.mesh;
-        let star: Vec<usize> = (0..f.tets.len())
-            .filter(|&e| f.tets[e].contains(&node))
-            .collect();
-        let mut sum = Vector3::zeros();
-        for &e in &star {
-            let t = f.tets[e];
-            for face in [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]] {
-                let nodes = face.map(|k| t[k]);
-                if !nodes.contains(&node) {
-                    continue;
-                }
-                let mut key = nodes;
-                key.sort_unstable();
-                let shared = star
-                    .iter()
-                    .any(|&o| o != e && key.iter().all(|i| f.tets[o].contains(i)));
-                let points = nodes.map(|i| f.rest[i]);
-                if shared
-                    || self
-                        .original
-                        .on_boundary(patch.origin[f.parent[e]], &points)
-                {
-                    continue;
-                }
-                let [a, b, c] = nodes.map(|i| f.position(i));
-                let area_normal = 0.5 * (b - a).cross(&(c - a));
-                // Both sides of the crack count, oriented alike.
-                sum += area_normal * area_normal.dot(normal).signum();
-            }
-        }
-        if sum.norm() > 0.0 && sum.normalize().dot(normal).abs() > CONTINUE_ANGLE.cos() {
-            sum.normalize()
-        } else {
-            *normal
-        }
-    }
-
     /// Rest volume of the smallest piece (connected part) of `f` (m³).
     fn smallest_piece(&self, f: &Fracturable) -> f64 {
         let (part, count) = parts_of(f.rest.len(), &f.tets);
@@ -501,7 +504,7 @@ impl Fracture {
         }
         // The split reads and changes the elements around the node only (see `patch`).
         let (mut patch, local) = Patch::of(&f, &self.origin, node);
-        let normal = self.continued(&patch, local, &s.normal);
+        let normal = continued(&self.original, &patch, local, &s.normal);
         let refused = |reason| RefusedNode {
             reason,
             normal: s.normal,
