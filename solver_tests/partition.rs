@@ -8,7 +8,9 @@
 mod common;
 
 use icefem::distributed::partition::{self, Partition};
-use icefem::distributed::splits::{gathered_patch, plan_from_owner, smallest_piece, SplitPlan};
+use icefem::distributed::splits::{
+    candidates_in_order, gathered_patch, plan_from_owner, smallest_piece, SplitPlan,
+};
 use icefem::distributed::{components, dual_graph, part_mesh};
 use icefem::fracture::cracks::OriginalBoundary;
 use icefem::fracture::driver::continued;
@@ -860,6 +862,16 @@ fn the_fracture_criterion_on_a_part_is_the_whole_meshs_at_its_owned_nodes() {
             // To the bit: the same elements in the same order, the same pressures.
             assert_eq!(*s, expected[*i], "node {i}");
         }
+        // The eligible nodes, gathered from the processes in the order one process tries
+        // them.
+        let offered: Vec<(usize, NodeSeparation)> =
+            got.iter().copied().filter(|(_, s)| s.eligible).collect();
+        let mut in_order: Vec<(usize, NodeSeparation)> = (expected.iter().copied())
+            .enumerate()
+            .filter(|(_, s)| s.eligible)
+            .collect();
+        in_order.sort_by(|a, b| b.1.stress().total_cmp(&a.1.stress()));
+        assert_eq!(candidates_in_order(&world, &offered), in_order);
         if length.is_some() {
             // The ring alone is not enough: without the halo some owned node reads less.
             let (_, ring) = separations_on_part(&world, &sim, &pressing, (length, false));

@@ -10,11 +10,12 @@ use super::components::connected_parts;
 use super::ghosts::all_gathered;
 use crate::fracture::patch::{rows_from_words, rows_to_words, HeldMesh, Patch};
 use crate::fracture::split::Fracturable;
+use crate::fracture::NodeSeparation;
 use crate::sim::part::Part;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// What the owner of a node to split tells the other processes.
 #[derive(Clone, Debug, PartialEq)]
@@ -93,4 +94,40 @@ pub fn smallest_piece(
     let mut total = vec![0.0; count];
     world.all_reduce_into(&volume[..], &mut total[..], SystemOperation::sum());
     total.into_iter().fold(f64::INFINITY, f64::min)
+}
+
+/// The nodes each process offers for a split (`offered`: its owned nodes, as the whole mesh's
+/// numbers, with their separations), on every process, in the order one process tries them:
+/// the largest separation stress first, equal stresses by node. Every process calls it.
+pub fn candidates_in_order(
+    world: &SimpleCommunicator,
+    offered: &[(usize, NodeSeparation)],
+) -> Vec<(usize, NodeSeparation)> {
+    let words: Vec<u64> = (offered.iter())
+        .flat_map(|(node, s)| {
+            let values = (s.tensor.iter())
+                .chain([&s.largest])
+                .chain(s.normal.iter())
+                .chain([&s.area]);
+            [*node as u64, u64::from(s.eligible)]
+                .into_iter()
+                .chain(values.map(|x| x.to_bits()))
+                .collect::<Vec<u64>>()
+        })
+        .collect();
+    let mut all: Vec<(usize, NodeSeparation)> = (all_gathered(world, &words).chunks_exact(16))
+        .map(|w| {
+            let value = |k: usize| f64::from_bits(w[k]);
+            let separation = NodeSeparation {
+                tensor: Matrix3::from_iterator((2..11).map(value)),
+                largest: value(11),
+                normal: Vector3::new(value(12), value(13), value(14)),
+                area: value(15),
+                eligible: w[1] != 0,
+            };
+            (w[0] as usize, separation)
+        })
+        .collect();
+    all.sort_by(|a, b| b.1.stress().total_cmp(&a.1.stress()).then(a.0.cmp(&b.0)));
+    all
 }
