@@ -8,13 +8,11 @@
 mod common;
 
 use icefem::distributed::partition::{self, Partition};
-use icefem::distributed::splits::{
-    candidates_in_order, gathered_patch, plan_from_owner, smallest_piece, SplitPlan,
-};
+use icefem::distributed::splits::{candidates_in_order, try_split, SplitPart};
 use icefem::distributed::{components, dual_graph, part_mesh};
 use icefem::fracture::cracks::OriginalBoundary;
-use icefem::fracture::driver::continued;
-use icefem::fracture::patch::{HeldMesh, Patch};
+use icefem::fracture::driver::{continued, Refusal};
+use icefem::fracture::patch::Patch;
 use icefem::fracture::split::Fracturable;
 use icefem::fracture::{
     area_floor, separation, separation_on_part, Averaging, NodeSeparation, OnPart,
@@ -891,11 +889,13 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
     else {
         return;
     };
-    // The frozen container's most separated nodes split one after another, each with its
-    // separation normal: once on the whole mesh, and once by the processes holding their
-    // parts, the node's owner telling the others its star and normal. The patch the
-    // processes put together is the whole mesh's, and after each split each process's part
-    // holds its part of the split whole mesh, with the whole mesh's rows.
+    // The frozen container's most separated nodes split one after another, once on the whole
+    // mesh as one process splits it, and once by the processes holding their parts
+    // (`splits::try_split`: the node's owner reads its star and the crack normal from its
+    // part, every process gathers the patch from the parts, splits it and puts the split into
+    // its part). Each split is the whole mesh's (normal, new nodes, crack faces, the nodes
+    // whose stars changed), and after it each process's part holds its part of the split
+    // whole mesh, with the whole mesh's rows and owners.
     let (sim, pressing) = frozen_container();
     let mesh = &sim.model.mesh;
     let separations = separation(
@@ -919,119 +919,93 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         sim.state.u.clone(),
         sim.state.v.clone(),
     );
-    whole.min_volume = 1e-2 * mesh.volume() / mesh.num_tets() as f64;
+    let min_piece = mesh.volume() / mesh.num_tets() as f64;
+    whole.min_volume = 1e-2 * min_piece;
     let first_processes = slabs(mesh);
     let mut processes = first_processes.clone();
-    let first = Part::new(
-        &mesh.tets,
-        (
-            &processes,
-            &lowest_owners(&mesh.tets, &processes, mesh.num_nodes()),
-        ),
-        rank,
-        (&[], false),
-    );
-    let mut part = first.clone();
-    let mut held = whole.rows_of(&part);
     let owners = lowest_owners(&mesh.tets, &processes, mesh.num_nodes());
-    let mut node_owner: Vec<u32> = part.nodes.iter().map(|&i| owners[i]).collect();
-    // The scene mesh's boundary, and the part of it each process's scene elements have.
+    let first = Part::new(&mesh.tets, (&processes, &owners), rank, (&[], false));
+    let mut held = SplitPart {
+        mesh: whole.rows_of(&first),
+        node_owner: first.nodes.iter().map(|&i| owners[i]).collect(),
+        first_origin: first.elements.clone(),
+        part: first.clone(),
+    };
+    // The scene mesh's boundary, and the planes of it each process's scene elements have.
     let scene_boundary = OriginalBoundary::new(mesh);
     let (lo, hi) = mesh.bounding_box();
-    let marks: Vec<u8> = (first.elements.iter())
-        .map(|&e| mesh.boundary_marks()[e])
-        .collect();
-    let first_mesh = TetMesh::new(held.rest.clone(), held.tets.clone()).unwrap();
+    let all_marks = mesh.boundary_marks();
+    let marks: Vec<u8> = first.elements.iter().map(|&e| all_marks[e]).collect();
     let part_boundary = OriginalBoundary::of_part(
-        &first_mesh,
+        &TetMesh::new(held.mesh.rest.clone(), held.mesh.tets.clone()).unwrap(),
         (&first.elements, &marks),
         mesh.num_tets(),
         (hi - lo).norm(),
     );
-    let (mut splits, mut cut, mut shared, mut turned) = (0, 0, 0, 0);
     // The 8 most separated nodes, each split followed by a split of a node its cut put on
     // the crack, with the normal turned by 10°: that split continues the crack in its plane.
     let mut queue: std::collections::VecDeque<(usize, nalgebra::Vector3<f64>, bool)> =
         (targets.iter().take(8))
             .map(|(i, s)| (*i, s.normal, true))
             .collect();
+    let (mut splits, mut cut, mut shared, mut turned) = (0, 0, 0, 0);
     while let Some((node, given, follow)) = queue.pop_front() {
         // On the whole mesh (each element's scene element is its parent there).
-        let (mut expected, expected_local) = Patch::of(&whole, &whole.parent, node);
-        let normal = continued(&scene_boundary, &expected, expected_local, &given);
-        // On the parts: the owner reads the star and the normal from the elements it holds.
-        let owner = lowest_owners(&whole.tets, &processes, whole.rest.len())[node];
-        let origin: Vec<usize> = held.parent.iter().map(|&e| first.elements[e]).collect();
-        let on_part = HeldMesh {
-            mesh: &held,
-            elements: &part.elements,
-            nodes: &part.nodes,
-            origin: &origin,
-        };
-        let counts = (whole.rest.len(), whole.tets.len());
-        let plan = (owner == rank).then(|| {
-            let star: Vec<usize> = (Patch::star_nodes(&held.tets, part.local(node).unwrap()))
-                .iter()
-                .map(|&k| part.nodes[k])
-                .collect();
-            let (rows, nodes) = on_part.patch_rows(|_| Some(rank), &star);
-            let (held_patch, local, _) = Patch::from_rows(rows, nodes, node, counts);
-            SplitPlan {
-                normal: continued(&part_boundary, &held_patch, local, &given),
-                star,
-            }
-        });
-        let plan = plan_from_owner(&world, owner, plan);
-        assert_eq!(plan.normal, normal, "node {node}");
-        turned += usize::from(normal != given);
-        let (mut patch, local, patch_processes) = gathered_patch(
-            &world,
-            &on_part,
-            &part.own_elements,
-            (&plan.star, node),
-            counts,
-        );
-        assert!(patch == expected, "node {node}: another patch");
-        assert_eq!(local, expected_local);
-        let expected_processes: Vec<u32> = (0..expected.origin.len())
-            .map(|k| processes[expected.element(k)])
+        let (mut patch, local) = Patch::of(&whole, &whole.parent, node);
+        let normal = continued(&scene_boundary, &patch, local, &given);
+        let patch_processes: Vec<u32> = (0..patch.origin.len())
+            .map(|k| processes[patch.element(k)])
             .collect();
-        assert_eq!(patch_processes, expected_processes);
-        let split = patch.mesh.split_node(local, &plan.normal, 0.2, 0.1);
-        let expected_split = (expected.mesh).split_node(expected_local, &normal, 0.2, 0.1);
-        assert_eq!(split, expected_split);
-        let Some(split) = split else { continue };
+        let expected = patch.mesh.split_node(local, &normal, 0.2, 0.1);
+        // On the parts.
+        let owner = lowest_owners(&whole.tets, &processes, whole.rest.len())[node];
+        let before = held.clone();
+        let made = try_split(
+            &world,
+            &mut held,
+            &part_boundary,
+            (node, owner, given),
+            (0.2, 0.1, min_piece),
+        )
+        .unwrap();
+        let Some(split) = expected else {
+            assert_eq!(made, Err(Refusal::PlaneMissesStar));
+            assert_eq!(held.mesh, before.mesh);
+            continue;
+        };
+        let mut split_whole = whole.clone();
+        patch.apply(&mut split_whole);
+        let (piece, count) = icefem::mesh::parts_of(split_whole.rest.len(), &split_whole.tets);
+        let mut volumes = vec![0.0; count];
+        for (t, v) in split_whole.tets.iter().zip(split_whole.volumes()) {
+            volumes[piece[t[0]] as usize] += v;
+        }
+        if volumes.iter().any(|&v| v < min_piece) {
+            assert_eq!(made, Err(Refusal::PieceTooSmall));
+            assert_eq!(held.mesh, before.mesh);
+            continue;
+        }
+        let made = made.expect("the whole mesh's split is made");
+        let mut touched = split.edge_nodes.clone();
+        touched.extend(&split.pinched);
+        touched.extend([local, split.new_node]);
+        assert_eq!(made.normal, normal, "node {node}");
+        assert_eq!(made.split, patch.numbered(&split));
+        assert_eq!(made.lapsed, patch.neighbours(&touched));
         if let (true, Some(&on_crack)) = (follow, split.edge_nodes.first()) {
             let across = given.cross(&nalgebra::Vector3::z()).normalize();
             let turned = (given + (10f64).to_radians().tan() * across).normalize();
-            queue.push_front((expected.node(on_crack), turned, false));
+            queue.push_front((patch.node(on_crack), turned, false));
         }
         splits += 1;
         cut += split.edge_nodes.len();
         shared += usize::from(patch_processes.iter().any(|&p| p != patch_processes[0]));
-        expected.apply(&mut whole);
+        turned += usize::from(normal != given);
+        whole = split_whole;
         // A child stays with its parent's process.
         processes = whole.parent.iter().map(|&e| first_processes[e]).collect();
-        let after = patch
-            .apply_to_part(&part, (&mut held, &mut node_owner), &patch_processes, rank)
-            .unwrap();
         let owners = lowest_owners(&whole.tets, &processes, whole.rest.len());
         let wanted = Part::new(&whole.tets, (&processes, &owners), rank, (&[], false));
-        let at_part: Vec<u32> = after.nodes.iter().map(|&i| owners[i]).collect();
-        assert_eq!(node_owner, at_part);
-        // The smallest piece, from the parts: the whole mesh's, to round-off (sums of
-        // volumes in another order; a piece is ~1e-3 m³).
-        let on_parts = smallest_piece(&world, &after, &held, &node_owner);
-        let (piece, count) = icefem::mesh::parts_of(whole.rest.len(), &whole.tets);
-        let mut volumes = vec![0.0; count];
-        for (t, v) in whole.tets.iter().zip(whole.volumes()) {
-            volumes[piece[t[0]] as usize] += v;
-        }
-        let smallest = volumes.into_iter().fold(f64::INFINITY, f64::min);
-        assert!(
-            (on_parts - smallest).abs() <= 1e-12 * smallest,
-            "{on_parts} vs {smallest}"
-        );
         let own = |p: &Part| -> Vec<usize> {
             (p.elements.iter().zip(&p.own_elements))
                 .filter(|(_, &o)| o)
@@ -1044,15 +1018,18 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
                 .map(|(&i, _)| i)
                 .collect()
         };
-        assert_eq!(own(&after), own(&wanted));
-        assert_eq!(owned(&after), owned(&wanted));
+        let after = &held.part;
+        assert_eq!(own(after), own(&wanted));
+        assert_eq!(owned(after), owned(&wanted));
         assert!(wanted
             .elements
             .iter()
             .all(|e| after.elements.binary_search(e).is_ok()));
+        let at_part: Vec<u32> = after.nodes.iter().map(|&i| owners[i]).collect();
+        assert_eq!(held.node_owner, at_part);
         // The part's mesh and state are the whole mesh's rows (parents through the first
         // part's numbers; copies of nodes the part never held named past its numbers).
-        let mut rows = whole.rows_of(&after);
+        let mut rows = whole.rows_of(after);
         rows.parent = (after.elements.iter())
             .map(|&e| first.elements.binary_search(&whole.parent[e]).unwrap())
             .collect();
@@ -1062,17 +1039,33 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
                 (first.local(p).or(after.local(p))).unwrap_or(usize::MAX - p)
             })
             .collect();
-        assert!(held == rows, "process {rank}: other rows");
-        part = after;
+        assert!(held.mesh == rows, "process {rank}: other rows");
     }
     eprintln!(
         "process {rank}: {splits} splits ({shared} on patches of several processes, {turned} \
          continuing a crack), {cut} edges cut, {} of {} elements held",
-        part.elements.len(),
+        held.part.elements.len(),
         whole.tets.len()
     );
     assert!(
         splits >= 8 && cut > 0 && shared > 0 && turned > 0,
         "{splits} splits, {cut} cut, {shared} shared, {turned} turned"
+    );
+    // A split whose pieces are all below the smallest allowed is refused on every process,
+    // and leaves the parts as they were.
+    let before = held.clone();
+    let (node, s) = targets[8];
+    let owner = lowest_owners(&whole.tets, &processes, whole.rest.len())[node];
+    let refused = try_split(
+        &world,
+        &mut held,
+        &part_boundary,
+        (node, owner, s.normal),
+        (0.2, 0.1, 2.0 * mesh.volume()),
+    );
+    assert_eq!(refused, Ok(Err(Refusal::PieceTooSmall)));
+    assert_eq!(
+        (held.mesh, held.node_owner),
+        (before.mesh, before.node_owner)
     );
 }

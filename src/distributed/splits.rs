@@ -1,15 +1,25 @@
-//! A node split made by processes that each hold a part of the mesh (see `fracture::patch`).
+//! Node splits made by processes that each hold a part of the mesh (see `fracture::patch`),
+//! taking the decisions one process takes on the whole mesh (`fracture::driver`).
 //!
-//! The process that owns the split node holds every element around it: it finds the node's
-//! star and the crack normal and tells the other processes ([`plan_from_owner`]). Each process
-//! then gives the rows of the patch around the star that it evaluates, every process gathers
-//! all of them, and each puts the same patch together ([`gathered_patch`]), splits it the same
-//! way and puts the split into its own part (`Patch::apply_to_part`).
+//! The processes offer the nodes they own for a split and all of them put the offers in the
+//! order one process tries them ([`candidates_in_order`]). For each, [`try_split`]: the
+//! process that owns the node holds every element around it, so it reads the node's star and
+//! the crack normal (continuing a crack the node is on) and tells the others; each process
+//! gives the rows of the patch around the star that it evaluates, every process gathers all
+//! of them and puts the same patch together, splits it the same way and puts the split into
+//! its own part; the processes then find the smallest piece of the split mesh together, and
+//! a split that cuts off too small a piece is refused on every process, leaving the parts as
+//! they were. Checked on 3 processes against the whole mesh (`solver_tests/partition.rs`). A
+//! fractured run on several processes holds the whole mesh on each process and splits it
+//! there (docs/distributed.md).
 
 use super::components::connected_parts;
 use super::ghosts::all_gathered;
+use crate::fracture::cracks::OriginalBoundary;
+use crate::fracture::driver::{continued, Refusal};
 use crate::fracture::patch::{rows_from_words, rows_to_words, HeldMesh, Patch};
 use crate::fracture::split::Fracturable;
+use crate::fracture::split::NodeSplit;
 use crate::fracture::NodeSeparation;
 use crate::sim::part::Part;
 use mpi::collective::SystemOperation;
@@ -19,20 +29,16 @@ use nalgebra::{Matrix3, Vector3};
 
 /// What the owner of a node to split tells the other processes.
 #[derive(Clone, Debug, PartialEq)]
-pub struct SplitPlan {
+struct SplitPlan {
     /// The nodes of the node's elements (the mesh's numbers, ascending).
-    pub star: Vec<usize>,
+    star: Vec<usize>,
     /// The crack normal (unit).
-    pub normal: Vector3<f64>,
+    normal: Vector3<f64>,
 }
 
 /// The plan of process `owner` (`Some` there, ignored elsewhere), on every process of `world`.
 /// Every process calls it.
-pub fn plan_from_owner(
-    world: &SimpleCommunicator,
-    owner: u32,
-    plan: Option<SplitPlan>,
-) -> SplitPlan {
+fn plan_from_owner(world: &SimpleCommunicator, owner: u32, plan: Option<SplitPlan>) -> SplitPlan {
     let root = world.process_at_rank(owner as i32);
     let mut words: Vec<u64> = match plan {
         Some(plan) if world.rank() as u32 == owner => (plan.normal.iter())
@@ -58,7 +64,7 @@ pub fn plan_from_owner(
 /// `Patch::of` takes from the whole mesh. `node` is the split node and `whole` the mesh's
 /// number of nodes and elements. Returns it with the node's number in it and the process of
 /// each of its elements. Every process calls it.
-pub fn gathered_patch(
+fn gathered_patch(
     world: &SimpleCommunicator,
     held: &HeldMesh,
     own: &[bool],
@@ -77,7 +83,7 @@ pub fn gathered_patch(
 /// owners `node_owner`: each process adds up its own elements' volumes by piece, and the
 /// pieces' sums are added over the processes (in another order than one process adds them:
 /// the same to round-off). Every process calls it.
-pub fn smallest_piece(
+fn smallest_piece(
     world: &SimpleCommunicator,
     part: &Part,
     mesh: &Fracturable,
@@ -130,4 +136,96 @@ pub fn candidates_in_order(
         .collect();
     all.sort_by(|a, b| b.1.stress().total_cmp(&a.1.stress()).then(a.0.cmp(&b.0)));
     all
+}
+
+/// This process's part of a mesh that fracture splits.
+#[derive(Clone, Debug)]
+pub struct SplitPart {
+    /// Its elements and nodes (the mesh's numbers) and which it evaluates and owns.
+    pub part: Part,
+    /// Its mesh and state, numbered in the part; `parent` numbers the elements the part held
+    /// when it was made.
+    pub mesh: Fracturable,
+    /// The process owning each of its nodes.
+    pub node_owner: Vec<u32>,
+    /// The scene element each element the part held when it was made lies in.
+    pub first_origin: Vec<usize>,
+}
+
+/// A split the processes made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PartSplit {
+    /// The crack normal used (unit).
+    pub normal: Vector3<f64>,
+    /// What the split did, in the mesh's numbers.
+    pub split: NodeSplit,
+    /// The nodes whose stars the split changed (the mesh's numbers, ascending).
+    pub lapsed: Vec<usize>,
+}
+
+/// Splits `node` (the mesh's number), owned by process `owner` and separating along `normal`,
+/// on the parts the processes of `world` hold (`held` on this one), as one process splits the
+/// whole mesh (`fracture::driver`): the crack normal continued from a crack the node is on,
+/// the split of its patch put into every part, refused if the plane misses the node's star
+/// or the split cuts off a piece smaller than `min_piece` (m³), in which case `held` is left
+/// as it was. `original` is the scene boundary's planes of the part's scene elements, and
+/// `snap` and `min_quality` the split's [`crate::fracture::FractureSettings`]. Every process
+/// calls it, and every process takes the same decision. Fails if a part cannot take the
+/// split (a part holding elements of every process's, see `Patch::apply_to_part`).
+pub fn try_split(
+    world: &SimpleCommunicator,
+    held: &mut SplitPart,
+    original: &OriginalBoundary,
+    (node, owner, normal): (usize, u32, Vector3<f64>),
+    (snap, min_quality, min_piece): (f64, f64, f64),
+) -> Result<Result<PartSplit, Refusal>, String> {
+    let rank = world.rank() as u32;
+    let origin: Vec<usize> = (held.mesh.parent.iter())
+        .map(|&e| held.first_origin[e])
+        .collect();
+    let mesh = HeldMesh {
+        mesh: &held.mesh,
+        elements: &held.part.elements,
+        nodes: &held.part.nodes,
+        origin: &origin,
+    };
+    let counts = (held.part.whole_nodes(), held.part.whole_elements());
+    // The owner holds every element around the node: it reads the star and the normal.
+    let plan = match held.part.local(node) {
+        Some(k) if owner == rank => {
+            let star: Vec<usize> = (Patch::star_nodes(&held.mesh.tets, k).iter())
+                .map(|&k| held.part.nodes[k])
+                .collect();
+            let (elements, nodes) = mesh.patch_rows(|_| Some(rank), &star);
+            let (around, local, _) = Patch::from_rows(elements, nodes, node, counts);
+            Some(SplitPlan {
+                normal: continued(original, &around, local, &normal),
+                star,
+            })
+        }
+        _ => None,
+    };
+    let plan = plan_from_owner(world, owner, plan);
+    let own = held.part.own_elements.clone();
+    let (mut patch, local, processes) =
+        gathered_patch(world, &mesh, &own, (&plan.star, node), counts);
+    let Some(split) = (patch.mesh).split_node(local, &plan.normal, snap, min_quality) else {
+        return Ok(Err(Refusal::PlaneMissesStar));
+    };
+    let (mut mesh, mut node_owner) = (held.mesh.clone(), held.node_owner.clone());
+    let part = patch.apply_to_part(&held.part, (&mut mesh, &mut node_owner), &processes, rank)?;
+    if smallest_piece(world, &part, &mesh, &node_owner) < min_piece {
+        return Ok(Err(Refusal::PieceTooSmall));
+    }
+    let mut touched = split.edge_nodes.clone();
+    touched.extend(&split.pinched);
+    touched.extend([local, split.new_node]);
+    held.part = part;
+    held.mesh = mesh;
+    held.node_owner = node_owner;
+    Ok(Ok(PartSplit {
+        normal: plan.normal,
+        split: patch.numbered(&split),
+        lapsed: patch.neighbours(&touched),
+    }))
 }
