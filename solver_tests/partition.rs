@@ -921,14 +921,14 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
     );
     let min_piece = mesh.volume() / mesh.num_tets() as f64;
     whole.min_volume = 1e-2 * min_piece;
-    let first_processes = slabs(mesh);
-    let mut processes = first_processes.clone();
+    let mut processes = slabs(mesh);
+    let mut origin: Vec<usize> = (0..mesh.num_tets()).collect();
     let owners = lowest_owners(&mesh.tets, &processes, mesh.num_nodes());
     let first = Part::new(&mesh.tets, (&processes, &owners), rank, (&[], false));
     let mut held = SplitPart {
         mesh: whole.rows_of(&first),
         node_owner: first.nodes.iter().map(|&i| owners[i]).collect(),
-        first_origin: first.elements.clone(),
+        origin: first.elements.clone(),
         part: first.clone(),
     };
     // The scene mesh's boundary, and the planes of it each process's scene elements have.
@@ -950,8 +950,8 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
             .collect();
     let (mut splits, mut cut, mut shared, mut turned) = (0, 0, 0, 0);
     while let Some((node, given, follow)) = queue.pop_front() {
-        // On the whole mesh (each element's scene element is its parent there).
-        let (mut patch, local) = Patch::of(&whole, &whole.parent, node);
+        // On the whole mesh.
+        let (mut patch, local) = Patch::of(&whole, &origin, node);
         let normal = continued(&scene_boundary, &patch, local, &given);
         let patch_processes: Vec<u32> = (0..patch.origin.len())
             .map(|k| processes[patch.element(k)])
@@ -973,7 +973,10 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
             assert_eq!(held.mesh, before.mesh);
             continue;
         };
+        // Parents in the mesh before the split, as the part's.
         let mut split_whole = whole.clone();
+        split_whole.parent = (0..whole.tets.len()).collect();
+        split_whole.node_parent = (0..whole.rest.len()).collect();
         patch.apply(&mut split_whole);
         let (piece, count) = icefem::mesh::parts_of(split_whole.rest.len(), &split_whole.tets);
         let mut volumes = vec![0.0; count];
@@ -1001,9 +1004,11 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         cut += split.edge_nodes.len();
         shared += usize::from(patch_processes.iter().any(|&p| p != patch_processes[0]));
         turned += usize::from(normal != given);
+        let previous = before.part.clone();
         whole = split_whole;
-        // A child stays with its parent's process.
-        processes = whole.parent.iter().map(|&e| first_processes[e]).collect();
+        // A child stays with its parent's process, in its parent's scene element.
+        processes = whole.parent.iter().map(|&e| processes[e]).collect();
+        origin = whole.parent.iter().map(|&e| origin[e]).collect();
         let owners = lowest_owners(&whole.tets, &processes, whole.rest.len());
         let wanted = Part::new(&whole.tets, (&processes, &owners), rank, (&[], false));
         let own = |p: &Part| -> Vec<usize> {
@@ -1027,19 +1032,22 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
             .all(|e| after.elements.binary_search(e).is_ok()));
         let at_part: Vec<u32> = after.nodes.iter().map(|&i| owners[i]).collect();
         assert_eq!(held.node_owner, at_part);
-        // The part's mesh and state are the whole mesh's rows (parents through the first
-        // part's numbers; copies of nodes the part never held named past its numbers).
+        // The part's mesh and state are the whole mesh's rows, with parents in the part
+        // before the split (copies of nodes it did not hold named past its numbers), and the
+        // whole mesh's scene elements.
         let mut rows = whole.rows_of(after);
         rows.parent = (after.elements.iter())
-            .map(|&e| first.elements.binary_search(&whole.parent[e]).unwrap())
+            .map(|&e| previous.elements.binary_search(&whole.parent[e]).unwrap())
             .collect();
         rows.node_parent = (after.nodes.iter())
             .map(|&i| {
                 let p = whole.node_parent[i];
-                (first.local(p).or(after.local(p))).unwrap_or(usize::MAX - p)
+                after.local(p).unwrap_or(usize::MAX - p)
             })
             .collect();
         assert!(held.mesh == rows, "process {rank}: other rows");
+        let scene: Vec<usize> = after.elements.iter().map(|&e| origin[e]).collect();
+        assert_eq!(held.origin, scene);
     }
     eprintln!(
         "process {rank}: {splits} splits ({shared} on patches of several processes, {turned} \

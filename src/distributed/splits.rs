@@ -143,13 +143,14 @@ pub fn candidates_in_order(
 pub struct SplitPart {
     /// Its elements and nodes (the mesh's numbers) and which it evaluates and owns.
     pub part: Part,
-    /// Its mesh and state, numbered in the part; `parent` numbers the elements the part held
-    /// when it was made.
+    /// Its mesh and state, numbered in the part. After a split, `parent` and `node_parent`
+    /// number the elements and nodes the part held before it (a copy of a node the part did
+    /// not hold: `usize::MAX` − the mesh's number), which carry their data to the new mesh.
     pub mesh: Fracturable,
     /// The process owning each of its nodes.
     pub node_owner: Vec<u32>,
-    /// The scene element each element the part held when it was made lies in.
-    pub first_origin: Vec<usize>,
+    /// The scene element each of its elements lies in.
+    pub origin: Vec<usize>,
 }
 
 /// A split the processes made.
@@ -180,14 +181,11 @@ pub fn try_split(
     (snap, min_quality, min_piece): (f64, f64, f64),
 ) -> Result<Result<PartSplit, Refusal>, String> {
     let rank = world.rank() as u32;
-    let origin: Vec<usize> = (held.mesh.parent.iter())
-        .map(|&e| held.first_origin[e])
-        .collect();
     let mesh = HeldMesh {
         mesh: &held.mesh,
         elements: &held.part.elements,
         nodes: &held.part.nodes,
-        origin: &origin,
+        origin: &held.origin,
     };
     let counts = (held.part.whole_nodes(), held.part.whole_elements());
     // The owner holds every element around the node: it reads the star and the normal.
@@ -212,7 +210,10 @@ pub fn try_split(
     let Some(split) = (patch.mesh).split_node(local, &plan.normal, snap, min_quality) else {
         return Ok(Err(Refusal::PlaneMissesStar));
     };
+    // The split numbers parents in the part before it, as a split of the whole mesh does.
     let (mut mesh, mut node_owner) = (held.mesh.clone(), held.node_owner.clone());
+    mesh.parent = (0..mesh.tets.len()).collect();
+    mesh.node_parent = (0..mesh.rest.len()).collect();
     let part = patch.apply_to_part(&held.part, (&mut mesh, &mut node_owner), &processes, rank)?;
     if smallest_piece(world, &part, &mesh, &node_owner) < min_piece {
         return Ok(Err(Refusal::PieceTooSmall));
@@ -220,6 +221,7 @@ pub fn try_split(
     let mut touched = split.edge_nodes.clone();
     touched.extend(&split.pinched);
     touched.extend([local, split.new_node]);
+    held.origin = mesh.parent.iter().map(|&e| held.origin[e]).collect();
     held.part = part;
     held.mesh = mesh;
     held.node_owner = node_owner;
