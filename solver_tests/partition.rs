@@ -10,7 +10,7 @@ mod common;
 use icefem::distributed::partition::{self, Partition};
 use icefem::distributed::splits::{candidates_in_order, try_split, SplitPart};
 use icefem::distributed::{components, dual_graph, part_mesh};
-use icefem::fracture::cracks::OriginalBoundary;
+use icefem::fracture::cracks::{crack_faces, OriginalBoundary};
 use icefem::fracture::driver::{continued, Refusal};
 use icefem::fracture::patch::Patch;
 use icefem::fracture::split::Fracturable;
@@ -949,6 +949,7 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
             .map(|(i, s)| (*i, s.normal, true))
             .collect();
     let (mut splits, mut cut, mut shared, mut turned) = (0, 0, 0, 0);
+    let mut crack_faces_seen = 0;
     while let Some((node, given, follow)) = queue.pop_front() {
         // On the whole mesh.
         let (mut patch, local) = Patch::of(&whole, &origin, node);
@@ -1048,6 +1049,36 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         assert!(held.mesh == rows, "process {rank}: other rows");
         let scene: Vec<usize> = after.elements.iter().map(|&e| origin[e]).collect();
         assert_eq!(held.origin, scene);
+        // The crack faces of its own elements, found on its part alone, are the whole mesh's
+        // (an own element's neighbours are all on the part, so its faces on no other element
+        // are the whole mesh's boundary; the scene's own boundary is told by its planes).
+        let crack_faces_of =
+            |f: &Fracturable, origin: &[usize], original, numbers: (&[usize], &[usize])| {
+                let mesh = TetMesh::new(f.rest.clone(), f.tets.clone()).unwrap();
+                let mut faces: Vec<(usize, [usize; 3])> = crack_faces(&mesh, origin, original)
+                    .iter()
+                    .map(|c| (numbers.0[c.element], c.nodes.map(|i| numbers.1[i])))
+                    .collect();
+                faces.sort_unstable();
+                faces
+            };
+        let everything: Vec<usize> = (0..whole.rest.len().max(whole.tets.len())).collect();
+        let all = (&everything[..], &everything[..]);
+        let mine = |faces: Vec<(usize, [usize; 3])>| -> Vec<(usize, [usize; 3])> {
+            (faces.into_iter())
+                .filter(|(e, _)| processes[*e] == rank)
+                .collect()
+        };
+        let expected_faces = mine(crack_faces_of(&whole, &origin, &scene_boundary, all));
+        let numbers = (&after.elements[..], &after.nodes[..]);
+        let got_faces = mine(crack_faces_of(
+            &held.mesh,
+            &held.origin,
+            &part_boundary,
+            numbers,
+        ));
+        assert_eq!(got_faces, expected_faces);
+        crack_faces_seen += got_faces.len();
     }
     eprintln!(
         "process {rank}: {splits} splits ({shared} on patches of several processes, {turned} \
@@ -1055,6 +1086,7 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         held.part.elements.len(),
         whole.tets.len()
     );
+    assert!(crack_faces_seen > 0);
     assert!(
         splits >= 8 && cut > 0 && shared > 0 && turned > 0,
         "{splits} splits, {cut} cut, {shared} shared, {turned} turned"
