@@ -172,7 +172,7 @@ fn gathered_part(
     world: &SimpleCommunicator,
     mesh: &TetMesh,
     (element_starts, node_starts, mine): (&[usize], &[usize], &[u32]),
-    everywhere: part_mesh::HeldEverywhere,
+    everywhere: (part_mesh::HeldEverywhere, Option<f64>),
 ) -> part_mesh::PartMesh {
     let rank = world.rank() as usize;
     let elements = element_starts[rank]..element_starts[rank + 1];
@@ -194,8 +194,13 @@ fn gathered_part(
 
 /// Checks, on every process, that the part gathered from the ranges (`part_mesh`) is the part
 /// `Part::new` and `Partition::of_part` give from the whole mesh, to the bit, when the
-/// elements `everywhere` (all if `None`) are held by every process.
-fn check_gathered_part(world: &SimpleCommunicator, everywhere: Option<&[usize]>) {
+/// elements `everywhere` (all if `None`) are held by every process, and with `halo` (m) the
+/// elements around the nodes within that reach of its owned nodes by each.
+fn check_gathered_part(
+    world: &SimpleCommunicator,
+    everywhere: Option<&[usize]>,
+    halo: Option<f64>,
+) {
     let mesh = shuffled_mesh();
     let rank = world.rank() as usize;
     // Uneven ranges of elements (one element on process 1) and of nodes (none on process 2).
@@ -214,17 +219,28 @@ fn check_gathered_part(world: &SimpleCommunicator, everywhere: Option<&[usize]>)
         world,
         &mesh,
         (&element_starts, &node_starts, &mine),
-        everywhere.map_or(
-            part_mesh::HeldEverywhere::All,
-            part_mesh::HeldEverywhere::These,
+        (
+            everywhere.map_or(
+                part_mesh::HeldEverywhere::All,
+                part_mesh::HeldEverywhere::These,
+            ),
+            halo,
         ),
     );
     let whole = Partition::from_element_parts(&mesh, mesh.tets.iter().map(part_of).collect(), 3);
+    let mut besides = everywhere.unwrap_or(&[]).to_vec();
+    if let Some(length) = halo {
+        let owned: Vec<bool> = whole.node_owner.iter().map(|&o| o == rank as u32).collect();
+        let near = icefem::fracture::nonlocal::within(&mesh.rest, &mesh.tets, length, &owned);
+        besides.extend((0..ne).filter(|&e| mesh.tets[e].iter().any(|&v| near[v])));
+        besides.sort_unstable();
+        besides.dedup();
+    }
     let part = Part::new(
         &mesh.tets,
         (&whole.element_part, &whole.node_owner),
         rank as u32,
-        (everywhere.unwrap_or(&[]), everywhere.is_none()),
+        (&besides, everywhere.is_none()),
     );
     let numbering = whole.of_part(&part);
     assert_eq!(got.part.elements, part.elements);
@@ -232,7 +248,7 @@ fn check_gathered_part(world: &SimpleCommunicator, everywhere: Option<&[usize]>)
     assert_eq!(got.part.own_elements, part.own_elements);
     assert_eq!(got.part.owned_nodes, part.owned_nodes);
     assert_eq!(got.part.whole_nodes(), nn);
-    assert_eq!(got.part.is_whole(), everywhere.is_none());
+    assert_eq!(got.part.is_whole(), part.is_whole());
     assert_eq!(got.numbering.petsc_node, numbering.petsc_node);
     assert_eq!(got.numbering.node_owner, numbering.node_owner);
     assert_eq!(got.numbering.element_part, numbering.element_part);
@@ -241,8 +257,13 @@ fn check_gathered_part(world: &SimpleCommunicator, everywhere: Option<&[usize]>)
     assert_eq!(got.rest, rest);
     assert_eq!(got.tets, part.tets_of(&mesh.tets));
     check_whole_boundary(&mesh, &got);
-    // Each process holds a ring, not the whole mesh, unless asked to.
-    if everywhere.is_some() {
+    // Each process holds a ring, not the whole mesh, unless asked to (with a halo, the
+    // middle process holds the whole mesh, and the others do not).
+    assert_eq!(
+        part.is_whole(),
+        everywhere.is_none() || (halo.is_some() && rank == 1)
+    );
+    if everywhere.is_some() && halo.is_none() {
         assert!(
             got.part.elements.len() < ne,
             "{rank}: {}",
@@ -285,9 +306,11 @@ fn each_process_gathers_its_part_from_the_ranges() {
     };
     // Elements every process holds (as ice contact's boundary elements): a few, scattered.
     let everywhere: Vec<usize> = (0..shuffled_mesh().num_tets()).step_by(37).collect();
-    check_gathered_part(&world, Some(&[]));
-    check_gathered_part(&world, Some(&everywhere));
-    check_gathered_part(&world, None);
+    check_gathered_part(&world, Some(&[]), None);
+    check_gathered_part(&world, Some(&everywhere), None);
+    check_gathered_part(&world, None, None);
+    // With a halo 2.5 cells deep (several rounds of asking for elements).
+    check_gathered_part(&world, Some(&[]), Some(0.25));
 }
 
 #[test]
@@ -322,7 +345,7 @@ fn a_box_made_by_ranges_is_shared_out_as_the_whole_box() {
             starts: &node_starts,
             rest: &rest,
         },
-        part_mesh::HeldEverywhere::These(&[]),
+        (part_mesh::HeldEverywhere::These(&[]), None),
     );
     // The same part from the whole box and the gathered partition.
     let mesh = box_mesh([0.0; 3], [0.6, 0.5, 0.4], [6, 5, 4], 6).unwrap();
@@ -409,7 +432,7 @@ fn the_processes_find_the_connected_parts_of_the_whole_mesh() {
             &world,
             &mesh,
             (&element_starts, &node_starts, &mine),
-            part_mesh::HeldEverywhere::These(&[]),
+            (part_mesh::HeldEverywhere::These(&[]), None),
         );
         let (labels, parts) =
             components::connected_parts(&world, &got.part, &got.tets, &got.numbering.node_owner);
@@ -774,7 +797,7 @@ fn separations_on_part(
     let owned: Vec<bool> = partition.node_owner.iter().map(|&o| o == rank).collect();
     let halo: Vec<usize> = match (length, halo) {
         (Some(length), true) => {
-            let near = icefem::fracture::nonlocal::within(mesh, length, &owned);
+            let near = icefem::fracture::nonlocal::within(&mesh.rest, &mesh.tets, length, &owned);
             (0..mesh.num_tets())
                 .filter(|&e| mesh.tets[e].iter().any(|&v| near[v]))
                 .collect()

@@ -247,10 +247,13 @@ impl MpiProcesses {
                 starts: ranges.node_starts,
                 rest: ranges.rest,
             },
-            match held {
-                Held::All => part_mesh::HeldEverywhere::All,
-                Held::Nothing | Held::Boundary => part_mesh::HeldEverywhere::These(&boundary),
-            },
+            (
+                match held {
+                    Held::All => part_mesh::HeldEverywhere::All,
+                    Held::Nothing | Held::Boundary => part_mesh::HeldEverywhere::These(&boundary),
+                },
+                None,
+            ),
         );
         *self.part.borrow_mut() = Some((gathered.numbering, gathered.part.clone()));
         Ok(SharedMesh {

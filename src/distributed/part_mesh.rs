@@ -79,13 +79,15 @@ pub struct PartMesh {
 }
 
 /// This process's part of the mesh whose elements and nodes the processes of `world` hold in
-/// `elements` and `nodes` ranges, with the elements `everywhere` on every process. Every
-/// process calls it.
+/// `elements` and `nodes` ranges, with the elements `everywhere` on every process, and with
+/// `halo` (m) every element around the nodes within that distance of its owned nodes along
+/// the mesh's edges (the nonlocal separation's reach, see `fracture::nonlocal::within`).
+/// Every process calls it.
 pub fn part_mesh(
     world: &SimpleCommunicator,
     elements: ElementRange,
     nodes: NodeRange,
-    everywhere: HeldEverywhere,
+    (everywhere, halo): (HeldEverywhere, Option<f64>),
 ) -> PartMesh {
     let (size, rank) = (world.size() as usize, world.rank() as u32);
     let first_element = elements.starts[rank as usize];
@@ -98,25 +100,31 @@ pub fn part_mesh(
             incidences[range_holder(v, nodes.starts)].extend([v as u64, e, p as u64]);
         }
     }
-    let home = Home::new(
+    let mut home = Home::new(
         exchange(world, incidences).0,
         (first_node, nodes.rest.len()),
         (elements.starts, size),
     );
-    let held = held_elements(world, &elements, home.rings, everywhere);
-    let (node_start, petsc_numbers) = petsc_numbering(world, home.owned, nodes.starts);
+    let held = held_elements(
+        world,
+        &elements,
+        std::mem::take(&mut home.rings),
+        everywhere,
+    );
+    let (node_start, petsc_numbers) =
+        petsc_numbering(world, std::mem::take(&mut home.owned), nodes.starts);
+    let numbers = (&home.owner[..], &petsc_numbers[..]);
+    let held = match halo {
+        Some(length) => grown(world, held, &elements, (&home, &nodes, numbers), length),
+        None => held,
+    };
     let part_nodes = {
         let mut v: Vec<usize> = held.iter().flat_map(|h| h.tet).collect();
         v.sort_unstable();
         v.dedup();
         v
     };
-    let facts = node_facts(
-        world,
-        &part_nodes,
-        (nodes.starts, nodes.rest),
-        (&home.owner, &petsc_numbers),
-    );
+    let facts = node_facts(world, &part_nodes, (nodes.starts, nodes.rest), numbers);
     let tets = held
         .iter()
         .map(|h| {
@@ -158,6 +166,8 @@ struct Home {
     /// For each process, pairs (element of its range, another process that holds the element
     /// in its ring).
     rings: Vec<Vec<u64>>,
+    /// The home's (node, element, element's process), ascending.
+    incidences: Vec<[u64; 3]>,
 }
 
 impl Home {
@@ -201,6 +211,7 @@ impl Home {
             owner,
             owned,
             rings,
+            incidences: triples,
         }
     }
 }
@@ -238,6 +249,19 @@ fn held_elements(
             destinations.push((k, p));
         }
     }
+    send_elements(world, elements, destinations)
+}
+
+/// The elements of this process's range `elements` sent to the processes `destinations`
+/// (element of the range, process) asks for, and what the others sent this one: its held
+/// elements, ascending. Every process calls it.
+fn send_elements(
+    world: &SimpleCommunicator,
+    elements: &ElementRange,
+    mut destinations: Vec<(usize, u32)>,
+) -> Vec<HeldElement> {
+    let size = world.size() as usize;
+    let first = elements.starts[world.rank() as usize];
     destinations.sort_unstable();
     destinations.dedup();
     let mut out = vec![Vec::new(); size];
@@ -257,6 +281,83 @@ fn held_elements(
         .collect();
     held.sort_unstable_by_key(|h| h.element);
     held
+}
+
+/// `held` grown by every element around the nodes within `length` (m) of this process's owned
+/// nodes along the mesh's edges. A node is known to have all its elements held when it is a
+/// node of an element of the process's own, or once they were asked for; each round asks the
+/// homes of the nodes found within reach that are not (the homes tell the holders of their
+/// elements' ranges to send them), until no process finds any. Paths shorter than `length`
+/// from an owned node run through nodes within reach, so a node found short of it on the held
+/// elements is so on the whole mesh, and the rounds end with every node within reach found.
+/// Every process calls it.
+fn grown(
+    world: &SimpleCommunicator,
+    mut held: Vec<HeldElement>,
+    elements: &ElementRange,
+    (home, nodes, numbers): (&Home, &NodeRange, (&[u32], &[u64])),
+    length: f64,
+) -> Vec<HeldElement> {
+    let (size, rank) = (world.size() as usize, world.rank() as u32);
+    let mut complete: Vec<usize> = (held.iter())
+        .filter(|h| h.part == rank)
+        .flat_map(|h| h.tet)
+        .collect();
+    complete.sort_unstable();
+    complete.dedup();
+    loop {
+        let mut part_nodes: Vec<usize> = held.iter().flat_map(|h| h.tet).collect();
+        part_nodes.sort_unstable();
+        part_nodes.dedup();
+        let facts = node_facts(world, &part_nodes, (nodes.starts, nodes.rest), numbers);
+        let rest: Vec<Vector3<f64>> = facts.iter().map(|f| f.rest).collect();
+        let owned: Vec<bool> = facts.iter().map(|f| f.owner == rank).collect();
+        let local = |v: usize| part_nodes.binary_search(&v).expect("a held node");
+        let tets: Vec<[usize; 4]> = held.iter().map(|h| h.tet.map(local)).collect();
+        let reached = crate::fracture::nonlocal::within(&rest, &tets, length, &owned);
+        let wanted: Vec<usize> = (part_nodes.iter().zip(&reached))
+            .filter(|&(v, &r)| r && complete.binary_search(v).is_err())
+            .map(|(&v, _)| v)
+            .collect();
+        let mut any = 0u64;
+        world.all_reduce_into(
+            &(wanted.len() as u64),
+            &mut any,
+            mpi::collective::SystemOperation::max(),
+        );
+        if any == 0 {
+            return held;
+        }
+        complete.extend(&wanted);
+        complete.sort_unstable();
+        // Each home tells the holders of its nodes' elements' ranges who wants them.
+        let mut asks = vec![Vec::new(); size];
+        for &v in &wanted {
+            asks[range_holder(v, nodes.starts)].push(v as u64);
+        }
+        let (asked, from) = exchange(world, asks);
+        let mut tell = vec![Vec::new(); size];
+        let mut asked = asked.into_iter();
+        for (q, &n) in from.iter().enumerate() {
+            for v in asked.by_ref().take(n as usize) {
+                let start = home.incidences.partition_point(|t| t[0] < v);
+                for t in home.incidences[start..].iter().take_while(|t| t[0] == v) {
+                    tell[range_holder(t[1] as usize, elements.starts)].extend([t[1], q as u64]);
+                }
+            }
+        }
+        let first = elements.starts[rank as usize];
+        let destinations = (exchange(world, tell).0.chunks_exact(2))
+            .map(|p| (p[0] as usize - first, p[1] as u32))
+            .collect();
+        let mut more = send_elements(world, elements, destinations);
+        more.retain(|m| {
+            held.binary_search_by_key(&m.element, |h| h.element)
+                .is_err()
+        });
+        held.extend(more);
+        held.sort_unstable_by_key(|h| h.element);
+    }
 }
 
 /// PETSc's numbering: where each process's nodes start (the number of nodes last), and the

@@ -45,7 +45,7 @@ impl Averaging {
     /// when the part holds every element around the nodes within `length` of them (see
     /// [`within`]).
     pub fn of(mesh: &TetMesh, length: f64, sources: Option<&[bool]>) -> Self {
-        let graph = EdgeGraph::new(mesh);
+        let graph = EdgeGraph::new(mesh.num_nodes(), &mesh.tets);
         let mut averaging = Averaging {
             ptr: vec![0],
             neighbours: Vec::new(),
@@ -99,16 +99,22 @@ impl Averaging {
     }
 }
 
-/// Whether each node of `mesh` lies within `length` (m) of a node `sources` marks, along the
-/// mesh's edges (rest lengths): the nodes whose separations the sources' averages read. A
-/// process whose part holds every element around these nodes finds its owned nodes'
-/// neighbourhoods, and their separations, as the whole mesh gives them.
-pub fn within(mesh: &TetMesh, length: f64, sources: &[bool]) -> Vec<bool> {
-    let graph = EdgeGraph::new(mesh);
-    let mut search = BoundedSearch::new(mesh.num_nodes());
-    let from: Vec<usize> = (0..mesh.num_nodes()).filter(|&i| sources[i]).collect();
-    search.run(&graph, &mesh.rest, &from, length);
-    let mut reached = vec![false; mesh.num_nodes()];
+/// Whether each node of the mesh with rest positions `rest` (m) and elements `tets` lies
+/// within `length` (m) of a node `sources` marks, along the mesh's edges (rest lengths): the
+/// nodes whose separations the sources' averages read. A process whose part holds every
+/// element around these nodes finds its owned nodes' neighbourhoods, and their separations,
+/// as the whole mesh gives them.
+pub fn within(
+    rest: &[Vector3<f64>],
+    tets: &[[usize; 4]],
+    length: f64,
+    sources: &[bool],
+) -> Vec<bool> {
+    let graph = EdgeGraph::new(rest.len(), tets);
+    let mut search = BoundedSearch::new(rest.len());
+    let from: Vec<usize> = (0..rest.len()).filter(|&i| sources[i]).collect();
+    search.run(&graph, rest, &from, length);
+    let mut reached = vec![false; rest.len()];
     for &j in &search.reached {
         reached[j as usize] = true;
     }
@@ -122,9 +128,10 @@ struct EdgeGraph {
 }
 
 impl EdgeGraph {
-    fn new(mesh: &TetMesh) -> Self {
-        let mut edges: Vec<(u32, u32)> = Vec::with_capacity(12 * mesh.num_tets());
-        for tet in &mesh.tets {
+    /// The edges of the elements `tets` of a mesh of `nodes` nodes.
+    fn new(nodes: usize, tets: &[[usize; 4]]) -> Self {
+        let mut edges: Vec<(u32, u32)> = Vec::with_capacity(12 * tets.len());
+        for tet in tets {
             for a in 0..4 {
                 for b in 0..4 {
                     if a != b {
@@ -135,11 +142,11 @@ impl EdgeGraph {
         }
         edges.sort_unstable();
         edges.dedup();
-        let mut start = vec![0usize; mesh.num_nodes() + 1];
+        let mut start = vec![0usize; nodes + 1];
         for &(a, _) in &edges {
             start[a as usize + 1] += 1;
         }
-        for i in 0..mesh.num_nodes() {
+        for i in 0..nodes {
             start[i + 1] += start[i];
         }
         EdgeGraph { start, edges }
@@ -281,7 +288,7 @@ mod tests {
         let sources: Vec<bool> = (0..mesh.num_nodes()).map(|i| i % 7 == 0).collect();
         let all = Averaging::new(&mesh, 0.025);
         let some = Averaging::of(&mesh, 0.025, Some(&sources));
-        let reached = within(&mesh, 0.025, &sources);
+        let reached = within(&mesh.rest, &mesh.tets, 0.025, &sources);
         let mut union = vec![false; mesh.num_nodes()];
         for (i, &source) in sources.iter().enumerate() {
             let got = &some.neighbours[some.ptr[i]..some.ptr[i + 1]];
