@@ -36,9 +36,13 @@ struct SplitPlan {
     normal: Vector3<f64>,
 }
 
-/// The plan of process `owner` (`Some` there, ignored elsewhere), on every process of `world`.
-/// Every process calls it.
-fn plan_from_owner(world: &SimpleCommunicator, owner: u32, plan: Option<SplitPlan>) -> SplitPlan {
+/// The plan of process `owner` (ignored elsewhere), on every process of `world`; `None` on
+/// every process if the owner has none. Every process calls it.
+fn plan_from_owner(
+    world: &SimpleCommunicator,
+    owner: u32,
+    plan: Option<SplitPlan>,
+) -> Option<SplitPlan> {
     let root = world.process_at_rank(owner as i32);
     let mut words: Vec<u64> = match plan {
         Some(plan) if world.rank() as u32 == owner => (plan.normal.iter())
@@ -51,11 +55,11 @@ fn plan_from_owner(world: &SimpleCommunicator, owner: u32, plan: Option<SplitPla
     root.broadcast_into(&mut len);
     words.resize(len as usize, 0);
     root.broadcast_into(&mut words[..]);
-    let normal = Vector3::from_iterator(words.iter().take(3).map(|&w| f64::from_bits(w)));
-    SplitPlan {
-        star: words.iter().skip(3).map(|&i| i as usize).collect(),
-        normal,
-    }
+    let (normal, star) = words.split_at_checked(3)?;
+    Some(SplitPlan {
+        normal: Vector3::from_iterator(normal.iter().map(|&w| f64::from_bits(w))),
+        star: star.iter().map(|&i| i as usize).collect(),
+    })
 }
 
 /// The patch around `star` (the split node's star, [`SplitPlan::star`]) of the mesh the
@@ -203,7 +207,9 @@ pub fn try_split(
         }
         _ => None,
     };
-    let plan = plan_from_owner(world, owner, plan);
+    let plan = plan_from_owner(world, owner, plan).ok_or(format!(
+        "process {owner} does not hold node {node}, which it owns"
+    ))?;
     let own = held.part.own_elements.clone();
     let (mut patch, local, processes) =
         gathered_patch(world, &mesh, &own, (&plan.star, node), counts);
