@@ -1035,21 +1035,9 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         origin = whole.parent.iter().map(|&e| origin[e]).collect();
         let owners = lowest_owners(&whole.tets, &processes, whole.rest.len());
         let wanted = Part::new(&whole.tets, (&processes, &owners), rank, (&[], false));
-        let own = |p: &Part| -> Vec<usize> {
-            (p.elements.iter().zip(&p.own_elements))
-                .filter(|(_, &o)| o)
-                .map(|(&e, _)| e)
-                .collect()
-        };
-        let owned = |p: &Part| -> Vec<usize> {
-            (p.nodes.iter().zip(&p.owned_nodes))
-                .filter(|(_, &o)| o)
-                .map(|(&i, _)| i)
-                .collect()
-        };
         let after = &held.part;
-        assert_eq!(own(after), own(&wanted));
-        assert_eq!(owned(after), owned(&wanted));
+        assert_eq!(after.mine(true), wanted.mine(true));
+        assert_eq!(after.mine(false), wanted.mine(false));
         assert!(wanted
             .elements
             .iter()

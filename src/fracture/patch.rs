@@ -635,20 +635,8 @@ mod tests {
                     .nodes
                     .iter()
                     .all(|i| after.nodes.binary_search(i).is_ok()));
-                let own = |p: &Part| -> Vec<usize> {
-                    (p.elements.iter().zip(&p.own_elements))
-                        .filter(|(_, &o)| o)
-                        .map(|(&e, _)| e)
-                        .collect()
-                };
-                let owned = |p: &Part| -> Vec<usize> {
-                    (p.nodes.iter().zip(&p.owned_nodes))
-                        .filter(|(_, &o)| o)
-                        .map(|(&i, _)| i)
-                        .collect()
-                };
-                assert_eq!(own(&after), own(&expected), "process {r}");
-                assert_eq!(owned(&after), owned(&expected), "process {r}");
+                assert_eq!(after.mine(true), expected.mine(true), "process {r}");
+                assert_eq!(after.mine(false), expected.mine(false), "process {r}");
                 // The part's mesh and state are the whole mesh's rows; parents and copies are
                 // the whole mesh's, through the first part's numbers.
                 let mut rows = whole.rows_of(&after);

@@ -256,6 +256,14 @@ impl Part {
             .collect()
     }
 
+    /// The mesh's numbers of the process's own elements (`per_element`) or of its owned
+    /// nodes, ascending.
+    pub fn mine(&self, per_element: bool) -> Vec<usize> {
+        (self.given_rows(per_element).into_iter())
+            .map(|(i, _)| i)
+            .collect()
+    }
+
     /// The whole-mesh dof of each of the part's dofs (3 per node).
     pub fn whole_dofs(&self) -> impl Iterator<Item = usize> + '_ {
         self.nodes
