@@ -654,6 +654,18 @@ fn a_region_that_selects_nothing_anywhere_is_every_processs_error() {
         "{whole}"
     );
     assert_eq!(on_parts.to_string(), whole.to_string());
+    // A box too large for this machine even in thirds: every process refuses it alike, for
+    // its share of the tets and its share of the machine (one process erring alone would
+    // leave the others waiting for it).
+    let huge = corner.replace("cells = [6, 4, 2]", "cells = [6000, 4000, 2000]");
+    let e = Scene::parse_shared(&huge, path, Some(processes)).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("mesh.box")
+            && text.contains("on 3 processes")
+            && text.contains("use more machines"),
+        "{text}"
+    );
 }
 
 #[test]

@@ -379,6 +379,10 @@ impl MeshSharing for MpiProcesses {
         (self.rank() as usize, self.size())
     }
 
+    fn on_this_machine(&self) -> usize {
+        self.world.split_shared(self.rank() as i32).size() as usize
+    }
+
     fn share(&self, ranges: MeshRanges) -> Result<SharedMesh, String> {
         (self.gather_part(&ranges, Held::Nothing)).map_err(|e| e.to_string())
     }

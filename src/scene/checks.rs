@@ -28,6 +28,19 @@ fn available_memory() -> Option<u64> {
     Some(kib * 1024)
 }
 
+/// The memory a process needs for its share of `tets` tets run on `processes` processes and
+/// the memory it has, `available` bytes shared by the `local` processes on its machine
+/// (bytes), if it needs more than it has.
+fn memory_short(
+    tets: u128,
+    (processes, local): (usize, usize),
+    available: u64,
+) -> Option<(f64, f64)> {
+    let needed = tets as f64 * BYTES_PER_TET / processes.max(1) as f64;
+    let has = available as f64 / local.max(1) as f64;
+    (needed > has).then_some((needed, has))
+}
+
 impl Validator<'_> {
     /// Checks the boxes of `[mesh]` before any is meshed: sizes, cells, tets per cell; that
     /// the whole mesh fits in the memory this machine has (refused in microseconds, without
@@ -115,24 +128,42 @@ impl Validator<'_> {
     }
 
     /// Refuses a mesh of `tets` tets whose run would need more memory than this machine has
-    /// available ([`BYTES_PER_TET`] a tet), naming `field` and what to do (`advice`).
+    /// available ([`BYTES_PER_TET`] a tet), naming `field` and what to do (`advice`). A scene
+    /// built on the processes' parts needs its share of the tets on each process, and the
+    /// processes on one machine share its memory.
     pub(super) fn check_memory(
         &self,
         field: &str,
         tets: u128,
         advice: &str,
     ) -> Result<(), SceneError> {
-        let needed = tets as f64 * BYTES_PER_TET;
-        match available_memory() {
-            Some(available) if needed > available as f64 => Err(self.invalid(
-                field,
-                format!(
-                    "{tets} tets would need about {needed:.3e} bytes of memory ({BYTES_PER_TET} bytes a tet) and this machine has {:.3e} available; {advice}",
-                    available as f64
-                ),
-            )),
-            _ => Ok(()),
+        let available = available_memory();
+        let Some(sharing) = self.sharing.get() else {
+            return match available.and_then(|a| memory_short(tets, (1, 1), a)) {
+                Some((needed, has)) => Err(self.invalid(
+                    field,
+                    format!(
+                        "{tets} tets would need about {needed:.3e} bytes of memory ({BYTES_PER_TET} bytes a tet) and this machine has {has:.3e} available; {advice}"
+                    ),
+                )),
+                None => Ok(()),
+            };
+        };
+        // Every process takes the same decision, from the fullest machine's share.
+        let processes = (sharing.rank_and_size().1, sharing.on_this_machine());
+        let share = tets as f64 * BYTES_PER_TET / processes.0 as f64;
+        let short = available.and_then(|a| memory_short(tets, processes, a));
+        let worst = sharing.largest(short.map_or(0.0, |(needed, has)| needed / has));
+        if worst <= 1.0 {
+            return Ok(());
         }
+        Err(self.invalid(
+            field,
+            format!(
+                "{tets} tets on {} processes would need about {share:.3e} bytes of memory each ({BYTES_PER_TET} bytes a tet), {worst:.1} times what each process has on the fullest machine; {advice}, or use more machines",
+                processes.0
+            ),
+        ))
     }
 
     /// The ice must start outside every obstacle: a node behind an obstacle's surface by more
@@ -374,4 +405,26 @@ fn inside_by(x: &Vector3<f64>, p: [Vector3<f64>; 4], margin: f64) -> bool {
         q[k] = *x;
         volume(&q[0], &q[1], &q[2], &q[3]) / total > margin
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_process_needs_its_share_of_the_tets_and_has_its_share_of_its_machine() {
+        // 1e8 tets need 1.3e11 bytes: too much for one 64 GB machine, or for 8 processes on
+        // it, but 1.6e10 each on 8 machines of 64 GB with one process each.
+        let gb = 1u64 << 30;
+        assert!(memory_short(100_000_000, (1, 1), 64 * gb).is_some());
+        assert!(memory_short(100_000_000, (8, 8), 64 * gb).is_some());
+        assert_eq!(memory_short(100_000_000, (8, 1), 64 * gb), None);
+        // On one machine the share changes nothing: N processes need what one does.
+        for n in [1, 2, 4, 16] {
+            let short = |tets| memory_short(tets, (n, n), 64 * gb).is_some();
+            assert!(!short(40_000_000) && short(60_000_000), "{n} processes");
+        }
+        let (needed, has) = memory_short(100_000_000, (2, 2), 64 * gb).unwrap();
+        assert_eq!((needed, has), (6.5e10, 32.0 * gb as f64));
+    }
 }

@@ -57,6 +57,9 @@ pub struct SharedMesh {
 pub trait MeshSharing {
     /// This process's number and the number of processes.
     fn rank_and_size(&self) -> (usize, usize);
+    /// The number of processes on this process's machine (sharing its memory), this one
+    /// included.
+    fn on_this_machine(&self) -> usize;
     /// This process's part of the mesh the processes hold in `ranges`, partitioned among
     /// them.
     fn share(&self, ranges: MeshRanges) -> Result<SharedMesh, String>;
