@@ -305,13 +305,21 @@ fn grown(
         .collect();
     complete.sort_unstable();
     complete.dedup();
+    // The held nodes' owners and rest positions, asked of their homes once each.
+    let mut known: Vec<(usize, u32, Vector3<f64>)> = Vec::new();
     loop {
         let mut part_nodes: Vec<usize> = held.iter().flat_map(|h| h.tet).collect();
         part_nodes.sort_unstable();
         part_nodes.dedup();
-        let facts = node_facts(world, &part_nodes, (nodes.starts, nodes.rest), numbers);
-        let rest: Vec<Vector3<f64>> = facts.iter().map(|f| f.rest).collect();
-        let owned: Vec<bool> = facts.iter().map(|f| f.owner == rank).collect();
+        let new: Vec<usize> = (part_nodes.iter().copied())
+            .filter(|v| known.binary_search_by_key(v, |k| k.0).is_err())
+            .collect();
+        let facts = node_facts(world, &new, (nodes.starts, nodes.rest), numbers);
+        known.extend(new.iter().zip(facts).map(|(&v, f)| (v, f.owner, f.rest)));
+        known.sort_unstable_by_key(|k| k.0);
+        // `known` holds exactly the held nodes: held elements are never dropped.
+        let rest: Vec<Vector3<f64>> = known.iter().map(|k| k.2).collect();
+        let owned: Vec<bool> = known.iter().map(|k| k.1 == rank).collect();
         let local = |v: usize| part_nodes.binary_search(&v).expect("a held node");
         let tets: Vec<[usize; 4]> = held.iter().map(|h| h.tet.map(local)).collect();
         let reached = crate::fracture::nonlocal::within(&rest, &tets, length, &owned);

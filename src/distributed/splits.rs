@@ -210,9 +210,9 @@ pub fn try_split(
     let plan = plan_from_owner(world, owner, plan).ok_or(format!(
         "process {owner} does not hold node {node}, which it owns"
     ))?;
-    let own = held.part.own_elements.clone();
+    let own = &held.part.own_elements;
     let (mut patch, local, processes) =
-        gathered_patch(world, &mesh, &own, (&plan.star, node), counts);
+        gathered_patch(world, &mesh, own, (&plan.star, node), counts);
     let Some(split) = (patch.mesh).split_node(local, &plan.normal, snap, min_quality) else {
         return Ok(Err(Refusal::PlaneMissesStar));
     };

@@ -36,7 +36,8 @@ impl OriginalBoundary {
     /// Records the boundary of the scene's mesh.
     pub fn new(mesh: &TetMesh) -> Self {
         let (lo, hi) = mesh.bounding_box();
-        Self::of_faces(mesh, &mesh.boundary_faces(), None, (hi - lo).norm())
+        let faces = mesh.boundary_faces();
+        Self::of_faces(mesh, &faces, (None, mesh.num_tets()), (hi - lo).norm())
     }
 
     /// The boundary planes of a process's part of the scene's mesh: `mesh` is the part, whose
@@ -49,22 +50,22 @@ impl OriginalBoundary {
         scene_elements: usize,
         diagonal: f64,
     ) -> Self {
-        let mut original = Self::of_faces(
+        let faces = mesh.faces_marked(marks);
+        Self::of_faces(
             mesh,
-            &mesh.faces_marked(marks),
-            Some(elements.to_vec()),
+            &faces,
+            (Some(elements.to_vec()), scene_elements),
             diagonal,
-        );
-        original.scene_elements = scene_elements;
-        original
+        )
     }
 
     /// The planes of `faces` of `mesh`, whose elements are the scene elements `held` (all,
-    /// by number, if `None`), in a scene mesh whose bounding box has the diagonal `diagonal`.
+    /// by number, if `None`), in a scene mesh of `scene_elements` elements whose bounding box
+    /// has the diagonal `diagonal`.
     fn of_faces(
         mesh: &TetMesh,
         faces: &[crate::mesh::BoundaryFace],
-        held: Option<Vec<usize>>,
+        (held, scene_elements): (Option<Vec<usize>>, usize),
         diagonal: f64,
     ) -> Self {
         let mut planes = vec![Vec::new(); mesh.num_tets()];
@@ -76,7 +77,7 @@ impl OriginalBoundary {
         OriginalBoundary {
             held,
             planes,
-            scene_elements: mesh.num_tets(),
+            scene_elements,
             // Rest positions of split nodes are convex combinations of scene nodes: coplanar
             // points are off the plane by round-off only (1e-16 relative per operation).
             tolerance: 1e-9 * diagonal,
