@@ -7,6 +7,7 @@
 
 mod common;
 
+use icefem::distributed::node_halo::NodeHalo;
 use icefem::distributed::partition::{self, Partition};
 use icefem::distributed::splits::{candidates_in_order, try_split, SplitPart};
 use icefem::distributed::{components, dual_graph, part_mesh};
@@ -15,7 +16,7 @@ use icefem::fracture::driver::{continued, Refusal};
 use icefem::fracture::patch::Patch;
 use icefem::fracture::split::Fracturable;
 use icefem::fracture::{
-    area_floor, separation, separation_on_part, Averaging, NodeSeparation, OnPart,
+    area_floor, separation, separation_on_part, Averaging, NodeSeparation, OnPart, PartAverages,
 };
 use icefem::mesh::{box_mesh, BoxGrid, TetMesh, TET_FACES};
 use icefem::physics::contact::ObstacleContact;
@@ -793,22 +794,34 @@ fn slabs(mesh: &TetMesh) -> Vec<u32> {
         .collect()
 }
 
+/// What a process's part holds of the nodes its averages read.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Reach {
+    /// Only the ring around its own elements.
+    Ring,
+    /// Every element around the nodes within the averaging length of its owned nodes.
+    Elements,
+    /// The ring, and the nodes within the averaging length gathered from their owners
+    /// (`NodeHalo`).
+    Nodes,
+}
+
 /// The fracture criterion's separations of `sim`'s nodes evaluated by this process on its
-/// part of the mesh (processes by slabs across the container), its part holding the nodes
-/// within `length` (m) of its owned nodes when averaging over `length` (`halo`), or only its
-/// ring: the part's node numbers and the separations of its owned nodes.
+/// part of the mesh (processes by slabs across the container), averaged over `length` (m)
+/// with the nodes within it reached as `reach` says: the part's node numbers, the separations
+/// of its owned nodes, and the number of nodes gathered beyond the part.
 fn separations_on_part(
     world: &SimpleCommunicator,
     sim: &icefem::sim::Simulation,
     pressing: &[f64],
-    (length, halo): (Option<f64>, bool),
-) -> (Part, Vec<(usize, NodeSeparation)>) {
+    (length, reach): (Option<f64>, Reach),
+) -> (Part, Vec<(usize, NodeSeparation)>, usize) {
     let mesh = &sim.model.mesh;
     let rank = world.rank() as u32;
     let partition = Partition::from_element_parts(mesh, slabs(mesh), PROCESSES);
     let owned: Vec<bool> = partition.node_owner.iter().map(|&o| o == rank).collect();
-    let halo: Vec<usize> = match (length, halo) {
-        (Some(length), true) => {
+    let halo: Vec<usize> = match (length, reach) {
+        (Some(length), Reach::Elements) => {
             let near = icefem::fracture::nonlocal::within(&mesh.rest, &mesh.tets, length, &owned);
             (0..mesh.num_tets())
                 .filter(|&e| mesh.tets[e].iter().any(|&v| near[v]))
@@ -825,15 +838,32 @@ fn separations_on_part(
     let model = part.model(&sim.model).unwrap();
     let history = sim.state.history.inherit(&part.elements);
     let (u, pressing) = (part.dofs_of(&sim.state.u), part.dofs_of(pressing));
-    let collective =
-        icefem::distributed::MpiCollective::new(&part, &partition.of_part(&part).node_owner);
-    let averaging = length.map(|l| Averaging::of(&model.mesh, l, Some(&part.owned_nodes)));
+    let node_owner = partition.of_part(&part).node_owner;
+    let collective = icefem::distributed::MpiCollective::new(&part, &node_owner);
+    let (node_halo, element_halo) = match (length, reach) {
+        (Some(l), Reach::Nodes) => {
+            let rest_tets = (&model.mesh.rest[..], &model.mesh.tets[..]);
+            let halo = NodeHalo::new(world, &part, rest_tets, &node_owner, l);
+            (Some(halo), None)
+        }
+        (Some(l), _) => (
+            None,
+            Some(Averaging::of(&model.mesh, l, Some(&part.owned_nodes))),
+        ),
+        (None, _) => (None, None),
+    };
+    let averaging: Option<&dyn PartAverages> = match (&node_halo, &element_halo) {
+        (Some(halo), _) => Some(halo),
+        (_, Some(averaging)) => Some(averaging),
+        _ => None,
+    };
+    let gathered = node_halo.as_ref().map_or(0, NodeHalo::gathered_nodes);
     let separations = separation_on_part(
         &model.elasticity,
         &history,
         (&model.mesh.tets, &u, &pressing),
         area_floor(mesh),
-        averaging.as_ref(),
+        averaging,
         &OnPart {
             collective: &collective,
             owned_nodes: &part.owned_nodes,
@@ -843,7 +873,7 @@ fn separations_on_part(
         .filter(|&k| part.owned_nodes[k])
         .map(|k| (part.nodes[k], separations[k]))
         .collect();
-    (part, owned)
+    (part, owned, gathered)
 }
 
 #[test]
@@ -871,48 +901,61 @@ fn the_fracture_criterion_on_a_part_is_the_whole_meshs_at_its_owned_nodes() {
     // layers of elements deep, beyond the ring.
     for length in [None, Some(0.035)] {
         let expected = whole(length);
-        let (part, got) = separations_on_part(&world, &sim, &pressing, (length, true));
-        let eligible = got
-            .iter()
-            .filter(|(_, s)| s.eligible && s.largest > 0.0)
-            .count();
-        eprintln!(
-            "process {}, averaged over {length:?} m: {} of {} elements held, {} owned nodes, \
-             {eligible} eligible in tension",
-            world.rank(),
-            part.elements.len(),
-            mesh.num_tets(),
-            got.len()
-        );
-        let mut total = 0u64;
-        world.all_reduce_into(
-            &(eligible as u64),
-            &mut total,
-            mpi::collective::SystemOperation::sum(),
-        );
-        assert!(total > 20, "a frozen shell in tension: {total} nodes");
-        for (i, s) in &got {
-            // To the bit: the same elements in the same order, the same pressures.
-            assert_eq!(*s, expected[*i], "node {i}");
-        }
-        // The eligible nodes, gathered from the processes in the order one process tries
-        // them.
-        let offered: Vec<(usize, NodeSeparation)> =
-            got.iter().copied().filter(|(_, s)| s.eligible).collect();
-        let mut in_order: Vec<(usize, NodeSeparation)> = (expected.iter().copied())
-            .enumerate()
-            .filter(|(_, s)| s.eligible)
-            .collect();
-        in_order.sort_by(|a, b| b.1.stress().total_cmp(&a.1.stress()));
-        assert_eq!(candidates_in_order(&world, &offered), in_order);
-        if length.is_some() {
-            // The ring alone is not enough: without the halo some owned node reads less.
-            let (_, ring) = separations_on_part(&world, &sim, &pressing, (length, false));
-            assert!(
-                ring.iter().any(|(i, s)| *s != expected[*i]),
-                "the halo matters"
+        let reaches = match length {
+            None => vec![Reach::Ring],
+            Some(_) => vec![Reach::Elements, Reach::Nodes],
+        };
+        for reach in reaches {
+            let (part, got, gathered) =
+                separations_on_part(&world, &sim, &pressing, (length, reach));
+            let eligible = got
+                .iter()
+                .filter(|(_, s)| s.eligible && s.largest > 0.0)
+                .count();
+            eprintln!(
+                "process {}, averaged over {length:?} m, {reach:?}: {} of {} elements held, \
+                 {gathered} nodes gathered beyond them, {} owned nodes, {eligible} eligible in \
+                 tension",
+                world.rank(),
+                part.elements.len(),
+                mesh.num_tets(),
+                got.len()
             );
-            assert!(part.elements.len() < mesh.num_tets(), "a part");
+            let mut total = 0u64;
+            world.all_reduce_into(
+                &(eligible as u64),
+                &mut total,
+                mpi::collective::SystemOperation::sum(),
+            );
+            assert!(total > 20, "a frozen shell in tension: {total} nodes");
+            for (i, s) in &got {
+                // To the bit: the same elements in the same order, the same pressures, the
+                // same neighbourhoods summed in the same order.
+                assert_eq!(*s, expected[*i], "node {i}, {reach:?}");
+            }
+            // The eligible nodes, gathered from the processes in the order one process tries
+            // them.
+            let offered: Vec<(usize, NodeSeparation)> =
+                got.iter().copied().filter(|(_, s)| s.eligible).collect();
+            let mut in_order: Vec<(usize, NodeSeparation)> = (expected.iter().copied())
+                .enumerate()
+                .filter(|(_, s)| s.eligible)
+                .collect();
+            in_order.sort_by(|a, b| b.1.stress().total_cmp(&a.1.stress()));
+            assert_eq!(candidates_in_order(&world, &offered), in_order);
+            if reach == Reach::Nodes {
+                // The gathered nodes are what the ring lacks: without them some owned node
+                // reads less; and the part is the ring's.
+                let (ring_part, ring, _) =
+                    separations_on_part(&world, &sim, &pressing, (length, Reach::Ring));
+                assert!(
+                    ring.iter().any(|(i, s)| *s != expected[*i]),
+                    "the halo matters"
+                );
+                assert_eq!(part.elements, ring_part.elements);
+                assert!(gathered > 0);
+                assert!(part.elements.len() < mesh.num_tets(), "a part");
+            }
         }
     }
 }

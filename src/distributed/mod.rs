@@ -24,6 +24,7 @@ pub mod components;
 pub mod dual_graph;
 pub mod ghosts;
 pub mod heat;
+pub mod node_halo;
 pub mod part_mesh;
 pub mod partition;
 pub mod petsc;

@@ -81,7 +81,8 @@ pub struct PartMesh {
 /// This process's part of the mesh whose elements and nodes the processes of `world` hold in
 /// `elements` and `nodes` ranges, with the elements `everywhere` on every process, and with
 /// `halo` (m) every element around the nodes within that distance of its owned nodes along
-/// the mesh's edges (the nonlocal separation's reach, see `fracture::nonlocal::within`).
+/// the mesh's edges (the nonlocal separation's reach, see `fracture::nonlocal::within`; the
+/// averages need only those nodes' forces, which [`super::node_halo`] gathers for much less).
 /// Every process calls it.
 pub fn part_mesh(
     world: &SimpleCommunicator,

@@ -180,11 +180,30 @@ impl OnPart<'_> {
     }
 }
 
+/// How a process's part averages the separations of its owned nodes (the nonlocal
+/// criterion, see [`nonlocal`]) from the forces of its part's nodes.
+pub trait PartAverages {
+    /// The separations of the part's nodes from their forces `forces` (one per node of the
+    /// part; whole at the nodes the process owns), A(n) at least `area_floor` (m²): averaged
+    /// at the owned nodes, anything at the others (they are not eligible on this process).
+    /// Every process calls it together (it may exchange forces).
+    fn average(&self, forces: &[NodeForces], area_floor: f64) -> Vec<NodeSeparation>;
+}
+
+/// A part that holds every element around the nodes within the averaging length of its owned
+/// nodes ([`nonlocal::within`]), averaged for its owned nodes ([`Averaging::of`]): their
+/// neighbours' forces are whole on the part.
+impl PartAverages for Averaging {
+    fn average(&self, forces: &[NodeForces], area_floor: f64) -> Vec<NodeSeparation> {
+        Averaging::average(self, forces, area_floor)
+    }
+}
+
 /// [`separation`] on a process's part of the mesh (`tets`, `u` and `pressing` of its nodes,
 /// `elasticity` and `history` of its elements), for the nodes it owns: they alone are
-/// eligible in the result. The part must hold every element around its owned nodes, and with
-/// `averaging` (made for the owned nodes, [`Averaging::of`]) every element around the nodes
-/// within the averaging length of them ([`nonlocal::within`]). Each such node's separation
+/// eligible in the result. The part must hold every element around its owned nodes, and
+/// `averaging` must read each owned node's neighbours whole (a part holding the elements
+/// around them, or their forces gathered from their owners). Each owned node's separation
 /// then reads the elements the whole mesh's does, in the same order; the element pressures
 /// of the nodal volumetric energy read the nodal pressures of the nodes' owners, which hold
 /// their stars. So an owned node's separation is the whole mesh's, to the bit, when the
@@ -194,7 +213,7 @@ pub fn separation_on_part(
     history: &ElementHistory,
     (tets, u, pressing): (&[[usize; 4]], &[f64], &[f64]),
     area_floor: f64,
-    averaging: Option<&Averaging>,
+    averaging: Option<&dyn PartAverages>,
     on_part: &OnPart,
 ) -> Vec<NodeSeparation> {
     let from_owners = |p: &mut [f64]| on_part.owners_values(p);
@@ -207,7 +226,10 @@ pub fn separation_on_part(
         (tets, u, pressing),
         (&offsets, pressure),
     );
-    let mut separations = read(&forces, area_floor, averaging);
+    let mut separations = match averaging {
+        Some(averaging) => averaging.average(&forces, area_floor),
+        None => read(&forces, area_floor, None),
+    };
     // The averages read the neighbours' eligibility; only then are the owned nodes kept.
     for (node, &owned) in separations.iter_mut().zip(on_part.owned_nodes) {
         node.eligible &= owned;
@@ -298,7 +320,8 @@ fn node_forces(
 }
 
 /// What the criterion needs of one node before any averaging.
-pub(crate) struct NodeForces {
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeForces {
     /// ς (N).
     pub tensor: Matrix3<f64>,
     /// Vₑ R F*⁻ᵀ∇Nᵢ of the node's ice elements (m², `fem::StressForces::weighted_grads`), for
@@ -309,6 +332,34 @@ pub(crate) struct NodeForces {
 }
 
 impl NodeForces {
+    /// The node's forces as words to send to another process (floating-point values by
+    /// their bits), appended to `words`: eligibility, the number of gradients, ς's nine
+    /// entries, the gradients. [`NodeForces::from_words`] reads them back.
+    pub fn to_words(&self, words: &mut Vec<u64>) {
+        words.push(self.eligible as u64);
+        words.push(self.weighted_grads.len() as u64);
+        words.extend(self.tensor.iter().map(|x| x.to_bits()));
+        for g in &self.weighted_grads {
+            words.extend(g.iter().map(|x| x.to_bits()));
+        }
+    }
+
+    /// The forces [`NodeForces::to_words`] wrote at the start of `words`, and the words after
+    /// them.
+    pub fn from_words(words: &[u64]) -> (NodeForces, &[u64]) {
+        let float = |w: &[u64]| w.iter().map(|&b| f64::from_bits(b)).collect::<Vec<_>>();
+        let grads = words[1] as usize;
+        let (head, rest) = words.split_at(11 + 3 * grads);
+        let forces = NodeForces {
+            eligible: head[0] != 0,
+            tensor: Matrix3::from_column_slice(&float(&head[2..11])),
+            weighted_grads: (float(&head[11..]).chunks_exact(3))
+                .map(Vector3::from_column_slice)
+                .collect(),
+        };
+        (forces, rest)
+    }
+
     /// The node's own separation, A(n) at least `floor` (m²).
     pub fn local(&self, floor: f64) -> NodeSeparation {
         let (largest, normal) = largest_eigen(&self.tensor);

@@ -45,15 +45,21 @@ impl Averaging {
     /// when the part holds every element around the nodes within `length` of them (see
     /// [`within`]).
     pub fn of(mesh: &TetMesh, length: f64, sources: Option<&[bool]>) -> Self {
-        let graph = EdgeGraph::new(mesh.num_nodes(), &mesh.tets);
+        Self::on(&Edges::of_mesh(&mesh.rest, &mesh.tets), length, sources)
+    }
+
+    /// As [`Averaging::of`], on the nodes and edges `edges` (the nodes a process's averages
+    /// read, gathered from their owners).
+    pub fn on(edges: &Edges, length: f64, sources: Option<&[bool]>) -> Self {
+        let nodes = edges.rest.len();
         let mut averaging = Averaging {
             ptr: vec![0],
             neighbours: Vec::new(),
         };
-        let mut search = BoundedSearch::new(mesh.num_nodes());
-        for source in 0..mesh.num_nodes() {
+        let mut search = BoundedSearch::new(nodes);
+        for source in 0..nodes {
             if sources.is_none_or(|s| s[source]) {
-                search.run(&graph, &mesh.rest, &[source], length);
+                search.run(edges, &[source], length);
                 for &j in &search.reached {
                     let r = search.distance[j as usize] / length;
                     averaging.neighbours.push((j, (1.0 - r * r).powi(2)));
@@ -110,36 +116,40 @@ pub fn within(
     length: f64,
     sources: &[bool],
 ) -> Vec<bool> {
-    let graph = EdgeGraph::new(rest.len(), tets);
-    let mut search = BoundedSearch::new(rest.len());
-    let from: Vec<usize> = (0..rest.len()).filter(|&i| sources[i]).collect();
-    search.run(&graph, rest, &from, length);
-    let mut reached = vec![false; rest.len()];
-    for &j in &search.reached {
-        reached[j as usize] = true;
-    }
-    reached
+    Edges::of_mesh(rest, tets).within(length, sources)
 }
 
-/// The mesh's edges, both ways, sorted: node a's neighbours are `edges[start[a]..start[a + 1]]`.
-struct EdgeGraph {
+/// Nodes (rest positions) and the edges between them, both ways, sorted: node a's neighbours
+/// are `edges[start[a]..start[a + 1]]`. The searches walk a node's edges in this order, so
+/// two graphs that number their nodes in the same order and give a node the same edges find
+/// the same neighbourhoods, to the bit.
+#[derive(Clone, Debug)]
+pub struct Edges {
+    rest: Vec<Vector3<f64>>,
     start: Vec<usize>,
     edges: Vec<(u32, u32)>,
 }
 
-impl EdgeGraph {
-    /// The edges of the elements `tets` of a mesh of `nodes` nodes.
-    fn new(nodes: usize, tets: &[[usize; 4]]) -> Self {
+impl Edges {
+    /// The nodes at `rest` (m) and the edges of the elements `tets`.
+    pub fn of_mesh(rest: &[Vector3<f64>], tets: &[[usize; 4]]) -> Self {
         let mut edges: Vec<(u32, u32)> = Vec::with_capacity(12 * tets.len());
         for tet in tets {
             for a in 0..4 {
-                for b in 0..4 {
-                    if a != b {
-                        edges.push((tet[a] as u32, tet[b] as u32));
-                    }
+                for b in a + 1..4 {
+                    edges.push((tet[a] as u32, tet[b] as u32));
                 }
             }
         }
+        Self::new(rest.to_vec(), edges)
+    }
+
+    /// The nodes at `rest` (m) and the edges `edges` (each given one way or both, repeats
+    /// allowed).
+    pub fn new(rest: Vec<Vector3<f64>>, mut edges: Vec<(u32, u32)>) -> Self {
+        let nodes = rest.len();
+        let reversed: Vec<(u32, u32)> = edges.iter().map(|&(a, b)| (b, a)).collect();
+        edges.extend(reversed);
         edges.sort_unstable();
         edges.dedup();
         let mut start = vec![0usize; nodes + 1];
@@ -149,7 +159,27 @@ impl EdgeGraph {
         for i in 0..nodes {
             start[i + 1] += start[i];
         }
-        EdgeGraph { start, edges }
+        Edges { rest, start, edges }
+    }
+
+    /// Whether each node lies within `length` (m) of a node `sources` marks, along the edges.
+    pub fn within(&self, length: f64, sources: &[bool]) -> Vec<bool> {
+        let nodes = self.rest.len();
+        let mut search = BoundedSearch::new(nodes);
+        let from: Vec<usize> = (0..nodes).filter(|&i| sources[i]).collect();
+        search.run(self, &from, length);
+        let mut reached = vec![false; nodes];
+        for &j in &search.reached {
+            reached[j as usize] = true;
+        }
+        reached
+    }
+
+    /// Node `a`'s neighbours, ascending.
+    pub fn neighbours(&self, a: usize) -> impl Iterator<Item = usize> + '_ {
+        self.edges[self.start[a]..self.start[a + 1]]
+            .iter()
+            .map(|&(_, b)| b as usize)
     }
 }
 
@@ -170,10 +200,11 @@ impl BoundedSearch {
     }
 
     /// Finds every node closer than `length` to one of `sources` along the edges of `graph`
-    /// (rest positions `rest`). Distances are ordered as integer nanometres in the heap
+    /// (rest lengths). Distances are ordered as integer nanometres in the heap
     /// (exact enough for weights, and no float ordering to work around); ties go to the
     /// lower node.
-    fn run(&mut self, graph: &EdgeGraph, rest: &[Vector3<f64>], sources: &[usize], length: f64) {
+    fn run(&mut self, graph: &Edges, sources: &[usize], length: f64) {
+        let rest = &graph.rest;
         let mut heap = BinaryHeap::new();
         for &source in sources {
             self.distance[source] = 0.0;
