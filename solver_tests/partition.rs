@@ -10,7 +10,7 @@ mod common;
 use icefem::distributed::node_halo::NodeHalo;
 use icefem::distributed::partition::{self, Partition};
 use icefem::distributed::splits::{candidates_in_order, try_split, SplitPart};
-use icefem::distributed::{components, dual_graph, part_mesh};
+use icefem::distributed::{components, dual_graph, part_mesh, rebuild};
 use icefem::fracture::cracks::{crack_faces, OriginalBoundary};
 use icefem::fracture::driver::{continued, Refusal};
 use icefem::fracture::patch::Patch;
@@ -960,6 +960,48 @@ fn the_fracture_criterion_on_a_part_is_the_whole_meshs_at_its_owned_nodes() {
     }
 }
 
+/// Checks a process's model rebuilt on its part after a split (`got`) against the whole mesh's
+/// remesh restricted to the part (`want`): to the bit, but for ice–ice contact (which needs
+/// the faces beyond the part: see `distributed::rebuild`).
+fn check_rebuilt(got: &icefem::physics::Model, want: &icefem::physics::Model) {
+    assert_eq!(got.mesh.rest, want.mesh.rest);
+    assert_eq!(got.mesh.tets, want.mesh.tets);
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&got.mass), bits(&want.mass));
+    for t in [0.0, 15.0, 80.0] {
+        assert_eq!(bits(&got.dead_loads_at(t)), bits(&want.dead_loads_at(t)));
+    }
+    let (e, w) = (&got.elasticity, &want.elasticity);
+    assert_eq!(format!("{:?}", e.rest), format!("{:?}", w.rest));
+    assert_eq!(e.material_index, w.material_index);
+    assert_eq!(bits(&e.eigenstrain), bits(&w.eigenstrain));
+    assert_eq!(got.constrained_dofs(), want.constrained_dofs());
+    let contact = |m: &icefem::physics::Model| {
+        (m.term::<ObstacleContact>()).map(|t| {
+            let c = &t.contact;
+            let stiffness: Vec<u64> = c.obstacles.iter().map(|o| o.stiffness.to_bits()).collect();
+            (
+                c.nodes.clone(),
+                bits(&c.area),
+                stiffness,
+                c.edge.to_bits(),
+                c.obstacle_speed.to_bits(),
+            )
+        })
+    };
+    assert!(contact(got).is_some());
+    assert_eq!(contact(got), contact(want));
+    let states = |m: &icefem::physics::Model, t: f64| -> Vec<u64> {
+        let f = m.freezing.as_ref().expect("the container freezes");
+        (0..m.mesh.num_tets())
+            .map(|e| f.schedule.state(e, t).to_bits())
+            .collect()
+    };
+    for t in [15.0, 40.0] {
+        assert_eq!(states(got, t), states(want, t), "freeze states at {t} s");
+    }
+}
+
 #[test]
 fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
     let Some(world) =
@@ -1007,8 +1049,13 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         mesh: whole.rows_of(&first),
         node_owner: first.nodes.iter().map(|&i| owners[i]).collect(),
         origin: first.elements.clone(),
+        process: first.elements.iter().map(|&e| processes[e]).collect(),
         part: first.clone(),
     };
+    // The models: the whole mesh's, remeshed after each split, and this process's, rebuilt
+    // on its part alone.
+    let mut whole_model = sim.model.clone();
+    let mut part_model = first.model(&sim.model).unwrap();
     // The scene mesh's boundary, and the planes of it each process's scene elements have.
     let scene_boundary = OriginalBoundary::new(mesh);
     let (lo, hi) = mesh.bounding_box();
@@ -1145,6 +1192,36 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         ));
         assert_eq!(got_faces, expected_faces);
         crack_faces_seen += got_faces.len();
+        // The model rebuilt on the part is the whole mesh's remesh restricted to the part,
+        // and so is the PETSc numbering.
+        let split_mesh = TetMesh::new(whole.rest.clone(), whole.tets.clone()).unwrap();
+        let cracks: Vec<[usize; 3]> = (crack_faces(&split_mesh, &origin, &scene_boundary))
+            .iter()
+            .map(|c| c.nodes)
+            .collect();
+        whole_model =
+            (whole_model.remeshed(&whole.rest, whole.tets.clone(), &whole.parent, &cracks))
+                .unwrap();
+        part_model =
+            rebuild::model_after_split(&world, &held, &part_model, &part_boundary).unwrap();
+        check_rebuilt(&part_model, &held.part.model(&whole_model).unwrap());
+        let numbering = rebuild::numbering_after_split(
+            &world,
+            &held.part,
+            &held.node_owner,
+            held.process.clone(),
+        );
+        let partition = Partition::from_element_parts(&split_mesh, processes.clone(), PROCESSES);
+        let want = partition.of_part(&held.part);
+        assert_eq!(
+            (
+                numbering.petsc_node,
+                numbering.node_owner,
+                numbering.node_start
+            ),
+            (want.petsc_node, want.node_owner, want.node_start)
+        );
+        assert_eq!(numbering.element_part, want.element_part);
     }
     eprintln!(
         "process {rank}: {splits} splits ({shared} on patches of several processes, {turned} \

@@ -88,6 +88,20 @@ pub(super) fn all_gathered(world: &SimpleCommunicator, values: &[u64]) -> Vec<u6
     all
 }
 
+/// Every process's `items` on every process of `world`, ordered by their keys: the values
+/// alone.
+pub(super) fn gathered_by_key(world: &SimpleCommunicator, items: &[([usize; 3], f64)]) -> Vec<f64> {
+    let mine: Vec<u64> = (items.iter())
+        .flat_map(|(k, v)| [k[0] as u64, k[1] as u64, k[2] as u64, v.to_bits()])
+        .collect();
+    let all = all_gathered(world, &mine);
+    let mut keyed: Vec<[u64; 4]> = (all.chunks_exact(4))
+        .map(|r| [r[0], r[1], r[2], r[3]])
+        .collect();
+    keyed.sort_unstable();
+    keyed.iter().map(|r| f64::from_bits(r[3])).collect()
+}
+
 impl Ghosts {
     /// The ghosts of a part whose nodes are the whole mesh's `nodes` (ascending), of which
     /// this process owns those marked in `owned`, the part's node `k` being owned by process

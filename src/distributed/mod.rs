@@ -28,6 +28,7 @@ pub mod node_halo;
 pub mod part_mesh;
 pub mod partition;
 pub mod petsc;
+pub mod rebuild;
 pub mod solver;
 pub mod splits;
 
@@ -400,15 +401,7 @@ impl MeshSharing for MpiProcesses {
     }
 
     fn gathered_by_key(&self, items: &[([usize; 3], f64)]) -> Vec<f64> {
-        let mine: Vec<u64> = (items.iter())
-            .flat_map(|(k, v)| [k[0] as u64, k[1] as u64, k[2] as u64, v.to_bits()])
-            .collect();
-        let all = ghosts::all_gathered(&self.world, &mine);
-        let mut keyed: Vec<[u64; 4]> = (all.chunks_exact(4))
-            .map(|r| [r[0], r[1], r[2], r[3]])
-            .collect();
-        keyed.sort_unstable();
-        keyed.iter().map(|r| f64::from_bits(r[3])).collect()
+        ghosts::gathered_by_key(&self.world, items)
     }
 
     fn copy_from_owners(&self, values: &mut [f64]) {

@@ -155,6 +155,9 @@ pub struct SplitPart {
     pub node_owner: Vec<u32>,
     /// The scene element each of its elements lies in.
     pub origin: Vec<usize>,
+    /// The process evaluating each of its elements (a split element's children stay with
+    /// its process).
+    pub process: Vec<u32>,
 }
 
 /// A split the processes made.
@@ -228,6 +231,7 @@ pub fn try_split(
     touched.extend(&split.pinched);
     touched.extend([local, split.new_node]);
     held.origin = mesh.parent.iter().map(|&e| held.origin[e]).collect();
+    held.process = mesh.parent.iter().map(|&e| held.process[e]).collect();
     held.part = part;
     held.mesh = mesh;
     held.node_owner = node_owner;

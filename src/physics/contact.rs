@@ -882,7 +882,13 @@ impl Term for ObstacleContact {
     }
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term> {
         let c = &self.contact;
-        let contact = Contact::new(remesh.mesh, c.obstacles.clone(), c.smoothing_velocity);
+        let w = remesh.whole;
+        let contact = Contact::on_boundary(
+            (remesh.mesh, w.boundary),
+            WholeBoundary::new(w.perimeters, w.bounds),
+            c.obstacles.clone(),
+            c.smoothing_velocity,
+        );
         Box::new(ObstacleContact::new(contact, remesh.mesh.num_nodes()))
     }
     fn restricted(&self, part: &NodeRestriction) -> Box<dyn Term> {

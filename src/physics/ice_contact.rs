@@ -44,13 +44,13 @@
 //! motion, go into a uniform grid, and each boundary node of another part is looked up in it.
 //! The candidate (node, triangle) pairs are fixed for the step.
 
-use super::contact::{default_stiffness, friction_terms};
+use super::contact::{default_stiffness, friction_terms, stiffness_for_edge};
 use super::contact_forces::{ContactForces, SceneContact, SolveContact};
 use super::crack_sides::{position, CopyFrame, CrackSides};
 use super::grid::BoxGrid;
 use super::term::{LagChange, NodeRestriction, Remesh, Solve, StepStartView, StepTerm, Term};
 use crate::assembly::Assembly;
-use crate::mesh::TetMesh;
+use crate::mesh::{BoundaryFace, TetMesh};
 use nalgebra::{Matrix3, Vector3};
 
 /// The ice–ice contact term of a mesh with several parts or with cracks.
@@ -137,19 +137,39 @@ impl IceContact {
         if parts < 2 && cracks.is_empty() {
             return None;
         }
-        let stiffness = stiffness();
         let boundary = mesh.boundary_faces();
+        let perimeters = mesh.perimeters(&boundary);
+        let friction = (friction, smoothing_velocity);
+        Some(Self::on_boundary(
+            (mesh, &boundary, &perimeters),
+            (part, parts),
+            stiffness(),
+            friction,
+            cracks,
+        ))
+    }
+
+    /// The term on `mesh` (the whole mesh, or a process's part of it) with its faces
+    /// `boundary` on the whole mesh's boundary, `perimeters` those of the whole boundary's
+    /// faces (m, whose mean edge scales the penalty's onset and the broad phase), each node
+    /// in the piece `part.0[i]` of `part.1`, penalty `stiffness` (N/m³), Coulomb `friction`
+    /// smoothed over a velocity (m/s), and the crack faces `cracks`.
+    pub fn on_boundary(
+        (mesh, boundary, perimeters): (&TetMesh, &[BoundaryFace], &[f64]),
+        (part, parts): (Vec<u32>, usize),
+        stiffness: f64,
+        (friction, smoothing_velocity): (f64, f64),
+        cracks: &[[usize; 3]],
+    ) -> Self {
         let mut area = vec![0.0; mesh.num_nodes()];
-        let mut edge = 0.0;
-        for f in &boundary {
+        for f in boundary {
             let [a, b, c] = f.nodes.map(|i| mesh.rest[i]);
             let share = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
             for &v in &f.nodes {
                 area[v] += share;
             }
-            edge += ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0;
         }
-        let edge = edge / boundary.len() as f64;
+        let edge = perimeters.iter().map(|p| p / 3.0).sum::<f64>() / perimeters.len() as f64;
         let nodes = (0..mesh.num_nodes())
             .filter(|&i| area[i] > 0.0)
             .map(|i| (i, area[i]))
@@ -172,7 +192,7 @@ impl IceContact {
                 on_crack[i] = true;
             }
         }
-        Some(IceContact {
+        IceContact {
             part,
             parts,
             stiffness,
@@ -186,7 +206,7 @@ impl IceContact {
             crack_face,
             on_crack,
             owned: vec![true; mesh.num_nodes()],
-        })
+        }
     }
 
     /// The term on a process's part of a distributed run: numbered as the part's mesh, which
@@ -925,13 +945,24 @@ impl Term for IceContactTerm {
         })
     }
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term> {
-        Box::new(IceContactTerm::new(
-            remesh.mesh,
-            self.stiffness,
-            self.friction,
-            self.smoothing_velocity,
-            remesh.cracks,
-            remesh.young,
-        ))
+        let w = remesh.whole;
+        let (piece, pieces) = w.pieces;
+        let active = (pieces >= 2 || !remesh.cracks.is_empty()).then(|| {
+            let stiffness = match self.stiffness > 0.0 {
+                true => self.stiffness,
+                false => stiffness_for_edge(crate::mesh::mean_edge(w.perimeters), remesh.young),
+            };
+            IceContact::on_boundary(
+                (remesh.mesh, w.boundary, w.perimeters),
+                (piece.to_vec(), pieces),
+                stiffness,
+                (self.friction, self.smoothing_velocity),
+                remesh.cracks,
+            )
+        });
+        Box::new(IceContactTerm {
+            active,
+            ..IceContactTerm::inactive(self.stiffness, self.friction, self.smoothing_velocity)
+        })
     }
 }

@@ -39,7 +39,7 @@ use crate::mesh::{MeshError, TetMesh};
 use history::ElementHistory;
 use ice_contact::{IceContact, IceContactTerm};
 use nalgebra::Vector3;
-use term::{NodeRestriction, Remesh, Term, TermHistory};
+use term::{NodeRestriction, Remesh, Term, TermHistory, WholeMesh};
 
 /// Axis-aligned box region in rest coordinates (m), bounds inclusive.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -207,6 +207,28 @@ impl Model {
     ) -> Result<Model, MeshError> {
         let rows: Vec<[f64; 3]> = rest.iter().map(|x| [x.x, x.y, x.z]).collect();
         let mesh = TetMesh::from_arrays(&rows, tets)?;
+        let boundary = mesh.boundary_faces();
+        let perimeters = mesh.perimeters(&boundary);
+        let (piece, pieces) = crate::mesh::parts(&mesh);
+        let whole = WholeMesh {
+            boundary: &boundary,
+            perimeters: &perimeters,
+            bounds: mesh.bounding_box(),
+            pieces: (&piece, pieces),
+        };
+        self.remeshed_on(mesh, parent, cracks, &whole)
+    }
+
+    /// [`Model::remeshed`] on `mesh`, which is `whole` (a process's part of the split mesh,
+    /// or all of it), with `cracks` its crack faces: what lives on its elements and at the
+    /// nodes whose elements it all holds is the whole model's there.
+    pub fn remeshed_on(
+        &self,
+        mesh: TetMesh,
+        parent: &[usize],
+        cracks: &[[usize; 3]],
+        whole: &WholeMesh,
+    ) -> Result<Model, MeshError> {
         let old = &self.elasticity;
         let elasticity = old.remeshed(&mesh, parent);
         let mut model = Model::new(
@@ -225,6 +247,7 @@ impl Model {
             parent,
             cracks,
             young: old.material.young(),
+            whole,
         };
         model.terms = self.terms.iter().map(|t| t.remeshed(&remesh)).collect();
         model.freezing = self.freezing.as_ref().map(|f| f.inherit(parent));

@@ -20,7 +20,7 @@
 
 use super::contact_forces::{SceneContact, SolveContact};
 use crate::assembly::Assembly;
-use crate::mesh::TetMesh;
+use crate::mesh::{BoundaryFace, TetMesh};
 use nalgebra::Vector3;
 use std::any::Any;
 
@@ -199,6 +199,24 @@ pub struct Remesh<'a> {
     pub cracks: &'a [[usize; 3]],
     /// Young's modulus of the ice (Pa), for default penalty stiffnesses.
     pub young: f64,
+    /// What the new mesh is of the whole mesh (itself, or a process's part of it).
+    pub whole: &'a WholeMesh<'a>,
+}
+
+/// What the terms of a remeshed model need of the whole new mesh, which a process's part of it
+/// cannot tell alone (on one process: the mesh's own).
+pub struct WholeMesh<'a> {
+    /// The new mesh's faces on the whole mesh's boundary, ordered as
+    /// `TetMesh::boundary_faces` orders them.
+    pub boundary: &'a [BoundaryFace],
+    /// The perimeters (m) of the whole mesh's boundary faces, in `TetMesh::boundary_faces`'s
+    /// order on the whole mesh: the mean edges that scale contact come from them.
+    pub perimeters: &'a [f64],
+    /// The whole mesh's rest bounding box (m).
+    pub bounds: (Vector3<f64>, Vector3<f64>),
+    /// The connected piece of the whole mesh each node of the new mesh is in, and the number
+    /// of pieces.
+    pub pieces: (&'a [u32], usize),
 }
 
 /// A term a scene enables, kept in the model.

@@ -1,0 +1,125 @@
+//! A process's model and PETSc numbering after a split made on the processes' parts
+//! ([`super::splits::try_split`]), built from its part alone.
+//!
+//! The part holds every element around the nodes of its own elements (its *near* nodes), so
+//! what lives on its elements and at its owned nodes comes out of `Model::remeshed_on` on the
+//! part's mesh as the whole mesh's remesh gives it: masses, dead loads and obstacle contact
+//! areas at the owned nodes, the elements' rest data, materials and freezing. A face of the
+//! part's mesh through a near node is a face of the whole mesh's boundary (both its elements
+//! would be held otherwise); the faces beyond are cut faces or faces the part cannot tell from
+//! them, and are left out. What the part cannot tell alone comes from every process: the whole
+//! boundary's perimeters (each face given by the process evaluating its element, ordered by
+//! its nodes as `TetMesh::boundary_faces` orders a mesh's), the bounding box and the connected
+//! pieces. Checked against the whole mesh's remesh restricted to each part on three processes
+//! (`solver_tests/partition.rs`).
+//!
+//! Ice–ice contact is rebuilt from the part's faces too, which is not yet the whole term: a
+//! node's pairs reach faces and copies of split nodes beyond the part's ring (the other side
+//! of a crack, another piece), which each process must gather from the others near its own
+//! boundary. No run uses this module's model yet: a fractured run on several processes holds
+//! the whole mesh (docs/distributed.md).
+
+use super::components::connected_parts;
+use super::ghosts::gathered_by_key;
+use super::largest;
+use super::partition::PartNumbering;
+use super::splits::SplitPart;
+use super::MpiCollective;
+use crate::fracture::cracks::{crack_faces, OriginalBoundary};
+use crate::mesh::{MeshError, TetMesh};
+use crate::physics::term::{NodeRestriction, WholeMesh};
+use crate::physics::Model;
+use crate::sim::part::Part;
+use crate::sim::Collective;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+/// This process's model after a split made on the parts: `before` (its model on its part
+/// before the split) on the split part `held`, whose scene boundary's planes are `original`.
+/// Every process of `world` calls it.
+pub fn model_after_split(
+    world: &SimpleCommunicator,
+    held: &SplitPart,
+    before: &Model,
+    original: &OriginalBoundary,
+) -> Result<Model, MeshError> {
+    let (part, f) = (&held.part, &held.mesh);
+    let mesh = TetMesh::new(f.rest.clone(), f.tets.clone())?;
+    let mut near = vec![false; mesh.num_nodes()];
+    for (tet, _) in (mesh.tets.iter().zip(&part.own_elements)).filter(|(_, &o)| o) {
+        tet.iter().for_each(|&i| near[i] = true);
+    }
+    let touches_near = |nodes: &[usize; 3]| nodes.iter().any(|&i| near[i]);
+    let mut boundary = mesh.boundary_faces();
+    boundary.retain(|face| touches_near(&face.nodes));
+    // Each whole-boundary face is given once, by the process evaluating its element.
+    let own: Vec<_> = (boundary.iter())
+        .filter(|face| part.own_elements[face.tet])
+        .cloned()
+        .collect();
+    let items: Vec<([usize; 3], f64)> = (own.iter().zip(mesh.perimeters(&own)))
+        .map(|(face, p)| {
+            let mut key = face.nodes.map(|i| part.nodes[i]);
+            key.sort_unstable();
+            (key, p)
+        })
+        .collect();
+    let perimeters = gathered_by_key(world, &items);
+    let (lo, hi) = mesh.bounding_box();
+    let bounds = (
+        lo.map(|x| -largest(world, -x)),
+        hi.map(|x| largest(world, x)),
+    );
+    let (piece, pieces) = connected_parts(world, part, &mesh.tets, &held.node_owner);
+    let cracks: Vec<[usize; 3]> = (crack_faces(&mesh, &held.origin, original).into_iter())
+        .map(|face| face.nodes)
+        .filter(|nodes| touches_near(nodes))
+        .collect();
+    let whole = WholeMesh {
+        boundary: &boundary,
+        perimeters: &perimeters,
+        bounds,
+        pieces: (&piece, pieces),
+    };
+    let mut model = before.remeshed_on(mesh, &f.parent, &cracks, &whole)?;
+    let terms = std::mem::take(&mut model.terms);
+    let owned = &part.owned_nodes;
+    model.restrict(owned, &terms, &NodeRestriction::all(owned));
+    Ok(model)
+}
+
+/// The PETSc numbering of this process's `part` after a split made on the parts, whose nodes
+/// are owned by `node_owner` and whose elements are evaluated by `element_part`: each
+/// process's owned nodes numbered after the lower processes', in the mesh's order, as
+/// `Partition` numbers the whole mesh; a ghost gets its owner's number. Every process of
+/// `world` calls it.
+pub fn numbering_after_split(
+    world: &SimpleCommunicator,
+    part: &Part,
+    node_owner: &[u32],
+    element_part: Vec<u32>,
+) -> PartNumbering {
+    let (size, rank) = (world.size() as usize, world.rank() as usize);
+    let owned = part.owned_nodes.iter().filter(|&&o| o).count() as u64;
+    let mut counts = vec![0u64; size];
+    world.all_gather_into(&owned, &mut counts[..]);
+    let node_start: Vec<usize> = std::iter::once(0)
+        .chain(counts.iter().scan(0usize, |at, &n| {
+            *at += n as usize;
+            Some(*at)
+        }))
+        .collect();
+    // The owner's number, and zeros from the other holders: every copy gets the owner's.
+    let mut numbers = vec![0.0; 3 * part.nodes.len()];
+    let owned = (part.owned_nodes.iter().enumerate()).filter(|(_, &o)| o);
+    for (number, (k, _)) in (node_start[rank]..).zip(owned) {
+        numbers[3 * k] = number as f64;
+    }
+    MpiCollective::new(part, node_owner).exchange(&mut numbers);
+    PartNumbering {
+        petsc_node: numbers.iter().step_by(3).map(|&x| x as usize).collect(),
+        node_owner: node_owner.to_vec(),
+        element_part,
+        node_start,
+    }
+}
