@@ -1252,3 +1252,136 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         (before.mesh, before.node_owner)
     );
 }
+
+/// Four cubes of 10 cm (5 cells of 6 tets a side) side by side in a square, 1 mm apart, and
+/// displacements pushing each towards the square's centre by 0.45 mm along x and y, waved by
+/// ±0.1 mm, so that their facing sides touch unevenly, a node up to 0.1 mm into the other
+/// cube (m, 3 per node).
+fn four_cubes_pressed() -> (TetMesh, Vec<f64>) {
+    let cubes: Vec<TetMesh> = [[0.0, 0.0], [0.101, 0.0], [0.0, 0.101], [0.101, 0.101]]
+        .iter()
+        .map(|[x, y]| box_mesh([*x, *y, 0.0], [0.1; 3], [5, 5, 5], 6).unwrap())
+        .collect();
+    let mesh = TetMesh::concat(cubes).unwrap();
+    let centre = 0.1005;
+    let u = (mesh.rest.iter())
+        .flat_map(|x| {
+            let wave = 1e-4 * (37.0 * x.x + 23.0 * x.y + 41.0 * x.z).sin();
+            let push = |c: f64| if c < centre { 4.5e-4 } else { -4.5e-4 };
+            [push(x.x) + wave, push(x.y) - wave, 0.5 * wave]
+        })
+        .collect();
+    (mesh, u)
+}
+
+#[test]
+fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
+    let Some(world) =
+        on_three_processes("a_process_finds_its_ice_contact_pairs_on_its_ghost_surface")
+    else {
+        return;
+    };
+    // Ice–ice contact between four cubes pressed together, on the whole boundary as one
+    // process evaluates it (the pairs with a node this process owns among their four), and on
+    // the faces this process gives with those the others give near them: the same pairs, in
+    // the same order, with the same gaps and gap gradients, to the bit.
+    use icefem::distributed::ghost_surface::{gathered, Surface};
+    use icefem::physics::ice_contact::IceContact;
+    use icefem::physics::term::NodeRestriction;
+    let (mesh, u) = four_cubes_pressed();
+    let rank = world.rank() as u32;
+    let processes: Vec<u32> = (mesh.tets.iter())
+        .map(|t| {
+            let c = t
+                .iter()
+                .map(|&v| mesh.rest[v])
+                .sum::<nalgebra::Vector3<f64>>()
+                / 4.0;
+            (((c.x + 0.4 * c.y) / 0.2814 * PROCESSES as f64) as u32).min(PROCESSES as u32 - 1)
+        })
+        .collect();
+    let owners = lowest_owners(&mesh.tets, &processes, mesh.num_nodes());
+    let owned: Vec<bool> = owners.iter().map(|&o| o == rank).collect();
+    let (stiffness, vmax, h) = (1e12, 0.05, 0.01);
+    let boundary = mesh.boundary_faces();
+    let perimeters = mesh.perimeters(&boundary);
+    let whole = IceContact::new(&mesh, || stiffness, 0.0, 0.0, &[])
+        .expect("four pieces")
+        .restricted(&NodeRestriction::all(&owned));
+    let pairs_of = |term: &IceContact,
+                    (rest, u): (&[nalgebra::Vector3<f64>], &[f64]),
+                    number: &dyn Fn(usize) -> usize| {
+        let candidates = term.candidates(rest, (u, vmax), h, &[]);
+        let mut chosen = Vec::new();
+        term.for_each_closest(rest, u, &candidates, |m, g, dg| {
+            let nodes = IceContact::pair_nodes(&candidates[m]).map(number);
+            chosen.push((nodes, g.to_bits(), dg.map(f64::to_bits)));
+        });
+        let touching: Vec<[usize; 4]> = (candidates.iter())
+            .map(|c| IceContact::pair_nodes(c).map(number))
+            .filter(|nodes| nodes.iter().any(|&i| owned[i]))
+            .collect();
+        (touching, chosen)
+    };
+    let (want_candidates, want) = pairs_of(&whole, (&mesh.rest, &u), &|i| i);
+    // This process's part, and the faces it gives.
+    let part = Part::new(&mesh.tets, (&processes, &owners), rank, (&[], false));
+    let rest: Vec<_> = part.nodes.iter().map(|&i| mesh.rest[i]).collect();
+    let tets: Vec<[usize; 4]> = (part.elements.iter())
+        .map(|&e| mesh.tets[e].map(|v| part.local(v).unwrap()))
+        .collect();
+    let node_owner: Vec<u32> = part.nodes.iter().map(|&i| owners[i]).collect();
+    let (piece, pieces) = components::connected_parts(&world, &part, &tets, &node_owner);
+    let given = Surface::given(
+        &part,
+        (&rest, &tets),
+        (&part.dofs_of(&u), &node_owner, &piece),
+        &[],
+    );
+    // Twice the broad phase's margin (2 vmax h + half the mean edge) and two edges.
+    let edge = icefem::mesh::mean_edge(&perimeters);
+    let reach = 2.0 * (2.0 * vmax * h + 0.5 * edge) + 2.0 * edge;
+    let surface = gathered(&world, &given, reach);
+    let term = IceContact::on_surface(
+        surface.contact_surface(rank, pieces),
+        &perimeters,
+        stiffness,
+        (0.0, 0.0),
+    );
+    let numbers: Vec<usize> = surface.nodes.iter().map(|n| n.node).collect();
+    let surface_rest: Vec<_> = surface.nodes.iter().map(|n| n.rest).collect();
+    let surface_u: Vec<f64> = (numbers.iter())
+        .flat_map(|&i| u[3 * i..3 * i + 3].to_vec())
+        .collect();
+    let (got_candidates, got) = pairs_of(&term, (&surface_rest, &surface_u), &|k| numbers[k]);
+    eprintln!(
+        "process {rank}: {} of {} boundary faces held ({} given), {} pairs evaluated, {} \
+         candidates with an owned node",
+        surface.faces.len(),
+        boundary.len(),
+        given.faces.len(),
+        got.len(),
+        got_candidates.len()
+    );
+    assert_eq!(got_candidates, want_candidates);
+    assert_eq!(got, want);
+    let mut total = 0u64;
+    world.all_reduce_into(
+        &(got.len() as u64),
+        &mut total,
+        mpi::collective::SystemOperation::sum(),
+    );
+    assert!(total > 50, "the cubes press on each other: {total} pairs");
+    // The slabs at the ends hold a part of the boundary (the reach, about 7 cm, spans the middle
+    // slab's neighbours).
+    let mut held = 0u64;
+    world.all_reduce_into(
+        &(surface.faces.len() as u64),
+        &mut held,
+        mpi::collective::SystemOperation::sum(),
+    );
+    assert!(
+        held < (PROCESSES * boundary.len()) as u64,
+        "{held} faces held"
+    );
+}

@@ -22,6 +22,7 @@
 
 pub mod components;
 pub mod dual_graph;
+pub mod ghost_surface;
 pub mod ghosts;
 pub mod heat;
 pub mod node_halo;

@@ -122,7 +122,60 @@ impl Candidate {
     }
 }
 
+/// A boundary surface an ice–ice contact term reads, as one process of a distributed run
+/// gathers it: its faces and, at each of its nodes, what the whole mesh gives there. Nodes
+/// are numbered as the positions the term reads.
+#[derive(Clone, Debug, Default)]
+pub struct ContactSurface {
+    /// Faces (outward; in the order `TetMesh::boundary_faces` gives the whole mesh's).
+    pub faces: Vec<[usize; 3]>,
+    /// Per face, whether it is a crack face.
+    pub crack_face: Vec<bool>,
+    /// Per node, its rest boundary-area share on the whole mesh (m²; 0 off the surface).
+    pub area: Vec<f64>,
+    /// Per node, the connected piece of the whole mesh it is in.
+    pub piece: Vec<u32>,
+    /// Per node, whether it lies on a crack face.
+    pub on_crack: Vec<bool>,
+    /// Per node, whether this process owns it.
+    pub owned: Vec<bool>,
+    /// Number of pieces of the whole mesh.
+    pub pieces: usize,
+}
+
 impl IceContact {
+    /// The term on `surface`, the whole mesh's boundary faces having `perimeters` (m, in
+    /// `TetMesh::boundary_faces` order: the mean edge scales the penalty's onset and the
+    /// broad phase), with penalty `stiffness` (N/m³) and Coulomb `friction` smoothed over a
+    /// velocity (m/s). Its pairs are node–face pairs; the copies of split nodes are not
+    /// paired on a surface.
+    pub fn on_surface(
+        surface: ContactSurface,
+        perimeters: &[f64],
+        stiffness: f64,
+        (friction, smoothing_velocity): (f64, f64),
+    ) -> Self {
+        let edge = perimeters.iter().map(|p| p / 3.0).sum::<f64>() / perimeters.len() as f64;
+        IceContact {
+            nodes: (surface.area.iter().enumerate())
+                .filter(|(_, &a)| a > 0.0)
+                .map(|(i, &a)| (i, a))
+                .collect(),
+            part: surface.piece,
+            parts: surface.pieces,
+            stiffness,
+            friction,
+            smoothing_velocity,
+            faces: surface.faces,
+            edge,
+            onset: ONSET * edge,
+            copies: CrackSides::default(),
+            crack_face: surface.crack_face,
+            on_crack: surface.on_crack,
+            owned: surface.owned,
+        }
+    }
+
     /// The term for `mesh` with the given crack faces (node triples, any order), or `None` if
     /// the mesh is one part without cracks (then nothing is paid, not even `stiffness`, asked
     /// for only when the term is on: a default stiffness takes a pass over the boundary).
@@ -169,13 +222,7 @@ impl IceContact {
                 area[v] += share;
             }
         }
-        let edge = perimeters.iter().map(|p| p / 3.0).sum::<f64>() / perimeters.len() as f64;
-        let nodes = (0..mesh.num_nodes())
-            .filter(|&i| area[i] > 0.0)
-            .map(|i| (i, area[i]))
-            .collect();
         let faces: Vec<[usize; 3]> = boundary.iter().map(|f| f.nodes).collect();
-        let copies = CrackSides::new(mesh, cracks);
         let sorted = |f: &[usize; 3]| {
             let mut k = *f;
             k.sort_unstable();
@@ -192,20 +239,23 @@ impl IceContact {
                 on_crack[i] = true;
             }
         }
-        IceContact {
-            part,
-            parts,
-            stiffness,
-            friction,
-            smoothing_velocity,
-            nodes,
+        let surface = ContactSurface {
             faces,
-            edge,
-            onset: ONSET * edge,
-            copies,
             crack_face,
+            area,
+            piece: part,
             on_crack,
             owned: vec![true; mesh.num_nodes()],
+            pieces: parts,
+        };
+        IceContact {
+            copies: CrackSides::new(mesh, cracks),
+            ..Self::on_surface(
+                surface,
+                perimeters,
+                stiffness,
+                (friction, smoothing_velocity),
+            )
         }
     }
 

@@ -1,0 +1,257 @@
+//! The boundary faces of other processes near a process's own boundary (its ghost surface),
+//! which ice–ice contact on a process's part reads.
+//!
+//! A node–face pair of ice–ice contact couples a node and a triangle of different pieces, or
+//! across a crack, wherever they lie: two processes' parts can touch anywhere. Holding the
+//! whole boundary on every process (`Term::holds_boundary_everywhere`) grows with the whole
+//! boundary; a process needs only the faces near its own. Every face of the whole boundary is
+//! given by the process evaluating its element, with what the whole mesh gives at its nodes
+//! (nodes of an own element have all their elements on the part, so their area shares are
+//! whole there). The processes exchange the bounding boxes of the faces they give; each sends
+//! the faces within `reach` of another's box to it, which keeps those within `reach` of one of
+//! its own. With `reach` at least twice the contact's broad-phase margin plus two edges, a
+//! process holds every face a pair with one of its owned nodes can meet, every face of such a
+//! pair's node, and every face its closest-face choice weighs: its contact term finds those
+//! pairs, and their gaps, as the whole boundary's does (tested on three processes). The copies
+//! of split nodes (a crack's two sides) are not gathered here yet.
+
+use super::ghosts::{all_gathered, exchange};
+use crate::physics::grid::BoxGrid;
+use crate::physics::ice_contact::ContactSurface;
+use crate::sim::part::Part;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+use nalgebra::Vector3;
+use std::collections::{BTreeMap, HashSet};
+
+/// A node of a surface, with what the whole mesh gives there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceNode {
+    /// Its number in the whole mesh.
+    pub node: usize,
+    /// The process owning it.
+    pub owner: u32,
+    /// Its rest position (m).
+    pub rest: Vector3<f64>,
+    /// Its position when the surface was gathered (m).
+    pub position: Vector3<f64>,
+    /// Its rest boundary-area share (m²).
+    pub area: f64,
+    /// The connected piece of the whole mesh it is in.
+    pub piece: u32,
+    /// Whether it lies on a crack face.
+    pub on_crack: bool,
+}
+
+/// Boundary faces and their nodes, numbered in the whole mesh's order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Surface {
+    /// The nodes, ascending by their numbers in the whole mesh.
+    pub nodes: Vec<SurfaceNode>,
+    /// The faces (outward, indices into `nodes`), ordered as `TetMesh::boundary_faces` orders
+    /// the whole mesh's, and whether each is a crack face.
+    pub faces: Vec<([usize; 3], bool)>,
+}
+
+/// Words per node row and per face row.
+const NODE_WORDS: usize = 11;
+const FACE_WORDS: usize = 3 + 1 + 3 * NODE_WORDS;
+
+impl Surface {
+    /// The faces this process gives: those of its own elements on the whole mesh's boundary.
+    /// `part` is its part, of a mesh of rest positions `rest` (m) and elements `tets`
+    /// (numbered in the part), at displacements `u` (m, 3 per node), whose nodes are owned by
+    /// `node_owner` and lie in the pieces `piece`, with crack faces `cracks` (node triples).
+    pub fn given(
+        part: &Part,
+        (rest, tets): (&[Vector3<f64>], &[[usize; 4]]),
+        (u, node_owner, piece): (&[f64], &[u32], &[u32]),
+        cracks: &[[usize; 3]],
+    ) -> Surface {
+        let mesh = crate::mesh::TetMesh {
+            rest: rest.to_vec(),
+            tets: tets.to_vec(),
+        };
+        let mut near = vec![false; rest.len()];
+        for (tet, _) in (tets.iter().zip(&part.own_elements)).filter(|(_, &o)| o) {
+            tet.iter().for_each(|&i| near[i] = true);
+        }
+        // A face through a near node is on the whole boundary; a near node has all its faces.
+        let mut boundary = mesh.boundary_faces();
+        boundary.retain(|f| f.nodes.iter().any(|&i| near[i]));
+        let mut area = vec![0.0; rest.len()];
+        for f in &boundary {
+            let [a, b, c] = f.nodes.map(|i| rest[i]);
+            let share = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
+            f.nodes.iter().for_each(|&v| area[v] += share);
+        }
+        let key = |f: &[usize; 3]| {
+            let mut k = *f;
+            k.sort_unstable();
+            k
+        };
+        let crack_keys: HashSet<[usize; 3]> = cracks.iter().map(key).collect();
+        let mut on_crack = vec![false; rest.len()];
+        cracks.iter().flatten().for_each(|&i| on_crack[i] = true);
+        let faces: Vec<([usize; 3], bool)> = (boundary.iter())
+            .filter(|f| part.own_elements[f.tet])
+            .map(|f| (f.nodes, crack_keys.contains(&key(&f.nodes))))
+            .collect();
+        let node = |k: usize| SurfaceNode {
+            node: part.nodes[k],
+            owner: node_owner[k],
+            rest: rest[k],
+            position: rest[k] + Vector3::new(u[3 * k], u[3 * k + 1], u[3 * k + 2]),
+            area: area[k],
+            piece: piece[k],
+            on_crack: on_crack[k],
+        };
+        let rows = faces.iter().map(|(f, crack)| (f.map(node), *crack));
+        Surface::from_rows(rows.collect())
+    }
+
+    /// The surface of the faces `rows` (each with its nodes' rows and its crack flag), nodes
+    /// numbered ascending and faces ordered by their nodes' numbers.
+    fn from_rows(rows: Vec<([SurfaceNode; 3], bool)>) -> Surface {
+        let nodes: BTreeMap<usize, SurfaceNode> = (rows.iter())
+            .flat_map(|(f, _)| f.iter().map(|n| (n.node, *n)))
+            .collect();
+        let numbers: Vec<usize> = nodes.keys().copied().collect();
+        let at = |n: &SurfaceNode| numbers.binary_search(&n.node).expect("a face's node");
+        let mut faces: Vec<([usize; 3], bool)> = rows
+            .iter()
+            .map(|(f, crack)| (f.map(|n| at(&n)), *crack))
+            .collect();
+        // Node indices ascend with the whole mesh's numbers: sorting by them sorts by those.
+        faces.sort_unstable_by_key(|(f, _)| {
+            let mut k = *f;
+            k.sort_unstable();
+            k
+        });
+        Surface {
+            nodes: nodes.into_values().collect(),
+            faces,
+        }
+    }
+
+    /// The face `f`'s nodes' rows.
+    fn face_rows(&self, f: usize) -> [SurfaceNode; 3] {
+        self.faces[f].0.map(|k| self.nodes[k])
+    }
+
+    /// The bounding box of face `f` at its gathered positions, grown by `by` (m).
+    fn face_box(&self, f: usize, by: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let [a, b, c] = self.face_rows(f).map(|n| n.position);
+        let (lo, hi) = (a.inf(&b).inf(&c), a.sup(&b).sup(&c));
+        (lo.add_scalar(-by), hi.add_scalar(by))
+    }
+
+    /// The bounding box of the whole surface at its gathered positions, if it has a node.
+    fn bounds(&self) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let first = self.nodes.first()?.position;
+        Some(self.nodes.iter().fold((first, first), |(lo, hi), n| {
+            (lo.inf(&n.position), hi.sup(&n.position))
+        }))
+    }
+
+    /// The surface as this process's ice–ice contact reads it (nodes numbered as here), `rank`
+    /// being the process and `pieces` the whole mesh's number of pieces.
+    pub fn contact_surface(&self, rank: u32, pieces: usize) -> ContactSurface {
+        ContactSurface {
+            faces: self.faces.iter().map(|(f, _)| *f).collect(),
+            crack_face: self.faces.iter().map(|(_, c)| *c).collect(),
+            area: self.nodes.iter().map(|n| n.area).collect(),
+            piece: self.nodes.iter().map(|n| n.piece).collect(),
+            on_crack: self.nodes.iter().map(|n| n.on_crack).collect(),
+            owned: self.nodes.iter().map(|n| n.owner == rank).collect(),
+            pieces,
+        }
+    }
+}
+
+/// A node row as words (floating-point values by their bits).
+fn node_words(n: &SurfaceNode, words: &mut Vec<u64>) {
+    words.extend([n.node as u64, n.owner as u64]);
+    words.extend(n.rest.iter().chain(&n.position).map(|x| x.to_bits()));
+    words.extend([n.area.to_bits(), n.piece as u64, n.on_crack as u64]);
+}
+
+/// The node row [`node_words`] wrote.
+fn node_of(w: &[u64]) -> SurfaceNode {
+    let float = |k: usize| f64::from_bits(w[k]);
+    SurfaceNode {
+        node: w[0] as usize,
+        owner: w[1] as u32,
+        rest: Vector3::new(float(2), float(3), float(4)),
+        position: Vector3::new(float(5), float(6), float(7)),
+        area: float(8),
+        piece: w[9] as u32,
+        on_crack: w[10] != 0,
+    }
+}
+
+/// This process's ghost surface and its own: the faces it gives (`given`, see
+/// [`Surface::given`]) and the faces the other processes give within `reach` (m) of one of
+/// them, at the positions the surfaces were given at. Every process of `world` calls it.
+pub fn gathered(world: &SimpleCommunicator, given: &Surface, reach: f64) -> Surface {
+    let (size, rank) = (world.size() as usize, world.rank() as usize);
+    // Every process's box: six coordinates, or nothing.
+    let mine: Vec<u64> = match given.bounds() {
+        Some((lo, hi)) => lo.iter().chain(&hi).map(|x| x.to_bits()).collect(),
+        None => Vec::new(),
+    };
+    let boxes = all_gathered(world, &mine);
+    let mut boxes = boxes.chunks_exact(6).map(|w| {
+        let v = |k: usize| f64::from_bits(w[k]);
+        (
+            Vector3::new(v(0), v(1), v(2)),
+            Vector3::new(v(3), v(4), v(5)),
+        )
+    });
+    // The processes with a box, in order (all-gathered boxes come in process order).
+    let mut with_box = vec![0u64; size];
+    world.all_gather_into(&(given.bounds().is_some() as u64), &mut with_box[..]);
+    let mut outgoing = vec![Vec::new(); size];
+    for (q, out) in outgoing.iter_mut().enumerate() {
+        if with_box[q] == 0 {
+            continue;
+        }
+        let (lo, hi) = boxes.next().expect("a box per process with one");
+        if q == rank {
+            continue;
+        }
+        for f in 0..given.faces.len() {
+            let (flo, fhi) = given.face_box(f, reach);
+            if (0..3).all(|a| flo[a] <= hi[a] && fhi[a] >= lo[a]) {
+                let face = given.faces[f].0.map(|k| given.nodes[k].node);
+                out.extend(face.map(|i| i as u64));
+                out.push(given.faces[f].1 as u64);
+                given.face_rows(f).iter().for_each(|n| node_words(n, out));
+            }
+        }
+    }
+    let (received, _) = exchange(world, outgoing);
+    // Keep the faces within reach of one of this process's own.
+    let mut grid = BoxGrid::new(reach.max(f64::MIN_POSITIVE));
+    for f in 0..given.faces.len() {
+        let (lo, hi) = given.face_box(f, reach);
+        grid.insert(&lo, &hi, f as u32);
+    }
+    let mut rows: Vec<([SurfaceNode; 3], bool)> = (0..given.faces.len())
+        .map(|f| (given.face_rows(f), given.faces[f].1))
+        .collect();
+    for w in received.chunks_exact(FACE_WORDS) {
+        let nodes = [0, 1, 2].map(|j| node_of(&w[4 + j * NODE_WORDS..]));
+        let face = Surface::from_rows(vec![(nodes, false)]);
+        let (lo, hi) = face.face_box(0, 0.0);
+        let mut near = false;
+        grid.overlapping(&lo, &hi, |f| {
+            let (glo, ghi) = given.face_box(f as usize, reach);
+            near |= (0..3).all(|a| lo[a] <= ghi[a] && hi[a] >= glo[a]);
+        });
+        if near {
+            rows.push((nodes, w[3] != 0));
+        }
+    }
+    Surface::from_rows(rows)
+}
