@@ -1230,6 +1230,54 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         whole.tets.len()
     );
     assert!(crack_faces_seen > 0);
+    // Ice–ice contact across the cracks (the copies of split nodes) on the faces each
+    // process gives and those it gathers near its owned boundary nodes: the whole
+    // boundary's pairs with an owned node, to the bit.
+    let split_mesh = TetMesh::new(whole.rest.clone(), whole.tets.clone()).unwrap();
+    let cracks: Vec<[usize; 3]> = (crack_faces(&split_mesh, &origin, &scene_boundary).iter())
+        .map(|c| c.nodes)
+        .collect();
+    let owners = lowest_owners(&whole.tets, &processes, whole.rest.len());
+    let owned: Vec<bool> = owners.iter().map(|&o| o == rank).collect();
+    let whole_contact =
+        icefem::physics::ice_contact::IceContact::new(&split_mesh, || 1e12, 0.0, 0.0, &cracks)
+            .expect("cracks")
+            .restricted(&icefem::physics::term::NodeRestriction::all(&owned));
+    let (want_candidates, want) =
+        contact_pairs(&whole_contact, (&whole.rest, &whole.u), &|i| i, &owned);
+    let part_mesh = TetMesh::new(held.mesh.rest.clone(), held.mesh.tets.clone()).unwrap();
+    let part_cracks: Vec<[usize; 3]> = (crack_faces(&part_mesh, &held.origin, &part_boundary))
+        .iter()
+        .map(|c| c.nodes)
+        .collect();
+    let perimeters = split_mesh.perimeters(&split_mesh.boundary_faces());
+    let (term, numbers, surface_rest, faces) = contact_on_ghost_surface(
+        &world,
+        &held.part,
+        (&held.mesh.rest, &held.mesh.tets),
+        (&held.mesh.u, &held.node_owner),
+        (&part_cracks, &perimeters),
+    );
+    let surface_u: Vec<f64> = (numbers.iter())
+        .flat_map(|&i| whole.u[3 * i..3 * i + 3].to_vec())
+        .collect();
+    let (got_candidates, got) =
+        contact_pairs(&term, (&surface_rest, &surface_u), &|k| numbers[k], &owned);
+    let copies = got.iter().filter(|(n, _, _)| n[1] == n[2]).count();
+    eprintln!(
+        "process {rank}: {faces} faces held for contact, {} pairs evaluated ({copies} of \
+         copies)",
+        got.len()
+    );
+    assert_eq!(got_candidates, want_candidates);
+    assert_eq!(got, want);
+    let mut all_copies = 0u64;
+    world.all_reduce_into(
+        &(copies as u64),
+        &mut all_copies,
+        mpi::collective::SystemOperation::sum(),
+    );
+    assert!(all_copies > 10, "{all_copies} pairs of copies");
     assert!(
         splits >= 8 && cut > 0 && shared > 0 && turned > 0,
         "{splits} splits, {cut} cut, {shared} shared, {turned} turned"
@@ -1274,6 +1322,76 @@ fn four_cubes_pressed() -> (TetMesh, Vec<f64>) {
     (mesh, u)
 }
 
+/// The broad phase's largest speed (m/s) and step (s) in the contact tests.
+const CONTACT_MOTION: (f64, f64) = (0.05, 0.01);
+
+/// Candidate pairs with an owned node among their four, and the pairs evaluated (nodes, gap
+/// and gap gradient by their bits).
+type ContactPairs = (Vec<[usize; 4]>, Vec<([usize; 4], u64, [u64; 12])>);
+
+/// What the ice–ice contact `term` does at displacements `u` (m) of its nodes at `rest` (m),
+/// its node `k` being node `number(k)` of the whole mesh: the candidate pairs with a node
+/// `owned` (whole mesh's) among their four, and the pairs it evaluates (those with an owned
+/// node, each node against its closest face) with their gaps and gradients. The copies of
+/// split nodes start from their gaps at `u`.
+fn contact_pairs(
+    term: &icefem::physics::ice_contact::IceContact,
+    (rest, u): (&[nalgebra::Vector3<f64>], &[f64]),
+    number: &dyn Fn(usize) -> usize,
+    owned: &[bool],
+) -> ContactPairs {
+    use icefem::physics::ice_contact::IceContact;
+    let (vmax, h) = CONTACT_MOTION;
+    let sides = term.crack_sides();
+    let frames = sides.frames(rest, u, &sides.normals(rest, u), &[]);
+    let candidates = term.candidates(rest, (u, vmax), h, &frames);
+    let mut chosen = Vec::new();
+    term.for_each_closest(rest, u, &candidates, |m, g, dg| {
+        let nodes = IceContact::pair_nodes(&candidates[m]).map(number);
+        chosen.push((nodes, g.to_bits(), dg.map(f64::to_bits)));
+    });
+    let touching: Vec<[usize; 4]> = (candidates.iter())
+        .map(|c| IceContact::pair_nodes(c).map(number))
+        .filter(|nodes| nodes.iter().any(|&i| owned[i]))
+        .collect();
+    (touching, chosen)
+}
+
+/// This process's ice–ice contact on its ghost surface: the faces it gives from its `part`
+/// (mesh `rest`, `tets`, numbered in the part, at displacements `u` of the part's nodes,
+/// owned by `node_owner`, with crack faces `cracks`) and those the others give near its owned
+/// boundary nodes, whose whole boundary has `perimeters`. Returns the term, the whole mesh's
+/// number and rest position of each of its nodes, and the faces it holds.
+fn contact_on_ghost_surface(
+    world: &SimpleCommunicator,
+    part: &Part,
+    (rest, tets): (&[nalgebra::Vector3<f64>], &[[usize; 4]]),
+    (u, node_owner): (&[f64], &[u32]),
+    (cracks, perimeters): (&[[usize; 3]], &[f64]),
+) -> (
+    icefem::physics::ice_contact::IceContact,
+    Vec<usize>,
+    Vec<nalgebra::Vector3<f64>>,
+    usize,
+) {
+    use icefem::distributed::ghost_surface::{gathered, Surface};
+    let (piece, pieces) = components::connected_parts(world, part, tets, node_owner);
+    let given = Surface::given(part, (rest, tets), (u, node_owner, &piece), cracks);
+    // Twice the broad phase's margin (2 vmax h + half the mean edge) and two edges.
+    let (vmax, h) = CONTACT_MOTION;
+    let edge = icefem::mesh::mean_edge(perimeters);
+    let reach = 2.0 * (2.0 * vmax * h + 0.5 * edge) + 2.0 * edge;
+    let surface = gathered(world, &given, reach);
+    let term = icefem::physics::ice_contact::IceContact::on_surface(
+        surface.contact_surface(world.rank() as u32, pieces),
+        perimeters,
+        1e12,
+        (0.0, 0.0),
+    );
+    let numbers = surface.nodes.iter().map(|n| n.node).collect();
+    (term, numbers, surface.rest(), surface.faces.len())
+}
+
 #[test]
 fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
     let Some(world) =
@@ -1283,9 +1401,8 @@ fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
     };
     // Ice–ice contact between four cubes pressed together, on the whole boundary as one
     // process evaluates it (the pairs with a node this process owns among their four), and on
-    // the faces this process gives with those the others give near them: the same pairs, in
-    // the same order, with the same gaps and gap gradients, to the bit.
-    use icefem::distributed::ghost_surface::{gathered, Surface};
+    // the faces this process gives with those the others give near its owned boundary nodes:
+    // the same pairs, in the same order, with the same gaps and gap gradients, to the bit.
     use icefem::physics::ice_contact::IceContact;
     use icefem::physics::term::NodeRestriction;
     let (mesh, u) = four_cubes_pressed();
@@ -1302,64 +1419,34 @@ fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
         .collect();
     let owners = lowest_owners(&mesh.tets, &processes, mesh.num_nodes());
     let owned: Vec<bool> = owners.iter().map(|&o| o == rank).collect();
-    let (stiffness, vmax, h) = (1e12, 0.05, 0.01);
     let boundary = mesh.boundary_faces();
     let perimeters = mesh.perimeters(&boundary);
-    let whole = IceContact::new(&mesh, || stiffness, 0.0, 0.0, &[])
+    let whole = IceContact::new(&mesh, || 1e12, 0.0, 0.0, &[])
         .expect("four pieces")
         .restricted(&NodeRestriction::all(&owned));
-    let pairs_of = |term: &IceContact,
-                    (rest, u): (&[nalgebra::Vector3<f64>], &[f64]),
-                    number: &dyn Fn(usize) -> usize| {
-        let candidates = term.candidates(rest, (u, vmax), h, &[]);
-        let mut chosen = Vec::new();
-        term.for_each_closest(rest, u, &candidates, |m, g, dg| {
-            let nodes = IceContact::pair_nodes(&candidates[m]).map(number);
-            chosen.push((nodes, g.to_bits(), dg.map(f64::to_bits)));
-        });
-        let touching: Vec<[usize; 4]> = (candidates.iter())
-            .map(|c| IceContact::pair_nodes(c).map(number))
-            .filter(|nodes| nodes.iter().any(|&i| owned[i]))
-            .collect();
-        (touching, chosen)
-    };
-    let (want_candidates, want) = pairs_of(&whole, (&mesh.rest, &u), &|i| i);
-    // This process's part, and the faces it gives.
+    let (want_candidates, want) = contact_pairs(&whole, (&mesh.rest, &u), &|i| i, &owned);
     let part = Part::new(&mesh.tets, (&processes, &owners), rank, (&[], false));
     let rest: Vec<_> = part.nodes.iter().map(|&i| mesh.rest[i]).collect();
     let tets: Vec<[usize; 4]> = (part.elements.iter())
         .map(|&e| mesh.tets[e].map(|v| part.local(v).unwrap()))
         .collect();
     let node_owner: Vec<u32> = part.nodes.iter().map(|&i| owners[i]).collect();
-    let (piece, pieces) = components::connected_parts(&world, &part, &tets, &node_owner);
-    let given = Surface::given(
+    let (term, numbers, surface_rest, faces) = contact_on_ghost_surface(
+        &world,
         &part,
         (&rest, &tets),
-        (&part.dofs_of(&u), &node_owner, &piece),
-        &[],
+        (&part.dofs_of(&u), &node_owner),
+        (&[], &perimeters),
     );
-    // Twice the broad phase's margin (2 vmax h + half the mean edge) and two edges.
-    let edge = icefem::mesh::mean_edge(&perimeters);
-    let reach = 2.0 * (2.0 * vmax * h + 0.5 * edge) + 2.0 * edge;
-    let surface = gathered(&world, &given, reach);
-    let term = IceContact::on_surface(
-        surface.contact_surface(rank, pieces),
-        &perimeters,
-        stiffness,
-        (0.0, 0.0),
-    );
-    let numbers: Vec<usize> = surface.nodes.iter().map(|n| n.node).collect();
-    let surface_rest: Vec<_> = surface.nodes.iter().map(|n| n.rest).collect();
     let surface_u: Vec<f64> = (numbers.iter())
         .flat_map(|&i| u[3 * i..3 * i + 3].to_vec())
         .collect();
-    let (got_candidates, got) = pairs_of(&term, (&surface_rest, &surface_u), &|k| numbers[k]);
+    let (got_candidates, got) =
+        contact_pairs(&term, (&surface_rest, &surface_u), &|k| numbers[k], &owned);
     eprintln!(
-        "process {rank}: {} of {} boundary faces held ({} given), {} pairs evaluated, {} \
-         candidates with an owned node",
-        surface.faces.len(),
+        "process {rank}: {faces} of {} boundary faces held, {} pairs evaluated, {} candidates \
+         with an owned node",
         boundary.len(),
-        given.faces.len(),
         got.len(),
         got_candidates.len()
     );
@@ -1372,11 +1459,11 @@ fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
         mpi::collective::SystemOperation::sum(),
     );
     assert!(total > 50, "the cubes press on each other: {total} pairs");
-    // The slabs at the ends hold a part of the boundary (the reach, about 7 cm, spans the middle
-    // slab's neighbours).
+    // The slabs at the ends hold a part of the boundary (the reach, about 7 cm, spans the
+    // middle slab's neighbours).
     let mut held = 0u64;
     world.all_reduce_into(
-        &(surface.faces.len() as u64),
+        &(faces as u64),
         &mut held,
         mpi::collective::SystemOperation::sum(),
     );

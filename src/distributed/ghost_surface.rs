@@ -7,15 +7,16 @@
 //! boundary; a process needs only the faces near its own. Every face of the whole boundary is
 //! given by the process evaluating its element, with what the whole mesh gives at its nodes
 //! (nodes of an own element have all their elements on the part, so their area shares are
-//! whole there). The processes exchange the bounding boxes of the faces they give; each sends
-//! the faces within `reach` of another's box to it, which keeps those within `reach` of one of
-//! its own. With `reach` at least twice the contact's broad-phase margin plus two edges, a
-//! process holds every face a pair with one of its owned nodes can meet, every face of such a
-//! pair's node, and every face its closest-face choice weighs: its contact term finds those
-//! pairs, and their gaps, as the whole boundary's does (tested on three processes). The copies
-//! of split nodes (a crack's two sides) are not gathered here yet.
+//! whole there). The processes exchange the bounding boxes of the boundary nodes they own;
+//! each sends the faces within `reach` of another's box to it, which keeps those within
+//! `reach` of one of its owned boundary nodes. With `reach` at least twice the contact's
+//! broad-phase margin plus two edges, a process holds every face a pair with one of its owned
+//! nodes can meet, every face of such a pair's node, every face its closest-face choice
+//! weighs, and every copy of its split nodes with its crack faces: its contact term finds
+//! those pairs, and their gaps, as the whole boundary's does (tested on three processes).
 
 use super::ghosts::{all_gathered, exchange};
+use crate::physics::crack_sides::CrackSides;
 use crate::physics::grid::BoxGrid;
 use crate::physics::ice_contact::ContactSurface;
 use crate::sim::part::Part;
@@ -43,6 +44,15 @@ pub struct SurfaceNode {
     pub on_crack: bool,
 }
 
+/// The faces a process gives ([`Surface::given`]) and where the boundary nodes it owns are.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Given {
+    /// The faces of its own elements on the whole mesh's boundary.
+    pub faces: Surface,
+    /// The positions of the boundary nodes it owns (m).
+    pub owned: Vec<Vector3<f64>>,
+}
+
 /// Boundary faces and their nodes, numbered in the whole mesh's order.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Surface {
@@ -58,8 +68,8 @@ const NODE_WORDS: usize = 11;
 const FACE_WORDS: usize = 3 + 1 + 3 * NODE_WORDS;
 
 impl Surface {
-    /// The faces this process gives: those of its own elements on the whole mesh's boundary.
-    /// `part` is its part, of a mesh of rest positions `rest` (m) and elements `tets`
+    /// The faces this process gives: those of its own elements on the whole mesh's boundary;
+    /// and the positions of the boundary nodes it owns. `part` is its part, of a mesh of rest positions `rest` (m) and elements `tets`
     /// (numbered in the part), at displacements `u` (m, 3 per node), whose nodes are owned by
     /// `node_owner` and lie in the pieces `piece`, with crack faces `cracks` (node triples).
     pub fn given(
@@ -67,7 +77,7 @@ impl Surface {
         (rest, tets): (&[Vector3<f64>], &[[usize; 4]]),
         (u, node_owner, piece): (&[f64], &[u32], &[u32]),
         cracks: &[[usize; 3]],
-    ) -> Surface {
+    ) -> Given {
         let mesh = crate::mesh::TetMesh {
             rest: rest.to_vec(),
             tets: tets.to_vec(),
@@ -107,7 +117,13 @@ impl Surface {
             on_crack: on_crack[k],
         };
         let rows = faces.iter().map(|(f, crack)| (f.map(node), *crack));
-        Surface::from_rows(rows.collect())
+        let owned = (0..rest.len())
+            .filter(|&k| part.owned_nodes[k] && area[k] > 0.0)
+            .map(|k| node(k).position);
+        Given {
+            faces: Surface::from_rows(rows.collect()),
+            owned: owned.collect(),
+        }
     }
 
     /// The surface of the faces `rows` (each with its nodes' rows and its crack flag), nodes
@@ -146,18 +162,21 @@ impl Surface {
         (lo.add_scalar(-by), hi.add_scalar(by))
     }
 
-    /// The bounding box of the whole surface at its gathered positions, if it has a node.
-    fn bounds(&self) -> Option<(Vector3<f64>, Vector3<f64>)> {
-        let first = self.nodes.first()?.position;
-        Some(self.nodes.iter().fold((first, first), |(lo, hi), n| {
-            (lo.inf(&n.position), hi.sup(&n.position))
-        }))
+    /// The rest positions of its nodes (m).
+    pub fn rest(&self) -> Vec<Vector3<f64>> {
+        self.nodes.iter().map(|n| n.rest).collect()
     }
 
     /// The surface as this process's ice–ice contact reads it (nodes numbered as here), `rank`
-    /// being the process and `pieces` the whole mesh's number of pieces.
-    pub fn contact_surface(&self, rank: u32, pieces: usize) -> ContactSurface {
-        ContactSurface {
+    /// being the process and `pieces` the whole mesh's number of pieces; with the pairs of
+    /// copies of split nodes its crack faces make.
+    pub fn contact_surface(&self, rank: u32, pieces: usize) -> (ContactSurface, CrackSides) {
+        let cracks: Vec<[usize; 3]> = (self.faces.iter())
+            .filter(|(_, crack)| *crack)
+            .map(|(f, _)| *f)
+            .collect();
+        let copies = CrackSides::of(&self.rest(), &cracks);
+        let surface = ContactSurface {
             faces: self.faces.iter().map(|(f, _)| *f).collect(),
             crack_face: self.faces.iter().map(|(_, c)| *c).collect(),
             area: self.nodes.iter().map(|n| n.area).collect(),
@@ -165,7 +184,8 @@ impl Surface {
             on_crack: self.nodes.iter().map(|n| n.on_crack).collect(),
             owned: self.nodes.iter().map(|n| n.owner == rank).collect(),
             pieces,
-        }
+        };
+        (surface, copies)
     }
 }
 
@@ -190,13 +210,25 @@ fn node_of(w: &[u64]) -> SurfaceNode {
     }
 }
 
+/// The bounding box of `points`, if there is one.
+fn bounds(points: &[Vector3<f64>]) -> Option<(Vector3<f64>, Vector3<f64>)> {
+    let first = *points.first()?;
+    Some(
+        points
+            .iter()
+            .fold((first, first), |(lo, hi), x| (lo.inf(x), hi.sup(x))),
+    )
+}
+
 /// This process's ghost surface and its own: the faces it gives (`given`, see
 /// [`Surface::given`]) and the faces the other processes give within `reach` (m) of one of
-/// them, at the positions the surfaces were given at. Every process of `world` calls it.
-pub fn gathered(world: &SimpleCommunicator, given: &Surface, reach: f64) -> Surface {
+/// the boundary nodes it owns, at the positions the surfaces were given at. Every process of
+/// `world` calls it.
+pub fn gathered(world: &SimpleCommunicator, given: &Given, reach: f64) -> Surface {
     let (size, rank) = (world.size() as usize, world.rank() as usize);
-    // Every process's box: six coordinates, or nothing.
-    let mine: Vec<u64> = match given.bounds() {
+    let (owned, given) = (&given.owned, &given.faces);
+    // Every process's box of its owned boundary nodes: six coordinates, or nothing.
+    let mine: Vec<u64> = match bounds(owned) {
         Some((lo, hi)) => lo.iter().chain(&hi).map(|x| x.to_bits()).collect(),
         None => Vec::new(),
     };
@@ -210,7 +242,7 @@ pub fn gathered(world: &SimpleCommunicator, given: &Surface, reach: f64) -> Surf
     });
     // The processes with a box, in order (all-gathered boxes come in process order).
     let mut with_box = vec![0u64; size];
-    world.all_gather_into(&(given.bounds().is_some() as u64), &mut with_box[..]);
+    world.all_gather_into(&(!owned.is_empty() as u64), &mut with_box[..]);
     let mut outgoing = vec![Vec::new(); size];
     for (q, out) in outgoing.iter_mut().enumerate() {
         if with_box[q] == 0 {
@@ -231,11 +263,10 @@ pub fn gathered(world: &SimpleCommunicator, given: &Surface, reach: f64) -> Surf
         }
     }
     let (received, _) = exchange(world, outgoing);
-    // Keep the faces within reach of one of this process's own.
+    // Keep the faces within reach of one of this process's owned boundary nodes.
     let mut grid = BoxGrid::new(reach.max(f64::MIN_POSITIVE));
-    for f in 0..given.faces.len() {
-        let (lo, hi) = given.face_box(f, reach);
-        grid.insert(&lo, &hi, f as u32);
+    for (k, x) in owned.iter().enumerate() {
+        grid.insert(&x.add_scalar(-reach), &x.add_scalar(reach), k as u32);
     }
     let mut rows: Vec<([SurfaceNode; 3], bool)> = (0..given.faces.len())
         .map(|f| (given.face_rows(f), given.faces[f].1))
@@ -245,9 +276,9 @@ pub fn gathered(world: &SimpleCommunicator, given: &Surface, reach: f64) -> Surf
         let face = Surface::from_rows(vec![(nodes, false)]);
         let (lo, hi) = face.face_box(0, 0.0);
         let mut near = false;
-        grid.overlapping(&lo, &hi, |f| {
-            let (glo, ghi) = given.face_box(f as usize, reach);
-            near |= (0..3).all(|a| lo[a] <= ghi[a] && hi[a] >= glo[a]);
+        grid.overlapping(&lo, &hi, |k| {
+            let x = owned[k as usize];
+            near |= (0..3).all(|a| lo[a] <= x[a] + reach && hi[a] >= x[a] - reach);
         });
         if near {
             rows.push((nodes, w[3] != 0));

@@ -15,9 +15,11 @@
 //!
 //! Ice–ice contact is rebuilt from the part's faces too, which is not yet the whole term: a
 //! node's pairs reach faces and copies of split nodes beyond the part's ring (the other side
-//! of a crack, another piece), which each process must gather from the others near its own
-//! boundary. No run uses this module's model yet: a fractured run on several processes holds
-//! the whole mesh (docs/distributed.md).
+//! of a crack, another piece). [`super::ghost_surface`] gathers them, and a term on the
+//! gathered surface finds the whole boundary's pairs; the part's model does not hold the
+//! surface's nodes yet (a mesh's every node is a node of one of its elements). No run uses
+//! this module's model: a fractured run on several processes holds the whole mesh
+//! (docs/distributed.md).
 
 use super::components::connected_parts;
 use super::ghosts::gathered_by_key;

@@ -53,9 +53,15 @@ impl CrackSides {
     /// Every two copies of a split node lying on `cracks` (crack faces of `mesh`, outward),
     /// once each.
     pub fn new(mesh: &TetMesh, cracks: &[[usize; 3]]) -> Self {
+        Self::of(&mesh.rest, cracks)
+    }
+
+    /// [`CrackSides::new`] for nodes at rest positions `rest` (m): of a mesh, or of the
+    /// boundary faces a process gathers.
+    pub fn of(rest: &[Vector3<f64>], cracks: &[[usize; 3]]) -> Self {
         let mut at: HashMap<usize, (f64, Vec<[usize; 3]>)> = HashMap::new();
         for f in cracks {
-            let [a, b, c] = f.map(|i| mesh.rest[i]);
+            let [a, b, c] = f.map(|i| rest[i]);
             let share = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
             for &i in f {
                 let entry = at.entry(i).or_default();
@@ -65,7 +71,7 @@ impl CrackSides {
         }
         let mut by_position: HashMap<[u64; 3], Vec<usize>> = HashMap::new();
         for &i in at.keys() {
-            let x = mesh.rest[i];
+            let x = rest[i];
             by_position
                 .entry([x.x.to_bits(), x.y.to_bits(), x.z.to_bits()])
                 .or_default()

@@ -147,10 +147,9 @@ impl IceContact {
     /// The term on `surface`, the whole mesh's boundary faces having `perimeters` (m, in
     /// `TetMesh::boundary_faces` order: the mean edge scales the penalty's onset and the
     /// broad phase), with penalty `stiffness` (N/m³) and Coulomb `friction` smoothed over a
-    /// velocity (m/s). Its pairs are node–face pairs; the copies of split nodes are not
-    /// paired on a surface.
+    /// velocity (m/s), pairing the copies of split nodes `copies`.
     pub fn on_surface(
-        surface: ContactSurface,
+        (surface, copies): (ContactSurface, CrackSides),
         perimeters: &[f64],
         stiffness: f64,
         (friction, smoothing_velocity): (f64, f64),
@@ -169,7 +168,7 @@ impl IceContact {
             faces: surface.faces,
             edge,
             onset: ONSET * edge,
-            copies: CrackSides::default(),
+            copies,
             crack_face: surface.crack_face,
             on_crack: surface.on_crack,
             owned: surface.owned,
@@ -248,15 +247,9 @@ impl IceContact {
             owned: vec![true; mesh.num_nodes()],
             pieces: parts,
         };
-        IceContact {
-            copies: CrackSides::new(mesh, cracks),
-            ..Self::on_surface(
-                surface,
-                perimeters,
-                stiffness,
-                (friction, smoothing_velocity),
-            )
-        }
+        let copies = CrackSides::new(mesh, cracks);
+        let friction = (friction, smoothing_velocity);
+        Self::on_surface((surface, copies), perimeters, stiffness, friction)
     }
 
     /// The term on a process's part of a distributed run: numbered as the part's mesh, which
