@@ -1074,7 +1074,7 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
             .map(|(i, s)| (*i, s.normal, true))
             .collect();
     let (mut splits, mut cut, mut shared, mut turned) = (0, 0, 0, 0);
-    let mut crack_faces_seen = 0;
+    let (mut crack_faces_seen, mut cracks_seen) = (0, 0);
     while let Some((node, given, follow)) = queue.pop_front() {
         // On the whole mesh.
         let (mut patch, local) = Patch::of(&whole, &origin, node);
@@ -1192,6 +1192,25 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         ));
         assert_eq!(got_faces, expected_faces);
         crack_faces_seen += got_faces.len();
+        // And so are their cracks' numbers, found by the processes together.
+        let whole_ids: HashMap<(usize, [usize; 3]), usize> = {
+            let mesh = TetMesh::new(whole.rest.clone(), whole.tets.clone()).unwrap();
+            (crack_faces(&mesh, &origin, &scene_boundary).iter())
+                .map(|c| ((c.element, c.nodes), c.crack))
+                .collect()
+        };
+        let part_mesh = TetMesh::new(held.mesh.rest.clone(), held.mesh.tets.clone()).unwrap();
+        let own_cracks: Vec<_> = (crack_faces(&part_mesh, &held.origin, &part_boundary))
+            .into_iter()
+            .filter(|c| after.own_elements[c.element])
+            .collect();
+        let triples: Vec<[usize; 3]> = own_cracks.iter().map(|c| c.nodes).collect();
+        let ids = components::crack_ids(&world, &triples, (&held.mesh.rest, &after.nodes));
+        for (c, id) in own_cracks.iter().zip(ids) {
+            let key = (after.elements[c.element], c.nodes.map(|i| after.nodes[i]));
+            assert_eq!(id, whole_ids[&key], "crack of face {key:?}");
+        }
+        cracks_seen = cracks_seen.max(whole_ids.values().max().map_or(0, |m| m + 1));
         // The model rebuilt on the part is the whole mesh's remesh restricted to the part,
         // and so is the PETSc numbering.
         let split_mesh = TetMesh::new(whole.rest.clone(), whole.tets.clone()).unwrap();
@@ -1225,11 +1244,13 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
     }
     eprintln!(
         "process {rank}: {splits} splits ({shared} on patches of several processes, {turned} \
-         continuing a crack), {cut} edges cut, {} of {} elements held",
+         continuing a crack), {cut} edges cut, {cracks_seen} cracks at most, {} of {} elements \
+         held",
         held.part.elements.len(),
         whole.tets.len()
     );
     assert!(crack_faces_seen > 0);
+    assert!(cracks_seen > 2, "{cracks_seen} cracks");
     // Ice–ice contact across the cracks (the copies of split nodes) on the faces each
     // process gives and those it gathers near its owned boundary nodes: the whole
     // boundary's pairs with an owned node, to the bit.
