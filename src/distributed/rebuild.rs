@@ -13,12 +13,12 @@
 //! pieces. Checked against the whole mesh's remesh restricted to each part on three processes
 //! (`solver_tests/partition.rs`).
 //!
-//! Ice–ice contact is rebuilt from the part's faces too, which is not yet the whole term: a
+//! Ice–ice contact is rebuilt from the part's faces too, which is not the whole term: a
 //! node's pairs reach faces and copies of split nodes beyond the part's ring (the other side
 //! of a crack, another piece). [`super::ghost_surface`] gathers them, and a term on the
 //! gathered surface finds the whole boundary's pairs; the part's model does not hold the
-//! surface's nodes yet (a mesh's every node is a node of one of its elements). No run uses
-//! this module's model: a fractured run on several processes holds the whole mesh
+//! surface's nodes (a mesh's every node is a node of one of its elements). No run uses this
+//! module's model: a fractured run on several processes holds the whole mesh
 //! (docs/distributed.md).
 
 use super::components::connected_parts;
@@ -59,14 +59,7 @@ pub fn model_after_split(
         .filter(|face| part.own_elements[face.tet])
         .cloned()
         .collect();
-    let items: Vec<([usize; 3], f64)> = (own.iter().zip(mesh.perimeters(&own)))
-        .map(|(face, p)| {
-            let mut key = face.nodes.map(|i| part.nodes[i]);
-            key.sort_unstable();
-            (key, p)
-        })
-        .collect();
-    let perimeters = gathered_by_key(world, &items);
+    let perimeters = gathered_by_key(world, &part.keyed_perimeters(&mesh, &own));
     let (lo, hi) = mesh.bounding_box();
     let bounds = (
         lo.map(|x| -largest(world, -x)),

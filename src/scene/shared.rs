@@ -264,14 +264,7 @@ impl Validator<'_> {
             (Some(s), Some((part, marks))) => {
                 let mut own = mesh.faces_marked(marks);
                 own.retain(|f| part.own_elements[f.tet]);
-                let items: Vec<([usize; 3], f64)> = (own.iter().zip(mesh.perimeters(&own)))
-                    .map(|(f, p)| {
-                        let mut key = f.nodes.map(|v| part.nodes[v]);
-                        key.sort_unstable();
-                        (key, p)
-                    })
-                    .collect();
-                s.gathered_by_key(&items)
+                s.gathered_by_key(&part.keyed_perimeters(mesh, &own))
             }
             _ => mesh.perimeters(&mesh.boundary_faces()),
         }

@@ -16,7 +16,7 @@
 //! the mesh, or on one process, a part is the whole mesh: every element and node, each
 //! process evaluating its own elements and owned nodes as above.
 
-use crate::mesh::MeshError;
+use crate::mesh::{BoundaryFace, MeshError, TetMesh};
 use crate::physics::term::NodeRestriction;
 use crate::physics::Model;
 use nalgebra::Vector3;
@@ -204,6 +204,24 @@ impl Part {
             local,
             local_nodes: self.nodes.len(),
         }
+    }
+
+    /// The perimeters (m) of the faces `faces` of the part's mesh `mesh` (the whole mesh's
+    /// boundary faces of the part's own elements, each given by one process), each keyed by
+    /// its nodes' numbers in the whole mesh, ascending: sorted by key, all processes' give the
+    /// whole boundary's in `TetMesh::boundary_faces` order.
+    pub fn keyed_perimeters(
+        &self,
+        mesh: &TetMesh,
+        faces: &[BoundaryFace],
+    ) -> Vec<([usize; 3], f64)> {
+        (faces.iter().zip(mesh.perimeters(faces)))
+            .map(|(face, p)| {
+                let mut key = face.nodes.map(|i| self.nodes[i]);
+                key.sort_unstable();
+                (key, p)
+            })
+            .collect()
     }
 
     /// The part's entries of a vector over the whole mesh's dofs (3 per node; empty stays
