@@ -62,6 +62,17 @@ fn on_three_processes(name: &str) -> Option<SimpleCommunicator> {
     None
 }
 
+/// `n` summed over the processes of `world`.
+fn summed(world: &SimpleCommunicator, n: usize) -> u64 {
+    let mut sum = 0u64;
+    world.all_reduce_into(
+        &(n as u64),
+        &mut sum,
+        mpi::collective::SystemOperation::sum(),
+    );
+    sum
+}
+
 /// A box mesh of 6 × 5 × 4 cells of 5 tets whose elements are shuffled (a fixed
 /// permutation), so that a process's contiguous range of elements is scattered in space and
 /// most faces join elements of different ranges.
@@ -921,12 +932,7 @@ fn the_fracture_criterion_on_a_part_is_the_whole_meshs_at_its_owned_nodes() {
                 mesh.num_tets(),
                 got.len()
             );
-            let mut total = 0u64;
-            world.all_reduce_into(
-                &(eligible as u64),
-                &mut total,
-                mpi::collective::SystemOperation::sum(),
-            );
+            let total = summed(&world, eligible);
             assert!(total > 20, "a frozen shell in tension: {total} nodes");
             for (i, s) in &got {
                 // To the bit: the same elements in the same order, the same pressures, the
@@ -1272,32 +1278,33 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         .map(|c| c.nodes)
         .collect();
     let perimeters = split_mesh.perimeters(&split_mesh.boundary_faces());
-    let (term, numbers, surface_rest, faces) = contact_on_ghost_surface(
+    let ghost = contact_on_ghost_surface(
         &world,
         &held.part,
         (&held.mesh.rest, &held.mesh.tets),
         (&held.mesh.u, &held.node_owner),
         (&part_cracks, &perimeters),
     );
-    let surface_u: Vec<f64> = (numbers.iter())
+    let whole_u: Vec<f64> = (ghost.numbers.iter())
         .flat_map(|&i| whole.u[3 * i..3 * i + 3].to_vec())
         .collect();
-    let (got_candidates, got) =
-        contact_pairs(&term, (&surface_rest, &surface_u), &|k| numbers[k], &owned);
+    assert_eq!(ghost.u, whole_u);
+    let (got_candidates, got) = contact_pairs(
+        &ghost.term,
+        (&ghost.rest, &ghost.u),
+        &|k| ghost.numbers[k],
+        &owned,
+    );
     let copies = got.iter().filter(|(n, _, _)| n[1] == n[2]).count();
     eprintln!(
-        "process {rank}: {faces} faces held for contact, {} pairs evaluated ({copies} of \
+        "process {rank}: {} faces held for contact, {} pairs evaluated ({copies} of \
          copies)",
+        ghost.faces,
         got.len()
     );
     assert_eq!(got_candidates, want_candidates);
     assert_eq!(got, want);
-    let mut all_copies = 0u64;
-    world.all_reduce_into(
-        &(copies as u64),
-        &mut all_copies,
-        mpi::collective::SystemOperation::sum(),
-    );
+    let all_copies = summed(&world, copies);
     assert!(all_copies > 10, "{all_copies} pairs of copies");
     assert!(
         splits >= 8 && cut > 0 && shared > 0 && turned > 0,
@@ -1378,24 +1385,30 @@ fn contact_pairs(
     (touching, chosen)
 }
 
+/// A process's ice–ice contact on its ghost surface.
+struct GhostContact {
+    term: icefem::physics::ice_contact::IceContact,
+    /// The whole mesh's number, rest position (m) and displacement (m, 3 per node, from its
+    /// owner) of each of the surface's nodes.
+    numbers: Vec<usize>,
+    rest: Vec<nalgebra::Vector3<f64>>,
+    u: Vec<f64>,
+    /// The faces it holds.
+    faces: usize,
+}
+
 /// This process's ice–ice contact on its ghost surface: the faces it gives from its `part`
 /// (mesh `rest`, `tets`, numbered in the part, at displacements `u` of the part's nodes,
 /// owned by `node_owner`, with crack faces `cracks`) and those the others give near its owned
-/// boundary nodes, whose whole boundary has `perimeters`. Returns the term, the whole mesh's
-/// number and rest position of each of its nodes, and the faces it holds.
+/// boundary nodes, whose whole boundary has `perimeters`.
 fn contact_on_ghost_surface(
     world: &SimpleCommunicator,
     part: &Part,
     (rest, tets): (&[nalgebra::Vector3<f64>], &[[usize; 4]]),
     (u, node_owner): (&[f64], &[u32]),
     (cracks, perimeters): (&[[usize; 3]], &[f64]),
-) -> (
-    icefem::physics::ice_contact::IceContact,
-    Vec<usize>,
-    Vec<nalgebra::Vector3<f64>>,
-    usize,
-) {
-    use icefem::distributed::ghost_surface::{gathered, Surface};
+) -> GhostContact {
+    use icefem::distributed::ghost_surface::{gathered, Surface, SurfaceMotion};
     let (piece, pieces) = components::connected_parts(world, part, tets, node_owner);
     let given = Surface::given(part, (rest, tets), (u, node_owner, &piece), cracks);
     // Twice the broad phase's margin (2 vmax h + half the mean edge) and two edges.
@@ -1409,8 +1422,13 @@ fn contact_on_ghost_surface(
         1e12,
         (0.0, 0.0),
     );
-    let numbers = surface.nodes.iter().map(|n| n.node).collect();
-    (term, numbers, surface.rest(), surface.faces.len())
+    GhostContact {
+        term,
+        numbers: surface.nodes.iter().map(|n| n.node).collect(),
+        rest: surface.rest(),
+        u: SurfaceMotion::new(world, &surface, part).displacements(u),
+        faces: surface.faces.len(),
+    }
 }
 
 #[test]
@@ -1452,42 +1470,39 @@ fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
         .map(|&e| mesh.tets[e].map(|v| part.local(v).unwrap()))
         .collect();
     let node_owner: Vec<u32> = part.nodes.iter().map(|&i| owners[i]).collect();
-    let (term, numbers, surface_rest, faces) = contact_on_ghost_surface(
+    let ghost = contact_on_ghost_surface(
         &world,
         &part,
         (&rest, &tets),
         (&part.dofs_of(&u), &node_owner),
         (&[], &perimeters),
     );
-    let surface_u: Vec<f64> = (numbers.iter())
+    // The surface's displacements, from the nodes' owners, are the whole mesh's.
+    let whole_u: Vec<f64> = (ghost.numbers.iter())
         .flat_map(|&i| u[3 * i..3 * i + 3].to_vec())
         .collect();
-    let (got_candidates, got) =
-        contact_pairs(&term, (&surface_rest, &surface_u), &|k| numbers[k], &owned);
+    assert_eq!(ghost.u, whole_u);
+    let (got_candidates, got) = contact_pairs(
+        &ghost.term,
+        (&ghost.rest, &ghost.u),
+        &|k| ghost.numbers[k],
+        &owned,
+    );
     eprintln!(
-        "process {rank}: {faces} of {} boundary faces held, {} pairs evaluated, {} candidates \
+        "process {rank}: {} of {} boundary faces held, {} pairs evaluated, {} candidates \
          with an owned node",
+        ghost.faces,
         boundary.len(),
         got.len(),
         got_candidates.len()
     );
     assert_eq!(got_candidates, want_candidates);
     assert_eq!(got, want);
-    let mut total = 0u64;
-    world.all_reduce_into(
-        &(got.len() as u64),
-        &mut total,
-        mpi::collective::SystemOperation::sum(),
-    );
+    let total = summed(&world, got.len());
     assert!(total > 50, "the cubes press on each other: {total} pairs");
     // The slabs at the ends hold a part of the boundary (the reach, about 7 cm, spans the
     // middle slab's neighbours).
-    let mut held = 0u64;
-    world.all_reduce_into(
-        &(faces as u64),
-        &mut held,
-        mpi::collective::SystemOperation::sum(),
-    );
+    let held = summed(&world, ghost.faces);
     assert!(
         held < (PROCESSES * boundary.len()) as u64,
         "{held} faces held"

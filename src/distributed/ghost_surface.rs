@@ -15,7 +15,7 @@
 //! weighs, and every copy of its split nodes with its crack faces: its contact term finds
 //! those pairs, and their gaps, as the whole boundary's does (tested on three processes).
 
-use super::ghosts::{all_gathered, exchange};
+use super::ghosts::{all_gathered, exchange, FromOwners};
 use crate::physics::crack_sides::CrackSides;
 use crate::physics::grid::BoxGrid;
 use crate::physics::ice_contact::ContactSurface;
@@ -186,6 +186,62 @@ impl Surface {
             pieces,
         };
         (surface, copies)
+    }
+}
+
+/// How a process gets its surface's displacements: those of the nodes it owns from its part,
+/// the others' from their owners (the surface's nodes are not its part's ghosts).
+pub struct SurfaceMotion {
+    /// Per surface node, the part's node when this process owns it.
+    owned: Vec<Option<usize>>,
+    /// The surface nodes this process does not own, and the plan that brings their values.
+    wanted: Vec<usize>,
+    from_owners: FromOwners,
+}
+
+impl SurfaceMotion {
+    /// The plan for `surface`, gathered by this process, which holds `part`. Every process
+    /// of `world` calls it.
+    pub fn new(world: &SimpleCommunicator, surface: &Surface, part: &Part) -> Self {
+        let rank = world.rank() as u32;
+        let owned: Vec<Option<usize>> = (surface.nodes.iter())
+            .map(|n| (n.owner == rank).then(|| part.local(n.node).expect("an owned node")))
+            .collect();
+        let wanted: Vec<usize> = (0..owned.len()).filter(|&k| owned[k].is_none()).collect();
+        let owners: Vec<(usize, u32)> = (wanted.iter())
+            .map(|&k| (surface.nodes[k].node, surface.nodes[k].owner))
+            .collect();
+        SurfaceMotion {
+            from_owners: FromOwners::new(world, part, &owners),
+            owned,
+            wanted,
+        }
+    }
+
+    /// The surface's displacements (m, 3 per node) from the part's `u` (m, 3 per node), the
+    /// owners' values. Every process calls it.
+    pub fn displacements(&self, u: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; 3 * self.owned.len()];
+        for (k, owned) in self.owned.iter().enumerate() {
+            if let Some(i) = owned {
+                out[3 * k..3 * k + 3].copy_from_slice(&u[3 * i..3 * i + 3]);
+            }
+        }
+        let received = self.from_owners.fetch(
+            |i, words| words.extend(u[3 * i..3 * i + 3].iter().map(|x| x.to_bits())),
+            |words| {
+                let (value, after) = words.split_at(3);
+                (
+                    value.iter().map(|&b| f64::from_bits(b)).collect::<Vec<_>>(),
+                    after,
+                )
+            },
+        );
+        for (k, value) in received {
+            let at = 3 * self.wanted[k];
+            out[at..at + 3].copy_from_slice(&value);
+        }
+        out
     }
 }
 

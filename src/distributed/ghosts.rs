@@ -4,6 +4,7 @@
 //! to every process holding the node: afterwards every copy has the owner's bits.
 
 use super::traffic;
+use crate::sim::part::Part;
 use mpi::datatype::{Partition, PartitionMut};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -100,6 +101,78 @@ pub(super) fn gathered_by_key(world: &SimpleCommunicator, items: &[([usize; 3], 
         .collect();
     keyed.sort_unstable();
     keyed.iter().map(|r| f64::from_bits(r[3])).collect()
+}
+
+/// A fixed plan by which a process gets, from their owners, values of nodes it holds beyond
+/// its part's ghosts (the nodes a nonlocal average reads, a ghost surface's): each owner
+/// sends the values of the nodes asked of it, in the order asked.
+pub struct FromOwners {
+    world: SimpleCommunicator,
+    /// Per process, the part's nodes this process owns whose values it sends there.
+    send: Vec<Vec<usize>>,
+    /// Per process, the wanted nodes (indices into the list given to [`FromOwners::new`])
+    /// whose values come from there.
+    receive: Vec<Vec<usize>>,
+}
+
+impl FromOwners {
+    /// The plan for the nodes `wanted` (the whole mesh's number and owner of each), this
+    /// process holding `part` (whose owned nodes others may ask for). Every process of
+    /// `world` calls it.
+    pub fn new(world: &SimpleCommunicator, part: &Part, wanted: &[(usize, u32)]) -> Self {
+        let size = world.size() as usize;
+        let mut asks = vec![Vec::new(); size];
+        let mut receive = vec![Vec::new(); size];
+        for (k, &(node, owner)) in wanted.iter().enumerate() {
+            asks[owner as usize].push(node as u64);
+            receive[owner as usize].push(k);
+        }
+        let (asked, counts) = exchange(world, asks);
+        let mut from = asked.iter();
+        let send = (counts.iter())
+            .map(|&count| {
+                (from.by_ref().take(count as usize))
+                    .map(|&i| part.local(i as usize).expect("an owner holds its node"))
+                    .collect()
+            })
+            .collect();
+        FromOwners {
+            world: world.duplicate(),
+            send,
+            receive,
+        }
+    }
+
+    /// Number of nodes whose values come from other processes.
+    pub fn received(&self) -> usize {
+        self.receive.iter().map(Vec::len).sum()
+    }
+
+    /// Each wanted node's value as its owner's `write(k, words)` writes it for its part's
+    /// node `k`, read back by `read(words)` (which returns the value and the words after
+    /// it): the wanted nodes' indices and values, grouped by owner. Every process calls it.
+    pub fn fetch<T>(
+        &self,
+        write: impl Fn(usize, &mut Vec<u64>),
+        read: impl Fn(&[u64]) -> (T, &[u64]),
+    ) -> Vec<(usize, T)> {
+        let outgoing = (self.send.iter())
+            .map(|nodes| {
+                let mut words = Vec::new();
+                nodes.iter().for_each(|&k| write(k, &mut words));
+                words
+            })
+            .collect();
+        let (incoming, _) = exchange(&self.world, outgoing);
+        let mut words = &incoming[..];
+        let mut values = Vec::with_capacity(self.received());
+        for &k in self.receive.iter().flatten() {
+            let (value, after) = read(words);
+            values.push((k, value));
+            words = after;
+        }
+        values
+    }
 }
 
 impl Ghosts {

@@ -23,7 +23,7 @@
 //! At each evaluation, every node within ℓ that the process does not own gets its forces
 //! from its owner (whose part holds its whole star), in one all-to-all exchange.
 
-use super::ghosts::exchange;
+use super::ghosts::{exchange, FromOwners};
 use crate::fracture::nonlocal::{Averaging, Edges};
 use crate::fracture::{NodeForces, NodeSeparation, PartAverages};
 use crate::sim::part::Part;
@@ -46,7 +46,6 @@ struct Known {
 
 /// A process's gathered graph and the forces it exchanges at each evaluation.
 pub struct NodeHalo {
-    world: SimpleCommunicator,
     /// The gathered graph's nodes (the whole mesh's numbers, ascending).
     nodes: Vec<usize>,
     /// The owned nodes' neighbourhoods on the gathered graph.
@@ -55,10 +54,10 @@ pub struct NodeHalo {
     of_part: Vec<usize>,
     /// The part's node of each gathered node the process owns.
     owned: Vec<Option<usize>>,
-    /// Per process, the gathered nodes whose forces come from it, in the order it sends them.
-    receive: Vec<Vec<usize>>,
-    /// Per process, the part's owned nodes whose forces it needs, in the order it asked.
-    send: Vec<Vec<usize>>,
+    /// The gathered nodes within the averaging length this process does not own, whose
+    /// forces come from their owners, and the plan that brings them.
+    wanted: Vec<usize>,
+    from_owners: FromOwners,
 }
 
 impl NodeHalo {
@@ -119,26 +118,14 @@ impl NodeHalo {
         let (graph, _) = graph_of(&known, &edges);
         let owned_here: Vec<bool> = nodes.iter().map(|&i| is_owned(part, i)).collect();
         let averaging = Averaging::on(&graph, length, Some(&owned_here));
-        let mut wanted = vec![Vec::new(); size];
-        let mut receive = vec![Vec::new(); size];
-        for (k, &i) in nodes.iter().enumerate() {
-            if reached[k] && !owned_here[k] {
-                let owner = known[&i].owner as usize;
-                wanted[owner].push(i as u64);
-                receive[owner].push(k);
-            }
-        }
-        let (asked, counts) = exchange(world, wanted);
-        let mut send = vec![Vec::new(); size];
-        let mut from = asked.iter();
-        for (r, &count) in counts.iter().enumerate() {
-            send[r] = (from.by_ref().take(count as usize))
-                .map(|&i| part.local(i as usize).expect("an owner holds its node"))
-                .collect();
-        }
+        let wanted: Vec<usize> = (0..nodes.len())
+            .filter(|&k| reached[k] && !owned_here[k])
+            .collect();
+        let owners: Vec<(usize, u32)> = (wanted.iter())
+            .map(|&k| (nodes[k], known[&nodes[k]].owner))
+            .collect();
         let at = |i: &usize| nodes.binary_search(i).expect("a part's node is gathered");
         NodeHalo {
-            world: world.duplicate(),
             of_part: part.nodes.iter().map(at).collect(),
             owned: (nodes.iter())
                 .zip(&owned_here)
@@ -146,8 +133,8 @@ impl NodeHalo {
                 .collect(),
             nodes,
             averaging,
-            receive,
-            send,
+            from_owners: FromOwners::new(world, part, &owners),
+            wanted,
         }
     }
 
@@ -159,7 +146,7 @@ impl NodeHalo {
 
     /// Number of nodes whose forces this process receives at each evaluation.
     pub fn received_nodes(&self) -> usize {
-        self.receive.iter().map(Vec::len).sum()
+        self.from_owners.received()
     }
 }
 
@@ -239,14 +226,6 @@ fn read_answers(
 
 impl PartAverages for NodeHalo {
     fn average(&self, forces: &[NodeForces], area_floor: f64) -> Vec<NodeSeparation> {
-        let outgoing = (self.send.iter())
-            .map(|nodes| {
-                let mut words = Vec::new();
-                nodes.iter().for_each(|&k| forces[k].to_words(&mut words));
-                words
-            })
-            .collect();
-        let (incoming, _) = exchange(&self.world, outgoing);
         let nothing = NodeForces {
             tensor: Default::default(),
             weighted_grads: Vec::new(),
@@ -255,11 +234,10 @@ impl PartAverages for NodeHalo {
         let mut gathered: Vec<NodeForces> = (self.owned.iter())
             .map(|o| o.map_or_else(|| nothing.clone(), |k| forces[k].clone()))
             .collect();
-        let mut words = &incoming[..];
-        for &k in self.receive.iter().flatten() {
-            let (node, after) = NodeForces::from_words(words);
-            gathered[k] = node;
-            words = after;
+        let received =
+            (self.from_owners).fetch(|k, words| forces[k].to_words(words), NodeForces::from_words);
+        for (k, node) in received {
+            gathered[self.wanted[k]] = node;
         }
         let averaged = self.averaging.average(&gathered, area_floor);
         self.of_part.iter().map(|&k| averaged[k]).collect()
