@@ -399,6 +399,24 @@ mod tests {
     use crate::mesh::box_mesh;
     use crate::physics::elasticity::Volumetric;
 
+    #[test]
+    fn a_nodes_forces_come_back_from_their_words() {
+        let forces = NodeForces {
+            tensor: Matrix3::new(1.0, 2.0, 3.0, 2.0, -5.0, 6.0, 3.0, 6.0, 1e-300),
+            weighted_grads: vec![
+                Vector3::new(0.1, -0.2, 0.3),
+                Vector3::new(f64::MIN, 0.0, -0.0),
+            ],
+            eligible: true,
+        };
+        let mut words = Vec::new();
+        forces.to_words(&mut words);
+        words.push(42);
+        let (back, rest) = NodeForces::from_words(&words);
+        assert_eq!(back, forces);
+        assert_eq!(rest, [42]);
+    }
+
     /// A 4 × 3 × 2 cm box of 4 × 3 × 2 cells (1 cm cubes) under the homogeneous displacement
     /// u = G x; returns the separation of the interior node at (2, 1, 1) cm and the stress.
     fn homogeneous(model: ElasticModel, g: Matrix3<f64>) -> (NodeSeparation, Matrix3<f64>) {

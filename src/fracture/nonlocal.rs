@@ -312,6 +312,36 @@ mod tests {
     }
 
     #[test]
+    fn a_graph_given_by_its_edges_averages_as_the_mesh_does() {
+        // The edges of a 3 cm cube's elements given one way each, in reverse and repeated
+        // (as a process gathers them from several owners): the same neighbourhoods, to the
+        // bit, and every node's neighbours ascending.
+        let mesh = box_mesh([0.0; 3], [0.03; 3], [3, 3, 3], 6).unwrap();
+        let mut edges = Vec::new();
+        for tet in mesh.tets.iter().rev() {
+            for a in 0..4 {
+                for b in 0..4 {
+                    if a != b {
+                        edges.push((tet[a] as u32, tet[b] as u32));
+                    }
+                }
+            }
+        }
+        let given = Edges::new(mesh.rest.clone(), edges);
+        let from_mesh = Edges::of_mesh(&mesh.rest, &mesh.tets);
+        for a in 0..mesh.num_nodes() {
+            let around: Vec<usize> = given.neighbours(a).collect();
+            assert!(around.windows(2).all(|w| w[0] < w[1]));
+            assert_eq!(around, from_mesh.neighbours(a).collect::<Vec<_>>());
+        }
+        let (x, y) = (
+            Averaging::on(&given, 0.015, None),
+            Averaging::new(&mesh, 0.015),
+        );
+        assert_eq!((x.ptr, x.neighbours), (y.ptr, y.neighbours));
+    }
+
+    #[test]
     fn the_nodes_within_reach_of_some_nodes_are_their_neighbourhoods() {
         // Every other node of a 4 cm cube of 1 cm cells, ℓ = 2.5 cm: `of` keeps their
         // neighbourhoods (and no other node's), and `within` is the union of them.
