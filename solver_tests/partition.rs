@@ -1410,7 +1410,8 @@ fn contact_on_ghost_surface(
 ) -> GhostContact {
     use icefem::distributed::ghost_surface::{gathered, Surface, SurfaceMotion};
     let (piece, pieces) = components::connected_parts(world, part, tets, node_owner);
-    let given = Surface::given(part, (rest, tets), (u, node_owner, &piece), cracks);
+    let mesh = TetMesh::new(rest.to_vec(), tets.to_vec()).unwrap();
+    let given = Surface::given(part, &mesh, (u, node_owner, &piece), cracks);
     // Twice the broad phase's margin (2 vmax h + half the mean edge) and two edges.
     let (vmax, h) = CONTACT_MOTION;
     let edge = icefem::mesh::mean_edge(perimeters);

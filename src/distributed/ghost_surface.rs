@@ -16,6 +16,7 @@
 //! those pairs, and their gaps, as the whole boundary's does (tested on three processes).
 
 use super::ghosts::{all_gathered, exchange, FromOwners};
+use crate::mesh::TetMesh;
 use crate::physics::crack_sides::CrackSides;
 use crate::physics::grid::BoxGrid;
 use crate::physics::ice_contact::ContactSurface;
@@ -63,25 +64,22 @@ pub struct Surface {
     pub faces: Vec<([usize; 3], bool)>,
 }
 
-/// Words per node row and per face row.
+/// Words per node row and per face row (its crack flag and its nodes' rows).
 const NODE_WORDS: usize = 11;
-const FACE_WORDS: usize = 3 + 1 + 3 * NODE_WORDS;
+const FACE_WORDS: usize = 1 + 3 * NODE_WORDS;
 
 impl Surface {
     /// The faces this process gives: those of its own elements on the whole mesh's boundary;
-    /// and the positions of the boundary nodes it owns. `part` is its part, of a mesh of rest positions `rest` (m) and elements `tets`
-    /// (numbered in the part), at displacements `u` (m, 3 per node), whose nodes are owned by
-    /// `node_owner` and lie in the pieces `piece`, with crack faces `cracks` (node triples).
+    /// and the positions of the boundary nodes it owns. `part` is its part, whose mesh `mesh`
+    /// (numbered in the part) is at displacements `u` (m, 3 per node), its nodes owned by
+    /// `node_owner` and in the pieces `piece`, with crack faces `cracks` (node triples).
     pub fn given(
         part: &Part,
-        (rest, tets): (&[Vector3<f64>], &[[usize; 4]]),
+        mesh: &TetMesh,
         (u, node_owner, piece): (&[f64], &[u32], &[u32]),
         cracks: &[[usize; 3]],
     ) -> Given {
-        let mesh = crate::mesh::TetMesh {
-            rest: rest.to_vec(),
-            tets: tets.to_vec(),
-        };
+        let (rest, tets) = (&mesh.rest, &mesh.tets);
         let mut near = vec![false; rest.len()];
         for (tet, _) in (tets.iter().zip(&part.own_elements)).filter(|(_, &o)| o) {
             tet.iter().for_each(|&i| near[i] = true);
@@ -311,8 +309,6 @@ pub fn gathered(world: &SimpleCommunicator, given: &Given, reach: f64) -> Surfac
         for f in 0..given.faces.len() {
             let (flo, fhi) = given.face_box(f, reach);
             if (0..3).all(|a| flo[a] <= hi[a] && fhi[a] >= lo[a]) {
-                let face = given.faces[f].0.map(|k| given.nodes[k].node);
-                out.extend(face.map(|i| i as u64));
                 out.push(given.faces[f].1 as u64);
                 given.face_rows(f).iter().for_each(|n| node_words(n, out));
             }
@@ -328,7 +324,7 @@ pub fn gathered(world: &SimpleCommunicator, given: &Given, reach: f64) -> Surfac
         .map(|f| (given.face_rows(f), given.faces[f].1))
         .collect();
     for w in received.chunks_exact(FACE_WORDS) {
-        let nodes = [0, 1, 2].map(|j| node_of(&w[4 + j * NODE_WORDS..]));
+        let nodes = [0, 1, 2].map(|j| node_of(&w[1 + j * NODE_WORDS..]));
         let face = Surface::from_rows(vec![(nodes, false)]);
         let (lo, hi) = face.face_box(0, 0.0);
         let mut near = false;
@@ -337,7 +333,7 @@ pub fn gathered(world: &SimpleCommunicator, given: &Given, reach: f64) -> Surfac
             near |= (0..3).all(|a| lo[a] <= x[a] + reach && hi[a] >= x[a] - reach);
         });
         if near {
-            rows.push((nodes, w[3] != 0));
+            rows.push((nodes, w[0] != 0));
         }
     }
     Surface::from_rows(rows)
