@@ -26,15 +26,17 @@ use super::ghosts::gathered_by_key;
 use super::largest;
 use super::partition::PartNumbering;
 use super::splits::SplitPart;
-use super::MpiCollective;
+use super::{MpiCollective, ProcessShare};
 use crate::fracture::cracks::{crack_faces, OriginalBoundary};
 use crate::mesh::{MeshError, TetMesh};
 use crate::physics::term::{NodeRestriction, WholeMesh};
 use crate::physics::Model;
 use crate::sim::part::Part;
-use crate::sim::Collective;
+use crate::sim::{Collective, Distribution};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
+use std::cell::Cell;
+use std::rc::Rc;
 
 /// This process's model after a split made on the parts: `before` (its model on its part
 /// before the split) on the split part `held`, whose scene boundary's planes are `original`.
@@ -81,6 +83,26 @@ pub fn model_after_split(
     let owned = &part.owned_nodes;
     model.restrict(owned, &terms, &NodeRestriction::all(owned));
     Ok(model)
+}
+
+/// This process's share of a run on its `part` of a mesh split on the parts, the part's mesh
+/// being `mesh` (numbered in the part) and its PETSc numbering `numbering`
+/// ([`numbering_after_split`]); CG stops at `solve`'s relative tolerance or iteration cap.
+/// Every process calls it (it exchanges its ghosts' plan).
+pub fn share_after_split(
+    part: &Part,
+    numbering: PartNumbering,
+    mesh: &TetMesh,
+    solve: (f64, usize),
+) -> Box<dyn Distribution> {
+    let rank = SimpleCommunicator::world().rank() as u32;
+    let held = Rc::new(Cell::new([0; 2]));
+    Box::new(ProcessShare::new(
+        (part, numbering),
+        mesh,
+        rank,
+        (solve, held),
+    ))
 }
 
 /// The PETSc numbering of this process's `part` after a split made on the parts, whose nodes
