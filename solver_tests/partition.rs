@@ -1025,6 +1025,100 @@ fn step_on_the_split_parts(
     assert_eq!(got.newton.iterations, want.newton.iterations);
 }
 
+/// Takes one step from `sim`'s state (split since into `whole`, as in
+/// [`step_on_the_split_parts`], its elements evaluated by `processes`), with ice–ice
+/// contact, on the whole split mesh on one process, and on the processes' parts (`part`)
+/// each holding besides the elements of the faces `ghost_faces` (the whole mesh's numbers:
+/// its gathered ghost surface), its model restricted from `whole_model`; checks that the
+/// part's nodes' displacements agree.
+fn step_with_contact_on_ghost_elements(
+    world: &SimpleCommunicator,
+    sim: &icefem::sim::Simulation,
+    (whole, origin, processes, whole_model): (
+        &Fracturable,
+        &[usize],
+        &[u32],
+        icefem::physics::Model,
+    ),
+    (part, ghost_faces): (&Part, &[[usize; 3]]),
+) {
+    use icefem::sim::Simulation;
+    let rank = world.rank() as u32;
+    let mesh = TetMesh::new(whole.rest.clone(), whole.tets.clone()).unwrap();
+    // The element of each ghost face (its giver's own element, which the giver knows).
+    let key = |f: &[usize; 3]| {
+        let mut k = *f;
+        k.sort_unstable();
+        k
+    };
+    let element_of: HashMap<[usize; 3], usize> = (mesh.boundary_faces().iter())
+        .map(|f| (key(&f.nodes), f.tet))
+        .collect();
+    let mut elements: Vec<usize> = (ghost_faces.iter())
+        .map(|f| element_of[&key(f)])
+        .chain(part.elements.iter().copied())
+        .collect();
+    elements.sort_unstable();
+    elements.dedup();
+    let mut nodes: Vec<usize> = elements.iter().flat_map(|&e| mesh.tets[e]).collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    let owners = lowest_owners(&mesh.tets, processes, mesh.num_nodes());
+    let extended = Part::from_lists(
+        (elements.clone(), nodes.clone()),
+        (
+            elements.iter().map(|&e| processes[e] == rank).collect(),
+            nodes.iter().map(|&i| owners[i] == rank).collect(),
+        ),
+        (mesh.num_nodes(), mesh.num_tets()),
+    );
+    let start = |s: &mut Simulation, (u, v): (Vec<f64>, Vec<f64>), elements: &[usize]| {
+        s.state.u = u;
+        s.state.v = v;
+        s.state.history = sim.state.history.inherit(elements);
+        s.state.time = sim.state.time;
+        s.set_time(sim.state.time);
+    };
+    let mut one = Simulation::new(whole_model.clone(), sim.settings).unwrap();
+    start(&mut one, (whole.u.clone(), whole.v.clone()), origin);
+    let want = one.step().unwrap();
+    let model = extended.model(&whole_model).unwrap();
+    let mut on_part = Simulation::for_part(model, sim.settings).unwrap();
+    let scene_elements: Vec<usize> = elements.iter().map(|&e| origin[e]).collect();
+    let state = (extended.dofs_of(&whole.u), extended.dofs_of(&whole.v));
+    start(&mut on_part, state, &scene_elements);
+    let node_owner: Vec<u32> = nodes.iter().map(|&i| owners[i]).collect();
+    let element_part: Vec<u32> = elements.iter().map(|&e| processes[e]).collect();
+    let numbering = rebuild::numbering_after_split(world, &extended, &node_owner, element_part);
+    let iterative = sim.settings.iterative();
+    let solve = (iterative.tolerance, iterative.max_iterations);
+    let part_mesh = on_part.model.mesh.clone();
+    (on_part.distribute(rebuild::share_after_split(
+        &extended, numbering, &part_mesh, solve,
+    )))
+    .unwrap();
+    let got = on_part.step().unwrap();
+    let scale = one.state.u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let mut largest = 0.0f64;
+    for (k, &i) in nodes.iter().enumerate() {
+        for a in 0..3 {
+            largest = largest.max((on_part.state.u[3 * k + a] - one.state.u[3 * i + a]).abs());
+        }
+    }
+    eprintln!(
+        "process {rank}: a step with ice–ice contact, {} + {} ghost-surface elements held of {}, \
+         {} Newton iterations (whole mesh {}), displacements {largest:.2e} m from the whole \
+         mesh's (largest {scale:.2e} m)",
+        part.elements.len(),
+        elements.len() - part.elements.len(),
+        mesh.num_tets(),
+        got.newton.iterations,
+        want.newton.iterations
+    );
+    assert!(largest <= 1e-9 * scale, "{largest:e} of {scale:e}");
+    assert_eq!(got.newton.iterations, want.newton.iterations);
+}
+
 /// Checks a process's model rebuilt on its part after a split (`got`) against the whole mesh's
 /// remesh restricted to the part (`want`): to the bit, but for ice–ice contact (which needs
 /// the faces beyond the part: see `distributed::rebuild`).
@@ -1358,7 +1452,7 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
     eprintln!(
         "process {rank}: {} faces held for contact, {} pairs evaluated ({copies} of \
          copies)",
-        ghost.faces,
+        ghost.faces.len(),
         got.len()
     );
     assert_eq!(got_candidates, want_candidates);
@@ -1371,8 +1465,16 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
     step_on_the_split_parts(
         &world,
         &sim,
-        (&whole, &origin, whole_model),
+        (&whole, &origin, whole_model.clone()),
         (&held, part_model),
+    );
+    // And with ice–ice contact, each process holding, besides its part, the elements of its
+    // ghost surface's faces in place of the whole boundary's.
+    step_with_contact_on_ghost_elements(
+        &world,
+        &sim,
+        (&whole, &origin, &processes, whole_model),
+        (&held.part, &ghost.faces),
     );
     assert!(
         splits >= 8 && cut > 0 && shared > 0 && turned > 0,
@@ -1461,8 +1563,8 @@ struct GhostContact {
     numbers: Vec<usize>,
     rest: Vec<nalgebra::Vector3<f64>>,
     u: Vec<f64>,
-    /// The faces it holds.
-    faces: usize,
+    /// The faces it holds, by their nodes' numbers in the whole mesh.
+    faces: Vec<[usize; 3]>,
 }
 
 /// This process's ice–ice contact on its ghost surface: the faces it gives from its `part`
@@ -1496,7 +1598,9 @@ fn contact_on_ghost_surface(
         numbers: surface.nodes.iter().map(|n| n.node).collect(),
         rest: surface.rest(),
         u: SurfaceMotion::new(world, &surface, part).displacements(u),
-        faces: surface.faces.len(),
+        faces: (surface.faces.iter())
+            .map(|(f, _)| f.map(|k| surface.nodes[k].node))
+            .collect(),
     }
 }
 
@@ -1560,7 +1664,7 @@ fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
     eprintln!(
         "process {rank}: {} of {} boundary faces held, {} pairs evaluated, {} candidates \
          with an owned node",
-        ghost.faces,
+        ghost.faces.len(),
         boundary.len(),
         got.len(),
         got_candidates.len()
@@ -1571,7 +1675,7 @@ fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
     assert!(total > 50, "the cubes press on each other: {total} pairs");
     // The slabs at the ends hold a part of the boundary (the reach, about 7 cm, spans the
     // middle slab's neighbours).
-    let held = summed(&world, ghost.faces);
+    let held = summed(&world, ghost.faces.len());
     assert!(
         held < (PROCESSES * boundary.len()) as u64,
         "{held} faces held"

@@ -102,19 +102,32 @@ impl CrackSides {
         &self.pairs
     }
 
-    /// The pairs with every node `i` renamed `local(i)`, which must keep the nodes' order (a
-    /// process's part numbers its nodes in the whole mesh's order). The carried rows then name
-    /// the renamed nodes: a distributed run with cracks holds the whole mesh on every process,
-    /// numbered as the whole.
-    pub fn renumbered(&self, local: impl Fn(usize) -> usize) -> CrackSides {
-        let faces = |faces: &[[usize; 3]]| faces.iter().map(|f| f.map(&local)).collect();
+    /// The pairs whose two copies a process's part holds, with every node `i` renamed
+    /// `local(i)` (`None`: not held), which must keep the nodes' order (a process's part
+    /// numbers its nodes in the whole mesh's order), and the crack faces it holds. A pair
+    /// with a node the process owns has all its faces there (the part holds every element
+    /// around an owned node, and a ghost surface the copies' faces); another pair's faces
+    /// may be a part of its own, and its normal and gap then serve no pair this process
+    /// evaluates. The carried rows name the renamed nodes: a distributed run with cracks
+    /// holds the whole mesh on every process, numbered as the whole.
+    pub fn renumbered(&self, local: impl Fn(usize) -> Option<usize>) -> CrackSides {
+        let faces = |faces: &[[usize; 3]]| -> Vec<[usize; 3]> {
+            (faces.iter())
+                .filter_map(|f| {
+                    let [a, b, c] = f.map(&local);
+                    Some([a?, b?, c?])
+                })
+                .collect()
+        };
         let pairs = (self.pairs.iter())
-            .map(|c| CopyPair {
-                p: local(c.p),
-                q: local(c.q),
-                area: c.area,
-                faces_p: faces(&c.faces_p),
-                faces_q: faces(&c.faces_q),
+            .filter_map(|c| {
+                Some(CopyPair {
+                    p: local(c.p)?,
+                    q: local(c.q)?,
+                    area: c.area,
+                    faces_p: faces(&c.faces_p),
+                    faces_q: faces(&c.faces_q),
+                })
             })
             .collect();
         CrackSides { pairs }

@@ -286,7 +286,7 @@ impl IceContact {
             crack_face,
             on_crack,
             owned,
-            copies: self.copies.renumbered(|i| part.local(i)),
+            copies: self.copies.renumbered(|i| part.held(i)),
             ..*self
         }
     }
