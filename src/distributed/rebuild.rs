@@ -1,5 +1,5 @@
-//! A process's model and PETSc numbering after a split made on the processes' parts
-//! ([`super::splits::try_split`]), built from its part alone.
+//! A process's model, PETSc numbering and share of the run after a split made on the
+//! processes' parts ([`super::splits::try_split`]), built from its part alone.
 //!
 //! The part holds every element around the nodes of its own elements (its *near* nodes), so
 //! what lives on its elements and at its owned nodes comes out of `Model::remeshed_on` on the
@@ -10,16 +10,15 @@
 //! them, and are left out. What the part cannot tell alone comes from every process: the whole
 //! boundary's perimeters (each face given by the process evaluating its element, ordered by
 //! its nodes as `TetMesh::boundary_faces` orders a mesh's), the bounding box and the connected
-//! pieces. Checked against the whole mesh's remesh restricted to each part on three processes
-//! (`solver_tests/partition.rs`).
+//! pieces. Checked against the whole mesh's remesh restricted to each part on three processes,
+//! and by a step taken on the parts (`solver_tests/partition.rs`).
 //!
 //! Ice–ice contact is rebuilt from the part's faces too, which is not the whole term: a
 //! node's pairs reach faces and copies of split nodes beyond the part's ring (the other side
-//! of a crack, another piece). [`super::ghost_surface`] gathers them, and a term on the
-//! gathered surface finds the whole boundary's pairs; the part's model does not hold the
-//! surface's nodes (a mesh's every node is a node of one of its elements). No run uses this
-//! module's model: a fractured run on several processes holds the whole mesh
-//! (docs/distributed.md).
+//! of a crack, another piece). [`super::ghost_surface`] gathers them; a part that also holds
+//! the elements of its ghost faces finds the whole boundary's pairs with the restricted term
+//! (tested by a step with contact). No run uses this module: a fractured run on several
+//! processes holds the whole mesh (docs/distributed.md).
 
 use super::components::connected_parts;
 use super::ghosts::gathered_by_key;
