@@ -1028,8 +1028,8 @@ fn step_on_the_split_parts(
 /// Takes one step from `sim`'s state (split since into `whole`, as in
 /// [`step_on_the_split_parts`], its elements evaluated by `processes`), with ice–ice
 /// contact, on the whole split mesh on one process, and on the processes' parts (`part`)
-/// each holding besides the elements of the faces `ghost_faces` (the whole mesh's numbers:
-/// its gathered ghost surface), its model restricted from `whole_model`; checks that the
+/// each holding besides the elements `ghost_elements` (the whole mesh's numbers: those of its
+/// gathered ghost surface's faces), its model restricted from `whole_model`; checks that the
 /// part's nodes' displacements agree.
 fn step_with_contact_on_ghost_elements(
     world: &SimpleCommunicator,
@@ -1040,23 +1040,14 @@ fn step_with_contact_on_ghost_elements(
         &[u32],
         icefem::physics::Model,
     ),
-    (part, ghost_faces): (&Part, &[[usize; 3]]),
+    (part, ghost_elements): (&Part, &[usize]),
 ) {
     use icefem::sim::Simulation;
     let rank = world.rank() as u32;
     let mesh = TetMesh::new(whole.rest.clone(), whole.tets.clone()).unwrap();
-    // The element of each ghost face (its giver's own element, which the giver knows).
-    let key = |f: &[usize; 3]| {
-        let mut k = *f;
-        k.sort_unstable();
-        k
-    };
-    let element_of: HashMap<[usize; 3], usize> = (mesh.boundary_faces().iter())
-        .map(|f| (key(&f.nodes), f.tet))
-        .collect();
-    let mut elements: Vec<usize> = (ghost_faces.iter())
-        .map(|f| element_of[&key(f)])
-        .chain(part.elements.iter().copied())
+    let mut elements: Vec<usize> = (ghost_elements.iter())
+        .chain(&part.elements)
+        .copied()
         .collect();
     elements.sort_unstable();
     elements.dedup();
@@ -1487,7 +1478,7 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
     eprintln!(
         "process {rank}: {} faces held for contact, {} pairs evaluated ({copies} of \
          copies)",
-        ghost.faces.len(),
+        ghost.faces,
         got.len()
     );
     assert_eq!(got_candidates, want_candidates);
@@ -1509,7 +1500,7 @@ fn a_split_made_on_the_parts_is_the_split_of_the_whole_mesh() {
         &world,
         &sim,
         (&whole, &origin, &processes, whole_model),
-        (&held.part, &ghost.faces),
+        (&held.part, &ghost.elements),
     );
     assert!(
         splits >= 8 && cut > 0 && shared > 0 && turned > 0,
@@ -1598,8 +1589,9 @@ struct GhostContact {
     numbers: Vec<usize>,
     rest: Vec<nalgebra::Vector3<f64>>,
     u: Vec<f64>,
-    /// The faces it holds, by their nodes' numbers in the whole mesh.
-    faces: Vec<[usize; 3]>,
+    /// The number of faces it holds, and their elements (the whole mesh's numbers).
+    faces: usize,
+    elements: Vec<usize>,
 }
 
 /// This process's ice–ice contact on its ghost surface: the faces it gives from its `part`
@@ -1633,9 +1625,8 @@ fn contact_on_ghost_surface(
         numbers: surface.nodes.iter().map(|n| n.node).collect(),
         rest: surface.rest(),
         u: SurfaceMotion::new(world, &surface, part).displacements(u),
-        faces: (surface.faces.iter())
-            .map(|(f, _)| f.map(|k| surface.nodes[k].node))
-            .collect(),
+        faces: surface.faces.len(),
+        elements: surface.elements.iter().map(|(e, _)| *e).collect(),
     }
 }
 
@@ -1699,7 +1690,7 @@ fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
     eprintln!(
         "process {rank}: {} of {} boundary faces held, {} pairs evaluated, {} candidates \
          with an owned node",
-        ghost.faces.len(),
+        ghost.faces,
         boundary.len(),
         got.len(),
         got_candidates.len()
@@ -1710,7 +1701,7 @@ fn a_process_finds_its_ice_contact_pairs_on_its_ghost_surface() {
     assert!(total > 50, "the cubes press on each other: {total} pairs");
     // The slabs at the ends hold a part of the boundary (the reach, about 7 cm, spans the
     // middle slab's neighbours).
-    let held = summed(&world, ghost.faces.len());
+    let held = summed(&world, ghost.faces);
     assert!(
         held < (PROCESSES * boundary.len()) as u64,
         "{held} faces held"

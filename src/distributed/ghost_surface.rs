@@ -14,6 +14,10 @@
 //! nodes can meet, every face of such a pair's node, every face its closest-face choice
 //! weighs, and every copy of its split nodes with its crack faces: its contact term finds
 //! those pairs, and their gaps, as the whole boundary's does (tested on three processes).
+//! Each face comes with its element (number and nodes), so that a process can hold the ghost
+//! faces' elements beside its part: with them, its part takes a step with ice–ice contact as
+//! the whole mesh does (tested), their own data or not (they have no owned node, so are never
+//! evaluated there).
 
 use super::ghosts::{all_gathered, exchange, FromOwners};
 use crate::mesh::TetMesh;
@@ -62,11 +66,25 @@ pub struct Surface {
     /// The faces (outward, indices into `nodes`), ordered as `TetMesh::boundary_faces` orders
     /// the whole mesh's, and whether each is a crack face.
     pub faces: Vec<([usize; 3], bool)>,
+    /// Each face's element: its number in the whole mesh and its nodes (indices into
+    /// `nodes`, in the element's order).
+    pub elements: Vec<(usize, [usize; 4])>,
 }
 
-/// Words per node row and per face row (its crack flag and its nodes' rows).
+/// A face as a process gives it: its element's number and nodes' rows (in the element's
+/// order), which of them the face is (outward), and whether it is a crack face.
+#[derive(Clone, Copy, Debug)]
+struct FaceRow {
+    element: usize,
+    nodes: [SurfaceNode; 4],
+    face: [usize; 3],
+    crack: bool,
+}
+
+/// Words per node row and per face row (its element, the face's three places in it, its crack
+/// flag and its element's four nodes' rows).
 const NODE_WORDS: usize = 11;
-const FACE_WORDS: usize = 1 + 3 * NODE_WORDS;
+const FACE_WORDS: usize = 5 + 4 * NODE_WORDS;
 
 impl Surface {
     /// The faces this process gives: those of its own elements on the whole mesh's boundary;
@@ -101,9 +119,8 @@ impl Surface {
         let crack_keys: HashSet<[usize; 3]> = cracks.iter().map(key).collect();
         let mut on_crack = vec![false; rest.len()];
         cracks.iter().flatten().for_each(|&i| on_crack[i] = true);
-        let faces: Vec<([usize; 3], bool)> = (boundary.iter())
+        let faces: Vec<_> = (boundary.iter())
             .filter(|f| part.own_elements[f.tet])
-            .map(|f| (f.nodes, crack_keys.contains(&key(&f.nodes))))
             .collect();
         let node = |k: usize| SurfaceNode {
             node: part.nodes[k],
@@ -114,7 +131,17 @@ impl Surface {
             piece: piece[k],
             on_crack: on_crack[k],
         };
-        let rows = faces.iter().map(|(f, crack)| (f.map(node), *crack));
+        let rows = faces.iter().map(|f| {
+            let tet = tets[f.tet];
+            FaceRow {
+                element: part.elements[f.tet],
+                nodes: tet.map(node),
+                face: f
+                    .nodes
+                    .map(|i| tet.iter().position(|&v| v == i).expect("a face's node")),
+                crack: crack_keys.contains(&key(&f.nodes)),
+            }
+        });
         let owned = (0..rest.len())
             .filter(|&k| part.owned_nodes[k] && area[k] > 0.0)
             .map(|k| node(k).position);
@@ -124,27 +151,43 @@ impl Surface {
         }
     }
 
-    /// The surface of the faces `rows` (each with its nodes' rows and its crack flag), nodes
-    /// numbered ascending and faces ordered by their nodes' numbers.
-    fn from_rows(rows: Vec<([SurfaceNode; 3], bool)>) -> Surface {
+    /// The surface of the faces `rows`, nodes numbered ascending and faces ordered by their
+    /// nodes' numbers.
+    fn from_rows(rows: Vec<FaceRow>) -> Surface {
         let nodes: BTreeMap<usize, SurfaceNode> = (rows.iter())
-            .flat_map(|(f, _)| f.iter().map(|n| (n.node, *n)))
+            .flat_map(|r| r.nodes.iter().map(|n| (n.node, *n)))
             .collect();
         let numbers: Vec<usize> = nodes.keys().copied().collect();
         let at = |n: &SurfaceNode| numbers.binary_search(&n.node).expect("a face's node");
-        let mut faces: Vec<([usize; 3], bool)> = rows
-            .iter()
-            .map(|(f, crack)| (f.map(|n| at(&n)), *crack))
+        let mut faces: Vec<_> = (rows.iter())
+            .map(|r| {
+                let element = r.nodes.map(|n| at(&n));
+                ((r.face.map(|j| element[j]), r.crack), (r.element, element))
+            })
             .collect();
         // Node indices ascend with the whole mesh's numbers: sorting by them sorts by those.
-        faces.sort_unstable_by_key(|(f, _)| {
+        faces.sort_unstable_by_key(|((f, _), _)| {
             let mut k = *f;
             k.sort_unstable();
             k
         });
+        let (faces, elements) = faces.into_iter().unzip();
         Surface {
             nodes: nodes.into_values().collect(),
             faces,
+            elements,
+        }
+    }
+
+    /// The face `f` as a row.
+    fn face_row(&self, f: usize) -> FaceRow {
+        let (element, nodes) = self.elements[f];
+        let (face, crack) = self.faces[f];
+        FaceRow {
+            element,
+            nodes: nodes.map(|k| self.nodes[k]),
+            face: face.map(|k| nodes.iter().position(|&v| v == k).expect("a face's node")),
+            crack,
         }
     }
 
@@ -309,8 +352,11 @@ pub fn gathered(world: &SimpleCommunicator, given: &Given, reach: f64) -> Surfac
         for f in 0..given.faces.len() {
             let (flo, fhi) = given.face_box(f, reach);
             if (0..3).all(|a| flo[a] <= hi[a] && fhi[a] >= lo[a]) {
-                out.push(given.faces[f].1 as u64);
-                given.face_rows(f).iter().for_each(|n| node_words(n, out));
+                let row = given.face_row(f);
+                out.push(row.element as u64);
+                out.extend(row.face.map(|j| j as u64));
+                out.push(row.crack as u64);
+                row.nodes.iter().for_each(|n| node_words(n, out));
             }
         }
     }
@@ -320,12 +366,15 @@ pub fn gathered(world: &SimpleCommunicator, given: &Given, reach: f64) -> Surfac
     for (k, x) in owned.iter().enumerate() {
         grid.insert(&x.add_scalar(-reach), &x.add_scalar(reach), k as u32);
     }
-    let mut rows: Vec<([SurfaceNode; 3], bool)> = (0..given.faces.len())
-        .map(|f| (given.face_rows(f), given.faces[f].1))
-        .collect();
+    let mut rows: Vec<FaceRow> = (0..given.faces.len()).map(|f| given.face_row(f)).collect();
     for w in received.chunks_exact(FACE_WORDS) {
-        let nodes = [0, 1, 2].map(|j| node_of(&w[1 + j * NODE_WORDS..]));
-        let face = Surface::from_rows(vec![(nodes, false)]);
+        let row = FaceRow {
+            element: w[0] as usize,
+            face: [w[1], w[2], w[3]].map(|j| j as usize),
+            crack: w[4] != 0,
+            nodes: [0, 1, 2, 3].map(|j| node_of(&w[5 + j * NODE_WORDS..])),
+        };
+        let face = Surface::from_rows(vec![row]);
         let (lo, hi) = face.face_box(0, 0.0);
         let mut near = false;
         grid.overlapping(&lo, &hi, |k| {
@@ -333,7 +382,7 @@ pub fn gathered(world: &SimpleCommunicator, given: &Given, reach: f64) -> Surfac
             near |= (0..3).all(|a| lo[a] <= x[a] + reach && hi[a] >= x[a] - reach);
         });
         if near {
-            rows.push((nodes, w[0] != 0));
+            rows.push(row);
         }
     }
     Surface::from_rows(rows)
