@@ -966,6 +966,29 @@ fn the_fracture_criterion_on_a_part_is_the_whole_meshs_at_its_owned_nodes() {
     }
 }
 
+/// Puts `s` at `sim`'s time with displacements `u` and velocities `v` (3 per node of its mesh)
+/// and its elements' history from `sim`'s elements `elements`.
+fn start_from(
+    sim: &icefem::sim::Simulation,
+    s: &mut icefem::sim::Simulation,
+    (u, v): (&[f64], &[f64]),
+    elements: &[usize],
+) {
+    s.state.u = u.to_vec();
+    s.state.v = v.to_vec();
+    s.state.history = sim.state.history.inherit(elements);
+    s.state.time = sim.state.time;
+    s.set_time(sim.state.time);
+}
+
+/// The largest difference (m) between the displacements `u` of a part's nodes, the whole
+/// mesh's `nodes`, and the whole mesh's displacements `whole`.
+fn largest_difference(u: &[f64], nodes: &[usize], whole: &[f64]) -> f64 {
+    (nodes.iter().enumerate())
+        .flat_map(|(k, &i)| (0..3).map(move |a| (u[3 * k + a] - whole[3 * i + a]).abs()))
+        .fold(0.0, f64::max)
+}
+
 /// Takes one step from `sim`'s state (the frozen container, split since into `whole`, whose
 /// elements lie in its elements `origin`, with the model `whole_model`) on the whole split
 /// mesh on one process, and on the processes' split parts (`held`, with the model
@@ -983,18 +1006,16 @@ fn step_on_the_split_parts(
         (model.terms).retain(|t| t.as_any().downcast_ref::<IceContactTerm>().is_none());
         model
     };
-    let start = |s: &mut Simulation, (u, v): (&[f64], &[f64]), elements: &[usize]| {
-        s.state.u = u.to_vec();
-        s.state.v = v.to_vec();
-        s.state.history = sim.state.history.inherit(elements);
-        s.state.time = sim.state.time;
-        s.set_time(sim.state.time);
-    };
     let mut one = Simulation::new(without_ice_contact(whole_model), sim.settings).unwrap();
-    start(&mut one, (&whole.u, &whole.v), origin);
+    start_from(sim, &mut one, (&whole.u, &whole.v), origin);
     let want = one.step().unwrap();
     let mut on_part = Simulation::for_part(without_ice_contact(part_model), sim.settings).unwrap();
-    start(&mut on_part, (&held.mesh.u, &held.mesh.v), &held.origin);
+    start_from(
+        sim,
+        &mut on_part,
+        (&held.mesh.u, &held.mesh.v),
+        &held.origin,
+    );
     let numbering =
         rebuild::numbering_after_split(world, &held.part, &held.node_owner, held.process.clone());
     let iterative = sim.settings.iterative();
@@ -1007,12 +1028,7 @@ fn step_on_the_split_parts(
     let got = on_part.step().unwrap();
     let scale = one.state.u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     // Every node of the part: the owned ones solved, the others copied from their owners.
-    let mut largest = 0.0f64;
-    for (k, &i) in held.part.nodes.iter().enumerate() {
-        for a in 0..3 {
-            largest = largest.max((on_part.state.u[3 * k + a] - one.state.u[3 * i + a]).abs());
-        }
-    }
+    let largest = largest_difference(&on_part.state.u, &held.part.nodes, &one.state.u);
     eprintln!(
         "process {}: a step on the split part, {} Newton iterations (whole mesh {}), \
          displacements {largest:.2e} m from the whole mesh's (largest {scale:.2e} m)",
@@ -1063,15 +1079,8 @@ fn step_with_contact_on_ghost_elements(
         ),
         (mesh.num_nodes(), mesh.num_tets()),
     );
-    let start = |s: &mut Simulation, (u, v): (Vec<f64>, Vec<f64>), elements: &[usize]| {
-        s.state.u = u;
-        s.state.v = v;
-        s.state.history = sim.state.history.inherit(elements);
-        s.state.time = sim.state.time;
-        s.set_time(sim.state.time);
-    };
     let mut one = Simulation::new(whole_model.clone(), sim.settings).unwrap();
-    start(&mut one, (whole.u.clone(), whole.v.clone()), origin);
+    start_from(sim, &mut one, (&whole.u, &whole.v), origin);
     let want = one.step().unwrap();
     let node_owner: Vec<u32> = nodes.iter().map(|&i| owners[i]).collect();
     let element_part: Vec<u32> = elements.iter().map(|&e| processes[e]).collect();
@@ -1082,8 +1091,8 @@ fn step_with_contact_on_ghost_elements(
     let on_parts = |model: &icefem::physics::Model, scene_elements: &[usize]| {
         let mut on_part =
             Simulation::for_part(extended.model(model).unwrap(), sim.settings).unwrap();
-        let state = (extended.dofs_of(&whole.u), extended.dofs_of(&whole.v));
-        start(&mut on_part, state, scene_elements);
+        let (u, v) = (extended.dofs_of(&whole.u), extended.dofs_of(&whole.v));
+        start_from(sim, &mut on_part, (&u, &v), scene_elements);
         let numbering =
             rebuild::numbering_after_split(world, &extended, &node_owner, element_part.clone());
         let part_mesh = on_part.model.mesh.clone();
@@ -1120,12 +1129,7 @@ fn step_with_contact_on_ghost_elements(
     ] {
         let scene_elements: Vec<usize> = elements.iter().map(|&e| origin[data[e]]).collect();
         let (iterations, u) = on_parts(model, &scene_elements);
-        let mut largest = 0.0f64;
-        for (k, &i) in nodes.iter().enumerate() {
-            for a in 0..3 {
-                largest = largest.max((u[3 * k + a] - one.state.u[3 * i + a]).abs());
-            }
-        }
+        let largest = largest_difference(&u, &nodes, &one.state.u);
         eprintln!(
             "process {rank}: a step with ice–ice contact, {} + {} ghost-surface elements held \
              of {}{}, {iterations} Newton iterations (whole mesh {}), displacements \
