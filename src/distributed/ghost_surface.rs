@@ -98,19 +98,9 @@ impl Surface {
         cracks: &[[usize; 3]],
     ) -> Given {
         let (rest, tets) = (&mesh.rest, &mesh.tets);
-        let mut near = vec![false; rest.len()];
-        for (tet, _) in (tets.iter().zip(&part.own_elements)).filter(|(_, &o)| o) {
-            tet.iter().for_each(|&i| near[i] = true);
-        }
-        // A face through a near node is on the whole boundary; a near node has all its faces.
-        let mut boundary = mesh.boundary_faces();
-        boundary.retain(|f| f.nodes.iter().any(|&i| near[i]));
-        let mut area = vec![0.0; rest.len()];
-        for f in &boundary {
-            let [a, b, c] = f.nodes.map(|i| rest[i]);
-            let share = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
-            f.nodes.iter().for_each(|&v| area[v] += share);
-        }
+        // A near node has all its faces: its area share is whole.
+        let (_, boundary) = part.whole_boundary_faces(mesh);
+        let area = mesh.area_shares(&boundary);
         let key = |f: &[usize; 3]| {
             let mut k = *f;
             k.sort_unstable();
@@ -198,9 +188,7 @@ impl Surface {
 
     /// The bounding box of face `f` at its gathered positions, grown by `by` (m).
     fn face_box(&self, f: usize, by: f64) -> (Vector3<f64>, Vector3<f64>) {
-        let [a, b, c] = self.face_rows(f).map(|n| n.position);
-        let (lo, hi) = (a.inf(&b).inf(&c), a.sup(&b).sup(&c));
-        (lo.add_scalar(-by), hi.add_scalar(by))
+        face_box(self.face_rows(f), by)
     }
 
     /// The rest positions of its nodes (m).
@@ -284,6 +272,14 @@ impl SurfaceMotion {
         }
         out
     }
+}
+
+/// The bounding box of the face of nodes `nodes` at their gathered positions, grown by `by`
+/// (m).
+fn face_box(nodes: [SurfaceNode; 3], by: f64) -> (Vector3<f64>, Vector3<f64>) {
+    let [a, b, c] = nodes.map(|n| n.position);
+    let (lo, hi) = (a.inf(&b).inf(&c), a.sup(&b).sup(&c));
+    (lo.add_scalar(-by), hi.add_scalar(by))
 }
 
 /// A node row as words (floating-point values by their bits).
@@ -374,8 +370,7 @@ pub fn gathered(world: &SimpleCommunicator, given: &Given, reach: f64) -> Surfac
             crack: w[4] != 0,
             nodes: [0, 1, 2, 3].map(|j| node_of(&w[5 + j * NODE_WORDS..])),
         };
-        let face = Surface::from_rows(vec![row]);
-        let (lo, hi) = face.face_box(0, 0.0);
+        let (lo, hi) = face_box(row.face.map(|j| row.nodes[j]), 0.0);
         let mut near = false;
         grid.overlapping(&lo, &hi, |k| {
             let x = owned[k as usize];

@@ -73,10 +73,7 @@ impl NodeHalo {
     ) -> NodeHalo {
         let size = world.size() as usize;
         let part_edges = Edges::of_mesh(rest, tets);
-        let mut whole = vec![false; rest.len()];
-        for (tet, _) in tets.iter().zip(&part.own_elements).filter(|(_, &o)| o) {
-            tet.iter().for_each(|&i| whole[i] = true);
-        }
+        let whole = part.near_nodes(tets);
         let mut known: BTreeMap<usize, Known> = (part.nodes.iter().enumerate())
             .map(|(k, &i)| {
                 let node = Known {

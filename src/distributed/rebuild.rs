@@ -48,13 +48,8 @@ pub fn model_after_split(
 ) -> Result<Model, MeshError> {
     let (part, f) = (&held.part, &held.mesh);
     let mesh = TetMesh::new(f.rest.clone(), f.tets.clone())?;
-    let mut near = vec![false; mesh.num_nodes()];
-    for (tet, _) in (mesh.tets.iter().zip(&part.own_elements)).filter(|(_, &o)| o) {
-        tet.iter().for_each(|&i| near[i] = true);
-    }
+    let (near, boundary) = part.whole_boundary_faces(&mesh);
     let touches_near = |nodes: &[usize; 3]| nodes.iter().any(|&i| near[i]);
-    let mut boundary = mesh.boundary_faces();
-    boundary.retain(|face| touches_near(&face.nodes));
     // Each whole-boundary face is given once, by the process evaluating its element.
     let own: Vec<_> = (boundary.iter())
         .filter(|face| part.own_elements[face.tet])

@@ -366,10 +366,7 @@ impl Patch {
         }
         complete[self.nodes.len()..].fill(true);
         // Where the part's own elements were: the nodes they touch.
-        let mut near_before = vec![false; mesh.rest.len()];
-        for (tet, _) in mesh.tets.iter().zip(&part.own_elements).filter(|(_, &o)| o) {
-            tet.iter().for_each(|&i| near_before[i] = true);
-        }
+        let near_before = part.near_nodes(&mesh.tets);
         let mut near = vec![false; nodes];
         let mut owner = vec![u32::MAX; nodes];
         for (k, tet) in f.tets.iter().enumerate() {

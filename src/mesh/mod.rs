@@ -189,6 +189,17 @@ impl TetMesh {
             .collect()
     }
 
+    /// Each node's share of the rest area of the faces `faces` (m²): a third of each face's.
+    pub fn area_shares(&self, faces: &[BoundaryFace]) -> Vec<f64> {
+        let mut area = vec![0.0; self.num_nodes()];
+        for f in faces {
+            let [a, b, c] = f.nodes.map(|i| self.rest[i]);
+            let share = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
+            f.nodes.iter().for_each(|&v| area[v] += share);
+        }
+        area
+    }
+
     /// Signed rest volume of tet `t` (m³).
     pub fn signed_volume(&self, t: usize) -> f64 {
         Self::edge_matrix(&self.rest, &self.tets[t]).determinant() / 6.0

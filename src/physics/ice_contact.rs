@@ -213,14 +213,7 @@ impl IceContact {
         (friction, smoothing_velocity): (f64, f64),
         cracks: &[[usize; 3]],
     ) -> Self {
-        let mut area = vec![0.0; mesh.num_nodes()];
-        for f in boundary {
-            let [a, b, c] = f.nodes.map(|i| mesh.rest[i]);
-            let share = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
-            for &v in &f.nodes {
-                area[v] += share;
-            }
-        }
+        let area = mesh.area_shares(boundary);
         let faces: Vec<[usize; 3]> = boundary.iter().map(|f| f.nodes).collect();
         let sorted = |f: &[usize; 3]| {
             let mut k = *f;

@@ -206,6 +206,27 @@ impl Part {
         }
     }
 
+    /// Whether each node of the part's elements `tets` (numbered in the part) is a node of an
+    /// element the process evaluates: such a node has all its elements on the part.
+    pub fn near_nodes(&self, tets: &[[usize; 4]]) -> Vec<bool> {
+        let mut near = vec![false; self.nodes.len()];
+        for (tet, _) in (tets.iter().zip(&self.own_elements)).filter(|(_, &o)| o) {
+            tet.iter().for_each(|&i| near[i] = true);
+        }
+        near
+    }
+
+    /// The near nodes of the part's mesh `mesh` ([`Part::near_nodes`]) and its faces through
+    /// them: faces of the whole mesh's boundary (both elements of an inner face through a
+    /// near node are on the part), every one a near node has. Faces through no near node
+    /// (the cut, and faces the part cannot tell from it) are left out.
+    pub fn whole_boundary_faces(&self, mesh: &TetMesh) -> (Vec<bool>, Vec<BoundaryFace>) {
+        let near = self.near_nodes(&mesh.tets);
+        let mut faces = mesh.boundary_faces();
+        faces.retain(|f| f.nodes.iter().any(|&i| near[i]));
+        (near, faces)
+    }
+
     /// The perimeters (m) of the faces `faces` of the part's mesh `mesh` (the whole mesh's
     /// boundary faces of the part's own elements, each given by one process), each keyed by
     /// its nodes' numbers in the whole mesh, ascending: sorted by key, all processes' give the
