@@ -184,7 +184,7 @@ fn gathered_part(
     world: &SimpleCommunicator,
     mesh: &TetMesh,
     (element_starts, node_starts, mine): (&[usize], &[usize], &[u32]),
-    everywhere: (part_mesh::HeldEverywhere, Option<f64>),
+    everywhere: (part_mesh::Besides, Option<f64>),
 ) -> part_mesh::PartMesh {
     let rank = world.rank() as usize;
     let elements = element_starts[rank]..element_starts[rank + 1];
@@ -206,8 +206,8 @@ fn gathered_part(
 
 /// Checks, on every process, that the part gathered from the ranges (`part_mesh`) is the part
 /// `Part::new` and `Partition::of_part` give from the whole mesh, to the bit, when the
-/// elements `everywhere` (all if `None`) are held by every process, and with `halo` (m) the
-/// elements around the nodes within that reach of its owned nodes by each.
+/// process asks for the elements `everywhere` besides its part (all if `None`), and with
+/// `halo` (m) the elements around the nodes within that reach of its owned nodes.
 fn check_gathered_part(
     world: &SimpleCommunicator,
     everywhere: Option<&[usize]>,
@@ -232,10 +232,7 @@ fn check_gathered_part(
         &mesh,
         (&element_starts, &node_starts, &mine),
         (
-            everywhere.map_or(
-                part_mesh::HeldEverywhere::All,
-                part_mesh::HeldEverywhere::These,
-            ),
+            everywhere.map_or(part_mesh::Besides::All, part_mesh::Besides::Asked),
             halo,
         ),
     );
@@ -316,8 +313,10 @@ fn each_process_gathers_its_part_from_the_ranges() {
     let Some(world) = on_three_processes("each_process_gathers_its_part_from_the_ranges") else {
         return;
     };
-    // Elements every process holds (as ice contact's boundary elements): a few, scattered.
-    let everywhere: Vec<usize> = (0..shuffled_mesh().num_tets()).step_by(37).collect();
+    // Elements each process asks for besides its part (as for its ghost surface): a few,
+    // scattered, different on each.
+    let first = 11 * world.rank() as usize;
+    let everywhere: Vec<usize> = (first..shuffled_mesh().num_tets()).step_by(37).collect();
     check_gathered_part(&world, Some(&[]), None);
     check_gathered_part(&world, Some(&everywhere), None);
     check_gathered_part(&world, None, None);
@@ -357,7 +356,7 @@ fn a_box_made_by_ranges_is_shared_out_as_the_whole_box() {
             starts: &node_starts,
             rest: &rest,
         },
-        (part_mesh::HeldEverywhere::These(&[]), None),
+        (part_mesh::Besides::Asked(&[]), None),
     );
     // The same part from the whole box and the gathered partition.
     let mesh = box_mesh([0.0; 3], [0.6, 0.5, 0.4], [6, 5, 4], 6).unwrap();
@@ -444,7 +443,7 @@ fn the_processes_find_the_connected_parts_of_the_whole_mesh() {
             &world,
             &mesh,
             (&element_starts, &node_starts, &mine),
-            (part_mesh::HeldEverywhere::These(&[]), None),
+            (part_mesh::Besides::Asked(&[]), None),
         );
         let (labels, parts) =
             components::connected_parts(&world, &got.part, &got.tets, &got.numbering.node_owner);

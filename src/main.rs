@@ -901,6 +901,13 @@ fn run_command(
     for line in summary.outcome.lines() {
         eprintln!("  {line}");
     }
+    let (outgrown, gatherings, seconds) = summary.surface_gatherings;
+    if gatherings > 0 {
+        eprintln!(
+            "  the processes gathered their ghost surfaces for ice–ice contact again {outgrown} \
+             times as the ice moved ({gatherings} times in all, with the restart points: {seconds:.2} s)"
+        );
+    }
     for warning in warnings.iter().chain(&summary.outcome.warnings) {
         eprintln!("warning: {warning}");
     }

@@ -213,7 +213,7 @@ pub fn shared(model: icefem::physics::Model, settings: icefem::sim::StepSettings
     if let Some(processes) = mpi_processes::get() {
         use icefem::run::Processes;
         Simulation::check(&model, &settings).unwrap();
-        let (_, part) = processes.part_model(&model, true).unwrap();
+        let (_, part) = processes.part_model(&model, (true, settings.dt)).unwrap();
         let mut sim = Simulation::for_part(part, settings).unwrap();
         processes.distribute(&mut sim).unwrap();
         return sim;

@@ -3,7 +3,7 @@
 //!
 //! A node–face pair of ice–ice contact couples a node and a triangle of different pieces, or
 //! across a crack, wherever they lie: two processes' parts can touch anywhere. Holding the
-//! whole boundary on every process (`Term::holds_boundary_everywhere`) grows with the whole
+//! whole boundary on every process would grow with the whole
 //! boundary; a process needs only the faces near its own. Every face of the whole boundary is
 //! given by the process evaluating its element, with what the whole mesh gives at its nodes
 //! (nodes of an own element have all their elements on the part, so their area shares are

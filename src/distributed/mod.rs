@@ -32,6 +32,7 @@ pub mod petsc;
 pub mod rebuild;
 pub mod solver;
 pub mod splits;
+pub mod surface_hold;
 
 use crate::assembly::Assembly;
 use crate::mesh::TetMesh;
@@ -110,6 +111,8 @@ pub struct MpiProcesses {
     /// The partition on this process's part, and the part, from [`Processes::part_model`]
     /// until [`Processes::distribute`].
     part: RefCell<Option<(PartNumbering, Part)>>,
+    /// The ghost surface this process holds for ice–ice contact, where it holds one.
+    surface: RefCell<Option<HeldSurface>>,
     /// Nodes and elements of this process's part (its share's, once the mesh is split).
     held: Rc<Cell<[u64; 2]>>,
     /// Whether every process holds the whole mesh even where parts would do.
@@ -139,6 +142,7 @@ impl MpiProcesses {
             _universe: universe,
             world,
             part: RefCell::new(None),
+            surface: RefCell::new(None),
             held: Rc::new(Cell::new([0; 2])),
             whole_mesh: Cell::new(false),
             set_up_memory: Cell::new(0),
@@ -206,99 +210,218 @@ impl MpiProcesses {
     }
 }
 
-/// Which elements every process holds besides its part and ring.
-#[derive(Clone, Copy)]
-enum Held {
-    /// None.
-    Nothing,
-    /// Those with a face on the whole mesh's boundary (ice–ice contact's).
-    Boundary,
-    /// All: every process holds the whole mesh (fracture splits it).
-    All,
+/// The partition of the elements of the ranges a process holds (see [`MeshRanges`]): each
+/// range element's process and its faces on the whole mesh's boundary (see
+/// [`dual_graph::DualGraph::boundary`]).
+#[derive(Clone)]
+struct RangePartition {
+    parts: Vec<u32>,
+    boundary: Vec<u8>,
+}
+
+/// What a process holds of a ghost surface (ice–ice contact's, see [`surface_hold`]), while
+/// the run goes on: the hold, its ranges' partition (kept, so that every gathering keeps the
+/// parts) and its part's nodes' owners.
+struct HeldSurface {
+    hold: surface_hold::SurfaceHold,
+    partition: RangePartition,
+    node_owner: Vec<u32>,
 }
 
 impl MpiProcesses {
-    /// This process's part of the mesh the processes hold in `ranges`, partitioned by
-    /// PT-Scotch, with the elements `held` on every process; its partition is kept for
+    /// The elements of the mesh the processes hold in `ranges` partitioned by PT-Scotch.
+    /// Every process calls it.
+    fn partitioned(
+        &self,
+        ranges: &MeshRanges,
+    ) -> Result<RangePartition, partition::PartitionError> {
+        let starts = ranges.element_starts;
+        let graph = dual_graph::rows(&self.world, ranges.tets, starts);
+        let parts = partition::parts_of_range(&graph, starts)?;
+        Ok(RangePartition {
+            parts,
+            boundary: graph.boundary,
+        })
+    }
+
+    /// This process's part of the mesh the processes hold in `ranges`, partitioned as
+    /// `partition` says, with the elements `besides`; its partition is kept for
     /// [`Processes::distribute`]. Every process calls it.
     fn gather_part(
         &self,
         ranges: &MeshRanges,
-        held: Held,
-    ) -> Result<SharedMesh, partition::PartitionError> {
-        let starts = ranges.element_starts;
-        let graph = dual_graph::rows(&self.world, ranges.tets, starts);
-        let parts = partition::parts_of_range(&graph, starts)?;
-        let first = starts[self.rank() as usize];
-        // The range's elements with a face on the whole mesh's boundary.
-        let boundary: Vec<usize> = match held {
-            Held::Boundary => (graph.boundary.iter().enumerate())
-                .filter(|(_, &faces)| faces != 0)
-                .map(|(k, _)| first + k)
-                .collect(),
-            Held::Nothing | Held::All => Vec::new(),
-        };
+        partition: &RangePartition,
+        besides: part_mesh::Besides,
+    ) -> SharedMesh {
         let gathered = part_mesh::part_mesh(
             &self.world,
             part_mesh::ElementRange {
-                starts,
+                starts: ranges.element_starts,
                 tets: ranges.tets,
-                parts: &parts,
-                boundary: &graph.boundary,
+                parts: &partition.parts,
+                boundary: &partition.boundary,
             },
             part_mesh::NodeRange {
                 starts: ranges.node_starts,
                 rest: ranges.rest,
             },
-            (
-                match held {
-                    Held::All => part_mesh::HeldEverywhere::All,
-                    Held::Nothing | Held::Boundary => part_mesh::HeldEverywhere::These(&boundary),
-                },
-                None,
-            ),
+            (besides, None),
         );
         *self.part.borrow_mut() = Some((gathered.numbering, gathered.part.clone()));
-        Ok(SharedMesh {
+        SharedMesh {
             part: gathered.part,
             rest: gathered.rest,
             tets: gathered.tets,
             boundary: gathered.boundary,
-        })
+        }
+    }
+
+    /// This process's part of `mesh` (the whole mesh, which every process holds) partitioned
+    /// as `partition` says, with the elements of its ghost surface for `contact` at the state
+    /// `at` of its part then, for steps of `h` seconds. Every process calls it.
+    fn gather_with_surface(
+        &self,
+        (mesh, partition): (&TetMesh, RangePartition),
+        contact: &crate::physics::ice_contact::IceContact,
+        at: &PartState,
+        h: f64,
+    ) -> Result<SharedMesh, SimError> {
+        let vmax = largest(&self.world, at.vmax);
+        let hold = surface_hold::SurfaceHold::new(contact, (vmax, h), at.part, at.u);
+        let elements = surface_hold::surface_elements(
+            &self.world,
+            at.part,
+            at.mesh,
+            (at.u, at.node_owner),
+            hold.reach(),
+        )
+        .map_err(|e| SimError::Setup(e.to_string()))?;
+        let starts = (
+            partition::ranges(mesh.num_tets(), self.size()),
+            partition::ranges(mesh.num_nodes(), self.size()),
+        );
+        let gathered = self.gather_part(
+            &ranges_of(mesh, (&starts.0, &starts.1), self.rank() as usize),
+            &partition,
+            part_mesh::Besides::Asked(&elements),
+        );
+        let node_owner = self.node_owner();
+        *self.surface.borrow_mut() = Some(HeldSurface {
+            hold,
+            partition,
+            node_owner,
+        });
+        Ok(gathered)
+    }
+
+    /// The owners of the nodes of the part last gathered.
+    fn node_owner(&self) -> Vec<u32> {
+        let part = self.part.borrow();
+        let (numbering, _) = part.as_ref().expect("a part gathered");
+        numbering.node_owner.clone()
+    }
+}
+
+/// A process's part and its state, from which its ghost surface is gathered.
+struct PartState<'a> {
+    part: &'a Part,
+    /// The part's mesh: rest positions (m) and elements.
+    mesh: (&'a [nalgebra::Vector3<f64>], &'a [[usize; 4]]),
+    /// Each part node's owner.
+    node_owner: &'a [u32],
+    /// Displacements (m, 3 per node) and this process's largest velocity component (m/s).
+    u: &'a [f64],
+    vmax: f64,
+}
+
+/// This process's (`rank`) ranges of `mesh` where the ranges start at `starts` (elements,
+/// nodes).
+fn ranges_of<'a>(
+    mesh: &'a TetMesh,
+    (element_starts, node_starts): (&'a [usize], &'a [usize]),
+    rank: usize,
+) -> MeshRanges<'a> {
+    MeshRanges {
+        element_starts,
+        tets: &mesh.tets[element_starts[rank]..element_starts[rank + 1]],
+        node_starts,
+        rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
     }
 }
 
 impl Processes for MpiProcesses {
-    fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError> {
+    fn part_model(
+        &self,
+        model: &Model,
+        (whole, h): (bool, f64),
+    ) -> Result<(Part, Model), SimError> {
         let mesh = &model.mesh;
         let (size, rank) = (self.size(), self.rank() as usize);
         // Each process takes a range of the elements and one of the nodes to the partitioner
         // and the rendezvous that gathers its part (see `part_mesh`).
-        let element_starts = partition::ranges(mesh.num_tets(), size);
-        let node_starts = partition::ranges(mesh.num_nodes(), size);
-        let ranges = MeshRanges {
-            element_starts: &element_starts,
-            tets: &mesh.tets[element_starts[rank]..element_starts[rank + 1]],
-            node_starts: &node_starts,
-            rest: &mesh.rest[node_starts[rank]..node_starts[rank + 1]],
+        let starts = (
+            partition::ranges(mesh.num_tets(), size),
+            partition::ranges(mesh.num_nodes(), size),
+        );
+        let ranges = ranges_of(mesh, (&starts.0, &starts.1), rank);
+        let setup = |e: partition::PartitionError| SimError::Setup(e.to_string());
+        let partition = self.partitioned(&ranges).map_err(setup)?;
+        let gathered = match (whole || self.whole_mesh.get(), model.ice_contact()) {
+            (true, _) => self.gather_part(&ranges, &partition, part_mesh::Besides::All),
+            (false, None) => self.gather_part(&ranges, &partition, part_mesh::Besides::Asked(&[])),
+            // Ice–ice contact: the part, then its ghost surface at the initial state.
+            (false, Some(contact)) => {
+                let ring = self.gather_part(&ranges, &partition, part_mesh::Besides::Asked(&[]));
+                let initial = |whole: &[f64]| match whole.is_empty() {
+                    true => vec![0.0; 3 * ring.part.nodes.len()],
+                    false => ring.part.dofs_of(whole),
+                };
+                let u = initial(&model.initial_displacement);
+                let at = PartState {
+                    part: &ring.part,
+                    mesh: (&ring.rest, &ring.tets),
+                    node_owner: &self.node_owner(),
+                    u: &u,
+                    vmax: largest_component(&initial(&model.initial_velocity)),
+                };
+                self.gather_with_surface((mesh, partition), contact, &at, h)?
+            }
         };
-        let held = match (
-            whole || self.whole_mesh.get(),
-            model.holds_boundary_everywhere(),
-        ) {
-            (true, _) => Held::All,
-            (false, true) => Held::Boundary,
-            (false, false) => Held::Nothing,
+        part_and_model(gathered, model)
+    }
+
+    fn surface_outgrown(&self, sim: &Simulation, part: &Part) -> bool {
+        let surface = self.surface.borrow();
+        let (Some(held), Some(contact)) = (surface.as_ref(), sim.model.ice_contact()) else {
+            return false;
         };
-        let gathered =
-            (self.gather_part(&ranges, held)).map_err(|e| SimError::Setup(e.to_string()))?;
-        let part = gathered.part;
-        let model = match part.is_whole() {
-            true => Ok(part.whole_model(model.clone())),
-            false => part.model_on(model, gathered.rest, gathered.tets),
-        }
-        .map_err(|e| SimError::Setup(e.to_string()))?;
-        Ok((part, model))
+        let motion = (largest_component(&sim.state.v), sim.settings.dt);
+        (held.hold).outgrown(&self.world, contact, (part, &sim.state.u), motion)
+    }
+
+    fn regathered(
+        &self,
+        model: &Model,
+        sim: &Simulation,
+        part: &Part,
+    ) -> Result<(Part, Model), SimError> {
+        let (Some(held), Some(contact)) = (self.surface.borrow_mut().take(), model.ice_contact())
+        else {
+            return Err(SimError::Setup(
+                "this process holds no ghost surface to gather again".into(),
+            ));
+        };
+        let mesh = &sim.model.mesh;
+        let at = PartState {
+            part,
+            mesh: (&mesh.rest, &mesh.tets),
+            node_owner: &held.node_owner,
+            u: &sim.state.u,
+            vmax: largest_component(&sim.state.v),
+        };
+        let h = sim.settings.dt;
+        let gathered = self.gather_with_surface((&model.mesh, held.partition), contact, &at, h)?;
+        part_and_model(gathered, model)
     }
 
     fn mesh_sharing(&self) -> Option<&dyn MeshSharing> {
@@ -387,7 +510,8 @@ impl MeshSharing for MpiProcesses {
     }
 
     fn share(&self, ranges: MeshRanges) -> Result<SharedMesh, String> {
-        (self.gather_part(&ranges, Held::Nothing)).map_err(|e| e.to_string())
+        let partition = self.partitioned(&ranges).map_err(|e| e.to_string())?;
+        Ok(self.gather_part(&ranges, &partition, part_mesh::Besides::Asked(&[])))
     }
 
     fn total(&self, n: usize) -> usize {
@@ -484,6 +608,22 @@ pub(crate) fn sum_in_order(world: &SimpleCommunicator, x: f64) -> f64 {
 }
 
 /// The largest `x` over the processes of `world`.
+/// The part `gathered` and its model, of the whole model `model`.
+fn part_and_model(gathered: SharedMesh, model: &Model) -> Result<(Part, Model), SimError> {
+    let part = gathered.part;
+    let model = match part.is_whole() {
+        true => Ok(part.whole_model(model.clone())),
+        false => part.model_on(model, gathered.rest, gathered.tets),
+    }
+    .map_err(|e| SimError::Setup(e.to_string()))?;
+    Ok((part, model))
+}
+
+/// The largest magnitude among `values` (0 if none).
+fn largest_component(values: &[f64]) -> f64 {
+    values.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+}
+
 pub(crate) fn largest(world: &SimpleCommunicator, x: f64) -> f64 {
     let mut y = 0.0;
     world.all_reduce_into(&x, &mut y, SystemOperation::max());

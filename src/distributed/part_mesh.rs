@@ -42,26 +42,16 @@ pub struct NodeRange<'a> {
     pub rest: &'a [Vector3<f64>],
 }
 
-/// Which elements every process holds besides its part and ring.
+/// Which elements a process holds besides its part and ring.
 #[derive(Clone, Copy)]
-pub enum HeldEverywhere<'a> {
-    /// These elements of the whole mesh (ascending), as a term coupling nodes that share no
-    /// element needs (see `Term::holds_boundary_everywhere`). Each process reads the ones of
-    /// its range, which is all it must be given.
-    These(&'a [usize]),
+pub enum Besides<'a> {
+    /// These elements of the whole mesh (ascending), which this process asks for (the
+    /// elements of its ghost surface, see `super::ghost_surface`): the holders of their
+    /// ranges send them.
+    Asked(&'a [usize]),
     /// Every element: each process holds the whole mesh (fracture splits it).
     All,
 }
-
-impl HeldEverywhere<'_> {
-    fn holds(&self, e: usize) -> bool {
-        match self {
-            HeldEverywhere::These(elements) => elements.binary_search(&e).is_ok(),
-            HeldEverywhere::All => true,
-        }
-    }
-}
-
 /// A process's part of the mesh.
 #[derive(Clone, Debug)]
 pub struct PartMesh {
@@ -79,7 +69,7 @@ pub struct PartMesh {
 }
 
 /// This process's part of the mesh whose elements and nodes the processes of `world` hold in
-/// `elements` and `nodes` ranges, with the elements `everywhere` on every process, and with
+/// `elements` and `nodes` ranges, with the elements `besides` it asks for, and with
 /// `halo` (m) every element around the nodes within that distance of its owned nodes along
 /// the mesh's edges (the nonlocal separation's reach, see `fracture::nonlocal::within`; the
 /// averages need only those nodes' forces, which [`super::node_halo`] gathers for much less).
@@ -88,7 +78,7 @@ pub fn part_mesh(
     world: &SimpleCommunicator,
     elements: ElementRange,
     nodes: NodeRange,
-    (everywhere, halo): (HeldEverywhere, Option<f64>),
+    (besides, halo): (Besides, Option<f64>),
 ) -> PartMesh {
     let (size, rank) = (world.size() as usize, world.rank() as u32);
     let first_element = elements.starts[rank as usize];
@@ -106,12 +96,7 @@ pub fn part_mesh(
         (first_node, nodes.rest.len()),
         (elements.starts, size),
     );
-    let held = held_elements(
-        world,
-        &elements,
-        std::mem::take(&mut home.rings),
-        everywhere,
-    );
+    let held = held_elements(world, &elements, std::mem::take(&mut home.rings), besides);
     let (node_start, petsc_numbers) =
         petsc_numbering(world, std::mem::take(&mut home.owned), nodes.starts);
     let numbers = (&home.owner[..], &petsc_numbers[..]);
@@ -229,13 +214,13 @@ struct HeldElement {
 }
 
 /// The elements this process holds, ascending: the holders of the ranges send each element to
-/// its process, to the processes holding it in their rings (`rings`, from the homes) and,
-/// if `everywhere` holds it, to every process.
+/// its process, to the processes holding it in their rings (`rings`, from the homes) and to
+/// those asking for it `besides` (every process, for `Besides::All`).
 fn held_elements(
     world: &SimpleCommunicator,
     elements: &ElementRange,
     rings: Vec<Vec<u64>>,
-    everywhere: HeldEverywhere,
+    besides: Besides,
 ) -> Vec<HeldElement> {
     let size = world.size() as usize;
     let first = elements.starts[world.rank() as usize];
@@ -243,11 +228,26 @@ fn held_elements(
     let mut destinations: Vec<(usize, u32)> = (ring_pairs.chunks_exact(2))
         .map(|p| (p[0] as usize - first, p[1] as u32))
         .collect();
+    let mut asks = vec![Vec::new(); size];
+    if let Besides::Asked(wanted) = besides {
+        for &e in wanted {
+            asks[range_holder(e, elements.starts)].push(e as u64);
+        }
+    }
+    let (asked, from) = exchange(world, asks);
+    let mut asked = asked.into_iter();
+    for (q, &n) in from.iter().enumerate() {
+        destinations.extend(
+            asked
+                .by_ref()
+                .take(n as usize)
+                .map(|e| (e as usize - first, q as u32)),
+        );
+    }
     for (k, &p) in elements.parts.iter().enumerate() {
-        if everywhere.holds(first + k) {
-            destinations.extend((0..size as u32).map(|q| (k, q)));
-        } else {
-            destinations.push((k, p));
+        match besides {
+            Besides::All => destinations.extend((0..size as u32).map(|q| (k, q))),
+            Besides::Asked(_) => destinations.push((k, p)),
         }
     }
     send_elements(world, elements, destinations)

@@ -346,9 +346,9 @@ impl Patch {
     /// part held every element around its parent's nodes), so `mesh` gets each new element's
     /// parent and each new node's origin from what it holds. The part only grows: its elements
     /// and nodes keep their numbers, and those it gains are numbered after them, as a split of
-    /// the whole mesh numbers them (elements it no longer needs stay, as ghosts). Elements held
-    /// by every process (`Term::holds_boundary_everywhere`) are not added: a part with them
-    /// cannot be split this way.
+    /// the whole mesh numbers them (elements it no longer needs stay, as ghosts). The elements
+    /// of a ghost surface (ice–ice contact's, `distributed::surface_hold`) are not added: a
+    /// part with them cannot be split this way.
     pub fn apply_to_part(
         &self,
         part: &Part,

@@ -246,14 +246,14 @@ impl IceContact {
     }
 
     /// The term on a process's part of a distributed run: numbered as the part's mesh, which
-    /// holds every boundary node and face of the whole (see
-    /// [`Term::holds_boundary_everywhere`]), and evaluating only the pairs with a node the
-    /// process owns among their four, whose forces and stiffness the process keeps on its
-    /// owned nodes; the energy of a pair counts on the owner of its node. An owned node then
-    /// gets the contributions of its pairs in the order one process adds them: the same
-    /// bits. Every process still finds every candidate pair (the same on each), so that its
-    /// sparsity pattern couples every pair its rows take part in. A face or node the part
-    /// does not hold is left out.
+    /// holds every boundary face and node a pair with an owned node meets (the elements of
+    /// its ghost surface, see `distributed::surface_hold`), and evaluating only the pairs with
+    /// a node the process owns among their four, whose forces and stiffness the process keeps
+    /// on its owned nodes; the energy of a pair counts on the owner of its node. An owned node
+    /// then gets the contributions of its pairs in the order one process adds them: the same
+    /// bits. The process finds every candidate pair with an owned node, as on the whole
+    /// boundary, so its sparsity pattern couples every pair its rows take part in. A face or
+    /// node the part does not hold is left out.
     pub fn restricted(&self, part: &NodeRestriction) -> IceContact {
         let n = part.num_nodes();
         let mut component = vec![u32::MAX; n];
@@ -284,6 +284,26 @@ impl IceContact {
         }
     }
 
+    /// The mean boundary edge (m).
+    pub fn edge(&self) -> f64 {
+        self.edge
+    }
+
+    /// How far (m) the broad phase of a step of `h` seconds with `vmax` the largest velocity
+    /// component (m/s) grows each box: twice the motion bound plus half an edge.
+    pub fn margin(&self, vmax: f64, h: f64) -> f64 {
+        2.0 * vmax * h + 0.5 * self.edge
+    }
+
+    /// How far (m) from a process's owned boundary nodes the boundary faces it must hold
+    /// reach, for such a step from the current positions (see
+    /// `distributed::ghost_surface`): twice the broad phase's margin plus two edges, so that
+    /// it holds every face a pair with an owned node meets, every face of such a pair's node
+    /// and every face its closest-face choice weighs.
+    pub fn ghost_reach(&self, vmax: f64, h: f64) -> f64 {
+        2.0 * self.margin(vmax, h) + 2.0 * self.edge
+    }
+
     /// Candidate pairs for a step from displacement `u` over `h` seconds with `vmax` the
     /// largest velocity component (m/s, over the whole mesh): node and triangle of different
     /// parts, or across a crack (see the module docs), whose boxes, grown by the motion of the
@@ -296,7 +316,7 @@ impl IceContact {
         h: f64,
         frames: &[CopyFrame],
     ) -> Vec<Candidate> {
-        let margin = 2.0 * vmax * h + 0.5 * self.edge;
+        let margin = self.margin(vmax, h);
         let mut grid = BoxGrid::new(self.edge.max(margin));
         // Unit normals of the faces and (area-weighted mean) of the boundary nodes, now.
         let mut face_normal = Vec::with_capacity(self.faces.len());
@@ -965,11 +985,6 @@ impl Term for IceContactTerm {
     }
     fn as_contact(&self) -> Option<&dyn SceneContact> {
         Some(self)
-    }
-    /// When active: every process holds every boundary face and node, as a pair's node and
-    /// face may lie in any two processes' parts.
-    fn holds_boundary_everywhere(&self) -> bool {
-        self.active.is_some()
     }
     fn restricted(&self, part: &NodeRestriction) -> Box<dyn Term> {
         Box::new(IceContactTerm {

@@ -282,13 +282,6 @@ impl Model {
         history
     }
 
-    /// Whether every process of a distributed run holds the boundary's elements beyond its
-    /// part, for a term that couples nodes sharing no element (see
-    /// `Term::holds_boundary_everywhere`).
-    pub fn holds_boundary_everywhere(&self) -> bool {
-        self.terms.iter().any(|t| t.holds_boundary_everywhere())
-    }
-
     /// Adds contact with rigid obstacles, summed before the other contact terms.
     pub fn add_obstacles(&mut self, contact: Contact) {
         let nodes = self.mesh.num_nodes();

@@ -263,12 +263,6 @@ pub trait Term: Send + Sync + std::fmt::Debug {
     }
     /// The term on a mesh made by splitting elements of this one's.
     fn remeshed(&self, remesh: &Remesh) -> Box<dyn Term>;
-    /// Whether every process of a distributed run must hold the elements of the mesh's
-    /// boundary faces beyond its part, because the term couples boundary nodes that share no
-    /// element (active ice–ice contact); not by default.
-    fn holds_boundary_everywhere(&self) -> bool {
-        false
-    }
     /// The term on the nodes `part` keeps (a process's owned nodes in a distributed run),
     /// numbered as in its mesh: its per-node contributions on those nodes only.
     fn restricted(&self, part: &NodeRestriction) -> Box<dyn Term>;

@@ -3,6 +3,7 @@
 mod frame;
 mod outcome;
 mod restore;
+mod surfaces;
 
 pub use outcome::{FractureOutcome, Outcome};
 
@@ -82,6 +83,10 @@ pub struct RunSummary {
     pub max_residual: f64,
     /// Whether the run stopped early because it was interrupted.
     pub interrupted: bool,
+    /// Times the processes gathered their ghost surfaces again (see
+    /// `distributed::surface_hold`) in this invocation: because the ice moved past what they
+    /// held, and in all (also at restart points); and the time that took (s).
+    pub surface_gatherings: (u64, u64, f64),
     /// What happened physically (on one process, or where every process holds the whole
     /// mesh; empty for a run shared among parts).
     pub outcome: Outcome,
@@ -111,8 +116,32 @@ pub fn step_count(end_time: f64, dt: f64) -> u64 {
 /// with the same scene and options and takes the same steps; one writes the output.
 pub trait Processes {
     /// This process's part of `model` and its model (see `sim::part`): the whole mesh if
-    /// `whole`, else its elements and those around their nodes.
-    fn part_model(&self, model: &Model, whole: bool) -> Result<(Part, Model), SimError>;
+    /// `whole`, else its elements, those around their nodes and, with ice–ice contact, those
+    /// of its ghost surface for steps of `h` seconds (see `distributed::surface_hold`).
+    fn part_model(
+        &self,
+        model: &Model,
+        whole_and_h: (bool, f64),
+    ) -> Result<(Part, Model), SimError>;
+    /// Whether the ghost surface this process's `part` holds for the ice–ice contact of `sim`
+    /// no longer holds what its next step needs: alike on every process, which all call it
+    /// (never, without one).
+    fn surface_outgrown(&self, _sim: &Simulation, _part: &Part) -> bool {
+        false
+    }
+    /// This process's part of `model` (the whole model) again, and its model, with its ghost
+    /// surface gathered at the state of `sim` on `part`: its own elements and owned nodes stay.
+    /// Every process calls it.
+    fn regathered(
+        &self,
+        _model: &Model,
+        _sim: &Simulation,
+        _part: &Part,
+    ) -> Result<(Part, Model), SimError> {
+        Err(SimError::Setup(
+            "these processes hold no ghost surface".into(),
+        ))
+    }
     /// The processes building a scene on their parts of its mesh (see
     /// [`crate::scene::MeshSharing`]), if they do.
     fn mesh_sharing(&self) -> Option<&dyn crate::scene::MeshSharing> {
@@ -225,18 +254,22 @@ pub fn run_on(
         writer
     };
     let counts = scene.counts();
+    let shared = processes.zip(part).filter(|(_, part)| !part.is_whole());
+    // Processes holding ghost surfaces gather them again from the whole model as the ice
+    // moves; other runs let it go.
+    let surface = shared.is_some() && scene.model.ice_contact().is_some();
     let mut run = Run {
         frames: (scene.frame_options, scene.output_every, scene.restart_every),
         settings,
         end_time,
         processes,
         shared: shared.map(|(p, part)| (p, part, counts)),
+        whole: surface.then_some(whole),
         sim,
         fracture,
         writer: writer.map(BackgroundWriter::start),
         output,
     };
-    drop(whole);
     if !options.resume {
         run.emit_frame(FrameFlags {
             topology_changed: true,
@@ -280,42 +313,52 @@ fn simulation_for(
         path: scene.path.clone(),
         error,
     };
-    let (mut sim, part) = match processes {
-        None if scene.part.is_some() => {
-            return Err(setup(SimError::Setup(
+    let (mut sim, part) =
+        match processes {
+            None if scene.part.is_some() => return Err(setup(SimError::Setup(
                 "the scene was built on a process's part of its mesh: run it with its processes"
                     .into(),
-            )))
-        }
-        None => (
-            Simulation::new(scene.model.clone(), settings).map_err(setup)?,
-            None,
-        ),
-        Some(processes) => {
-            let (part, model) = match &scene.part {
-                // Built on this process's part: its checks are the processes' together.
-                Some(part) => {
-                    Simulation::check_shared(&scene.model, &settings, &|f| processes.any(f))
-                        .map_err(setup)?;
-                    (part.clone(), scene.model.clone())
-                }
-                None => {
-                    Simulation::check(&scene.model, &settings).map_err(setup)?;
-                    (processes.part_model(&scene.model, needs_whole_mesh(scene))).map_err(setup)?
-                }
-            };
-            (
-                Simulation::for_part(model, settings).map_err(setup)?,
-                Some(part),
-            )
-        }
-    };
+            ))),
+            None => (
+                Simulation::new(scene.model.clone(), settings).map_err(setup)?,
+                None,
+            ),
+            Some(processes) => {
+                let (part, model) = match &scene.part {
+                    // Built on this process's part: its checks are the processes' together.
+                    Some(part) => {
+                        Simulation::check_shared(&scene.model, &settings, &|f| processes.any(f))
+                            .map_err(setup)?;
+                        (part.clone(), scene.model.clone())
+                    }
+                    None => {
+                        Simulation::check(&scene.model, &settings).map_err(setup)?;
+                        let whole_and_h = (needs_whole_mesh(scene), settings.dt);
+                        (processes.part_model(&scene.model, whole_and_h)).map_err(setup)?
+                    }
+                };
+                (
+                    Simulation::for_part(model, settings).map_err(setup)?,
+                    Some(part),
+                )
+            }
+        };
+    attach_heat(scene, &mut sim, part.as_ref())?;
+    if let Some(processes) = processes {
+        processes.distribute(&mut sim).map_err(setup)?;
+    }
+    Ok((sim, part))
+}
+
+/// Attaches the heat model of `scene`'s `[thermal]` (if any) to `sim`, on this process's
+/// `part` in a shared run.
+fn attach_heat(scene: &Scene, sim: &mut Simulation, part: Option<&Part>) -> Result<(), RunError> {
     if let Some(thermal) = &scene.thermal {
         // On the scene's mesh, before a resumed fractured run rebuilds its split mesh, or on
         // this process's part of it (with the whole masses: a process's part of a
         // distributed run has those of its owned nodes only).
         let mesh = &sim.model.mesh;
-        let (mass, boundary, initial) = match part.as_ref().filter(|_| scene.part.is_none()) {
+        let (mass, boundary, initial) = match part.filter(|_| scene.part.is_none()) {
             Some(part) => (
                 part.rows_of(&thermal.mass, 1, false),
                 thermal.boundary.restricted(|i| part.local(i)),
@@ -328,15 +371,16 @@ fn simulation_for(
                 thermal.initial.clone(),
             ),
         };
-        let heat = Heat::new(mesh, mass, thermal.phases, &boundary, initial)
-            .map_err(|e| setup(e.into()))?;
+        let heat = Heat::new(mesh, mass, thermal.phases, &boundary, initial).map_err(|e| {
+            RunError::Setup {
+                path: scene.path.clone(),
+                error: e.into(),
+            }
+        })?;
         let link = HeatLink::new(heat, mesh);
         sim.attach_heat(link);
     }
-    if let Some(processes) = processes {
-        processes.distribute(&mut sim).map_err(setup)?;
-    }
-    Ok((sim, part))
+    Ok(())
 }
 
 /// How what process 0 reads when a run resumes travels to the other processes: as bytes, and
@@ -404,7 +448,10 @@ struct Run<'a> {
     processes: Option<&'a dyn Processes>,
     /// The processes, this one's part and the whole mesh's node and element counts, where
     /// the parts are not the whole mesh.
-    shared: Option<(&'a dyn Processes, &'a Part, (usize, usize))>,
+    shared: Option<(&'a dyn Processes, Part, (usize, usize))>,
+    /// The scene, where the processes' parts hold ghost surfaces for ice–ice contact, which
+    /// they gather again from its whole model as the ice moves.
+    whole: Option<Scene>,
     sim: Simulation,
     fracture: Option<Fracture>,
     /// The output (on the writing process).
@@ -420,7 +467,7 @@ impl Run<'_> {
         emit_frame(
             self.writer.as_mut(),
             sim_and_fracture,
-            self.shared,
+            self.shared.as_ref().map(|(p, part, c)| (*p, part, *c)),
             (flags, options),
         )
     }
@@ -457,6 +504,9 @@ impl Run<'_> {
         };
         // Whether the mesh changed since the last frame written.
         let mut topology_changed = false;
+        // Whether the last step ended on a restart point (the surfaces held for ice–ice
+        // contact were gathered at the start of this invocation).
+        let mut restarted = false;
         let mut fracture_outcome = self.fracture.as_ref().map(|f| FractureOutcome {
             toughness: f.settings.toughness,
             yield_stress: self
@@ -472,6 +522,10 @@ impl Run<'_> {
                 summary.interrupted = true;
                 break;
             }
+            if let Some((outgrown, seconds)) = self.hold_surfaces(restarted)? {
+                let g = &mut summary.surface_gatherings;
+                *g = (g.0 + u64::from(outgrown), g.1 + 1, g.2 + seconds);
+            }
             let (report, cracked, due) = self.step(&mut total_steps)?;
             topology_changed |= !cracked.events.is_empty();
             if let Some(f) = &mut fracture_outcome {
@@ -482,8 +536,8 @@ impl Run<'_> {
             summary.max_residual = summary.max_residual.max(report.newton.residual);
             if let Some(writer) = &mut self.writer {
                 // A process's part of a distributed run holds only some of the elements.
-                let elements = match self.shared {
-                    Some((_, _, (_, elements))) => elements,
+                let elements = match &self.shared {
+                    Some((_, _, (_, elements))) => *elements,
                     None => self.sim.model.mesh.num_tets(),
                 };
                 let fracture = self.fracture.as_ref();
@@ -505,6 +559,7 @@ impl Run<'_> {
             if due.restart {
                 self.sim.forget_solver_memory();
             }
+            restarted = due.restart;
             progress(&Progress {
                 step: self.sim.state.step,
                 total_steps,

@@ -285,7 +285,7 @@ mod tests {
     struct Alone;
 
     impl Processes for Alone {
-        fn part_model(&self, _: &Model, _: bool) -> Result<(Part, Model), SimError> {
+        fn part_model(&self, _: &Model, _: (bool, f64)) -> Result<(Part, Model), SimError> {
             unreachable!("not used by a resume")
         }
         fn distribute(&self, _: &mut Simulation) -> Result<(), SimError> {

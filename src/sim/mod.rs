@@ -7,6 +7,7 @@
 mod acceleration;
 pub mod adaptive;
 pub mod balance;
+pub mod handover;
 mod hessians;
 pub mod integrator;
 pub mod part;

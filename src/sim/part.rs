@@ -11,8 +11,9 @@
 //! only (`Model::restrict`), so that the processes' parts add up to the whole potential.
 //!
 //! A term that couples nodes sharing no element (ice–ice contact: a boundary node with any
-//! boundary face) has every process hold the elements that carry those nodes besides (see
-//! `Term::holds_boundary_everywhere`); they are ghosts like the ring's. Where fracture splits
+//! boundary face) has each process hold the elements of the boundary faces near its own
+//! besides (its ghost surface, see `distributed::surface_hold`); they are ghosts like the
+//! ring's. Where fracture splits
 //! the mesh, or on one process, a part is the whole mesh: every element and node, each
 //! process evaluating its own elements and owned nodes as above.
 
