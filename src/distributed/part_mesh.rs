@@ -52,6 +52,7 @@ pub enum Besides<'a> {
     /// Every element: each process holds the whole mesh (fracture splits it).
     All,
 }
+
 /// A process's part of the mesh.
 #[derive(Clone, Debug)]
 pub struct PartMesh {
