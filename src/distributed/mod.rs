@@ -429,7 +429,10 @@ impl Processes for MpiProcesses {
     }
 
     fn distribute(&self, sim: &mut Simulation) -> Result<(), SimError> {
-        self.set_up_memory.set(peak_memory());
+        // The first share's (a ghost surface gathered again shares the run out anew).
+        if self.set_up_memory.get() == 0 {
+            self.set_up_memory.set(peak_memory());
+        }
         let Some((numbering, part)) = self.part.borrow_mut().take() else {
             return Err(SimError::Setup(
                 "the simulation was not built on this process's part".into(),
