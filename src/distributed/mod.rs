@@ -296,10 +296,7 @@ impl MpiProcesses {
             hold.reach(),
         )
         .map_err(|e| SimError::Setup(e.to_string()))?;
-        let starts = (
-            partition::ranges(mesh.num_tets(), self.size()),
-            partition::ranges(mesh.num_nodes(), self.size()),
-        );
+        let starts = range_starts(mesh, self.size());
         let gathered = self.gather_part(
             &ranges_of(mesh, (&starts.0, &starts.1), self.rank() as usize),
             &partition,
@@ -334,6 +331,15 @@ struct PartState<'a> {
     vmax: f64,
 }
 
+/// Where each of `size` processes' ranges of `mesh`'s elements and of its nodes start (see
+/// [`MeshRanges`]).
+fn range_starts(mesh: &TetMesh, size: usize) -> (Vec<usize>, Vec<usize>) {
+    (
+        partition::ranges(mesh.num_tets(), size),
+        partition::ranges(mesh.num_nodes(), size),
+    )
+}
+
 /// This process's (`rank`) ranges of `mesh` where the ranges start at `starts` (elements,
 /// nodes).
 fn ranges_of<'a>(
@@ -359,10 +365,7 @@ impl Processes for MpiProcesses {
         let (size, rank) = (self.size(), self.rank() as usize);
         // Each process takes a range of the elements and one of the nodes to the partitioner
         // and the rendezvous that gathers its part (see `part_mesh`).
-        let starts = (
-            partition::ranges(mesh.num_tets(), size),
-            partition::ranges(mesh.num_nodes(), size),
-        );
+        let starts = range_starts(mesh, size);
         let ranges = ranges_of(mesh, (&starts.0, &starts.1), rank);
         let setup = |e: partition::PartitionError| SimError::Setup(e.to_string());
         let partition = self.partitioned(&ranges).map_err(setup)?;
