@@ -26,6 +26,7 @@ pub mod ghost_surface;
 pub mod ghosts;
 pub mod heat;
 pub mod node_halo;
+pub mod part_fracture;
 pub mod part_mesh;
 pub mod partition;
 pub mod petsc;

@@ -17,17 +17,22 @@
 //! node's pairs reach faces and copies of split nodes beyond the part's ring (the other side
 //! of a crack, another piece). [`super::ghost_surface`] gathers them; a part that also holds
 //! the elements of its ghost faces finds the whole boundary's pairs with the restricted term
-//! (tested by a step with contact). No run uses this module: a fractured run on several
-//! processes holds the whole mesh (docs/distributed.md).
+//! (tested by a step with contact); [`model_with_surface`] builds that term on a part holding
+//! them. [`super::part_fracture`] drives these after each split; a run does not yet, and a
+//! fractured run on several processes holds the whole mesh (docs/distributed.md).
 
 use super::components::connected_parts;
+use super::ghost_surface::Surface;
 use super::ghosts::gathered_by_key;
 use super::largest;
 use super::partition::PartNumbering;
 use super::splits::SplitPart;
 use super::{MpiCollective, ProcessShare};
 use crate::fracture::cracks::{crack_faces, OriginalBoundary};
+use crate::mesh::mean_edge;
 use crate::mesh::{MeshError, TetMesh};
+use crate::physics::contact::stiffness_for_edge;
+use crate::physics::ice_contact::{IceContact, IceContactTerm};
 use crate::physics::term::{NodeRestriction, WholeMesh};
 use crate::physics::Model;
 use crate::sim::part::Part;
@@ -46,6 +51,62 @@ pub fn model_after_split(
     before: &Model,
     original: &OriginalBoundary,
 ) -> Result<Model, MeshError> {
+    after_split(world, held, before, original).map(|(model, _)| model)
+}
+
+/// [`model_after_split`] on a part `held` that also holds the elements of this process's
+/// ghost surface `surface` (gathered on the split parts, see [`super::ghost_surface`]), with
+/// its ice–ice contact on that surface: the whole boundary's pairs with an owned node. The
+/// surface's elements have no owned node and carry whatever `held`'s parents give them; the
+/// part must hold every node of `surface`, and `pieces` is the whole mesh's number of pieces.
+pub fn model_with_surface(
+    world: &SimpleCommunicator,
+    held: &SplitPart,
+    before: &Model,
+    (original, surface, pieces): (&OriginalBoundary, &Surface, usize),
+) -> Result<Model, MeshError> {
+    let (mut model, perimeters) = after_split(world, held, before, original)?;
+    let Some(term) = model.term::<IceContactTerm>() else {
+        return Ok(model);
+    };
+    // Every process has the term, also one whose part has no crack or other piece near it.
+    let stiffness = match term.stiffness > 0.0 {
+        true => term.stiffness,
+        false => stiffness_for_edge(mean_edge(&perimeters), before.elasticity.material.young()),
+    };
+    let rank = world.rank() as u32;
+    let part = &held.part;
+    let restriction = NodeRestriction {
+        local: (surface.nodes.iter())
+            .map(|n| {
+                part.local(n.node)
+                    .expect("the part holds its surface's nodes")
+            })
+            .collect(),
+        kept: surface.nodes.iter().map(|n| n.owner == rank).collect(),
+        local_nodes: part.nodes.len(),
+    };
+    let contact = IceContact::on_surface(
+        surface.contact_surface(rank, pieces),
+        &perimeters,
+        stiffness,
+        (term.friction, term.smoothing_velocity),
+    );
+    let mut on_surface =
+        IceContactTerm::inactive(term.stiffness, term.friction, term.smoothing_velocity);
+    on_surface.active = Some(contact.restricted(&restriction));
+    model.set_ice_contact(on_surface);
+    Ok(model)
+}
+
+/// [`model_after_split`], and the whole boundary's perimeters (m) in
+/// `TetMesh::boundary_faces`'s order.
+fn after_split(
+    world: &SimpleCommunicator,
+    held: &SplitPart,
+    before: &Model,
+    original: &OriginalBoundary,
+) -> Result<(Model, Vec<f64>), MeshError> {
     let (part, f) = (&held.part, &held.mesh);
     let mesh = TetMesh::new(f.rest.clone(), f.tets.clone())?;
     let (near, boundary) = part.whole_boundary_faces(&mesh);
@@ -76,7 +137,7 @@ pub fn model_after_split(
     let terms = std::mem::take(&mut model.terms);
     let owned = &part.owned_nodes;
     model.restrict(owned, &terms, &NodeRestriction::all(owned));
-    Ok(model)
+    Ok((model, perimeters))
 }
 
 /// This process's share of a run on its `part` of a mesh split on the parts, the part's mesh

@@ -9,9 +9,10 @@
 //! of them and puts the same patch together, splits it the same way and puts the split into
 //! its own part; the processes then find the smallest piece of the split mesh together, and
 //! a split that cuts off too small a piece is refused on every process, leaving the parts as
-//! they were. Checked on 3 processes against the whole mesh (`solver_tests/partition.rs`). A
-//! fractured run on several processes holds the whole mesh on each process and splits it
-//! there (docs/distributed.md).
+//! they were. Checked on 3 processes against the whole mesh (`solver_tests/partition.rs`).
+//! [`super::part_fracture`] drives them after each step; a fractured run on several
+//! processes does not yet, and holds the whole mesh on each process and splits it there
+//! (docs/distributed.md).
 
 use super::components::connected_parts;
 use super::ghosts::all_gathered;
@@ -106,39 +107,45 @@ fn smallest_piece(
     total.into_iter().fold(f64::INFINITY, f64::min)
 }
 
+/// A node offered for a split: its number in the mesh, the process owning it (which offered
+/// it) and its separation.
+pub type Candidate = (usize, u32, NodeSeparation);
+
 /// The nodes each process offers for a split (`offered`: its owned nodes, as the whole mesh's
 /// numbers, with their separations), on every process, in the order one process tries them:
-/// the largest separation stress first, equal stresses by node. Every process calls it.
+/// the largest separation stress first, equal stresses by node; each with the process that
+/// offered it. Every process calls it.
 pub fn candidates_in_order(
     world: &SimpleCommunicator,
     offered: &[(usize, NodeSeparation)],
-) -> Vec<(usize, NodeSeparation)> {
+) -> Vec<Candidate> {
+    let rank = world.rank() as u64;
     let words: Vec<u64> = (offered.iter())
         .flat_map(|(node, s)| {
             let values = (s.tensor.iter())
                 .chain([&s.largest])
                 .chain(s.normal.iter())
                 .chain([&s.area]);
-            [*node as u64, u64::from(s.eligible)]
+            [*node as u64, u64::from(s.eligible), rank]
                 .into_iter()
                 .chain(values.map(|x| x.to_bits()))
                 .collect::<Vec<u64>>()
         })
         .collect();
-    let mut all: Vec<(usize, NodeSeparation)> = (all_gathered(world, &words).chunks_exact(16))
+    let mut all: Vec<Candidate> = (all_gathered(world, &words).chunks_exact(17))
         .map(|w| {
             let value = |k: usize| f64::from_bits(w[k]);
             let separation = NodeSeparation {
-                tensor: Matrix3::from_iterator((2..11).map(value)),
-                largest: value(11),
-                normal: Vector3::new(value(12), value(13), value(14)),
-                area: value(15),
+                tensor: Matrix3::from_iterator((3..12).map(value)),
+                largest: value(12),
+                normal: Vector3::new(value(13), value(14), value(15)),
+                area: value(16),
                 eligible: w[1] != 0,
             };
-            (w[0] as usize, separation)
+            (w[0] as usize, w[2] as u32, separation)
         })
         .collect();
-    all.sort_by(|a, b| b.1.stress().total_cmp(&a.1.stress()).then(a.0.cmp(&b.0)));
+    all.sort_by(|a, b| b.2.stress().total_cmp(&a.2.stress()).then(a.0.cmp(&b.0)));
     all
 }
 
@@ -163,6 +170,8 @@ pub struct SplitPart {
 /// A split the processes made.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PartSplit {
+    /// The split node's rest position (m).
+    pub rest: Vector3<f64>,
     /// The crack normal used (unit).
     pub normal: Vector3<f64>,
     /// What the split did, in the mesh's numbers.
@@ -236,6 +245,7 @@ pub fn try_split(
     held.mesh = mesh;
     held.node_owner = node_owner;
     Ok(Ok(PartSplit {
+        rest: patch.mesh.rest[local],
         normal: plan.normal,
         split: patch.numbered(&split),
         lapsed: patch.neighbours(&touched),

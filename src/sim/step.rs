@@ -165,7 +165,10 @@ impl Simulation {
         };
         couplings.sort_unstable();
         couplings.dedup();
-        let changed = couplings != self.couplings;
+        // Making the shared solver for a new pattern is every process's step: where one
+        // process's couplings changed, all rebuild theirs.
+        let here = couplings != self.couplings;
+        let changed = self.max_over_processes(f64::from(u8::from(here))) > 0.0;
         if changed {
             self.rebuild_pattern(&couplings)?;
             self.couplings = couplings;

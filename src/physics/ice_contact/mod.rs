@@ -303,7 +303,12 @@ impl IceContact {
     /// it holds every face a pair with an owned node meets, every face of such a pair's node
     /// and every face its closest-face choice weighs.
     pub fn ghost_reach(&self, vmax: f64, h: f64) -> f64 {
-        2.0 * self.margin(vmax, h) + 2.0 * self.edge
+        Self::reach_for(self.edge, vmax, h)
+    }
+
+    /// [`IceContact::ghost_reach`] of a contact whose mean boundary edge is `edge` (m).
+    pub fn reach_for(edge: f64, vmax: f64, h: f64) -> f64 {
+        2.0 * (2.0 * vmax * h + 0.5 * edge) + 2.0 * edge
     }
 
     /// Candidate pairs for a step from displacement `u` over `h` seconds with `vmax` the

@@ -1,0 +1,637 @@
+//! Fracture of a run whose processes each hold a part of the mesh: the driver of
+//! `fracture::driver` on the parts.
+//!
+//! After every converged step each process evaluates the separation of the nodes it owns in
+//! the step's equilibrium ([`crate::fracture::separation_on_part`]: its part holds every
+//! element around them; the contact forces pressing on them are summed from every process
+//! that evaluates a pair at them; the nonlocal averages read the nodes within their length
+//! from their owners, [`NodeHalo`]). The processes put the nodes above the toughness in the
+//! order one process tries them ([`candidates_in_order`]) and try them in turn
+//! ([`try_split`]), a refusal recorded by the node's owner, until one is split. Each process
+//! then rebuilds its model on its split part — with ice–ice contact, on the part and the
+//! elements of its ghost surface, gathered anew on the split parts, so that crack sides and
+//! other pieces meet as on one process ([`model_with_surface`]) — its share of the solver,
+//! and carries the state over: a node's displacement and velocity, at the step's end and at
+//! its start, from its owner; an element's history from its parent; a pair of crack copies'
+//! gap from the pair it was made from. The step is then taken again from its start on the
+//! split parts, and the next node found in that equilibrium, as on one process.
+//!
+//! Every process takes the same decisions. The equilibria differ from one process's within
+//! Newton's tolerance, and so do the separations: the splits are one process's until two
+//! candidates' stresses are that close, or a split's crack plane passes that close to where
+//! it would cut another edge (a split is not continuous in its normal). Tested on three
+//! processes against one (`solver_tests/partition.rs`). Heat conduction is not carried over
+//! a split on the parts (refused), and the ghost surface is gathered at the splits only.
+
+use super::components::connected_parts;
+use super::ghost_surface::{gathered, Surface};
+use super::node_halo::NodeHalo;
+use super::rebuild::{
+    model_after_split, model_with_surface, numbering_after_split, share_after_split,
+};
+use super::splits::{candidates_in_order, try_split, SplitPart};
+use super::surface_hold::ALLOWANCE_EDGES;
+use super::{largest, sum_in_order, MpiCollective};
+use crate::fracture::cracks::{crack_area, crack_faces, OriginalBoundary};
+use crate::fracture::driver::{RefusedNode, CONTINUE_ANGLE, MIN_ELEMENT_FRACTION};
+use crate::fracture::split::Fracturable;
+use crate::fracture::{
+    separation_on_part, FractureEvent, FractureReport, FractureSettings, NodeSeparation, OnPart,
+    PartAverages,
+};
+use crate::mesh::TetMesh;
+use crate::physics::history::ElementHistory;
+use crate::physics::ice_contact::{IceContact, CRACK_GAPS};
+use crate::physics::term::TermHistory;
+use crate::sim::part::Part;
+use crate::sim::potential::Collective;
+use crate::sim::{SimError, Simulation, State};
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// Fracture of a run on this process's part of the mesh.
+pub struct PartFracture {
+    /// The parameters.
+    pub settings: FractureSettings,
+    /// The part that splits: this process's elements, those around their nodes, its mesh.
+    held: SplitPart,
+    /// The scene boundary's planes of the part's scene elements.
+    original: OriginalBoundary,
+    /// The refused splits of the nodes this process owns (the mesh's numbers).
+    refused: BTreeMap<usize, RefusedNode>,
+    /// Smallest rest volume of a piece a split may cut off (m³), and the smallest area A(n)
+    /// (m²): those of the scene's whole mesh (see [`crate::fracture::Fracture`]).
+    min_piece: f64,
+    area_floor: f64,
+    /// The simulation's part: `held`'s, with the elements of its ghost surface once the
+    /// mesh has ice–ice contact; its nodes' owners and the sums over it.
+    part: Part,
+    node_owner: Vec<u32>,
+    collective: MpiCollective,
+    /// The nonlocal averages' gathered nodes (none: the local criterion).
+    halo: Option<NodeHalo>,
+    /// CG's relative tolerance and iteration cap of the shared solver.
+    solve: (f64, usize),
+}
+
+impl PartFracture {
+    /// Fracture with `settings` of a run whose simulation is on `held`'s part (no ghost
+    /// surface: the mesh has no ice–ice contact yet), the part's scene boundary planes
+    /// `original`; `min_piece` (m³) and `area_floor` (m²) are the whole scene mesh's (see
+    /// [`crate::fracture::Fracture`]) and `solve` the shared solver's CG tolerance and cap.
+    /// Every process of `world` calls it.
+    pub fn new(
+        world: &SimpleCommunicator,
+        settings: FractureSettings,
+        (held, original): (SplitPart, OriginalBoundary),
+        (min_piece, area_floor): (f64, f64),
+        solve: (f64, usize),
+    ) -> Self {
+        let (part, node_owner) = (held.part.clone(), held.node_owner.clone());
+        let mesh = (&held.mesh.rest[..], &held.mesh.tets[..]);
+        let halo = nonlocal_halo(world, &settings, &part, mesh, &node_owner);
+        PartFracture {
+            settings,
+            collective: MpiCollective::new(&part, &node_owner),
+            original,
+            refused: BTreeMap::new(),
+            min_piece,
+            area_floor,
+            halo,
+            part,
+            node_owner,
+            held,
+            solve,
+        }
+    }
+
+    /// The simulation's part (see [`PartFracture::new`]): it changes with each split.
+    pub fn part(&self) -> &Part {
+        &self.part
+    }
+
+    /// Fractures `sim` (on [`PartFracture::part`]) after a converged step, as
+    /// [`crate::fracture::Fracture::after_step`] does on one process; the report is the
+    /// same on every process. Every process of `world` calls it.
+    pub fn after_step(
+        &mut self,
+        world: &SimpleCommunicator,
+        sim: &mut Simulation,
+    ) -> Result<FractureReport, SimError> {
+        let rank = world.rank() as u32;
+        let mut report = FractureReport::default();
+        loop {
+            let clock = Instant::now();
+            let sep = self.separations(world, sim);
+            let offered: Vec<(usize, NodeSeparation)> = (0..sep.len())
+                .filter(|&k| self.candidate(self.part.nodes[k], &sep[k]))
+                .map(|k| (self.part.nodes[k], sep[k]))
+                .collect();
+            if report.events.is_empty() {
+                let mine = (sep.iter().filter(|s| s.eligible))
+                    .map(NodeSeparation::stress)
+                    .fold(0.0, f64::max);
+                report.largest_stress = largest(world, mine);
+                report.t_check = clock.elapsed().as_secs_f64();
+            } else {
+                report.t_split += clock.elapsed().as_secs_f64();
+            }
+            let unresolved = sum_in_order(world, offered.len() as f64) as usize;
+            if report.events.len() >= self.settings.max_events_per_step || report.resolve_failed {
+                self.count_above(world, &sep, unresolved, &mut report);
+                break;
+            }
+            let clock = Instant::now();
+            let start = sim.step_start().cloned();
+            self.carry_state_into_held(sim, start.as_ref());
+            let mut made = None;
+            for (node, owner, s) in candidates_in_order(world, &offered) {
+                let tried = try_split(
+                    world,
+                    &mut self.held,
+                    &self.original,
+                    (node, owner, s.normal),
+                    (
+                        self.settings.snap,
+                        self.settings.min_quality,
+                        self.min_piece,
+                    ),
+                )
+                .map_err(SimError::Setup)?;
+                match tried {
+                    Ok(split) => {
+                        made = Some((split, s));
+                        break;
+                    }
+                    Err(reason) => {
+                        if owner == rank {
+                            let normal = s.normal;
+                            self.refused.insert(node, RefusedNode { reason, normal });
+                        }
+                        report.refused += 1;
+                    }
+                }
+            }
+            report.t_split += clock.elapsed().as_secs_f64();
+            let Some((split, s)) = made else {
+                self.count_above(world, &sep, 0, &mut report);
+                break;
+            };
+            report.events.push(FractureEvent {
+                rest: split.rest,
+                normal: split.normal,
+                stress: s.stress(),
+            });
+            // The star of every node around the split changed: their refusals lapse.
+            for i in &split.lapsed {
+                self.refused.remove(i);
+            }
+            let clock = Instant::now();
+            let start = self.rebuild(world, sim, start)?;
+            report.t_remesh += clock.elapsed().as_secs_f64();
+            if let Some(start) = start {
+                let clock = Instant::now();
+                report.resolve_failed = !retake(sim, start);
+                report.t_resolve += clock.elapsed().as_secs_f64();
+            }
+        }
+        Ok(report)
+    }
+
+    /// Total crack area at rest, one side (m²): the crack faces of the elements each process
+    /// evaluates, added over the processes. Every process of `world` calls it.
+    pub fn crack_area(&self, world: &SimpleCommunicator) -> Result<f64, SimError> {
+        let f = &self.held.mesh;
+        let mesh = TetMesh::new(f.rest.clone(), f.tets.clone())
+            .map_err(|e| SimError::Setup(format!("split part: {e}")))?;
+        let own: Vec<_> = (crack_faces(&mesh, &self.held.origin, &self.original).into_iter())
+            .filter(|c| self.held.part.own_elements[c.element])
+            .collect();
+        Ok(sum_in_order(world, crack_area(&own, &mesh.rest)))
+    }
+
+    /// Whether the node `node` (the mesh's number), with separation `s`, is a candidate for
+    /// a split, as on one process; only its owner (where it is eligible) tells.
+    fn candidate(&self, node: usize, s: &NodeSeparation) -> bool {
+        s.eligible
+            && s.stress() > self.settings.toughness
+            && (self.refused.get(&node))
+                .is_none_or(|r| r.normal.dot(&s.normal).abs() < CONTINUE_ANGLE.cos())
+    }
+
+    /// The separations of the simulation's part's nodes in the equilibrium of its last step
+    /// (eligible at the owned nodes only): as one process reads them, from the plastic
+    /// strains the step was solved with and the contact forces pressing on the nodes,
+    /// summed over the processes.
+    fn separations(&self, world: &SimpleCommunicator, sim: &Simulation) -> Vec<NodeSeparation> {
+        let dofs = 3 * self.part.nodes.len();
+        let forces = sim.contact_forces();
+        let mut pressing: Vec<f64> = forces.map_or(vec![0.0; dofs], |c| {
+            (c.normal.iter().zip(&c.friction))
+                .map(|(n, f)| n + f)
+                .collect()
+        });
+        // A pair or an obstacle node is evaluated by the processes owning its nodes: each
+        // keeps its owned dofs' forces, and the sum brings every holder the whole.
+        let pressed = largest(world, f64::from(u8::from(forces.is_some()))) > 0.0;
+        if pressed {
+            for (k, p) in pressing.chunks_exact_mut(3).enumerate() {
+                if !self.part.owned_nodes[k] {
+                    p.fill(0.0);
+                }
+            }
+            self.collective.exchange(&mut pressing);
+        } else {
+            pressing.clear();
+        }
+        let solved_with: Option<ElementHistory> = (sim.step_start())
+            .filter(|start| !start.history.plastic_strain.is_empty())
+            .map(|start| ElementHistory {
+                plastic_strain: start.history.plastic_strain.clone(),
+                ..sim.state.history.clone()
+            });
+        let history = solved_with.as_ref().unwrap_or(&sim.state.history);
+        let model = &sim.model;
+        separation_on_part(
+            &model.elasticity,
+            history,
+            (&model.mesh.tets, &sim.state.u, &pressing),
+            self.area_floor,
+            self.halo.as_ref().map(|h| h as &dyn PartAverages),
+            &OnPart {
+                collective: &self.collective,
+                owned_nodes: &self.part.owned_nodes,
+            },
+        )
+    }
+
+    /// Records in `report` the eligible nodes and those above the toughness in `sep` (this
+    /// process's separations after the step's last split), over the processes; `unresolved`
+    /// of them are candidates left.
+    fn count_above(
+        &self,
+        world: &SimpleCommunicator,
+        sep: &[NodeSeparation],
+        unresolved: usize,
+        report: &mut FractureReport,
+    ) {
+        let tau = self.settings.toughness;
+        let eligible = sep.iter().filter(|s| s.eligible).count() as u64;
+        let above = (sep.iter())
+            .filter(|s| s.eligible && s.stress() > tau)
+            .count() as u64;
+        let mut all = [0u64; 2];
+        world.all_reduce_into(&[eligible, above][..], &mut all[..], SystemOperation::sum());
+        report.eligible_nodes = all[0] as usize;
+        report.nodes_above = unresolved;
+        report.refused_above = all[1] as usize - unresolved;
+    }
+
+    /// Puts the simulation's displacements and velocities, and those of the step's `start`,
+    /// into the split part's mesh, which carries them through a split.
+    fn carry_state_into_held(&mut self, sim: &Simulation, start: Option<&State>) {
+        let at: Vec<usize> = (self.held.part.nodes.iter())
+            .map(|&i| {
+                self.part
+                    .local(i)
+                    .expect("the simulation's part holds the split part")
+            })
+            .collect();
+        let rows = |v: &[f64]| -> Vec<f64> {
+            at.iter()
+                .flat_map(|&k| [v[3 * k], v[3 * k + 1], v[3 * k + 2]])
+                .collect()
+        };
+        let mesh = &mut self.held.mesh;
+        mesh.u = rows(&sim.state.u);
+        mesh.v = rows(&sim.state.v);
+        mesh.extra = start.map_or(Vec::new(), |s| vec![rows(&s.u), rows(&s.v)]);
+        mesh.min_volume = MIN_ELEMENT_FRACTION * self.min_piece;
+    }
+
+    /// Continues `sim` on the split part: gathers the ghost surface where the mesh has
+    /// ice–ice contact, rebuilds the model, the numbering and the solver's share on the new
+    /// part, and carries the state (and the step's `start`, returned on the new part) over.
+    /// Every process calls it.
+    fn rebuild(
+        &mut self,
+        world: &SimpleCommunicator,
+        sim: &mut Simulation,
+        start: Option<State>,
+    ) -> Result<Option<State>, SimError> {
+        if sim.heat().is_some() {
+            return Err(SimError::NotDistributed(
+                "heat conduction with fracture on the processes' parts",
+            ));
+        }
+        let invalid = |e: crate::mesh::MeshError| SimError::Setup(format!("split part: {e}"));
+        let held = &self.held;
+        let mesh = TetMesh::new(held.mesh.rest.clone(), held.mesh.tets.clone()).map_err(invalid)?;
+        let (piece, pieces) = connected_parts(world, &held.part, &mesh.tets, &held.node_owner);
+        let cracks: Vec<[usize; 3]> = (crack_faces(&mesh, &held.origin, &self.original))
+            .iter()
+            .map(|c| c.nodes)
+            .collect();
+        let contact = pieces >= 2 || largest(world, cracks.len() as f64) > 0.0;
+        let surface = contact.then(|| {
+            let given = Surface::given(
+                &held.part,
+                &mesh,
+                (&held.mesh.u, &held.node_owner, &piece),
+                &cracks,
+            );
+            gathered(
+                world,
+                &given,
+                surface_reach(world, sim, (&held.part, &mesh)),
+            )
+        });
+        let next = self.with_surface(surface.as_ref());
+        let model = match &surface {
+            Some(surface) => model_with_surface(
+                world,
+                &next.held,
+                &sim.model,
+                (&self.original, surface, pieces),
+            ),
+            None => model_after_split(world, &next.held, &sim.model, &self.original),
+        }
+        .map_err(invalid)?;
+        let renumbered = |history: &TermHistory| {
+            let old = renumbered_gaps(history, &self.part, &next.held.part);
+            model.inherited_history(&old, &next.node_parent)
+        };
+        let term_history = renumbered(&sim.state.term_history);
+        let start_history = start.as_ref().map(|st| renumbered(&st.term_history));
+        let part = &next.held.part;
+        let collective = MpiCollective::new(part, &next.held.node_owner);
+        // Every node's rows from its owner, which holds it in its split part.
+        let from_owners = |rows: &[f64]| -> Vec<f64> {
+            let mut values: Vec<f64> = (0..part.nodes.len())
+                .flat_map(|k| match (part.owned_nodes[k], next.in_ring[k]) {
+                    (true, Some(h)) => [rows[3 * h], rows[3 * h + 1], rows[3 * h + 2]],
+                    _ => [0.0; 3],
+                })
+                .collect();
+            collective.exchange(&mut values);
+            values
+        };
+        let parent = &next.held.mesh.parent;
+        let state = &sim.state;
+        let mut on_next = Simulation::for_part(model, sim.settings)?;
+        on_next.state = State {
+            u: from_owners(&held.mesh.u),
+            v: from_owners(&held.mesh.v),
+            history: state.history.inherit(parent),
+            carried: Default::default(),
+            term_history,
+            ..state.clone()
+        };
+        on_next.set_time(state.time);
+        let start = start.zip(start_history).map(|(st, term_history)| {
+            let (u, v) = match &held.mesh.extra[..] {
+                [u, v] => (from_owners(u), from_owners(v)),
+                _ => (on_next.state.u.clone(), on_next.state.v.clone()),
+            };
+            State {
+                u,
+                v,
+                history: st.history.inherit(parent),
+                carried: Default::default(),
+                term_history,
+                ..st
+            }
+        });
+        let numbering = numbering_after_split(
+            world,
+            part,
+            &next.held.node_owner,
+            next.held.process.clone(),
+        );
+        let shared_mesh = on_next.model.mesh.clone();
+        let share = share_after_split(part, numbering, &shared_mesh, self.solve);
+        // The old simulation goes before the new one's share of the solver is made.
+        *sim = on_next;
+        sim.distribute(share)?;
+        let (rest, tets) = (&sim.model.mesh.rest, &sim.model.mesh.tets);
+        self.halo = nonlocal_halo(
+            world,
+            &self.settings,
+            part,
+            (rest, tets),
+            &next.held.node_owner,
+        );
+        self.collective = collective;
+        self.part = next.held.part;
+        self.node_owner = next.held.node_owner;
+        Ok(start)
+    }
+
+    /// The simulation's next part: the split part and, with a `surface`, the elements of its
+    /// faces (the mesh's numbers) beside it, their nodes owned as the surface says; its
+    /// elements' parents in the simulation's part before the split (a surface element it did
+    /// not hold: its first own element, as a stand-in never evaluated here).
+    fn with_surface(&self, surface: Option<&Surface>) -> NextPart {
+        let held = &self.held;
+        let mut ghost: Vec<(usize, [usize; 4])> = surface.map_or(Vec::new(), |s| {
+            (s.elements.iter())
+                .filter(|(e, _)| held.part.elements.binary_search(e).is_err())
+                .map(|(e, nodes)| (*e, nodes.map(|k| s.nodes[k].node)))
+                .collect()
+        });
+        // An element of several faces comes once for each.
+        ghost.sort_unstable_by_key(|(e, _)| *e);
+        ghost.dedup_by_key(|(e, _)| *e);
+        let ghost_nodes: BTreeMap<usize, (u32, nalgebra::Vector3<f64>)> =
+            surface.map_or(BTreeMap::new(), |s| {
+                (s.nodes.iter())
+                    .filter(|n| held.part.local(n.node).is_none())
+                    .map(|n| (n.node, (n.owner, n.rest)))
+                    .collect()
+            });
+        let mut elements: Vec<usize> = (held.part.elements.iter().copied())
+            .chain(ghost.iter().map(|(e, _)| *e))
+            .collect();
+        elements.sort_unstable();
+        elements.dedup();
+        let mut nodes: Vec<usize> = (held.part.nodes.iter().copied())
+            .chain(ghost_nodes.keys().copied())
+            .collect();
+        nodes.sort_unstable();
+        let in_held = |i: usize| held.part.local(i);
+        let ghost_of = |e: usize| ghost.binary_search_by_key(&e, |(g, _)| *g).ok();
+        let local = |i: usize| nodes.binary_search(&i).expect("a node of the next part");
+        let stand_in = (self.part.own_elements.iter())
+            .position(|&o| o)
+            .unwrap_or(0);
+        let old_element = |whole: usize| self.part.elements.binary_search(&whole).ok();
+        let first_own = held.part.own_elements.iter().position(|&o| o).unwrap_or(0);
+        let mut tets = Vec::with_capacity(elements.len());
+        let (mut parent, mut origin, mut process, mut own) = (vec![], vec![], vec![], vec![]);
+        for &e in &elements {
+            match held.part.elements.binary_search(&e) {
+                Ok(k) => {
+                    let t = held.mesh.tets[k].map(|a| local(held.part.nodes[a]));
+                    tets.push(t);
+                    // The part keeps its elements' numbers through a split.
+                    let was = held.part.elements[held.mesh.parent[k]];
+                    parent.push(old_element(was).expect("a split element's parent was held"));
+                    origin.push(held.origin[k]);
+                    process.push(held.process[k]);
+                    own.push(held.part.own_elements[k]);
+                }
+                Err(_) => {
+                    let (_, whole) = ghost[ghost_of(e).expect("a surface element")];
+                    tets.push(whole.map(local));
+                    parent.push(old_element(e).unwrap_or(stand_in));
+                    origin.push(held.origin[first_own]);
+                    // No node of a surface element is owned here (else it would be in the
+                    // ring): its first node's owner stands for its process.
+                    process.push(ghost_nodes.get(&whole[0]).map_or(0, |n| n.0));
+                    own.push(false);
+                }
+            }
+        }
+        let node_of = |i: usize| (in_held(i), ghost_nodes.get(&i));
+        let mut rest = Vec::with_capacity(nodes.len());
+        let mut node_owner = Vec::with_capacity(nodes.len());
+        let mut in_ring = Vec::with_capacity(nodes.len());
+        let mut node_parent = Vec::with_capacity(nodes.len());
+        for (k, &i) in nodes.iter().enumerate() {
+            match node_of(i) {
+                (Some(h), _) => {
+                    rest.push(held.mesh.rest[h]);
+                    node_owner.push(held.node_owner[h]);
+                    in_ring.push(Some(h));
+                    // The node it is a copy of (the mesh's number), by this split or none.
+                    let p = held.mesh.node_parent[h];
+                    let was = match held.part.nodes.get(p) {
+                        Some(&was) => was,
+                        None => usize::MAX - p,
+                    };
+                    node_parent.push(was);
+                }
+                (None, Some(&(owner, at))) => {
+                    rest.push(at);
+                    node_owner.push(owner);
+                    in_ring.push(None);
+                    node_parent.push(i);
+                }
+                (None, None) => {
+                    unreachable!("node {i} of the next part comes from somewhere ({k})")
+                }
+            }
+        }
+        // Parents in the next part's numbering; one it does not hold matches no node.
+        let node_parent: Vec<usize> = (node_parent.iter().enumerate())
+            .map(|(k, &p)| nodes.binary_search(&p).unwrap_or(usize::MAX - k))
+            .collect();
+        let whole = (held.part.whole_nodes(), held.part.whole_elements());
+        let owned_nodes = (nodes.iter())
+            .map(|&i| in_held(i).is_some_and(|h| held.part.owned_nodes[h]))
+            .collect();
+        let part = Part::from_lists((elements, nodes), (own, owned_nodes), whole);
+        let mesh = Fracturable {
+            rest,
+            tets,
+            u: Vec::new(),
+            v: Vec::new(),
+            parent,
+            node_parent: Vec::new(),
+            extra: Vec::new(),
+            min_volume: 0.0,
+        };
+        NextPart {
+            held: SplitPart {
+                part,
+                mesh,
+                node_owner,
+                origin,
+                process,
+            },
+            in_ring,
+            node_parent,
+        }
+    }
+}
+
+/// The simulation's part after a split (see [`PartFracture::with_surface`]).
+struct NextPart {
+    /// The part, its mesh (rest positions, elements and their parents in the simulation's
+    /// part before the split), its nodes' owners, its elements' scene elements and processes.
+    held: SplitPart,
+    /// Each node's number in the split part, if it holds it.
+    in_ring: Vec<Option<usize>>,
+    /// Each node's parent in this part's numbering (the node it is a copy of, itself if none;
+    /// `usize::MAX − k` for node `k` whose parent it does not hold).
+    node_parent: Vec<usize>,
+}
+
+/// The crack gaps of `history` (rows p, q, g numbered in the part `old`) renumbered in the
+/// part `new`; pairs with a node `new` does not hold are dropped.
+fn renumbered_gaps(history: &TermHistory, old: &Part, new: &Part) -> TermHistory {
+    let rows: Vec<f64> = (history.get(CRACK_GAPS).chunks_exact(3))
+        .filter_map(|r| {
+            let at = |x: f64| new.local(old.nodes[x as usize]).map(|k| k as f64);
+            Some([at(r[0])?, at(r[1])?, r[2]])
+        })
+        .flatten()
+        .collect();
+    let mut renumbered = TermHistory::default();
+    if !rows.is_empty() {
+        renumbered.set(CRACK_GAPS, 3, rows);
+    }
+    renumbered
+}
+
+/// How far (m) from its owned boundary nodes a process gathers its ghost surface after a
+/// split: what ice–ice contact's next step needs (see `surface_hold`) with the whole
+/// boundary's mean edge, the process holding `part` with mesh `mesh` at `sim`'s state.
+fn surface_reach(
+    world: &SimpleCommunicator,
+    sim: &Simulation,
+    (part, mesh): (&Part, &TetMesh),
+) -> f64 {
+    let (_, boundary) = part.whole_boundary_faces(mesh);
+    let own: Vec<_> = (boundary.into_iter())
+        .filter(|f| part.own_elements[f.tet])
+        .collect();
+    let perimeter = sum_in_order(world, mesh.perimeters(&own).iter().sum());
+    let faces = sum_in_order(world, own.len() as f64);
+    let edge = perimeter / (3.0 * faces.max(1.0));
+    let vmax = largest(
+        world,
+        sim.state.v.iter().fold(0.0, |m: f64, x| m.max(x.abs())),
+    );
+    let h = sim.settings.dt;
+    IceContact::reach_for(edge, vmax, h) + 4.0 * vmax * h + ALLOWANCE_EDGES * edge
+}
+
+/// The nonlocal averages' gathered nodes for `settings` on `part` (mesh `rest`, `tets`
+/// numbered in the part, its nodes owned by `node_owner`), if they average.
+fn nonlocal_halo(
+    world: &SimpleCommunicator,
+    settings: &FractureSettings,
+    part: &Part,
+    mesh: (&[nalgebra::Vector3<f64>], &[[usize; 4]]),
+    node_owner: &[u32],
+) -> Option<NodeHalo> {
+    let length = settings.nonlocal_length;
+    (length > 0.0).then(|| NodeHalo::new(world, part, mesh, node_owner, length))
+}
+
+/// Takes the step that ended in `sim`'s state again from `start` on the split parts; if that
+/// fails, keeps the split with the step's end state, as on one process, and returns false.
+fn retake(sim: &mut Simulation, start: State) -> bool {
+    let end = sim.state.clone();
+    if sim.retake_step(start).is_ok() {
+        return true;
+    }
+    let time = end.time;
+    sim.state = end;
+    sim.set_time(time);
+    false
+}
