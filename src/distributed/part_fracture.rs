@@ -21,7 +21,9 @@
 //! candidates' stresses are that close, or a split's crack plane passes that close to where
 //! it would cut another edge (a split is not continuous in its normal). Tested on three
 //! processes against one (`solver_tests/partition.rs`). Heat conduction is not carried over
-//! a split on the parts (refused), and the ghost surface is gathered at the splits only.
+//! a split on the parts (refused). Between splits the ghost surface is gathered again when
+//! the ice has moved too far for it ([`PartFracture::surface_outgrown`],
+//! [`PartFracture::gather_surface_again`]), as for runs without fracture.
 
 use super::components::connected_parts;
 use super::ghost_surface::{gathered, Surface};
@@ -30,7 +32,7 @@ use super::rebuild::{
     model_after_split, model_with_surface, numbering_after_split, share_after_split,
 };
 use super::splits::{candidates_in_order, try_split, SplitPart};
-use super::surface_hold::ALLOWANCE_EDGES;
+use super::surface_hold::{SurfaceHold, ALLOWANCE_EDGES};
 use super::{largest, sum_in_order, MpiCollective};
 use crate::fracture::cracks::{crack_area, crack_faces, OriginalBoundary};
 use crate::fracture::driver::{RefusedNode, CONTINUE_ANGLE, MIN_ELEMENT_FRACTION};
@@ -41,8 +43,9 @@ use crate::fracture::{
 };
 use crate::mesh::TetMesh;
 use crate::physics::history::ElementHistory;
-use crate::physics::ice_contact::{IceContact, CRACK_GAPS};
+use crate::physics::ice_contact::{IceContact, IceContactTerm, CRACK_GAPS};
 use crate::physics::term::TermHistory;
+use crate::sim::integrator::SchemeState;
 use crate::sim::part::Part;
 use crate::sim::potential::Collective;
 use crate::sim::{SimError, Simulation, State};
@@ -73,6 +76,8 @@ pub struct PartFracture {
     collective: MpiCollective,
     /// The nonlocal averages' gathered nodes (none: the local criterion).
     halo: Option<NodeHalo>,
+    /// The ghost surface held, once the mesh has ice–ice contact.
+    hold: Option<SurfaceHold>,
     /// CG's relative tolerance and iteration cap of the shared solver.
     solve: (f64, usize),
 }
@@ -101,6 +106,7 @@ impl PartFracture {
             min_piece,
             area_floor,
             halo,
+            hold: None,
             part,
             node_owner,
             held,
@@ -111,6 +117,45 @@ impl PartFracture {
     /// The simulation's part (see [`PartFracture::new`]): it changes with each split.
     pub fn part(&self) -> &Part {
         &self.part
+    }
+
+    /// Whether the ghost surface held no longer holds what the next step of `sim` needs (see
+    /// [`super::surface_hold`]): alike on every process of `world`, which all call it (never,
+    /// before the mesh has ice–ice contact).
+    pub fn surface_outgrown(&self, world: &SimpleCommunicator, sim: &Simulation) -> bool {
+        let contact = sim.model.term::<IceContactTerm>();
+        let (Some(hold), Some(contact)) = (&self.hold, contact.and_then(|t| t.active.as_ref()))
+        else {
+            return false;
+        };
+        let vmax = sim.state.v.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+        hold.outgrown(
+            world,
+            contact,
+            (&self.part, &sim.state.u),
+            (vmax, sim.settings.dt),
+        )
+    }
+
+    /// Gathers the ghost surface again at the state of `sim` and continues `sim` on the new
+    /// part: its own elements and owned nodes stay, and so does its state. Every process of
+    /// `world` calls it.
+    pub fn gather_surface_again(
+        &mut self,
+        world: &SimpleCommunicator,
+        sim: &mut Simulation,
+    ) -> Result<(), SimError> {
+        self.carry_state_into_held(sim, None);
+        let carried = SchemeState {
+            fields: (sim.state.carried.fields.iter())
+                .map(|(name, field)| (*name, self.ring_rows(field)))
+                .collect(),
+            scalars: sim.state.carried.scalars.clone(),
+        };
+        let mesh = &mut self.held.mesh;
+        mesh.parent = (0..mesh.tets.len()).collect();
+        mesh.node_parent = (0..mesh.rest.len()).collect();
+        self.rebuild(world, sim, None, carried).map(|_| ())
     }
 
     /// Fractures `sim` (on [`PartFracture::part`]) after a converged step, as
@@ -190,7 +235,7 @@ impl PartFracture {
                 self.refused.remove(i);
             }
             let clock = Instant::now();
-            let start = self.rebuild(world, sim, start)?;
+            let start = self.rebuild(world, sim, start, SchemeState::default())?;
             report.t_remesh += clock.elapsed().as_secs_f64();
             if let Some(start) = start {
                 let clock = Instant::now();
@@ -293,34 +338,38 @@ impl PartFracture {
     /// Puts the simulation's displacements and velocities, and those of the step's `start`,
     /// into the split part's mesh, which carries them through a split.
     fn carry_state_into_held(&mut self, sim: &Simulation, start: Option<&State>) {
-        let at: Vec<usize> = (self.held.part.nodes.iter())
+        let (u, v) = (self.ring_rows(&sim.state.u), self.ring_rows(&sim.state.v));
+        let extra = start.map_or(Vec::new(), |s| {
+            vec![self.ring_rows(&s.u), self.ring_rows(&s.v)]
+        });
+        let mesh = &mut self.held.mesh;
+        (mesh.u, mesh.v, mesh.extra) = (u, v, extra);
+        mesh.min_volume = MIN_ELEMENT_FRACTION * self.min_piece;
+    }
+
+    /// The rows of the split part's nodes of `field` (3 per node of the simulation's part).
+    fn ring_rows(&self, field: &[f64]) -> Vec<f64> {
+        (self.held.part.nodes.iter())
             .map(|&i| {
                 self.part
                     .local(i)
                     .expect("the simulation's part holds the split part")
             })
-            .collect();
-        let rows = |v: &[f64]| -> Vec<f64> {
-            at.iter()
-                .flat_map(|&k| [v[3 * k], v[3 * k + 1], v[3 * k + 2]])
-                .collect()
-        };
-        let mesh = &mut self.held.mesh;
-        mesh.u = rows(&sim.state.u);
-        mesh.v = rows(&sim.state.v);
-        mesh.extra = start.map_or(Vec::new(), |s| vec![rows(&s.u), rows(&s.v)]);
-        mesh.min_volume = MIN_ELEMENT_FRACTION * self.min_piece;
+            .flat_map(|k| [field[3 * k], field[3 * k + 1], field[3 * k + 2]])
+            .collect()
     }
 
     /// Continues `sim` on the split part: gathers the ghost surface where the mesh has
     /// ice–ice contact, rebuilds the model, the numbering and the solver's share on the new
-    /// part, and carries the state (and the step's `start`, returned on the new part) over.
-    /// Every process calls it.
+    /// part, and carries the state (and the step's `start`, returned on the new part) over,
+    /// with what the time scheme carries as `carried` gives it (rows of the split part's
+    /// nodes; after a split, nothing, as on one process). Every process calls it.
     fn rebuild(
         &mut self,
         world: &SimpleCommunicator,
         sim: &mut Simulation,
         start: Option<State>,
+        carried: SchemeState,
     ) -> Result<Option<State>, SimError> {
         if sim.heat().is_some() {
             return Err(SimError::NotDistributed(
@@ -343,12 +392,10 @@ impl PartFracture {
                 (&held.mesh.u, &held.node_owner, &piece),
                 &cracks,
             );
-            gathered(
-                world,
-                &given,
-                surface_reach(world, sim, (&held.part, &mesh)),
-            )
+            let reach = surface_reach(world, sim, (&held.part, &mesh));
+            (gathered(world, &given, reach), reach)
         });
+        let (surface, reach) = surface.unzip();
         let next = self.with_surface(surface.as_ref());
         let model = match &surface {
             Some(surface) => model_with_surface(
@@ -386,7 +433,12 @@ impl PartFracture {
             u: from_owners(&held.mesh.u),
             v: from_owners(&held.mesh.v),
             history: state.history.inherit(parent),
-            carried: Default::default(),
+            carried: SchemeState {
+                fields: (carried.fields.iter())
+                    .map(|(name, field)| (*name, from_owners(field)))
+                    .collect(),
+                scalars: carried.scalars,
+            },
             term_history,
             ..state.clone()
         };
@@ -424,6 +476,7 @@ impl PartFracture {
             (rest, tets),
             &next.held.node_owner,
         );
+        self.hold = reach.map(|reach| SurfaceHold::with_reach(reach, part, &sim.state.u));
         self.collective = collective;
         self.part = next.held.part;
         self.node_owner = next.held.node_owner;

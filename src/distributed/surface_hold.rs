@@ -53,14 +53,18 @@ impl SurfaceHold {
     /// velocity component (m/s, over the processes), by a process holding `part` at
     /// displacements `u` (m, 3 per part node).
     pub fn new(contact: &IceContact, (vmax, h): (f64, f64), part: &Part, u: &[f64]) -> Self {
+        let reach = needed(contact, (vmax, h), 0.0) + ALLOWANCE_EDGES * contact.edge();
+        Self::with_reach(reach, part, u)
+    }
+
+    /// The hold of a surface gathered now with `reach` (m), by a process holding `part` at
+    /// displacements `u` (m, 3 per part node).
+    pub fn with_reach(reach: f64, part: &Part, u: &[f64]) -> Self {
         let at = (part.nodes.iter().enumerate())
             .filter(|&(k, _)| part.owned_nodes[k])
             .map(|(k, &i)| (i, [u[3 * k], u[3 * k + 1], u[3 * k + 2]]))
             .collect();
-        SurfaceHold {
-            reach: needed(contact, (vmax, h), 0.0) + ALLOWANCE_EDGES * contact.edge(),
-            at,
-        }
+        SurfaceHold { reach, at }
     }
 
     /// The reach (m) the surface was gathered with.
