@@ -35,14 +35,15 @@ use super::splits::{candidates_in_order, try_split, SplitPart};
 use super::surface_hold::{SurfaceHold, ALLOWANCE_EDGES};
 use super::{largest, sum_in_order, MpiCollective};
 use crate::fracture::cracks::{crack_area, crack_faces, OriginalBoundary};
-use crate::fracture::driver::{RefusedNode, CONTINUE_ANGLE, MIN_ELEMENT_FRACTION};
+use crate::fracture::driver::{
+    pressing_forces, retake, solved_history, RefusedNode, CONTINUE_ANGLE, MIN_ELEMENT_FRACTION,
+};
 use crate::fracture::split::Fracturable;
 use crate::fracture::{
     separation_on_part, FractureEvent, FractureReport, FractureSettings, NodeSeparation, OnPart,
     PartAverages,
 };
 use crate::mesh::TetMesh;
-use crate::physics::history::ElementHistory;
 use crate::physics::ice_contact::{IceContact, IceContactTerm, CRACK_GAPS};
 use crate::physics::term::TermHistory;
 use crate::sim::integrator::SchemeState;
@@ -237,11 +238,7 @@ impl PartFracture {
             let clock = Instant::now();
             let start = self.rebuild(world, sim, start, SchemeState::default())?;
             report.t_remesh += clock.elapsed().as_secs_f64();
-            if let Some(start) = start {
-                let clock = Instant::now();
-                report.resolve_failed = !retake(sim, start);
-                report.t_resolve += clock.elapsed().as_secs_f64();
-            }
+            retake(sim, start, &mut report);
         }
         Ok(report)
     }
@@ -273,15 +270,14 @@ impl PartFracture {
     /// summed over the processes.
     fn separations(&self, world: &SimpleCommunicator, sim: &Simulation) -> Vec<NodeSeparation> {
         let dofs = 3 * self.part.nodes.len();
-        let forces = sim.contact_forces();
-        let mut pressing: Vec<f64> = forces.map_or(vec![0.0; dofs], |c| {
-            (c.normal.iter().zip(&c.friction))
-                .map(|(n, f)| n + f)
-                .collect()
-        });
+        let forces = pressing_forces(sim);
         // A pair or an obstacle node is evaluated by the processes owning its nodes: each
         // keeps its owned dofs' forces, and the sum brings every holder the whole.
         let pressed = largest(world, f64::from(u8::from(forces.is_some()))) > 0.0;
+        let mut pressing = match pressed {
+            true => forces.unwrap_or_else(|| vec![0.0; dofs]),
+            false => Vec::new(),
+        };
         if pressed {
             for (k, p) in pressing.chunks_exact_mut(3).enumerate() {
                 if !self.part.owned_nodes[k] {
@@ -289,20 +285,12 @@ impl PartFracture {
                 }
             }
             self.collective.exchange(&mut pressing);
-        } else {
-            pressing.clear();
         }
-        let solved_with: Option<ElementHistory> = (sim.step_start())
-            .filter(|start| !start.history.plastic_strain.is_empty())
-            .map(|start| ElementHistory {
-                plastic_strain: start.history.plastic_strain.clone(),
-                ..sim.state.history.clone()
-            });
-        let history = solved_with.as_ref().unwrap_or(&sim.state.history);
+        let history = solved_history(sim);
         let model = &sim.model;
         separation_on_part(
             &model.elasticity,
-            history,
+            &history,
             (&model.mesh.tets, &sim.state.u, &pressing),
             self.area_floor,
             self.halo.as_ref().map(|h| h as &dyn PartAverages),
@@ -543,7 +531,11 @@ impl PartFracture {
                     origin.push(held.origin[first_own]);
                     // No node of a surface element is owned here (else it would be in the
                     // ring): its first node's owner stands for its process.
-                    process.push(ghost_nodes.get(&whole[0]).map_or(0, |n| n.0));
+                    let owner = match in_held(whole[0]) {
+                        Some(h) => held.node_owner[h],
+                        None => ghost_nodes[&whole[0]].0,
+                    };
+                    process.push(owner);
                     own.push(false);
                 }
             }
@@ -674,17 +666,4 @@ fn nonlocal_halo(
 ) -> Option<NodeHalo> {
     let length = settings.nonlocal_length;
     (length > 0.0).then(|| NodeHalo::new(world, part, mesh, node_owner, length))
-}
-
-/// Takes the step that ended in `sim`'s state again from `start` on the split parts; if that
-/// fails, keeps the split with the step's end state, as on one process, and returns false.
-fn retake(sim: &mut Simulation, start: State) -> bool {
-    let end = sim.state.clone();
-    if sim.retake_step(start).is_ok() {
-        return true;
-    }
-    let time = end.time;
-    sim.state = end;
-    sim.set_time(time);
-    false
 }

@@ -38,6 +38,7 @@ use crate::mesh::TetMesh;
 use crate::physics::history::ElementHistory;
 use crate::sim::{SimError, Simulation, State};
 use nalgebra::Vector3;
+use std::borrow::Cow;
 use std::time::Instant;
 
 /// Largest angle (rad) between a node's separation plane and the crack it lies on for the
@@ -57,32 +58,40 @@ fn equilibrium_separation(
     area_floor: f64,
     averaging: Option<&Averaging>,
 ) -> Vec<super::NodeSeparation> {
-    let pressing: Vec<f64> = sim.contact_forces().map_or(Vec::new(), |c| {
-        c.normal
-            .iter()
-            .zip(&c.friction)
-            .map(|(n, f)| n + f)
-            .collect()
-    });
-    // The plastic strains the step was solved with are those of its start.
-    let solved_with: Option<ElementHistory> = sim
-        .step_start()
-        .filter(|start| !start.history.plastic_strain.is_empty())
-        .map(|start| ElementHistory {
-            plastic_strain: start.history.plastic_strain.clone(),
-            ..sim.state.history.clone()
-        });
-    let history = solved_with.as_ref().unwrap_or(&sim.state.history);
+    let pressing = pressing_forces(sim).unwrap_or_default();
     let model = &sim.model;
     separation(
         &model.elasticity,
-        history,
+        &solved_history(sim),
         &model.mesh.tets,
         &sim.state.u,
         &pressing,
         area_floor,
         averaging,
     )
+}
+
+/// The contact forces pressing on `sim`'s nodes after its last step (N, 3 per node: normal
+/// and friction), if its model has contact.
+pub fn pressing_forces(sim: &Simulation) -> Option<Vec<f64>> {
+    sim.contact_forces().map(|c| {
+        (c.normal.iter().zip(&c.friction))
+            .map(|(n, f)| n + f)
+            .collect()
+    })
+}
+
+/// The element history `sim`'s last step was solved with: its end state's, with the plastic
+/// strains of the step's start (from which the solve's stress is returned onto the yield
+/// surface).
+pub fn solved_history(sim: &Simulation) -> Cow<'_, ElementHistory> {
+    match sim.step_start() {
+        Some(start) if !start.history.plastic_strain.is_empty() => Cow::Owned(ElementHistory {
+            plastic_strain: start.history.plastic_strain.clone(),
+            ..sim.state.history.clone()
+        }),
+        _ => Cow::Borrowed(&sim.state.history),
+    }
 }
 
 /// The nonlocal neighbourhoods of `mesh` for `settings`, if it asks for averaging.
@@ -460,11 +469,7 @@ impl Fracture {
                 start.term_history = sim.model.inherited_history(carried, &node_parent);
             }
             report.t_remesh += clock.elapsed().as_secs_f64();
-            if let Some(start) = start {
-                let clock = Instant::now();
-                report.resolve_failed = !self.retake(sim, start);
-                report.t_resolve += clock.elapsed().as_secs_f64();
-            }
+            retake(sim, start, &mut report);
         }
         Ok(report)
     }
@@ -531,18 +536,23 @@ impl Fracture {
             lapsed: patch.neighbours(&touched),
         })
     }
+}
 
-    /// Takes the step that ended in `sim`'s current state again from `start` on the split
-    /// mesh; if that fails, keeps the split mesh with the step's end state unchanged (as
-    /// O'Brien & Hodgins do for every split) and returns false.
-    fn retake(&self, sim: &mut Simulation, start: State) -> bool {
-        let end = sim.state.clone();
-        if sim.retake_step(start).is_ok() {
-            return true;
-        }
+/// Takes the step that ended in `sim`'s current state again from `start` (if the step had
+/// one) on the split mesh, adding the time to `report`; if that fails, keeps the split mesh
+/// with the step's end state unchanged (as O'Brien & Hodgins do for every split) and marks
+/// the report's re-solve failed.
+pub fn retake(sim: &mut Simulation, start: Option<State>, report: &mut FractureReport) {
+    let Some(start) = start else {
+        return;
+    };
+    let clock = Instant::now();
+    let end = sim.state.clone();
+    report.resolve_failed = sim.retake_step(start).is_err();
+    if report.resolve_failed {
         let time = end.time;
         sim.state = end;
         sim.set_time(time);
-        false
     }
+    report.t_resolve += clock.elapsed().as_secs_f64();
 }
