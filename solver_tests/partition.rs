@@ -1840,7 +1840,7 @@ fn fracture_on_the_parts_makes_one_processs_splits() {
         same_splits += got.events.len();
     }
     let (area, want) = (
-        on_parts.crack_area(&world).unwrap(),
+        on_parts.crack_totals(&world).unwrap().area,
         whole_fracture.crack_area(&one.model.mesh.rest),
     );
     eprintln!(

@@ -31,6 +31,7 @@ pub mod part_mesh;
 pub mod partition;
 pub mod petsc;
 pub mod rebuild;
+pub mod run_fracture;
 pub mod solver;
 pub mod splits;
 pub mod surface_hold;
@@ -121,6 +122,8 @@ pub struct MpiProcesses {
     /// Peak resident memory when the part was shared out (bytes; see
     /// [`ProcessReport::set_up_memory`]).
     set_up_memory: Cell<u64>,
+    /// The owners of the nodes of the part last shared out, and its elements' processes.
+    owners: RefCell<(Vec<u32>, Vec<u32>)>,
 }
 
 impl MpiProcesses {
@@ -147,6 +150,7 @@ impl MpiProcesses {
             held: Rc::new(Cell::new([0; 2])),
             whole_mesh: Cell::new(false),
             set_up_memory: Cell::new(0),
+            owners: RefCell::new((Vec::new(), Vec::new())),
         })
     }
 
@@ -428,6 +432,28 @@ impl Processes for MpiProcesses {
         part_and_model(gathered, model)
     }
 
+    fn part_fracture(
+        &self,
+        settings: crate::fracture::FractureSettings,
+        mesh: &TetMesh,
+        sim: &Simulation,
+        part: &Part,
+    ) -> Result<Box<dyn crate::run::FractureOnParts + '_>, SimError> {
+        let owners = self.owners.borrow().clone();
+        if owners.0.len() != part.nodes.len() || owners.1.len() != part.elements.len() {
+            return Err(SimError::Setup(
+                "fracture on a part other than the one shared out".into(),
+            ));
+        }
+        let fracture = run_fracture::RunFracture::new(
+            &self.world,
+            settings,
+            (mesh, sim, part),
+            owners,
+        );
+        Ok(Box::new(fracture))
+    }
+
     fn mesh_sharing(&self) -> Option<&dyn MeshSharing> {
         (!self.whole_mesh.get()).then_some(self)
     }
@@ -444,6 +470,7 @@ impl Processes for MpiProcesses {
         };
         let iterative = sim.settings.iterative();
         let solve = (iterative.tolerance, iterative.max_iterations);
+        *self.owners.borrow_mut() = (numbering.node_owner.clone(), numbering.element_part.clone());
         sim.distribute_heat(|system, free| {
             let share = heat::HeatProcessShare::new(
                 (&numbering, self.rank()),

@@ -34,7 +34,11 @@ use super::rebuild::{
 use super::splits::{candidates_in_order, try_split, SplitPart};
 use super::surface_hold::{SurfaceHold, ALLOWANCE_EDGES};
 use super::{largest, sum_in_order, MpiCollective};
-use crate::fracture::cracks::{crack_area, crack_faces, OriginalBoundary};
+use super::components::crack_ids;
+use crate::fracture::cracks::{
+    crack_area, crack_faces, polygon_sides, CrackSurface, OriginalBoundary,
+};
+use crate::run::{CrackTotals, FracturePart, CRACK_ROW};
 use crate::fracture::driver::{
     pressing_forces, retake, solved_history, RefusedNode, CONTINUE_ANGLE, MIN_ELEMENT_FRACTION,
 };
@@ -243,16 +247,82 @@ impl PartFracture {
         Ok(report)
     }
 
-    /// Total crack area at rest, one side (m²): the crack faces of the elements each process
-    /// evaluates, added over the processes. Every process of `world` calls it.
-    pub fn crack_area(&self, world: &SimpleCommunicator) -> Result<f64, SimError> {
+    /// The whole mesh's cracks: the crack faces of the elements each process evaluates,
+    /// their area and polygons, added over the processes. Every process of `world` calls it.
+    pub fn crack_totals(&self, world: &SimpleCommunicator) -> Result<CrackTotals, SimError> {
         let f = &self.held.mesh;
         let mesh = TetMesh::new(f.rest.clone(), f.tets.clone())
             .map_err(|e| SimError::Setup(format!("split part: {e}")))?;
         let own: Vec<_> = (crack_faces(&mesh, &self.held.origin, &self.original).into_iter())
             .filter(|c| self.held.part.own_elements[c.element])
             .collect();
-        Ok(sum_in_order(world, crack_area(&own, &mesh.rest)))
+        let scale = largest(world, mesh.rest.iter().map(|x| x.amax()).fold(0.0, f64::max));
+        let sides = polygon_sides(&own, &mesh.rest, &self.held.origin, scale);
+        Ok(CrackTotals {
+            faces: sum_in_order(world, own.len() as f64) as u64,
+            area: sum_in_order(world, crack_area(&own, &mesh.rest)),
+            polygons: (sum_in_order(world, sides as f64) as u64).div_ceil(2),
+        })
+    }
+
+    /// What a frame of `sim` (on [`PartFracture::part`]) holds of fracture on this process's
+    /// part (see [`FracturePart`]): the crack triangles drawn at the current positions as on
+    /// one process (the other side of a crack is in the ghost surface the part holds), with
+    /// the cracks numbered over the processes. Every process of `world` calls it.
+    pub fn frame_part(
+        &self,
+        world: &SimpleCommunicator,
+        sim: &Simulation,
+    ) -> Result<FracturePart, SimError> {
+        let part = &self.part;
+        // A ghost-surface element (not evaluated here, never written) stands in with the
+        // first element's scene element.
+        let origin: Vec<usize> = (part.elements.iter())
+            .map(|e| match self.held.part.elements.binary_search(e) {
+                Ok(h) => self.held.origin[h],
+                Err(_) => self.held.origin[0],
+            })
+            .collect();
+        let refused = (part.nodes.iter())
+            .flat_map(|i| match self.refused.get(i) {
+                None => [0.0; 4],
+                Some(r) => {
+                    let n = r.normal;
+                    [r.reason.code(), n.x, n.y, n.z]
+                }
+            })
+            .collect();
+        let mesh = &sim.model.mesh;
+        let faces = crack_faces(mesh, &origin, &self.original);
+        let own: Vec<usize> = (0..faces.len())
+            .filter(|&k| part.own_elements[faces[k].element])
+            .collect();
+        let own_faces: Vec<[usize; 3]> = own.iter().map(|&k| faces[k].nodes).collect();
+        let ids = crack_ids(world, &own_faces, (&mesh.rest, &part.nodes));
+        let positions: Vec<nalgebra::Vector3<f64>> =
+            sim.positions().iter().map(|&p| p.into()).collect();
+        let gap = self.settings.render_gap;
+        let surface = CrackSurface::new(&faces, &mesh.rest, &positions, gap);
+        let mut cracks = Vec::with_capacity(own.len() * CRACK_ROW);
+        for (&k, id) in own.iter().zip(ids) {
+            let mut key = faces[k].nodes.map(|i| part.nodes[i]);
+            key.sort_unstable();
+            cracks.extend(key.map(|i| i as f64));
+            cracks.push(id as f64);
+            for v in surface.triangles[k] {
+                cracks.extend(surface.vertices[v]);
+            }
+        }
+        let gaps = (sim.state.term_history.get(CRACK_GAPS).chunks_exact(3))
+            .filter(|r| part.owned_nodes[r[0] as usize])
+            .flat_map(|r| [part.nodes[r[0] as usize] as f64, part.nodes[r[1] as usize] as f64, r[2]])
+            .collect();
+        Ok(FracturePart {
+            origin: origin.iter().map(|&o| o as f64).collect(),
+            refused,
+            cracks,
+            gaps,
+        })
     }
 
     /// Whether the node `node` (the mesh's number), with separation `s`, is a candidate for

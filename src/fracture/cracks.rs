@@ -186,14 +186,24 @@ pub fn crack_area(faces: &[CrackFace], rest: &[Vector3<f64>]) -> f64 {
 /// groups there, one per side, and a crack along a face between two scene elements one in
 /// each; the count is half the number of groups, rounded up.
 pub fn crack_polygons(faces: &[CrackFace], rest: &[Vector3<f64>], origin: &[usize]) -> usize {
-    let Some(scale) = rest
-        .iter()
-        .map(|x| x.amax())
-        .reduce(f64::max)
-        .filter(|s| *s > 0.0)
-    else {
+    let scale = rest.iter().map(|x| x.amax()).fold(0.0, f64::max);
+    polygon_sides(faces, rest, origin, scale).div_ceil(2)
+}
+
+/// The groups [`crack_polygons`] counts (one per polygon and side) among `faces` of a mesh
+/// with rest positions `rest` and scene elements `origin`, whose largest rest coordinate
+/// (in magnitude) is `scale` (m): the faces of a scene element's children are in its groups
+/// only, so the processes holding parts of a mesh (each its own elements' faces, with the
+/// whole mesh's `scale`) count the whole mesh's groups between them.
+pub fn polygon_sides(
+    faces: &[CrackFace],
+    rest: &[Vector3<f64>],
+    origin: &[usize],
+    scale: f64,
+) -> usize {
+    if scale <= 0.0 {
         return 0;
-    };
+    }
     let quantum = 1e-9;
     let mut groups = std::collections::HashSet::new();
     for f in faces {
@@ -216,7 +226,7 @@ pub fn crack_polygons(faces: &[CrackFace], rest: &[Vector3<f64>], origin: &[usiz
         );
         groups.insert(key);
     }
-    groups.len().div_ceil(2)
+    groups.len()
 }
 
 /// Crack polygons (see [`crack_polygons`]) of a stored mesh made by splitting the elements of

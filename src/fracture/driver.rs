@@ -155,6 +155,16 @@ pub enum Refusal {
     PieceTooSmall,
 }
 
+impl Refusal {
+    /// Its code in a frame's `refused_split` rows (see [`Fracture::refusals_as_rows`]).
+    pub fn code(self) -> f64 {
+        match self {
+            Refusal::PlaneMissesStar => 1.0,
+            Refusal::PieceTooSmall => 2.0,
+        }
+    }
+}
+
 /// A node whose split was refused, and the crack normal it was refused for.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefusedNode {
@@ -315,13 +325,7 @@ impl Fracture {
         (0..nodes)
             .flat_map(|i| match self.refused.get(i).copied().flatten() {
                 None => [0.0; 4],
-                Some(r) => {
-                    let code = match r.reason {
-                        Refusal::PlaneMissesStar => 1.0,
-                        Refusal::PieceTooSmall => 2.0,
-                    };
-                    [code, r.normal.x, r.normal.y, r.normal.z]
-                }
+                Some(r) => [r.reason.code(), r.normal.x, r.normal.y, r.normal.z],
             })
             .collect()
     }

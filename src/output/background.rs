@@ -138,8 +138,8 @@ enum Job {
     Begin(Vec<StepStats>, Box<FrameLayout>),
     /// A block of rows of a frame's dataset: its index, the first row, the values.
     Rows(usize, usize, Vec<f64>),
-    /// The end of a frame written in blocks.
-    End,
+    /// The end of a frame written in blocks, with its crack surfaces and fields of rows.
+    End(Option<Box<CrackSurface>>, Vec<OwnedField>),
     /// `/stats` rows.
     Stats(Vec<StepStats>),
     /// The last `/stats` rows: finish the file.
@@ -220,9 +220,15 @@ impl BackgroundWriter {
         self.send(Job::Rows(column, first, values))
     }
 
-    /// Completes the open frame ([`OutputWriter::end_frame`]).
-    pub fn end_frame(&mut self) -> Result<(), OutputError> {
-        self.send(Job::End)?;
+    /// Completes the open frame with its crack surfaces `cracks` (fracture runs) and fields
+    /// of rows `row_fields` ([`OutputWriter::end_frame`]).
+    pub fn end_frame(
+        &mut self,
+        cracks: Option<CrackSurface>,
+        row_fields: &[Field],
+    ) -> Result<(), OutputError> {
+        let rows = OwnedField::copy(row_fields);
+        self.send(Job::End(cracks.map(Box::new), rows))?;
         self.frames += 1;
         Ok(())
     }
@@ -312,7 +318,9 @@ fn work(mut writer: OutputWriter, jobs: Receiver<Job>) -> Result<(), OutputError
                 writer.begin_frame(&frame)?;
             }
             Job::Rows(column, first, values) => writer.write_rows(column, first, &values)?,
-            Job::End => writer.end_frame()?,
+            Job::End(cracks, rows) => {
+                writer.end_frame(cracks.as_deref(), &OwnedField::borrow(&rows))?
+            }
             Job::Stats(rows) => append(&mut writer, rows)?,
             Job::Finish(rows) => {
                 append(&mut writer, rows)?;

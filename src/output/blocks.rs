@@ -6,10 +6,14 @@
 use hdf5::{Dataset, Group};
 
 use super::hdf5_io::{
-    chunk_rows, create_values, vlen_str, write_attr, write_rows, Hdf5Context, Stored,
+    check_cracks, chunk_rows, create_values, vlen_str, write_attr, write_cracks, write_rows,
+    write_values, Hdf5Context, Stored,
 };
 use super::xdmf::FrameRecord;
-use super::{check_field_name, invalid, FrameOptions, OutputError, OutputWriter, TENSORS};
+use super::{
+    check_field_name, invalid, Field, FrameOptions, OutputError, OutputWriter, TENSORS,
+};
+use crate::fracture::cracks::CrackSurface;
 
 /// Chunks of a dataset written in one block: 16 chunks of 64 Ki values, 8 MiB of doubles.
 const BLOCK_CHUNKS: usize = 16;
@@ -26,6 +30,10 @@ pub struct FrameLayout {
     /// Nodes and elements of the mesh (the current topology's).
     pub nodes: usize,
     pub elements: usize,
+    /// Whether the mesh changed since the last frame: the frame then holds its own
+    /// `rest_positions` and `tets` (their rows arrive in blocks as the fields' do), else it
+    /// links the last ones.
+    pub topology_changed: bool,
     /// Element fields besides the stress (name, columns).
     pub element_fields: Vec<(String, usize)>,
     /// Node fields besides positions and velocities (name, columns).
@@ -46,6 +54,11 @@ pub enum ColumnValues {
     /// A symmetric tensor — the stress, or a 6-column field by name — as 3 × 3 matrices, 9
     /// values a row ([`super::voigt_to_matrices`]).
     Matrices(String),
+    /// Rest positions (m), 3 a node: the mesh's, in a frame whose topology changed and in
+    /// the header's mesh.
+    RestPositions,
+    /// The nodes of each element (stored as integers), 4 an element: as `RestPositions`.
+    Tets,
 }
 
 /// One dataset of a frame written in blocks: what it holds, its shape, and how many rows go
@@ -70,9 +83,10 @@ pub struct FrameColumn {
 }
 
 /// The datasets of a frame laid out as `frame`, written with `options`, in the order they are
-/// written: positions, velocities, stress, the element and node fields, and with
-/// `options.tensor_matrices` the stress and every 6-column field as matrices. Every process
-/// of a distributed run computes the same list.
+/// written: positions, velocities, the mesh where its topology changed ([`mesh_columns`]),
+/// stress, the element and node fields, and with `options.tensor_matrices` the stress and
+/// every 6-column field as matrices. Every process of a distributed run computes the same
+/// list.
 pub fn frame_columns(frame: &FrameLayout, options: FrameOptions) -> Vec<FrameColumn> {
     let (n, m) = (frame.nodes, frame.elements);
     let column = |values, per_node, cols, dataset: String, center| {
@@ -90,8 +104,11 @@ pub fn frame_columns(frame: &FrameLayout, options: FrameOptions) -> Vec<FrameCol
     let mut columns = vec![
         column(ColumnValues::Positions, true, 3, "positions".into(), None),
         column(ColumnValues::Velocities, true, 3, "velocities".into(), None),
-        column(ColumnValues::Stress, false, 6, "stress".into(), None),
     ];
+    if frame.topology_changed {
+        columns.extend(mesh_columns(n, m));
+    }
+    columns.push(column(ColumnValues::Stress, false, 6, "stress".into(), None));
     let fields = [
         (&frame.element_fields, false, "Cell"),
         (&frame.node_fields, true, "Node"),
@@ -125,16 +142,15 @@ pub fn frame_columns(frame: &FrameLayout, options: FrameOptions) -> Vec<FrameCol
 /// in blocks (see [`super::HeaderMesh::InBlocks`]): `rest_positions` (a field of the nodes'
 /// rest positions, m) and `tets` (the elements' nodes, stored as integers), in that order.
 pub fn mesh_columns(nodes: usize, elements: usize) -> Vec<FrameColumn> {
-    let field = |name: &str| ColumnValues::Field(name.into());
     vec![
         FrameColumn::new(
-            (field("rest_positions"), true),
+            (ColumnValues::RestPositions, true),
             (nodes, 3),
             ("rest_positions".into(), Stored::Double),
             None,
         ),
         FrameColumn::new(
-            (field("tets"), false),
+            (ColumnValues::Tets, false),
             (elements, 4),
             ("tets".into(), Stored::Index),
             None,
@@ -172,8 +188,8 @@ pub(super) struct OpenFrame {
     datasets: Vec<Dataset>,
     /// Rows written so far, per dataset.
     written: Vec<usize>,
-    /// The frame's sidecar record; none for the header's mesh.
-    record: Option<FrameRecord>,
+    /// The frame's layout; none for the header's mesh.
+    layout: Option<FrameLayout>,
     /// What the frame adds to the file at most.
     bytes: u64,
 }
@@ -192,7 +208,7 @@ impl OpenFrame {
             written: vec![0; columns.len()],
             group,
             columns,
-            record: None,
+            layout: None,
             bytes: 0,
         })
     }
@@ -201,9 +217,9 @@ impl OpenFrame {
 impl OutputWriter {
     /// Begins a frame laid out as `frame` whose datasets' rows arrive in blocks
     /// ([`write_rows`](Self::write_rows), in any order) and which
-    /// [`end_frame`](Self::end_frame) completes. The mesh is the current topology's: its
-    /// `rest_positions` and `tets` are linked as for a frame whose topology did not change.
-    /// Fields are written anew in every such frame (none is linked to the last frame's).
+    /// [`end_frame`](Self::end_frame) completes. Unless its topology changed, the mesh is the
+    /// current topology's: its `rest_positions` and `tets` are linked to it. Fields are
+    /// written anew in every such frame (none is linked to the last frame's).
     pub fn begin_frame(&mut self, frame: &FrameLayout) -> Result<(), OutputError> {
         let path = self.location.clone();
         if self.open.is_some() {
@@ -212,7 +228,8 @@ impl OutputWriter {
                 "a frame or the header's mesh written in blocks is already open",
             ));
         }
-        if (frame.nodes, frame.elements) != (self.n_nodes, self.n_elems) {
+        let counts = (frame.nodes, frame.elements);
+        if !frame.topology_changed && counts != (self.n_nodes, self.n_elems) {
             return Err(invalid(
                 &path,
                 format!(
@@ -241,15 +258,10 @@ impl OutputWriter {
             .map(|(k, v)| (k.as_str(), *v))
             .collect();
         let group = self.start_frame_group(&file, &name, (frame.step, frame.time), &attributes)?;
-        self.link_topology(&file, &group)?;
+        if !frame.topology_changed {
+            self.link_topology(&file, &group)?;
+        }
         let datasets = create_datasets(&path, &group, &columns)?;
-        let record = FrameRecord::of_layout(
-            self.next_frame,
-            frame,
-            None,
-            self.options,
-            self.last_record(),
-        );
         // The next frame written at once must not link to this one's fields by the last
         // values kept (they are not kept for a frame written in blocks).
         self.last_fields = None;
@@ -259,7 +271,7 @@ impl OutputWriter {
             written: vec![0; columns.len()],
             columns,
             datasets,
-            record: Some(record),
+            layout: Some(frame.clone()),
             bytes,
         });
         Ok(())
@@ -291,17 +303,64 @@ impl OutputWriter {
                 ),
             ));
         }
+        // An element's nodes must be nodes of the mesh the frame holds (that they are
+        // indices at all is checked as they are stored).
+        let nodes = open.layout.as_ref().map_or(self.n_nodes, |l| l.nodes);
+        if c.values == ColumnValues::Tets && values.iter().any(|&x| x >= nodes as f64) {
+            return Err(invalid(
+                path,
+                format!("{}: an element's node is not one of the {nodes} nodes", c.dataset),
+            ));
+        }
         write_rows(path, ds, (first, c.cols), values, c.stored)?;
         open.written[column] += rows;
         Ok(())
     }
 
-    /// Completes the frame begun by [`begin_frame`](Self::begin_frame): an error, and no
-    /// frame, unless every row of every dataset was written.
-    pub fn end_frame(&mut self) -> Result<(), OutputError> {
+    /// Completes the frame begun by [`begin_frame`](Self::begin_frame), with its crack
+    /// surfaces `cracks` (fracture runs) and the fields of rows of any count `row_fields`
+    /// (see [`super::Frame::row_fields`]), written at once: an error, and no frame, unless
+    /// every row of every dataset was written and the crack surface is whole.
+    pub fn end_frame(
+        &mut self,
+        cracks: Option<&CrackSurface>,
+        row_fields: &[Field],
+    ) -> Result<(), OutputError> {
+        let path = self.location.clone();
+        if let Some(c) = cracks {
+            check_cracks(&path, c)?;
+        }
+        let mut seen = Vec::new();
+        for f in row_fields {
+            check_field_name(&path, "row", f.name, &mut seen)?;
+            if f.cols == 0 || !f.data.len().is_multiple_of(f.cols) {
+                let message = format!("row field {:?}: {} values", f.name, f.data.len());
+                return Err(invalid(&path, message));
+            }
+        }
         let open = self.take_written(true)?;
-        let record = open.record.expect("a frame's record");
+        let layout = open.layout.expect("a frame's layout");
         drop(open.datasets);
+        if let Some(c) = cracks {
+            write_cracks(&path, &open.group, &open.name, c, self.options.drawn_single)?;
+        }
+        for f in row_fields {
+            let shape = (f.name, f.data.len() / f.cols, f.cols);
+            let ds = write_values(&path, &open.group, shape, f.data, self.options.single(f.name))?;
+            write_attr(&path, &ds, "center", &vlen_str(&path, "center", "Rows")?)?;
+        }
+        let record = FrameRecord::of_layout(
+            self.next_frame,
+            &layout,
+            cracks,
+            self.options,
+            self.last_record(),
+        );
+        if layout.topology_changed {
+            self.topology = format!("/frames/{}", open.name);
+            self.unlinked_topology = Some(open.group.clone());
+            (self.n_nodes, self.n_elems) = (layout.nodes, layout.elements);
+        }
         let file = self.file()?.clone();
         self.frame_written(&file, (open.name, record, open.group), open.bytes)
     }
@@ -319,7 +378,7 @@ impl OutputWriter {
     /// dataset was written; left open if it is the other kind.
     fn take_written(&mut self, frame: bool) -> Result<OpenFrame, OutputError> {
         let path = self.location.clone();
-        match self.open.as_ref().map(|o| o.record.is_some()) {
+        match self.open.as_ref().map(|o| o.layout.is_some()) {
             None => return Err(invalid(&path, "no frame is open")),
             Some(true) if !frame => {
                 return Err(invalid(&path, "a frame is open, not the header's mesh"))
@@ -336,7 +395,7 @@ impl OutputWriter {
                 &path,
                 format!(
                     "{}: {w} of the {} rows of {} written",
-                    match open.record {
+                    match open.layout {
                         Some(_) => format!("frame {}", open.name),
                         None => "the header's /mesh".into(),
                     },

@@ -13,6 +13,7 @@ use hdf5::{Dataset, File, Group, H5Type};
 use ndarray::{ArrayView1, ArrayView2};
 
 use super::{corrupt, invalid, OutputError};
+use crate::fracture::cracks::CrackSurface;
 
 /// Marks the file's descriptor close-on-exec. HDF5 opens files without `O_CLOEXEC`, so a
 /// child process started while a file is open inherits the descriptor and keeps the file's lock
@@ -674,4 +675,40 @@ mod tests {
         let e = describe(&plain).unwrap_err();
         assert!(e.to_string().contains("icefem_version"), "{e}");
     }
+}
+
+/// Checks that crack surface `c` is whole: a crack id per triangle, its vertices' indices in
+/// range.
+pub(super) fn check_cracks(path: &Path, c: &CrackSurface) -> Result<(), OutputError> {
+    let k = c.vertices.len();
+    if c.crack.len() != c.triangles.len() || c.triangles.as_flattened().iter().any(|&i| i >= k) {
+        return Err(invalid(
+            path,
+            format!(
+                "crack surface: {} triangles, {} crack ids, indices must be < {k}",
+                c.triangles.len(),
+                c.crack.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Writes crack surface `c` into group `cracks` of frame group `g` (frame `name`); its
+/// vertices in single precision if `single`.
+pub(super) fn write_cracks(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    c: &CrackSurface,
+    single: bool,
+) -> Result<(), OutputError> {
+    let cg = g
+        .create_group("cracks")
+        .ctx(path, || format!("creating the cracks of frame {name}"))?;
+    let shape = ("vertices", c.vertices.len(), 3);
+    write_values(path, &cg, shape, c.vertices.as_flattened(), single)?;
+    write_indices(path, &cg, "triangles", &c.triangles)?;
+    let ids: Vec<[usize; 1]> = c.crack.iter().map(|&k| [k]).collect();
+    write_indices(path, &cg, "crack", &ids)
 }

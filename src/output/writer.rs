@@ -7,8 +7,8 @@ use hdf5::{Dataset, File, Group};
 
 use super::blocks::OpenFrame;
 use super::hdf5_io::{
-    check_tets, close_on_exec, link_dataset, link_object, vlen_str, write_attr, write_indices,
-    write_tets, write_values, write_vec3, Hdf5Context,
+    check_cracks, check_tets, close_on_exec, link_dataset, link_object, vlen_str, write_attr,
+    write_cracks, write_indices, write_tets, write_values, write_vec3, Hdf5Context,
 };
 use super::ownership::{check_target, partial_path, remove_stale_partials, take_place, RunLock};
 use super::xdmf::{write_sidecars, FrameRecord};
@@ -611,15 +611,7 @@ impl OutputWriter {
             write_tensor_matrices(&path, g, name, frame, options.drawn_single)?;
         }
         if let Some(c) = frame.cracks {
-            let cg = g
-                .create_group("cracks")
-                .ctx(&path, || format!("creating the cracks of frame {name}"))?;
-            let vertices = c.vertices.as_flattened();
-            let shape = ("vertices", c.vertices.len(), 3);
-            write_values(&path, &cg, shape, vertices, options.drawn_single)?;
-            write_indices(&path, &cg, "triangles", &c.triangles)?;
-            let ids: Vec<[usize; 1]> = c.crack.iter().map(|&k| [k]).collect();
-            write_indices(&path, &cg, "crack", &ids)?;
+            write_cracks(&path, g, name, c, options.drawn_single)?;
         }
         Ok(())
     }
@@ -699,19 +691,7 @@ impl OutputWriter {
             }
         }
         if let Some(c) = frame.cracks {
-            let k = c.vertices.len();
-            if c.crack.len() != c.triangles.len()
-                || c.triangles.as_flattened().iter().any(|&i| i >= k)
-            {
-                return Err(invalid(
-                    path,
-                    format!(
-                        "crack surface: {} triangles, {} crack ids, indices must be < {k}",
-                        c.triangles.len(),
-                        c.crack.len()
-                    ),
-                ));
-            }
+            check_cracks(path, c)?;
         }
         Ok(())
     }

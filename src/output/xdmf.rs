@@ -105,6 +105,7 @@ impl FrameRecord {
             attributes: Vec::new(),
             nodes: frame.positions.len(),
             elements: frame.tets.len(),
+            topology_changed: frame.topology_changed,
             element_fields: names(frame.element_fields),
             node_fields: names(frame.node_fields),
         };

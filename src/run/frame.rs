@@ -1,6 +1,7 @@
 //! Frames: what a run writes of its state at a step, on one process or gathered from the
 //! processes of a distributed run.
 
+use super::fracture_parts::{crack_surface, gap_rows, FractureOnParts, CRACK_ROW};
 use super::{as_rows, rows, Processes, RunError};
 use crate::fem;
 use crate::fracture::Fracture;
@@ -10,20 +11,21 @@ use crate::output::{
     FrameColumn, FrameLayout, FrameOptions, OutputError, OutputWriter,
 };
 use crate::physics::contact::ContactForces;
+use crate::physics::ice_contact::CRACK_GAPS;
 use crate::sim::part::Part;
 use crate::sim::{SimError, Simulation, State};
 
 /// Writes the current state of `sim` as a frame on the writing process (`writer`). In a
 /// distributed run whose processes hold parts of the mesh (`shared`: the processes, this
-/// one's part, the whole mesh), every process first gives its part of the state to the
-/// writing one.
+/// one's part, and its fracture where the run fractures on the parts), every process first
+/// gives its part of the state to the writing one.
 pub(super) fn emit_frame(
     writer: Option<&mut BackgroundWriter>,
     (sim, fracture): (&Simulation, Option<&Fracture>),
-    shared: Option<(&dyn Processes, &Part, (usize, usize))>,
+    shared: Option<SharedFrame>,
     (flags, options): (FrameFlags, FrameOptions),
 ) -> Result<(), RunError> {
-    let Some((processes, part, counts)) = shared else {
+    let Some(shared) = shared else {
         if let Some(writer) = writer {
             write_frame(
                 writer,
@@ -34,27 +36,39 @@ pub(super) fn emit_frame(
         }
         return Ok(());
     };
-    write_in_blocks(writer, sim, (processes, part, counts), flags, options)
+    write_in_blocks(writer, sim, shared, flags, options)
 }
 
-/// Writes the state of `sim`, whose mesh is this process's `part` of a mesh of `nodes` nodes
-/// and `elements` elements, as a frame on the
+/// What a process of a run whose processes hold parts of the mesh gives to a frame: the
+/// processes, its part, and its fracture where the run fractures on the parts.
+pub(super) type SharedFrame<'a> = (
+    &'a dyn Processes,
+    &'a Part,
+    Option<&'a dyn FractureOnParts>,
+);
+
+/// Writes the state of `sim`, whose mesh is this process's `part`, as a frame on the
 /// writing process (`writer`) of `processes`, in blocks of rows: every process computes its
 /// part's fields and, block by block, gives the rows of its owned nodes and own elements to
 /// the writing process, which places them in the block and hands the block to its writer.
 /// The writing process holds one block (at most 8 MiB of values) and one process's rows of
-/// it at a time besides its own part's fields.
+/// it at a time besides its own part's fields; with `fracture`, also the crack triangles
+/// and the crack gaps of every process.
 fn write_in_blocks(
     mut writer: Option<&mut BackgroundWriter>,
     sim: &Simulation,
-    (processes, part, (nodes, elements)): (&dyn Processes, &Part, (usize, usize)),
+    (processes, part, fracture): SharedFrame,
     flags: FrameFlags,
     options: FrameOptions,
 ) -> Result<(), RunError> {
     let source = FrameSource::of(sim);
-    let derived = DerivedFields::of(&source, None, options.derived_scalars);
-    let element_fields = element_fields(&source, &derived, false);
-    let node_fields = node_fields(&source, &derived, false);
+    let mut derived = DerivedFields::of(&source, None, options.derived_scalars);
+    let on_part = fracture.map(|f| f.frame_part(sim)).transpose()?;
+    if let Some(f) = &on_part {
+        (derived.origin, derived.refused) = (f.origin.clone(), f.refused.clone());
+    }
+    let element_fields = element_fields(&source, &derived, on_part.is_some());
+    let node_fields = node_fields(&source, &derived, on_part.is_some());
     let names = |fields: &[Field]| {
         fields
             .iter()
@@ -67,8 +81,9 @@ fn write_in_blocks(
         attributes: (frame_attributes(&sim.state, flags).into_iter())
             .map(|(name, value)| (name.to_string(), value))
             .collect(),
-        nodes,
-        elements,
+        nodes: part.whole_nodes(),
+        elements: part.whole_elements(),
+        topology_changed: flags.topology_changed && on_part.is_some(),
         element_fields: names(&element_fields),
         node_fields: names(&node_fields),
     };
@@ -77,7 +92,7 @@ fn write_in_blocks(
     let values = |column: &FrameColumn| {
         column_values(
             &column.values,
-            (&source, &derived),
+            (&source, &derived, part),
             (&element_fields, &node_fields),
         )
     };
@@ -90,12 +105,40 @@ fn write_in_blocks(
         }
         _ => gather_in_blocks(processes, rows, &values, None),
     };
+    // The crack triangles and gaps of every process, on the writing process.
+    let (mut cracks, mut gaps) = (Vec::new(), Vec::new());
+    if let Some(f) = on_part {
+        processes.gather_values(f.cracks, &mut |rows| {
+            cracks.extend(rows.as_chunks::<CRACK_ROW>().0.iter().copied())
+        });
+        processes.gather_values(f.gaps, &mut |rows| {
+            gaps.extend(rows.as_chunks::<3>().0.iter().copied())
+        });
+    }
     began.transpose()?;
     gathered?;
-    match writer {
-        Some(w) => Ok(w.end_frame()?),
-        None => Ok(()),
-    }
+    let Some(w) = writer else {
+        return Ok(());
+    };
+    let gaps = gap_rows(gaps);
+    let row_fields = match gaps.is_empty() {
+        true => Vec::new(),
+        false => vec![Field {
+            name: CRACK_GAPS,
+            cols: 3,
+            data: &gaps,
+        }],
+    };
+    let cracks = fracture.map(|_| crack_surface(cracks));
+    Ok(w.end_frame(cracks, &row_fields)?)
+}
+
+/// The elements of this process's `part`, whose mesh is `mesh` (numbered in the part), as
+/// rows of their nodes' numbers in the whole mesh.
+fn whole_tets(part: &Part, mesh: &TetMesh) -> Vec<f64> {
+    (mesh.tets.iter())
+        .flat_map(|t| t.map(|v| part.nodes[v] as f64))
+        .collect()
 }
 
 /// Writes the run header's mesh (`writer`'s, created with `HeaderMesh::InBlocks`) on the
@@ -113,9 +156,7 @@ pub(super) fn write_mesh_in_blocks(
     let values = |column: &FrameColumn| -> std::borrow::Cow<[f64]> {
         match column.per_node {
             true => mesh.rest.iter().flat_map(|x| [x.x, x.y, x.z]).collect(),
-            false => (mesh.tets.iter())
-                .flat_map(|t| t.map(|v| part.nodes[v] as f64))
-                .collect(),
+            false => whole_tets(part, mesh).into(),
         }
     };
     let rows = (&columns[..], (&given.0[..], &given.1[..]));
@@ -229,10 +270,10 @@ impl BlockRows {
     }
 }
 
-/// The values of a frame's dataset on a process's part, a row per part node or element.
+/// The values of a frame's dataset on a process's `part`, a row per part node or element.
 fn column_values<'a>(
     values: &ColumnValues,
-    (source, derived): (&'a FrameSource, &'a DerivedFields),
+    (source, derived, part): (&'a FrameSource, &'a DerivedFields, &Part),
     (element_fields, node_fields): (&'a [Field<'a>], &'a [Field<'a>]),
 ) -> std::borrow::Cow<'a, [f64]> {
     use std::borrow::Cow;
@@ -253,6 +294,8 @@ fn column_values<'a>(
             };
             Cow::Owned(voigt_to_matrices(voigt))
         }
+        ColumnValues::RestPositions => Cow::Borrowed(derived.rest.as_flattened()),
+        ColumnValues::Tets => Cow::Owned(whole_tets(part, source.mesh)),
     }
 }
 

@@ -1,13 +1,15 @@
 //! A whole run: scene → simulation → HDF5 frames, with resume and clean interruption.
 
+mod fracture_parts;
 mod frame;
 mod outcome;
 mod restore;
 mod surfaces;
 
+pub use fracture_parts::{CrackTotals, FractureOnParts, FracturePart, CRACK_ROW};
 pub use outcome::{FractureOutcome, Outcome};
 
-use crate::fracture::{Fracture, FractureReport};
+use crate::fracture::{Fracture, FractureReport, FractureSettings};
 use crate::output::{
     BackgroundWriter, FrameHead, FrameOptions, HeaderMesh, ObstacleMesh, OutputError, OutputWriter,
     ResumeFrame, RunHeader, StepStats,
@@ -18,7 +20,7 @@ use crate::scene::{Scene, SceneError};
 use crate::sim::part::Part;
 use crate::sim::{SimError, Simulation, StepReport, StepSettings};
 use crate::thermal::{Heat, HeatLink};
-use frame::{emit_frame, FrameFlags};
+use frame::{emit_frame, FrameFlags, SharedFrame};
 use restore::{restore, resumed_part};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -142,6 +144,18 @@ pub trait Processes {
             "these processes hold no ghost surface".into(),
         ))
     }
+    /// Fracture with `settings` of `sim`, built on this process's `part` of the scene's mesh
+    /// `mesh` and shared among the processes (see [`FractureOnParts`]). Every process calls
+    /// it.
+    fn part_fracture(
+        &self,
+        _settings: FractureSettings,
+        _mesh: &crate::mesh::TetMesh,
+        _sim: &Simulation,
+        _part: &Part,
+    ) -> Result<Box<dyn FractureOnParts + '_>, SimError> {
+        Err(SimError::NotDistributed("fracture on the processes' parts"))
+    }
     /// The processes building a scene on their parts of its mesh (see
     /// [`crate::scene::MeshSharing`]), if they do.
     fn mesh_sharing(&self) -> Option<&dyn crate::scene::MeshSharing> {
@@ -191,12 +205,26 @@ pub fn run_on(
         .output
         .clone()
         .unwrap_or_else(|| scene.output.clone());
-    let (mut sim, part) = simulation_for(scene, settings, processes)?;
+    let (mut sim, part) = simulation_for(scene, (settings, options.resume), processes)?;
     // The processes' parts, where they are not the whole mesh.
     let shared = processes
         .zip(part.as_ref())
         .filter(|(_, part)| !part.is_whole());
-    let mut fracture = scene.fracture.map(|f| Fracture::new(f, &sim.model.mesh));
+    // Fracture on the processes' parts where they hold parts, else on the mesh held.
+    let on_parts = match (shared, scene.fracture) {
+        (Some((processes, part)), Some(f)) => Some(
+            (processes.part_fracture(f, &scene.model.mesh, &sim, part)).map_err(|error| {
+                RunError::Setup {
+                    path: scene.path.clone(),
+                    error,
+                }
+            })?,
+        ),
+        _ => None,
+    };
+    let mut fracture = (scene.fracture)
+        .filter(|_| on_parts.is_none())
+        .map(|f| Fracture::new(f, &sim.model.mesh));
     let writes = processes.is_none_or(|p| p.writes());
     let writer = if options.resume {
         match shared {
@@ -253,7 +281,6 @@ pub fn run_on(
         }
         writer
     };
-    let counts = scene.counts();
     let shared = processes.zip(part).filter(|(_, part)| !part.is_whole());
     // Processes holding ghost surfaces gather them again from the whole model as the ice
     // moves; other runs let it go.
@@ -263,10 +290,11 @@ pub fn run_on(
         settings,
         end_time,
         processes,
-        shared: shared.map(|(p, part)| (p, part, counts)),
+        shared,
         whole: surface.then_some(whole),
         sim,
         fracture,
+        on_parts,
         writer: writer.map(BackgroundWriter::start),
         output,
     };
@@ -303,10 +331,11 @@ fn checked_times(scene: &Scene, options: &RunOptions) -> Result<(StepSettings, f
 }
 
 /// The simulation of `scene` (this process's part of it, shared among `processes` if given)
-/// with the heat model of `[thermal]` attached; the process's part, in a shared run.
+/// with the heat model of `[thermal]` attached; the process's part, in a shared run (the
+/// whole mesh where a `resumed` run needs it, see [`needs_whole_mesh`]).
 fn simulation_for(
     scene: &Scene,
-    settings: StepSettings,
+    (settings, resumed): (StepSettings, bool),
     processes: Option<&dyn Processes>,
 ) -> Result<(Simulation, Option<Part>), RunError> {
     let setup = |error| RunError::Setup {
@@ -333,7 +362,7 @@ fn simulation_for(
                     }
                     None => {
                         Simulation::check(&scene.model, &settings).map_err(setup)?;
-                        let whole_and_h = (needs_whole_mesh(scene), settings.dt);
+                        let whole_and_h = (needs_whole_mesh(scene, resumed), settings.dt);
                         (processes.part_model(&scene.model, whole_and_h)).map_err(setup)?
                     }
                 };
@@ -446,14 +475,17 @@ struct Run<'a> {
     /// End time (s).
     end_time: f64,
     processes: Option<&'a dyn Processes>,
-    /// The processes, this one's part and the whole mesh's node and element counts, where
-    /// the parts are not the whole mesh.
-    shared: Option<(&'a dyn Processes, Part, (usize, usize))>,
+    /// The processes and this one's part, where the parts are not the whole mesh (with
+    /// fracture on the parts, the part the run started on: `on_parts` holds the current one).
+    shared: Option<(&'a dyn Processes, Part)>,
     /// The scene, where the processes' parts hold ghost surfaces for ice–ice contact, which
     /// they gather again from its whole model as the ice moves.
     whole: Option<Scene>,
     sim: Simulation,
+    /// Fracture, where it splits the mesh the process holds (the whole mesh).
     fracture: Option<Fracture>,
+    /// Fracture on the processes' parts.
+    on_parts: Option<Box<dyn FractureOnParts + 'a>>,
     /// The output (on the writing process).
     writer: Option<BackgroundWriter>,
     output: PathBuf,
@@ -467,7 +499,7 @@ impl Run<'_> {
         emit_frame(
             self.writer.as_mut(),
             sim_and_fracture,
-            self.shared.as_ref().map(|(p, part, c)| (*p, part, *c)),
+            shared_frame(&self.shared, &self.on_parts),
             (flags, options),
         )
     }
@@ -534,14 +566,26 @@ impl Run<'_> {
             summary.steps += 1;
             summary.newton_iterations += report.newton.iterations as u64;
             summary.max_residual = summary.max_residual.max(report.newton.residual);
+            // The whole mesh's elements and cracks (a process's part of a distributed run
+            // holds only some).
+            let elements = match shared_frame(&self.shared, &self.on_parts) {
+                Some((_, part, _)) => part.whole_elements(),
+                None => self.sim.model.mesh.num_tets(),
+            };
+            let cracks = match (&self.on_parts, &self.fracture) {
+                (Some(f), _) => Some(f.crack_totals(&self.sim)?),
+                (None, Some(f)) => {
+                    let rest = &self.sim.model.mesh.rest;
+                    Some(CrackTotals {
+                        faces: f.faces.len() as u64,
+                        area: f.crack_area(rest),
+                        polygons: f.crack_polygons(rest) as u64,
+                    })
+                }
+                (None, None) => None,
+            };
             if let Some(writer) = &mut self.writer {
-                // A process's part of a distributed run holds only some of the elements.
-                let elements = match &self.shared {
-                    Some((_, _, (_, elements))) => *elements,
-                    None => self.sim.model.mesh.num_tets(),
-                };
-                let fracture = self.fracture.as_ref();
-                let row = stats_row((&self.sim, elements), &report, &cracked, fracture);
+                let row = stats_row((&self.sim, elements), &report, &cracked, cracks);
                 writer.append_stats(&row)?;
             }
             // Alike on every process: an interrupt on one stops them all after this step.
@@ -614,9 +658,10 @@ impl Run<'_> {
             Some(_) => sim.step_adaptive(limit)?,
             None => sim.step()?,
         };
-        let cracked = match &mut self.fracture {
-            Some(f) => f.after_step(sim)?,
-            None => FractureReport::default(),
+        let cracked = match (&mut self.fracture, &mut self.on_parts) {
+            (Some(f), _) => f.after_step(sim)?,
+            (None, Some(f)) => f.after_step(sim)?,
+            (None, None) => FractureReport::default(),
         };
         // Restart points are steps every run through this time takes, wherever it ends: on
         // their own grid of steps, or (adaptive steps, which end on the frame times) on the
@@ -650,6 +695,19 @@ impl Run<'_> {
     }
 }
 
+/// What this process gives to a frame where the processes hold parts (`shared`), with
+/// fracture on the parts (`on_parts`).
+fn shared_frame<'b>(
+    shared: &'b Option<(&dyn Processes, Part)>,
+    on_parts: &'b Option<Box<dyn FractureOnParts + '_>>,
+) -> Option<SharedFrame<'b>> {
+    let (processes, part) = shared.as_ref()?;
+    Some(match on_parts {
+        Some(f) => (*processes, f.part(), Some(&**f)),
+        None => (*processes, part, None),
+    })
+}
+
 /// Whether a frame is due after a step.
 struct FrameDue {
     /// The step is a restart point: the solver forgets its memory after it, and a frame
@@ -659,12 +717,15 @@ struct FrameDue {
     frame: bool,
 }
 
+/// The `/stats` row of the step `report` of `sim`, whose mesh has `elements` elements in
+/// all, and its fracture's: what the step `cracked`, and the `cracks` after it.
 fn stats_row(
     (sim, elements): (&Simulation, usize),
     report: &StepReport,
     cracked: &FractureReport,
-    fracture: Option<&Fracture>,
+    cracks: Option<CrackTotals>,
 ) -> StepStats {
+    let cracks = cracks.unwrap_or_default();
     let n = &report.newton;
     StepStats {
         step: sim.state.step,
@@ -687,15 +748,15 @@ fn stats_row(
         t_solve: n.t_solve,
         t_step: report.t_step,
         elements: elements as u64,
-        crack_faces: fracture.map_or(0, |f| f.faces.len() as u64),
+        crack_faces: cracks.faces,
         fracture_events: cracked.events.len() as u32,
         separation_stress: cracked.largest_stress,
         eligible_nodes: cracked.eligible_nodes as u64,
         nodes_above_toughness: cracked.nodes_above as u64,
         refused_nodes: cracked.refused_above as u64,
         refused_splits: cracked.refused as u32,
-        crack_area: fracture.map_or(0.0, |f| f.crack_area(&sim.model.mesh.rest)),
-        crack_polygons: fracture.map_or(0, |f| f.crack_polygons(&sim.model.mesh.rest) as u64),
+        crack_area: cracks.area,
+        crack_polygons: cracks.polygons,
         t_fracture: cracked.t_check + cracked.t_split,
         t_remesh: cracked.t_remesh,
         t_resolve: cracked.t_resolve,
@@ -751,12 +812,14 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
     rows
 }
 
-/// Whether a distributed run needs the whole mesh on every process: where fracture splits
-/// the mesh (every process finds and makes the same splits on it, see
-/// `Distribution::remeshed`) or the mesh has cracks already (a resumed fractured run: the
-/// pairs of copies on its cracks are carried from frame to frame by the whole mesh's node
-/// numbers).
-fn needs_whole_mesh(scene: &Scene) -> bool {
-    scene.fracture.is_some()
-        || (scene.model.ice_contact()).is_some_and(|c| !c.crack_sides().is_empty())
+/// Whether a distributed run needs the whole mesh on every process: where the mesh has
+/// cracks already, or fracture splits a mesh the processes' parts do not split — with heat
+/// conduction (carried over a split on the whole mesh only), with ice–ice contact from the
+/// start, or in a `resumed` run (which rebuilds its split mesh from the frame: the pairs of
+/// copies on its cracks are carried from frame to frame by the whole mesh's node numbers).
+/// Fracture otherwise runs on the parts (`distributed::part_fracture`).
+fn needs_whole_mesh(scene: &Scene, resumed: bool) -> bool {
+    let cracked = (scene.model.ice_contact()).is_some_and(|c| !c.crack_sides().is_empty());
+    let whole_fracture = scene.thermal.is_some() || scene.model.ice_contact().is_some() || resumed;
+    cracked || (scene.fracture.is_some() && whole_fracture)
 }

@@ -19,7 +19,17 @@ impl Run<'_> {
         &mut self,
         restarted: bool,
     ) -> Result<Option<(bool, f64)>, RunError> {
-        let (Some((processes, part, _)), Some(scene)) = (&self.shared, &self.whole) else {
+        if let Some(fracture) = &mut self.on_parts {
+            // Fracture on the parts holds its own ghost surface, as the ice moves. (A resumed
+            // fractured run holds the whole mesh: it has no restart points to meet here.)
+            if !fracture.surface_outgrown(&self.sim) {
+                return Ok(None);
+            }
+            let start = std::time::Instant::now();
+            fracture.gather_surface_again(&mut self.sim)?;
+            return Ok(Some((true, start.elapsed().as_secs_f64())));
+        }
+        let (Some((processes, part)), Some(scene)) = (&self.shared, &self.whole) else {
             return Ok(None);
         };
         let outgrown = processes.surface_outgrown(&self.sim, part);
@@ -59,7 +69,7 @@ impl Run<'_> {
         // The old simulation goes before the new one's share of the solver is made.
         self.sim = next;
         processes.distribute(&mut self.sim).map_err(setup)?;
-        if let Some((_, part, _)) = &mut self.shared {
+        if let Some((_, part)) = &mut self.shared {
             *part = next_part;
         }
         Ok(Some((outgrown, start.elapsed().as_secs_f64())))

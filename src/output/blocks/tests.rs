@@ -8,12 +8,17 @@ use hdf5::{File, Group};
 
 use super::super::test_support::{frame_data, hdf5_guard, header, FrameData};
 use super::super::{Field, Frame, FrameOptions, OutputWriter};
+use crate::fracture::cracks::CrackSurface;
 use super::{frame_columns, ColumnValues, FrameLayout};
 
 /// A "mesh" large enough for every frame dataset to be chunked and compressed (at least
 /// 2 048 values): 3 000 nodes and elements, the tets' indices valid but not a real mesh.
 fn large_mesh() -> (Vec<[f64; 3]>, Vec<[usize; 4]>) {
-    let n = 3000;
+    mesh_of(3000)
+}
+
+/// A "mesh" of `n` nodes and elements, as [`large_mesh`].
+fn mesh_of(n: usize) -> (Vec<[f64; 3]>, Vec<[usize; 4]>) {
     let rest = (0..n)
         .map(|i| [i as f64 / 7.0, (i % 13) as f64, 1.0 / (1.0 + i as f64)])
         .collect();
@@ -37,7 +42,19 @@ fn fields(d: &FrameData) -> ([Field<'_>; 2], [Field<'_>; 1]) {
 
 /// Writes frame `d` at once into a new file `path` with `options`.
 fn write_at_once(path: &Path, d: &FrameData, options: FrameOptions) {
-    let mut w = OutputWriter::create(path, &header(&d.rest, &d.tets)).unwrap();
+    write_at_once_after(path, (d, d), options, None);
+}
+
+/// Writes frame `d` at once into a new file `path` whose header holds the mesh of `first`,
+/// with `options`; a frame whose topology changed if the meshes differ, with crack surfaces
+/// `cracks`.
+fn write_at_once_after(
+    path: &Path,
+    (first, d): (&FrameData, &FrameData),
+    options: FrameOptions,
+    cracks: Option<&CrackSurface>,
+) {
+    let mut w = OutputWriter::create(path, &header(&first.rest, &first.tets)).unwrap();
     w.set_frame_options(options);
     let (ef, nf) = fields(d);
     w.write_frame(&Frame {
@@ -47,13 +64,13 @@ fn write_at_once(path: &Path, d: &FrameData, options: FrameOptions) {
         velocities: &d.vel,
         rest_positions: &d.rest,
         tets: &d.tets,
-        topology_changed: false,
+        topology_changed: first.rest.len() != d.rest.len(),
         stress: &d.stress,
         element_fields: &ef,
         node_fields: &nf,
         row_fields: &[],
         attributes: &[("restart_point", 1.0), ("next_dt", 1e-3)],
-        cracks: None,
+        cracks,
     })
     .unwrap();
     w.finish().unwrap();
@@ -69,6 +86,7 @@ fn layout(d: &FrameData) -> FrameLayout {
         attributes: vec![("restart_point".into(), 1.0), ("next_dt".into(), 1e-3)],
         nodes: d.rest.len(),
         elements: d.tets.len(),
+        topology_changed: false,
         element_fields: names(&ef),
         node_fields: names(&nf),
     }
@@ -82,6 +100,8 @@ fn values(d: &FrameData, column: &ColumnValues) -> Vec<f64> {
         ColumnValues::Positions => d.pos.as_flattened().to_vec(),
         ColumnValues::Velocities => d.vel.as_flattened().to_vec(),
         ColumnValues::Stress => d.stress.as_flattened().to_vec(),
+        ColumnValues::RestPositions => d.rest.as_flattened().to_vec(),
+        ColumnValues::Tets => d.tets.as_flattened().iter().map(|&v| v as f64).collect(),
         ColumnValues::Field(name) => field(name).to_vec(),
         ColumnValues::Matrices(name) => {
             let voigt = match name.as_str() {
@@ -96,9 +116,23 @@ fn values(d: &FrameData, column: &ColumnValues) -> Vec<f64> {
 /// Writes frame `d` in blocks into a new file `path` with `options`: each dataset in two
 /// blocks, the second half first.
 fn write_in_blocks(path: &Path, d: &FrameData, options: FrameOptions) {
-    let mut w = OutputWriter::create(path, &header(&d.rest, &d.tets)).unwrap();
+    write_in_blocks_after(path, (d, d), options, None);
+}
+
+/// Writes frame `d` in blocks into a new file `path` whose header holds the mesh of
+/// `first`, as [`write_at_once_after`].
+fn write_in_blocks_after(
+    path: &Path,
+    (first, d): (&FrameData, &FrameData),
+    options: FrameOptions,
+    cracks: Option<&CrackSurface>,
+) {
+    let mut w = OutputWriter::create(path, &header(&first.rest, &first.tets)).unwrap();
     w.set_frame_options(options);
-    let layout = layout(d);
+    let layout = FrameLayout {
+        topology_changed: first.rest.len() != d.rest.len(),
+        ..layout(d)
+    };
     w.begin_frame(&layout).unwrap();
     for (k, c) in frame_columns(&layout, options).iter().enumerate() {
         let v = values(d, &c.values);
@@ -106,7 +140,7 @@ fn write_in_blocks(path: &Path, d: &FrameData, options: FrameOptions) {
         w.write_rows(k, half, &v[half * c.cols..]).unwrap();
         w.write_rows(k, 0, &v[..half * c.cols]).unwrap();
     }
-    w.end_frame().unwrap();
+    w.end_frame(cracks, &[]).unwrap();
     w.finish().unwrap();
 }
 
@@ -133,6 +167,10 @@ fn assert_same_frame(a: &File, b: &File) {
     let names = datasets(&ga, "");
     assert_eq!(names, datasets(&gb, ""));
     assert!(names.contains(&"tensors/plastic_strain".to_string()));
+    for name in names.iter().filter(|n| n.contains("tets") || n.starts_with("cracks/t")) {
+        let indices = |g: &Group| g.dataset(name).unwrap().read_raw::<i64>().unwrap();
+        assert_eq!(indices(&ga), indices(&gb), "{name}");
+    }
     for name in &names {
         let (x, y) = (ga.dataset(name).unwrap(), gb.dataset(name).unwrap());
         assert_eq!(
@@ -143,7 +181,7 @@ fn assert_same_frame(a: &File, b: &File) {
         assert_eq!(x.shape(), y.shape(), "{name}");
         assert_eq!(x.chunk(), y.chunk(), "{name}");
         assert_eq!(x.filters(), y.filters(), "{name}");
-        if name != "tets" {
+        if !["tets", "cracks/triangles", "cracks/crack"].contains(&name.as_str()) {
             assert_eq!(
                 x.read_raw::<f64>().unwrap(),
                 y.read_raw::<f64>().unwrap(),
@@ -198,6 +236,46 @@ fn a_frame_written_in_blocks_is_the_frame_written_at_once() {
 }
 
 #[test]
+fn a_frame_of_a_changed_mesh_with_cracks_written_in_blocks_is_the_frame_written_at_once() {
+    // The mesh gains a node and an element (as a split makes), the frame holds its own
+    // rest positions and tets and two crack triangles.
+    let _guard = hdf5_guard();
+    let ((rest, tets), (more_rest, more_tets)) = (large_mesh(), mesh_of(3001));
+    let (first, d) = (frame_data(3, &rest, &tets), frame_data(4, &more_rest, &more_tets));
+    let cracks = CrackSurface {
+        vertices: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.5, 0.1]],
+        triangles: vec![[0, 1, 2], [1, 3, 2]],
+        crack: vec![0, 0],
+    };
+    let options = FrameOptions::default();
+    let (da, db) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let (pa, pb) = (da.path().join("run.h5"), db.path().join("run.h5"));
+    write_at_once_after(&pa, (&first, &d), options, Some(&cracks));
+    write_in_blocks_after(&pb, (&first, &d), options, Some(&cracks));
+    let (a, b) = (File::open(&pa).unwrap(), File::open(&pb).unwrap());
+    assert_same_frame(&a, &b);
+    let frame = b.group("frames/000000").unwrap();
+    assert_eq!(frame.dataset("rest_positions").unwrap().shape(), [3001, 3]);
+    assert_eq!(frame.dataset("cracks/triangles").unwrap().shape(), [2, 3]);
+    let sidecar = |p: &Path, ext| std::fs::read_to_string(p.with_extension(ext)).unwrap();
+    assert_eq!(sidecar(&pa, "xdmf"), sidecar(&pb, "xdmf"));
+    assert_eq!(sidecar(&pa, "cracks.xdmf"), sidecar(&pb, "cracks.xdmf"));
+    // An element naming a node the frame does not have is refused.
+    let pc = db.path().join("other.h5");
+    let mut w = OutputWriter::create(&pc, &header(&first.rest, &first.tets)).unwrap();
+    let layout = FrameLayout {
+        topology_changed: true,
+        ..layout(&d)
+    };
+    w.begin_frame(&layout).unwrap();
+    let columns = frame_columns(&layout, options);
+    let tets = columns.iter().position(|c| c.values == ColumnValues::Tets).unwrap();
+    let e = w.write_rows(tets, 0, &[0.0, 1.0, 2.0, 3001.0]).unwrap_err();
+    assert!(e.to_string().contains("not one of the 3001 nodes"), "{e}");
+    w.write_rows(tets, 0, &[0.0, 1.0, 2.0, 3000.0]).unwrap();
+}
+
+#[test]
 fn a_frame_missing_rows_or_given_misplaced_rows_is_refused() {
     let _guard = hdf5_guard();
     let (rest, tets) = large_mesh();
@@ -226,7 +304,7 @@ fn a_frame_missing_rows_or_given_misplaced_rows_is_refused() {
         let rows = if k == 0 { c.rows - 1 } else { c.rows };
         w.write_rows(k, 0, &v[..rows * c.cols]).unwrap();
     }
-    let e = w.end_frame().unwrap_err().to_string();
+    let e = w.end_frame(None, &[]).unwrap_err().to_string();
     assert!(e.contains("2999 of the 3000 rows of positions"), "{e}");
     assert_eq!(w.frame_count(), 0);
     w.finish().unwrap();
@@ -272,7 +350,7 @@ fn a_header_mesh_written_in_blocks_is_the_mesh_written_at_once() {
         w.write_rows(k, half, &flat[k][half * c.cols..]).unwrap();
         w.write_rows(k, 0, &flat[k][..half * c.cols]).unwrap();
     }
-    assert!(w.end_frame().is_err(), "the mesh is not a frame");
+    assert!(w.end_frame(None, &[]).is_err(), "the mesh is not a frame");
     w.end_mesh().unwrap();
     w.begin_frame(&layout).unwrap();
     for (k, c) in frame_columns(&layout, FrameOptions::default())
@@ -281,7 +359,7 @@ fn a_header_mesh_written_in_blocks_is_the_mesh_written_at_once() {
     {
         w.write_rows(k, 0, &values(&d, &c.values)).unwrap();
     }
-    w.end_frame().unwrap();
+    w.end_frame(None, &[]).unwrap();
     w.finish().unwrap();
     let (a, b) = (File::open(&pa).unwrap(), File::open(&pb).unwrap());
     for name in ["mesh/rest_positions", "mesh/tets"] {

@@ -1,0 +1,82 @@
+//! Fracture of a run whose processes each hold a part of the mesh: what the run needs of it
+//! (the driver is `distributed::part_fracture`, which the run reaches through
+//! [`super::Processes::part_fracture`]), and how a frame puts its pieces together.
+
+use crate::fracture::cracks::CrackSurface;
+use crate::fracture::FractureReport;
+use crate::sim::part::Part;
+use crate::sim::{SimError, Simulation};
+
+/// Fracture of a simulation held in parts by the processes of a run. Every process calls
+/// every method, in the same order.
+pub trait FractureOnParts {
+    /// Fractures `sim` after a converged step (as [`crate::fracture::Fracture::after_step`]
+    /// on one process); the report is the same on every process.
+    fn after_step(&mut self, sim: &mut Simulation) -> Result<FractureReport, SimError>;
+    /// The simulation's part: it changes with each split and each gathering of the ghost
+    /// surface.
+    fn part(&self) -> &Part;
+    /// Whether the ghost surface held no longer holds what the next step of `sim` needs
+    /// (alike on every process).
+    fn surface_outgrown(&self, sim: &Simulation) -> bool;
+    /// Gathers the ghost surface again at the state of `sim`, which continues on the new part.
+    fn gather_surface_again(&mut self, sim: &mut Simulation) -> Result<(), SimError>;
+    /// The whole mesh's cracks, on every process.
+    fn crack_totals(&self, sim: &Simulation) -> Result<CrackTotals, SimError>;
+    /// What a frame of `sim` holds of fracture on this process's part.
+    fn frame_part(&self, sim: &Simulation) -> Result<FracturePart, SimError>;
+}
+
+/// The cracks of the whole mesh.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CrackTotals {
+    /// Crack faces (both sides).
+    pub faces: u64,
+    /// Crack area at rest, one side (m²).
+    pub area: f64,
+    /// Crack polygons (see [`crate::fracture::cracks::crack_polygons`]).
+    pub polygons: u64,
+}
+
+/// What a frame holds of fracture on a process's part.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FracturePart {
+    /// The scene element each element of the part lies in (the frame's `origin`).
+    pub origin: Vec<f64>,
+    /// The refused splits of the part's nodes, 4 a node (the frame's `refused_split`; see
+    /// [`crate::fracture::Fracture::refusals_as_rows`]).
+    pub refused: Vec<f64>,
+    /// The crack triangles of this process's own elements, [`CRACK_ROW`] values each: the
+    /// face's nodes (the mesh's numbers, ascending: what orders the triangles as one process
+    /// does), its crack, its three vertices (m).
+    pub cracks: Vec<f64>,
+    /// The gaps of the pairs of crack copies whose first node this process owns, rows of
+    /// (p, q, g) with p, q the mesh's numbers (the frame's `crack_gaps`).
+    pub gaps: Vec<f64>,
+}
+
+/// Values of one crack triangle in [`FracturePart::cracks`].
+pub const CRACK_ROW: usize = 3 + 1 + 9;
+
+/// The crack surface of a frame put together from the processes' crack triangles
+/// ([`FracturePart::cracks`]), in the order one process writes them.
+pub fn crack_surface(mut rows: Vec<[f64; CRACK_ROW]>) -> CrackSurface {
+    rows.sort_by(|a, b| a[..3].iter().zip(&b[..3]).fold(std::cmp::Ordering::Equal, |o, (x, y)| o.then(x.total_cmp(y))));
+    let mut surface = CrackSurface::default();
+    for (k, row) in rows.iter().enumerate() {
+        surface.crack.push(row[3] as usize);
+        surface.triangles.push([3 * k, 3 * k + 1, 3 * k + 2]);
+        for v in 0..3 {
+            surface.vertices.push([row[4 + 3 * v], row[5 + 3 * v], row[6 + 3 * v]]);
+        }
+    }
+    surface
+}
+
+/// The rows of the crack gaps the processes gave ([`FracturePart::gaps`]), in the order of
+/// their pairs.
+pub fn gap_rows(mut rows: Vec<[f64; 3]>) -> Vec<f64> {
+    rows.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    rows.dedup_by(|a, b| a[..2] == b[..2]);
+    rows.into_iter().flatten().collect()
+}
