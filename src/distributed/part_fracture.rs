@@ -251,7 +251,7 @@ impl PartFracture {
     /// their area and polygons, added over the processes. Every process of `world` calls it.
     pub fn crack_totals(&self, world: &SimpleCommunicator) -> Result<CrackTotals, SimError> {
         let f = &self.held.mesh;
-        let mesh = TetMesh::new(f.rest.clone(), f.tets.clone())
+        let mesh = TetMesh::with_unused_nodes(f.rest.clone(), f.tets.clone())
             .map_err(|e| SimError::Setup(format!("split part: {e}")))?;
         let own: Vec<_> = (crack_faces(&mesh, &self.held.origin, &self.original).into_iter())
             .filter(|c| self.held.part.own_elements[c.element])
@@ -436,7 +436,8 @@ impl PartFracture {
         }
         let invalid = |e: crate::mesh::MeshError| SimError::Setup(format!("split part: {e}"));
         let held = &self.held;
-        let mesh = TetMesh::new(held.mesh.rest.clone(), held.mesh.tets.clone()).map_err(invalid)?;
+        let (rest, tets) = (held.mesh.rest.clone(), held.mesh.tets.clone());
+        let mesh = TetMesh::with_unused_nodes(rest, tets).map_err(invalid)?;
         let (piece, pieces) = connected_parts(world, &held.part, &mesh.tets, &held.node_owner);
         let cracks: Vec<[usize; 3]> = (crack_faces(&mesh, &held.origin, &self.original))
             .iter()
@@ -568,10 +569,14 @@ impl PartFracture {
             .collect();
         elements.sort_unstable();
         elements.dedup();
-        let mut nodes: Vec<usize> = (held.part.nodes.iter().copied())
-            .chain(ghost_nodes.keys().copied())
+        // The nodes its elements use: a split can leave the split part a node none of its
+        // elements uses (those it held around the node went to the node's copy), dropped.
+        let mut nodes: Vec<usize> = (held.mesh.tets.iter().flatten())
+            .map(|&k| held.part.nodes[k])
+            .chain(ghost.iter().flat_map(|(_, nodes)| *nodes))
             .collect();
         nodes.sort_unstable();
+        nodes.dedup();
         let in_held = |i: usize| held.part.local(i);
         let ghost_of = |e: usize| ghost.binary_search_by_key(&e, |(g, _)| *g).ok();
         let local = |i: usize| nodes.binary_search(&i).expect("a node of the next part");

@@ -55,6 +55,10 @@ impl<'a> RunFracture<'a> {
 }
 
 impl FractureOnParts for RunFracture<'_> {
+    fn settings(&self) -> FractureSettings {
+        self.fracture.settings
+    }
+
     fn after_step(&mut self, sim: &mut Simulation) -> Result<FractureReport, SimError> {
         self.fracture.after_step(self.world, sim)
     }
@@ -71,7 +75,7 @@ impl FractureOnParts for RunFracture<'_> {
         self.fracture.gather_surface_again(self.world, sim)
     }
 
-    fn crack_totals(&self, _sim: &Simulation) -> Result<CrackTotals, SimError> {
+    fn crack_totals(&self) -> Result<CrackTotals, SimError> {
         self.fracture.crack_totals(self.world)
     }
 

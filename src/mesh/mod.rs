@@ -136,6 +136,19 @@ impl TetMesh {
         Ok(mesh)
     }
 
+    /// Builds a mesh that may have nodes no tet uses, and checks it otherwise as
+    /// [`TetMesh::new`] does: a process's part of a split mesh, which can keep a node whose
+    /// elements it holds a split moved to the node's copy (for its faces and pieces; no model
+    /// is built on it).
+    pub fn with_unused_nodes(
+        rest: Vec<Vector3<f64>>,
+        tets: Vec<[usize; 4]>,
+    ) -> Result<Self, MeshError> {
+        let mesh = TetMesh { rest, tets };
+        mesh.check_elements(true)?;
+        Ok(mesh)
+    }
+
     /// Builds a mesh from plain arrays (see [`TetMesh::new`]).
     pub fn from_arrays(rest: &[[f64; 3]], tets: Vec<[usize; 4]>) -> Result<Self, MeshError> {
         Self::new(rest.iter().map(|p| Vector3::from(*p)).collect(), tets)
@@ -222,6 +235,11 @@ impl TetMesh {
     }
 
     fn check(&self) -> Result<(), MeshError> {
+        self.check_elements(false)
+    }
+
+    /// [`TetMesh::check`], nodes no tet uses let through if `unused_nodes`.
+    fn check_elements(&self, unused_nodes: bool) -> Result<(), MeshError> {
         let n = self.num_nodes();
         if n == 0 || self.tets.is_empty() {
             return Err(MeshError::Empty {
@@ -250,7 +268,7 @@ impl TetMesh {
                 used[v] = true;
             }
         }
-        if let Some(node) = used.iter().position(|u| !u) {
+        if let Some(node) = used.iter().position(|u| !u).filter(|_| !unused_nodes) {
             return Err(MeshError::Orphan { node });
         }
         // Degeneracy is judged against the mean element size so that the check is independent

@@ -3,13 +3,15 @@
 //! [`super::Processes::part_fracture`]), and how a frame puts its pieces together.
 
 use crate::fracture::cracks::CrackSurface;
-use crate::fracture::FractureReport;
+use crate::fracture::{FractureReport, FractureSettings};
 use crate::sim::part::Part;
 use crate::sim::{SimError, Simulation};
 
 /// Fracture of a simulation held in parts by the processes of a run. Every process calls
 /// every method, in the same order.
 pub trait FractureOnParts {
+    /// The parameters.
+    fn settings(&self) -> FractureSettings;
     /// Fractures `sim` after a converged step (as [`crate::fracture::Fracture::after_step`]
     /// on one process); the report is the same on every process.
     fn after_step(&mut self, sim: &mut Simulation) -> Result<FractureReport, SimError>;
@@ -22,7 +24,7 @@ pub trait FractureOnParts {
     /// Gathers the ghost surface again at the state of `sim`, which continues on the new part.
     fn gather_surface_again(&mut self, sim: &mut Simulation) -> Result<(), SimError>;
     /// The whole mesh's cracks, on every process.
-    fn crack_totals(&self, sim: &Simulation) -> Result<CrackTotals, SimError>;
+    fn crack_totals(&self) -> Result<CrackTotals, SimError>;
     /// What a frame of `sim` holds of fracture on this process's part.
     fn frame_part(&self, sim: &Simulation) -> Result<FracturePart, SimError>;
 }

@@ -90,7 +90,7 @@ pub struct RunSummary {
     /// held, and in all (also at restart points); and the time that took (s).
     pub surface_gatherings: (u64, u64, f64),
     /// What happened physically (on one process, or where every process holds the whole
-    /// mesh; empty for a run shared among parts).
+    /// mesh; for a run shared among parts, its fracture only).
     pub outcome: Outcome,
 }
 
@@ -539,8 +539,10 @@ impl Run<'_> {
         // Whether the last step ended on a restart point (the surfaces held for ice–ice
         // contact were gathered at the start of this invocation).
         let mut restarted = false;
-        let mut fracture_outcome = self.fracture.as_ref().map(|f| FractureOutcome {
-            toughness: f.settings.toughness,
+        let settings = (self.fracture.as_ref().map(|f| f.settings))
+            .or(self.on_parts.as_ref().map(|f| f.settings()));
+        let mut fracture_outcome = settings.map(|f| FractureOutcome {
+            toughness: f.toughness,
             yield_stress: self
                 .sim
                 .model
@@ -573,7 +575,7 @@ impl Run<'_> {
                 None => self.sim.model.mesh.num_tets(),
             };
             let cracks = match (&self.on_parts, &self.fracture) {
-                (Some(f), _) => Some(f.crack_totals(&self.sim)?),
+                (Some(f), _) => Some(f.crack_totals()?),
                 (None, Some(f)) => {
                     let rest = &self.sim.model.mesh.rest;
                     Some(CrackTotals {
@@ -614,11 +616,21 @@ impl Run<'_> {
         }
         summary.final_step = self.sim.state.step;
         summary.final_time = self.sim.state.time;
-        if self.shared.is_none() {
-            if let (Some(outcome), Some(fracture)) = (&mut fracture_outcome, &self.fracture) {
-                outcome.crack_area = fracture.crack_area(&self.sim.model.mesh.rest);
+        match (&self.on_parts, &self.fracture) {
+            // Every process's, from the sums over the parts.
+            (Some(on_parts), _) => {
+                if let Some(outcome) = &mut fracture_outcome {
+                    outcome.crack_area = on_parts.crack_totals()?.area;
+                }
+                summary.outcome.fracture = fracture_outcome;
             }
-            summary.outcome = Outcome::at_end(&self.sim, fracture_outcome);
+            (None, fracture) if self.shared.is_none() => {
+                if let (Some(outcome), Some(fracture)) = (&mut fracture_outcome, fracture) {
+                    outcome.crack_area = fracture.crack_area(&self.sim.model.mesh.rest);
+                }
+                summary.outcome = Outcome::at_end(&self.sim, fracture_outcome);
+            }
+            _ => {}
         }
         if let Some(writer) = self.writer {
             summary.frames = writer.frame_count();
