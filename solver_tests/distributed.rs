@@ -423,7 +423,10 @@ fn two_processes_crack_as_one(path: &Path, extra: &[&str], parts: bool) -> (f64,
     let split_nodes = frame_field(two, "rest_positions").last().unwrap().len() as u64 / 3;
     match parts {
         true => assert!(held.iter().all(|&h| h < split_nodes), "{report}"),
-        false => assert!(held.iter().all(|&h| h == split_nodes && h > total), "{report}"),
+        false => assert!(
+            held.iter().all(|&h| h == split_nodes && h > total),
+            "{report}"
+        ),
     }
     let (events1, events2) = (stat(one, "fracture_events"), stat(two, "fracture_events"));
     let first_split = events1.iter().position(|&e| e > 0.0).expect("it cracks") as u64 + 1;
@@ -458,9 +461,18 @@ fn two_processes_crack_as_one(path: &Path, extra: &[&str], parts: bool) -> (f64,
     assert!(diff <= 1e-8 * scale, "{name}: {diff:e} of {scale:e}");
     assert_eq!(events1, events2, "{name}: splits per step");
     for stat_name in ["crack_faces", "crack_polygons", "elements"] {
-        assert_eq!(stat(one, stat_name), stat(two, stat_name), "{name}: {stat_name}");
+        assert_eq!(
+            stat(one, stat_name),
+            stat(two, stat_name),
+            "{name}: {stat_name}"
+        );
     }
-    let triangles = |path: &Path| frame_values::<i64>(path, "cracks/crack").pop().unwrap().len();
+    let triangles = |path: &Path| {
+        frame_values::<i64>(path, "cracks/crack")
+            .pop()
+            .unwrap()
+            .len()
+    };
     assert_eq!(triangles(one), triangles(two), "{name}: crack triangles");
     (area1, area2)
 }
@@ -869,7 +881,12 @@ fn a_run_cracked_on_the_parts_resumed_on_two_continues_it_to_round_off() {
     }
     let diff = difference(&resumed, &whole);
     assert!(diff <= 1e-12, "{diff:e}\n{report}");
-    for name in ["elements", "fracture_events", "crack_faces", "crack_polygons"] {
+    for name in [
+        "elements",
+        "fracture_events",
+        "crack_faces",
+        "crack_polygons",
+    ] {
         assert_eq!(stat(&resumed, name), stat(&whole, name), "{name}");
     }
 }

@@ -445,12 +445,8 @@ impl Processes for MpiProcesses {
                 "fracture on a part other than the one shared out".into(),
             ));
         }
-        let fracture = run_fracture::RunFracture::new(
-            &self.world,
-            settings,
-            (mesh, sim, part),
-            owners,
-        );
+        let fracture =
+            run_fracture::RunFracture::new(&self.world, settings, (mesh, sim, part), owners);
         Ok(Box::new(fracture))
     }
 

@@ -26,6 +26,7 @@
 //! [`PartFracture::gather_surface_again`]), as for runs without fracture.
 
 use super::components::connected_parts;
+use super::components::crack_ids;
 use super::ghost_surface::{gathered, Surface};
 use super::node_halo::NodeHalo;
 use super::rebuild::{
@@ -34,11 +35,9 @@ use super::rebuild::{
 use super::splits::{candidates_in_order, try_split, SplitPart};
 use super::surface_hold::{SurfaceHold, ALLOWANCE_EDGES};
 use super::{largest, sum_in_order, MpiCollective};
-use super::components::crack_ids;
 use crate::fracture::cracks::{
     crack_area, crack_faces, polygon_sides, CrackSurface, OriginalBoundary,
 };
-use crate::run::{CrackTotals, FracturePart, CRACK_ROW};
 use crate::fracture::driver::{
     pressing_forces, retake, solved_history, RefusedNode, CONTINUE_ANGLE, MIN_ELEMENT_FRACTION,
 };
@@ -50,6 +49,7 @@ use crate::fracture::{
 use crate::mesh::TetMesh;
 use crate::physics::ice_contact::{IceContact, IceContactTerm, CRACK_GAPS};
 use crate::physics::term::TermHistory;
+use crate::run::{CrackTotals, FracturePart, CRACK_ROW};
 use crate::sim::integrator::SchemeState;
 use crate::sim::part::Part;
 use crate::sim::potential::Collective;
@@ -256,7 +256,10 @@ impl PartFracture {
         let own: Vec<_> = (crack_faces(&mesh, &self.held.origin, &self.original).into_iter())
             .filter(|c| self.held.part.own_elements[c.element])
             .collect();
-        let scale = largest(world, mesh.rest.iter().map(|x| x.amax()).fold(0.0, f64::max));
+        let scale = largest(
+            world,
+            mesh.rest.iter().map(|x| x.amax()).fold(0.0, f64::max),
+        );
         let sides = polygon_sides(&own, &mesh.rest, &self.held.origin, scale);
         Ok(CrackTotals {
             faces: sum_in_order(world, own.len() as f64) as u64,
@@ -315,7 +318,13 @@ impl PartFracture {
         }
         let gaps = (sim.state.term_history.get(CRACK_GAPS).chunks_exact(3))
             .filter(|r| part.owned_nodes[r[0] as usize])
-            .flat_map(|r| [part.nodes[r[0] as usize] as f64, part.nodes[r[1] as usize] as f64, r[2]])
+            .flat_map(|r| {
+                [
+                    part.nodes[r[0] as usize] as f64,
+                    part.nodes[r[1] as usize] as f64,
+                    r[2],
+                ]
+            })
             .collect();
         Ok(FracturePart {
             origin: origin.iter().map(|&o| o as f64).collect(),

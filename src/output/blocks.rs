@@ -10,9 +10,7 @@ use super::hdf5_io::{
     write_values, Hdf5Context, Stored,
 };
 use super::xdmf::FrameRecord;
-use super::{
-    check_field_name, invalid, Field, FrameOptions, OutputError, OutputWriter, TENSORS,
-};
+use super::{check_field_name, invalid, Field, FrameOptions, OutputError, OutputWriter, TENSORS};
 use crate::fracture::cracks::CrackSurface;
 
 /// Chunks of a dataset written in one block: 16 chunks of 64 Ki values, 8 MiB of doubles.
@@ -108,7 +106,13 @@ pub fn frame_columns(frame: &FrameLayout, options: FrameOptions) -> Vec<FrameCol
     if frame.topology_changed {
         columns.extend(mesh_columns(n, m));
     }
-    columns.push(column(ColumnValues::Stress, false, 6, "stress".into(), None));
+    columns.push(column(
+        ColumnValues::Stress,
+        false,
+        6,
+        "stress".into(),
+        None,
+    ));
     let fields = [
         (&frame.element_fields, false, "Cell"),
         (&frame.node_fields, true, "Node"),
@@ -309,7 +313,10 @@ impl OutputWriter {
         if c.values == ColumnValues::Tets && values.iter().any(|&x| x >= nodes as f64) {
             return Err(invalid(
                 path,
-                format!("{}: an element's node is not one of the {nodes} nodes", c.dataset),
+                format!(
+                    "{}: an element's node is not one of the {nodes} nodes",
+                    c.dataset
+                ),
             ));
         }
         write_rows(path, ds, (first, c.cols), values, c.stored)?;
@@ -346,7 +353,13 @@ impl OutputWriter {
         }
         for f in row_fields {
             let shape = (f.name, f.data.len() / f.cols, f.cols);
-            let ds = write_values(&path, &open.group, shape, f.data, self.options.single(f.name))?;
+            let ds = write_values(
+                &path,
+                &open.group,
+                shape,
+                f.data,
+                self.options.single(f.name),
+            )?;
             write_attr(&path, &ds, "center", &vlen_str(&path, "center", "Rows")?)?;
         }
         let record = FrameRecord::of_layout(

@@ -621,6 +621,42 @@ pub(super) fn list_frames(path: &Path, frames: &Group) -> Result<Vec<FrameEntry>
     Ok(out)
 }
 
+/// Checks that crack surface `c` is whole: a crack id per triangle, its vertices' indices in
+/// range.
+pub(super) fn check_cracks(path: &Path, c: &CrackSurface) -> Result<(), OutputError> {
+    let k = c.vertices.len();
+    if c.crack.len() != c.triangles.len() || c.triangles.as_flattened().iter().any(|&i| i >= k) {
+        return Err(invalid(
+            path,
+            format!(
+                "crack surface: {} triangles, {} crack ids, indices must be < {k}",
+                c.triangles.len(),
+                c.crack.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Writes crack surface `c` into group `cracks` of frame group `g` (frame `name`); its
+/// vertices in single precision if `single`.
+pub(super) fn write_cracks(
+    path: &Path,
+    g: &Group,
+    name: &str,
+    c: &CrackSurface,
+    single: bool,
+) -> Result<(), OutputError> {
+    let cg = g
+        .create_group("cracks")
+        .ctx(path, || format!("creating the cracks of frame {name}"))?;
+    let shape = ("vertices", c.vertices.len(), 3);
+    write_values(path, &cg, shape, c.vertices.as_flattened(), single)?;
+    write_indices(path, &cg, "triangles", &c.triangles)?;
+    let ids: Vec<[usize; 1]> = c.crack.iter().map(|&k| [k]).collect();
+    write_indices(path, &cg, "crack", &ids)
+}
+
 #[cfg(test)]
 mod tests {
     use hdf5::File;
@@ -675,40 +711,4 @@ mod tests {
         let e = describe(&plain).unwrap_err();
         assert!(e.to_string().contains("icefem_version"), "{e}");
     }
-}
-
-/// Checks that crack surface `c` is whole: a crack id per triangle, its vertices' indices in
-/// range.
-pub(super) fn check_cracks(path: &Path, c: &CrackSurface) -> Result<(), OutputError> {
-    let k = c.vertices.len();
-    if c.crack.len() != c.triangles.len() || c.triangles.as_flattened().iter().any(|&i| i >= k) {
-        return Err(invalid(
-            path,
-            format!(
-                "crack surface: {} triangles, {} crack ids, indices must be < {k}",
-                c.triangles.len(),
-                c.crack.len()
-            ),
-        ));
-    }
-    Ok(())
-}
-
-/// Writes crack surface `c` into group `cracks` of frame group `g` (frame `name`); its
-/// vertices in single precision if `single`.
-pub(super) fn write_cracks(
-    path: &Path,
-    g: &Group,
-    name: &str,
-    c: &CrackSurface,
-    single: bool,
-) -> Result<(), OutputError> {
-    let cg = g
-        .create_group("cracks")
-        .ctx(path, || format!("creating the cracks of frame {name}"))?;
-    let shape = ("vertices", c.vertices.len(), 3);
-    write_values(path, &cg, shape, c.vertices.as_flattened(), single)?;
-    write_indices(path, &cg, "triangles", &c.triangles)?;
-    let ids: Vec<[usize; 1]> = c.crack.iter().map(|&k| [k]).collect();
-    write_indices(path, &cg, "crack", &ids)
 }

@@ -63,13 +63,16 @@ pub const CRACK_ROW: usize = 3 + 1 + 9;
 /// The crack surface of a frame put together from the processes' crack triangles
 /// ([`FracturePart::cracks`]), in the order one process writes them.
 pub fn crack_surface(mut rows: Vec<[f64; CRACK_ROW]>) -> CrackSurface {
-    rows.sort_by(|a, b| a[..3].iter().zip(&b[..3]).fold(std::cmp::Ordering::Equal, |o, (x, y)| o.then(x.total_cmp(y))));
+    // A face's nodes are whole numbers below 2^53, exact as f64.
+    rows.sort_by_key(|r| [r[0], r[1], r[2]].map(|x| x as u64));
     let mut surface = CrackSurface::default();
     for (k, row) in rows.iter().enumerate() {
         surface.crack.push(row[3] as usize);
         surface.triangles.push([3 * k, 3 * k + 1, 3 * k + 2]);
         for v in 0..3 {
-            surface.vertices.push([row[4 + 3 * v], row[5 + 3 * v], row[6 + 3 * v]]);
+            surface
+                .vertices
+                .push([row[4 + 3 * v], row[5 + 3 * v], row[6 + 3 * v]]);
         }
     }
     surface
@@ -78,7 +81,35 @@ pub fn crack_surface(mut rows: Vec<[f64; CRACK_ROW]>) -> CrackSurface {
 /// The rows of the crack gaps the processes gave ([`FracturePart::gaps`]), in the order of
 /// their pairs.
 pub fn gap_rows(mut rows: Vec<[f64; 3]>) -> Vec<f64> {
-    rows.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    rows.sort_by_key(|r| [r[0], r[1]].map(|x| x as u64));
     rows.dedup_by(|a, b| a[..2] == b[..2]);
     rows.into_iter().flatten().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{crack_surface, gap_rows, CRACK_ROW};
+
+    #[test]
+    fn the_processes_crack_triangles_and_gaps_come_in_one_processs_order() {
+        // Two processes' triangles, given in process order: faces (4, 7, 9) and (1, 2, 8).
+        let row = |key: [f64; 3], crack: f64, x: f64| -> [f64; CRACK_ROW] {
+            let mut r = [0.0; CRACK_ROW];
+            r[..3].copy_from_slice(&key);
+            r[3] = crack;
+            r[4..].copy_from_slice(&[x; 9]);
+            r
+        };
+        let surface = crack_surface(vec![
+            row([4.0, 7.0, 9.0], 1.0, 0.5),
+            row([1.0, 2.0, 8.0], 0.0, 0.25),
+        ]);
+        assert_eq!(surface.crack, [0, 1]);
+        assert_eq!(surface.triangles, [[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(surface.vertices[0], [0.25; 3]);
+        assert_eq!(surface.vertices[5], [0.5; 3]);
+        // A pair given by two processes is written once, pairs by their nodes.
+        let gaps = gap_rows(vec![[5.0, 9.0, 0.1], [2.0, 3.0, 0.2], [5.0, 9.0, 0.1]]);
+        assert_eq!(gaps, [2.0, 3.0, 0.2, 5.0, 9.0, 0.1]);
+    }
 }

@@ -41,11 +41,7 @@ pub(super) fn emit_frame(
 
 /// What a process of a run whose processes hold parts of the mesh gives to a frame: the
 /// processes, its part, and its fracture where the run fractures on the parts.
-pub(super) type SharedFrame<'a> = (
-    &'a dyn Processes,
-    &'a Part,
-    Option<&'a dyn FractureOnParts>,
-);
+pub(super) type SharedFrame<'a> = (&'a dyn Processes, &'a Part, Option<&'a dyn FractureOnParts>);
 
 /// Writes the state of `sim`, whose mesh is this process's `part`, as a frame on the
 /// writing process (`writer`) of `processes`, in blocks of rows: every process computes its

@@ -8,8 +8,8 @@ use hdf5::{File, Group};
 
 use super::super::test_support::{frame_data, hdf5_guard, header, FrameData};
 use super::super::{Field, Frame, FrameOptions, OutputWriter};
-use crate::fracture::cracks::CrackSurface;
 use super::{frame_columns, ColumnValues, FrameLayout};
+use crate::fracture::cracks::CrackSurface;
 
 /// A "mesh" large enough for every frame dataset to be chunked and compressed (at least
 /// 2 048 values): 3 000 nodes and elements, the tets' indices valid but not a real mesh.
@@ -167,7 +167,10 @@ fn assert_same_frame(a: &File, b: &File) {
     let names = datasets(&ga, "");
     assert_eq!(names, datasets(&gb, ""));
     assert!(names.contains(&"tensors/plastic_strain".to_string()));
-    for name in names.iter().filter(|n| n.contains("tets") || n.starts_with("cracks/t")) {
+    for name in names
+        .iter()
+        .filter(|n| n.contains("tets") || n.starts_with("cracks/t"))
+    {
         let indices = |g: &Group| g.dataset(name).unwrap().read_raw::<i64>().unwrap();
         assert_eq!(indices(&ga), indices(&gb), "{name}");
     }
@@ -241,9 +244,17 @@ fn a_frame_of_a_changed_mesh_with_cracks_written_in_blocks_is_the_frame_written_
     // rest positions and tets and two crack triangles.
     let _guard = hdf5_guard();
     let ((rest, tets), (more_rest, more_tets)) = (large_mesh(), mesh_of(3001));
-    let (first, d) = (frame_data(3, &rest, &tets), frame_data(4, &more_rest, &more_tets));
+    let (first, d) = (
+        frame_data(3, &rest, &tets),
+        frame_data(4, &more_rest, &more_tets),
+    );
     let cracks = CrackSurface {
-        vertices: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.5, 0.1]],
+        vertices: vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.5, 0.5, 0.1],
+        ],
         triangles: vec![[0, 1, 2], [1, 3, 2]],
         crack: vec![0, 0],
     };
@@ -269,7 +280,10 @@ fn a_frame_of_a_changed_mesh_with_cracks_written_in_blocks_is_the_frame_written_
     };
     w.begin_frame(&layout).unwrap();
     let columns = frame_columns(&layout, options);
-    let tets = columns.iter().position(|c| c.values == ColumnValues::Tets).unwrap();
+    let tets = columns
+        .iter()
+        .position(|c| c.values == ColumnValues::Tets)
+        .unwrap();
     let e = w.write_rows(tets, 0, &[0.0, 1.0, 2.0, 3001.0]).unwrap_err();
     assert!(e.to_string().contains("not one of the 3001 nodes"), "{e}");
     w.write_rows(tets, 0, &[0.0, 1.0, 2.0, 3000.0]).unwrap();
