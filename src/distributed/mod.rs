@@ -450,6 +450,38 @@ impl Processes for MpiProcesses {
         Ok(Box::new(fracture))
     }
 
+    fn resumed_part_fracture(
+        &self,
+        settings: crate::fracture::FractureSettings,
+        (mesh, part): (&TetMesh, &Part),
+        whole: (Simulation, &crate::fracture::Fracture),
+    ) -> Result<(Box<dyn crate::run::FractureOnParts + '_>, Simulation), SimError> {
+        let (_, process) = &*self.owners.borrow();
+        if process.len() != part.elements.len() {
+            return Err(SimError::Setup(
+                "fracture on a part other than the one shared out".into(),
+            ));
+        }
+        // Every scene element's process, from the processes evaluating them.
+        let own: Vec<u64> = (part.elements.iter().zip(process))
+            .zip(&part.own_elements)
+            .filter(|(_, &own)| own)
+            .flat_map(|((&e, &p), _)| [e as u64, u64::from(p)])
+            .collect();
+        let mut scene_process = vec![0; mesh.num_tets()];
+        for pair in ghosts::all_gathered(&self.world, &own).chunks_exact(2) {
+            scene_process[pair[0] as usize] = pair[1] as u32;
+        }
+        let (fracture, sim) = run_fracture::RunFracture::resumed(
+            &self.world,
+            settings,
+            (mesh, part),
+            whole,
+            &scene_process,
+        )?;
+        Ok((Box::new(fracture), sim))
+    }
+
     fn mesh_sharing(&self) -> Option<&dyn MeshSharing> {
         (!self.whole_mesh.get()).then_some(self)
     }

@@ -51,6 +51,7 @@ use crate::physics::ice_contact::{IceContact, IceContactTerm, CRACK_GAPS};
 use crate::physics::term::TermHistory;
 use crate::run::{CrackTotals, FracturePart, CRACK_ROW};
 use crate::sim::integrator::SchemeState;
+use crate::sim::part::lowest_owners;
 use crate::sim::part::Part;
 use crate::sim::potential::Collective;
 use crate::sim::{SimError, Simulation, State};
@@ -150,6 +151,31 @@ impl PartFracture {
         world: &SimpleCommunicator,
         sim: &mut Simulation,
     ) -> Result<(), SimError> {
+        self.continue_on_held(world, sim, false)
+    }
+
+    /// Continues `sim` at a restart point on the part a resumed run makes from the split mesh
+    /// alone ([`PartFracture::resumed`]): this process's own elements (those of its scene
+    /// elements), every element around their nodes, and its ghost surface gathered at the
+    /// state of `sim`; numbered, owned and shared out as that part is. The elements a split
+    /// left beside the part (no longer around a node of its own) and the nodes no element
+    /// uses go. Every process of `world` calls it.
+    pub fn restart(
+        &mut self,
+        world: &SimpleCommunicator,
+        sim: &mut Simulation,
+    ) -> Result<(), SimError> {
+        self.continue_on_held(world, sim, true)
+    }
+
+    /// [`PartFracture::gather_surface_again`], and with `canonical` the split part first
+    /// made the one [`PartFracture::restart`] continues on.
+    fn continue_on_held(
+        &mut self,
+        world: &SimpleCommunicator,
+        sim: &mut Simulation,
+        canonical: bool,
+    ) -> Result<(), SimError> {
         self.carry_state_into_held(sim, None);
         let carried = SchemeState {
             fields: (sim.state.carried.fields.iter())
@@ -157,10 +183,69 @@ impl PartFracture {
                 .collect(),
             scalars: sim.state.carried.scalars.clone(),
         };
+        if canonical {
+            self.held = canonical_part(&self.held, world.rank() as u32);
+        }
         let mesh = &mut self.held.mesh;
         mesh.parent = (0..mesh.tets.len()).collect();
         mesh.node_parent = (0..mesh.rest.len()).collect();
         self.rebuild(world, sim, None, carried).map(|_| ())
+    }
+
+    /// Fracture with `settings` resumed from a frame on this process's part: `whole` is the
+    /// simulation of the split mesh the frame holds, on the whole mesh (not shared out), and
+    /// its [`crate::fracture::Fracture`] (the scene element each element lies in, the
+    /// refused splits); `scene_process` is the process of each scene element in the run's
+    /// partition, and `original`, `floors` and `solve` as in [`PartFracture::new`] (of the
+    /// run's part of the scene mesh). Each element goes to the process of its scene element
+    /// and each node to the lowest process among its elements', as the splits made them; the
+    /// part is then made and `whole` continued on it as [`PartFracture::restart`] does:
+    /// returned with the fracture. Every process of `world` calls it.
+    pub fn resumed(
+        world: &SimpleCommunicator,
+        (settings, original): (FractureSettings, OriginalBoundary),
+        (mut whole, fracture): (Simulation, &crate::fracture::Fracture),
+        scene_process: &[u32],
+        (min_piece, area_floor): (f64, f64),
+        solve: (f64, usize),
+    ) -> Result<(Self, Simulation), SimError> {
+        let rank = world.rank() as u32;
+        let mesh = &whole.model.mesh;
+        let process: Vec<u32> = fracture.origin.iter().map(|&o| scene_process[o]).collect();
+        let owners = lowest_owners(&mesh.tets, &process, mesh.num_nodes());
+        let part = Part::new(&mesh.tets, (&process, &owners), rank, (&[], false));
+        let (u, v) = (whole.state.u.clone(), whole.state.v.clone());
+        let split = Fracturable::new(mesh.rest.clone(), mesh.tets.clone(), u, v);
+        let held = SplitPart {
+            mesh: split.rows_of(&part),
+            node_owner: part.nodes.iter().map(|&i| owners[i]).collect(),
+            origin: part.elements.iter().map(|&e| fracture.origin[e]).collect(),
+            process: part.elements.iter().map(|&e| process[e]).collect(),
+            part,
+        };
+        // The refusals of the nodes this process owns.
+        let refused = (fracture.refused.iter().enumerate())
+            .filter_map(|(i, r)| Some((i, (*r)?)))
+            .filter(|(i, _)| owners[*i] == rank)
+            .collect();
+        // Until it is continued on its part, the simulation is the whole mesh's.
+        let all = Part::new(&mesh.tets, (&process, &owners), rank, (&[], true));
+        let mut resumed = PartFracture {
+            settings,
+            collective: MpiCollective::new(&held.part, &held.node_owner),
+            original,
+            refused,
+            min_piece,
+            area_floor,
+            halo: None,
+            hold: None,
+            node_owner: owners,
+            part: all,
+            held,
+            solve,
+        };
+        resumed.continue_on_held(world, &mut whole, false)?;
+        Ok((resumed, whole))
     }
 
     /// Fractures `sim` (on [`PartFracture::part`]) after a converged step, as
@@ -697,6 +782,68 @@ struct NextPart {
     /// Each node's parent in this part's numbering (the node it is a copy of, itself if none;
     /// `usize::MAX − k` for node `k` whose parent it does not hold).
     node_parent: Vec<usize>,
+}
+
+/// `held` as the part a resumed run makes from the split mesh alone (see
+/// [`PartFracture::restart`]) for process `rank`: its own elements, every element around
+/// their nodes, and those elements' nodes, in the mesh's order.
+fn canonical_part(held: &SplitPart, rank: u32) -> SplitPart {
+    let (part, mesh) = (&held.part, &held.mesh);
+    let mut near = vec![false; part.nodes.len()];
+    for (tet, _) in (mesh.tets.iter().zip(&part.own_elements)).filter(|(_, &own)| own) {
+        tet.iter().for_each(|&k| near[k] = true);
+    }
+    let elements: Vec<usize> = (0..mesh.tets.len())
+        .filter(|&k| mesh.tets[k].iter().any(|&i| near[i]))
+        .collect();
+    let mut used = vec![false; part.nodes.len()];
+    for &k in &elements {
+        mesh.tets[k].iter().for_each(|&i| used[i] = true);
+    }
+    let nodes: Vec<usize> = (0..part.nodes.len()).filter(|&i| used[i]).collect();
+    let mut number = vec![usize::MAX; part.nodes.len()];
+    for (n, &i) in nodes.iter().enumerate() {
+        number[i] = n;
+    }
+    let rows = |values: &[f64]| -> Vec<f64> {
+        (nodes.iter())
+            .flat_map(|&i| [values[3 * i], values[3 * i + 1], values[3 * i + 2]])
+            .collect()
+    };
+    let restricted = Fracturable {
+        rest: nodes.iter().map(|&i| mesh.rest[i]).collect(),
+        tets: (elements.iter())
+            .map(|&k| mesh.tets[k].map(|i| number[i]))
+            .collect(),
+        u: rows(&mesh.u),
+        v: rows(&mesh.v),
+        parent: (0..elements.len()).collect(),
+        node_parent: (0..nodes.len()).collect(),
+        extra: mesh.extra.iter().map(|field| rows(field)).collect(),
+        min_volume: mesh.min_volume,
+    };
+    let own_elements: Vec<bool> = elements.iter().map(|&k| part.own_elements[k]).collect();
+    debug_assert!(own_elements
+        .iter()
+        .zip(&elements)
+        .all(|(&own, &k)| own == (held.process[k] == rank)));
+    SplitPart {
+        part: Part::from_lists(
+            (
+                elements.iter().map(|&k| part.elements[k]).collect(),
+                nodes.iter().map(|&i| part.nodes[i]).collect(),
+            ),
+            (
+                own_elements,
+                nodes.iter().map(|&i| part.owned_nodes[i]).collect(),
+            ),
+            (part.whole_nodes(), part.whole_elements()),
+        ),
+        mesh: restricted,
+        node_owner: nodes.iter().map(|&i| held.node_owner[i]).collect(),
+        origin: elements.iter().map(|&k| held.origin[k]).collect(),
+        process: elements.iter().map(|&k| held.process[k]).collect(),
+    }
 }
 
 /// The crack gaps of `history` (rows p, q, g numbered in the part `old`) renumbered in the

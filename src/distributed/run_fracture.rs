@@ -5,7 +5,7 @@ use super::part_fracture::PartFracture;
 use super::splits::SplitPart;
 use crate::fracture::cracks::OriginalBoundary;
 use crate::fracture::split::Fracturable;
-use crate::fracture::{area_floor, FractureReport, FractureSettings};
+use crate::fracture::{area_floor, Fracture, FractureReport, FractureSettings};
 use crate::mesh::TetMesh;
 use crate::run::{CrackTotals, FractureOnParts, FracturePart};
 use crate::sim::part::Part;
@@ -37,21 +37,63 @@ impl<'a> RunFracture<'a> {
             process,
             part: part.clone(),
         };
-        let all_marks = mesh.boundary_marks();
-        let marks: Vec<u8> = part.elements.iter().map(|&e| all_marks[e]).collect();
-        let (lo, hi) = mesh.bounding_box();
-        let original = OriginalBoundary::of_part(
-            on_part,
-            (&part.elements, &marks),
-            mesh.num_tets(),
-            (hi - lo).norm(),
-        );
-        let floors = (mesh.volume() / mesh.num_tets() as f64, area_floor(mesh));
-        let iterative = sim.settings.iterative();
-        let solve = (iterative.tolerance, iterative.max_iterations);
+        let (original, floors) = of_scene(mesh, part);
+        let solve = solve_of(sim);
         let fracture = PartFracture::new(world, settings, (held, original), floors, solve);
         RunFracture { world, fracture }
     }
+
+    /// Fracture with `settings` resumed from a frame: `whole` is the simulation of the
+    /// frame's split mesh on the whole mesh and its fracture; this process's part of the
+    /// scene's mesh `mesh` is `part`, and `scene_process` the
+    /// process of each scene element (see [`PartFracture::resumed`]). Returns it with the
+    /// simulation continued on this process's part of the split mesh. Every process of
+    /// `world` calls it.
+    pub fn resumed(
+        world: &'a SimpleCommunicator,
+        settings: FractureSettings,
+        (mesh, part): (&TetMesh, &Part),
+        whole: (Simulation, &Fracture),
+        scene_process: &[u32],
+    ) -> Result<(Self, Simulation), SimError> {
+        let (original, floors) = of_scene(mesh, part);
+        let solve = solve_of(&whole.0);
+        let (fracture, sim) = PartFracture::resumed(
+            world,
+            (settings, original),
+            whole,
+            scene_process,
+            floors,
+            solve,
+        )?;
+        Ok((RunFracture { world, fracture }, sim))
+    }
+}
+
+/// The scene's boundary planes of this process's `part` of the scene mesh `mesh`, and the
+/// whole scene mesh's smallest piece (m³) and area floor (m²) (see [`PartFracture::new`]).
+fn of_scene(mesh: &TetMesh, part: &Part) -> (OriginalBoundary, (f64, f64)) {
+    let all_marks = mesh.boundary_marks();
+    let marks: Vec<u8> = part.elements.iter().map(|&e| all_marks[e]).collect();
+    let (lo, hi) = mesh.bounding_box();
+    let on_part = TetMesh {
+        rest: part.nodes.iter().map(|&i| mesh.rest[i]).collect(),
+        tets: part.tets_of(&mesh.tets),
+    };
+    let original = OriginalBoundary::of_part(
+        &on_part,
+        (&part.elements, &marks),
+        mesh.num_tets(),
+        (hi - lo).norm(),
+    );
+    let floors = (mesh.volume() / mesh.num_tets() as f64, area_floor(mesh));
+    (original, floors)
+}
+
+/// CG's relative tolerance and iteration cap of `sim`'s shared solver.
+fn solve_of(sim: &Simulation) -> (f64, usize) {
+    let iterative = sim.settings.iterative();
+    (iterative.tolerance, iterative.max_iterations)
 }
 
 impl FractureOnParts for RunFracture<'_> {
@@ -73,6 +115,10 @@ impl FractureOnParts for RunFracture<'_> {
 
     fn gather_surface_again(&mut self, sim: &mut Simulation) -> Result<(), SimError> {
         self.fracture.gather_surface_again(self.world, sim)
+    }
+
+    fn restart(&mut self, sim: &mut Simulation) -> Result<(), SimError> {
+        self.fracture.restart(self.world, sim)
     }
 
     fn crack_totals(&self) -> Result<CrackTotals, SimError> {

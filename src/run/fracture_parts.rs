@@ -23,6 +23,10 @@ pub trait FractureOnParts {
     fn surface_outgrown(&self, sim: &Simulation) -> bool;
     /// Gathers the ghost surface again at the state of `sim`, which continues on the new part.
     fn gather_surface_again(&mut self, sim: &mut Simulation) -> Result<(), SimError>;
+    /// Continues `sim` at a restart point on the part a run resumed there makes from the
+    /// frame alone (see [`super::Processes::resumed_part_fracture`]), so that the resumed
+    /// run is this one bit for bit.
+    fn restart(&mut self, sim: &mut Simulation) -> Result<(), SimError>;
     /// The whole mesh's cracks, on every process.
     fn crack_totals(&self) -> Result<CrackTotals, SimError>;
     /// What a frame of `sim` holds of fracture on this process's part.

@@ -156,6 +156,19 @@ pub trait Processes {
     ) -> Result<Box<dyn FractureOnParts + '_>, SimError> {
         Err(SimError::NotDistributed("fracture on the processes' parts"))
     }
+    /// Fracture with `settings` resumed from a frame (see [`FractureOnParts`]): `whole` is
+    /// the simulation of the frame's split mesh on the whole mesh, not shared out, and its
+    /// fracture; `part` is this process's part of the scene's mesh `mesh` (from
+    /// [`Processes::part_model`], shared out). Returns it with `whole` continued on this
+    /// process's part of the split mesh. Every process calls it.
+    fn resumed_part_fracture(
+        &self,
+        _settings: FractureSettings,
+        (_mesh, _part): (&crate::mesh::TetMesh, &Part),
+        _whole: (Simulation, &Fracture),
+    ) -> Result<(Box<dyn FractureOnParts + '_>, Simulation), SimError> {
+        Err(SimError::NotDistributed("fracture on the processes' parts"))
+    }
     /// The processes building a scene on their parts of its mesh (see
     /// [`crate::scene::MeshSharing`]), if they do.
     fn mesh_sharing(&self) -> Option<&dyn crate::scene::MeshSharing> {
@@ -205,13 +218,13 @@ pub fn run_on(
         .output
         .clone()
         .unwrap_or_else(|| scene.output.clone());
-    let (mut sim, part) = simulation_for(scene, (settings, options.resume), processes)?;
+    let (mut sim, part) = simulation_for(scene, settings, processes)?;
     // The processes' parts, where they are not the whole mesh.
     let shared = processes
         .zip(part.as_ref())
         .filter(|(_, part)| !part.is_whole());
     // Fracture on the processes' parts where they hold parts, else on the mesh held.
-    let on_parts = match (shared, scene.fracture) {
+    let mut on_parts = match (shared, scene.fracture) {
         (Some((processes, part)), Some(f)) => Some(
             (processes.part_fracture(f, &scene.model.mesh, &sim, part)).map_err(|error| {
                 RunError::Setup {
@@ -227,8 +240,44 @@ pub fn run_on(
         .map(|f| Fracture::new(f, &sim.model.mesh));
     let writes = processes.is_none_or(|p| p.writes());
     let writer = if options.resume {
-        match shared {
-            Some((processes, part)) => {
+        let on_parts_settings = scene.fracture.filter(|_| on_parts.is_some());
+        match (shared, on_parts_settings) {
+            // Fracture on the parts: the split mesh rebuilt whole from the frame, then shared.
+            (Some((processes, part)), Some(fracture_settings)) => {
+                let (writer, frame) = read_for_resume(
+                    (scene, &output),
+                    (Some(processes), processes.writes()),
+                    || OutputWriter::resume_until(&output, end_time),
+                    (ResumeFrame::to_bytes, ResumeFrame::from_bytes),
+                )?;
+                let setup = |error| RunError::Setup {
+                    path: scene.path.clone(),
+                    error,
+                };
+                let mut whole_fracture = Fracture::new(fracture_settings, &scene.model.mesh);
+                let mut whole = Simulation::new(scene.model.clone(), settings).map_err(setup)?;
+                restore(
+                    &mut whole,
+                    Some(&mut whole_fracture),
+                    &output,
+                    &frame,
+                    &scene.text,
+                )?;
+                drop(frame);
+                // The part's simulation and fracture go before the split mesh is shared out.
+                sim = whole;
+                drop(on_parts.take());
+                let (fracture, resumed) = processes
+                    .resumed_part_fracture(
+                        fracture_settings,
+                        (&scene.model.mesh, part),
+                        (sim, &whole_fracture),
+                    )
+                    .map_err(setup)?;
+                (sim, on_parts) = (resumed, Some(fracture));
+                writer
+            }
+            (Some((processes, part)), None) => {
                 let (writer, head) = read_for_resume(
                     (scene, &output),
                     (Some(processes), processes.writes()),
@@ -244,7 +293,7 @@ pub fn run_on(
                 restore(&mut sim, None, &output, &frame, &scene.text)?;
                 writer
             }
-            None => {
+            (None, _) => {
                 let (writer, frame) = read_for_resume(
                     (scene, &output),
                     (processes, writes),
@@ -331,11 +380,10 @@ fn checked_times(scene: &Scene, options: &RunOptions) -> Result<(StepSettings, f
 }
 
 /// The simulation of `scene` (this process's part of it, shared among `processes` if given)
-/// with the heat model of `[thermal]` attached; the process's part, in a shared run (the
-/// whole mesh where a `resumed` run needs it, see [`needs_whole_mesh`]).
+/// with the heat model of `[thermal]` attached; the process's part, in a shared run.
 fn simulation_for(
     scene: &Scene,
-    (settings, resumed): (StepSettings, bool),
+    settings: StepSettings,
     processes: Option<&dyn Processes>,
 ) -> Result<(Simulation, Option<Part>), RunError> {
     let setup = |error| RunError::Setup {
@@ -362,7 +410,7 @@ fn simulation_for(
                     }
                     None => {
                         Simulation::check(&scene.model, &settings).map_err(setup)?;
-                        let whole_and_h = (needs_whole_mesh(scene, resumed), settings.dt);
+                        let whole_and_h = (needs_whole_mesh(scene), settings.dt);
                         (processes.part_model(&scene.model, whole_and_h)).map_err(setup)?
                     }
                 };
@@ -825,13 +873,12 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
 }
 
 /// Whether a distributed run needs the whole mesh on every process: where the mesh has
-/// cracks already, or fracture splits a mesh the processes' parts do not split — with heat
-/// conduction (carried over a split on the whole mesh only), with ice–ice contact from the
-/// start, or in a `resumed` run (which rebuilds its split mesh from the frame: the pairs of
-/// copies on its cracks are carried from frame to frame by the whole mesh's node numbers).
-/// Fracture otherwise runs on the parts (`distributed::part_fracture`).
-fn needs_whole_mesh(scene: &Scene, resumed: bool) -> bool {
+/// cracks already (their pairs of copies come with the scene), or fracture splits a mesh
+/// the processes' parts do not split — with heat conduction (carried over a split on the
+/// whole mesh only) or with ice–ice contact from the start. Fracture otherwise runs on the
+/// parts (`distributed::part_fracture`).
+fn needs_whole_mesh(scene: &Scene) -> bool {
     let cracked = (scene.model.ice_contact()).is_some_and(|c| !c.crack_sides().is_empty());
-    let whole_fracture = scene.thermal.is_some() || scene.model.ice_contact().is_some() || resumed;
+    let whole_fracture = scene.thermal.is_some() || scene.model.ice_contact().is_some();
     cracked || (scene.fracture.is_some() && whole_fracture)
 }

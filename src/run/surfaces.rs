@@ -20,14 +20,17 @@ impl Run<'_> {
         restarted: bool,
     ) -> Result<Option<(bool, f64)>, RunError> {
         if let Some(fracture) = &mut self.on_parts {
-            // Fracture on the parts holds its own ghost surface, as the ice moves. (A resumed
-            // fractured run holds the whole mesh: it has no restart points to meet here.)
-            if !fracture.surface_outgrown(&self.sim) {
-                return Ok(None);
-            }
+            // Fracture on the parts holds its own ghost surface, gathered again as the ice
+            // moves; at a restart point on the part a run resumed there makes (see
+            // `FractureOnParts::restart`).
+            let outgrown = fracture.surface_outgrown(&self.sim);
             let start = std::time::Instant::now();
-            fracture.gather_surface_again(&mut self.sim)?;
-            return Ok(Some((true, start.elapsed().as_secs_f64())));
+            match (restarted, outgrown) {
+                (true, _) => fracture.restart(&mut self.sim)?,
+                (false, true) => fracture.gather_surface_again(&mut self.sim)?,
+                (false, false) => return Ok(None),
+            }
+            return Ok(Some((outgrown, start.elapsed().as_secs_f64())));
         }
         let (Some((processes, part)), Some(scene)) = (&self.shared, &self.whole) else {
             return Ok(None);
