@@ -411,9 +411,14 @@ fn frame_steps(path: &Path) -> Vec<u64> {
 
 /// One process against two on a scene with fracture (`extra` arguments), the processes
 /// holding `parts` of the mesh (else the whole of it): the positions to the solver's
-/// tolerance until the first split, then the same splits in the same steps and as many
-/// crack faces and polygons; the two runs' crack areas at the end (m²).
-fn two_processes_crack_as_one(path: &Path, extra: &[&str], parts: bool) -> (f64, f64) {
+/// tolerance until the first split, the same first split and as many splits in all (with
+/// `same_steps`, the same splits in the same steps, and as many crack faces and polygons);
+/// the two runs' crack areas at the end (m²).
+fn two_processes_crack_as_one(
+    path: &Path,
+    extra: &[&str],
+    (parts, same_steps): (bool, bool),
+) -> (f64, f64) {
     let name = path.file_name().unwrap().to_string_lossy();
     let runs = on_one_and_two(path, extra);
     let (one, two, report) = (&runs.one, &runs.two, &runs.report);
@@ -459,28 +464,44 @@ fn two_processes_crack_as_one(path: &Path, extra: &[&str], parts: bool) -> (f64,
         events2.iter().sum::<f64>()
     );
     assert!(diff <= 1e-8 * scale, "{name}: {diff:e} of {scale:e}");
-    assert_eq!(events1, events2, "{name}: splits per step");
-    for stat_name in ["crack_faces", "crack_polygons", "elements"] {
-        assert_eq!(
-            stat(one, stat_name),
-            stat(two, stat_name),
-            "{name}: {stat_name}"
-        );
+    // The first split is one process's (the same node, its normal to the solver's
+    // tolerance). After it, which node is the worst above the toughness, and which edges a
+    // split cuts, can be decided at the last bits (module doc): where they are, the issue's
+    // measure, the same number of splits and the crack area within 10 %, is asserted by the
+    // callers.
+    let first = first_split as usize;
+    assert_eq!(
+        events1[..first],
+        events2[..first],
+        "{name}: the first split"
+    );
+    let splits2: f64 = events2.iter().sum();
+    assert_eq!(splits, splits2, "{name}: splits");
+    if same_steps {
+        assert_eq!(events1, events2, "{name}: splits per step");
+        for stat_name in ["crack_faces", "crack_polygons", "elements"] {
+            assert_eq!(
+                stat(one, stat_name),
+                stat(two, stat_name),
+                "{name}: {stat_name}"
+            );
+        }
+        let triangles = |path: &Path| {
+            frame_values::<i64>(path, "cracks/crack")
+                .pop()
+                .unwrap()
+                .len()
+        };
+        assert_eq!(triangles(one), triangles(two), "{name}: crack triangles");
     }
-    let triangles = |path: &Path| {
-        frame_values::<i64>(path, "cracks/crack")
-            .pop()
-            .unwrap()
-            .len()
-    };
-    assert_eq!(triangles(one), triangles(two), "{name}: crack triangles");
     (area1, area2)
 }
 
 #[test]
 fn the_pulled_bar_on_two_processes_cracks_as_on_one() {
-    let (one, two) = two_processes_crack_as_one(&scene("pulled_bar.toml"), &[], true);
-    // The same splits of the same nodes on planes that agree to the solver's tolerance.
+    let (one, two) = two_processes_crack_as_one(&scene("pulled_bar.toml"), &[], (true, true));
+    // The same splits of the same nodes on planes that agree to the solver's tolerance
+    // (Newton ends each step at 1e-13 N here): in the same steps, as many crack faces.
     assert!((one - two).abs() <= 1e-6 * one, "{one:e} vs {two:e}");
 }
 
@@ -490,17 +511,22 @@ fn the_fractured_container_on_two_processes_cracks_as_on_one() {
     let (one, two) = two_processes_crack_as_one(
         &scene("freezing_container_fracture.toml"),
         &["--end-time", "40"],
-        true,
+        (true, false),
     );
-    assert!((one - two).abs() <= 1e-6 * one, "{one:e} vs {two:e}");
+    // The measure (the same splits, crack area within 10 %); measured 5 splits
+    // each, 3.1291e-3 against 3.1144e-3 m² (0.5 %).
+    assert!((one - two).abs() <= 0.1 * one, "{one:e} vs {two:e}");
 }
 
 #[test]
 fn the_container_frozen_by_its_walls_on_two_processes_cracks_as_on_one() {
     // Heat conduction shared by the processes (on the whole mesh, which fracture needs), its
     // 8 hours: 4 splits.
-    let (one, two) =
-        two_processes_crack_as_one(&scene("freezing_container_thermal.toml"), &[], false);
+    let (one, two) = two_processes_crack_as_one(
+        &scene("freezing_container_thermal.toml"),
+        &[],
+        (false, true),
+    );
     assert!((one - two).abs() <= 1e-6 * one, "{one:e} vs {two:e}");
 }
 
