@@ -24,6 +24,14 @@
 //! a split on the parts (refused). Between splits the ghost surface is gathered again when
 //! the ice has moved too far for it ([`PartFracture::surface_outgrown`],
 //! [`PartFracture::gather_surface_again`]), as for runs without fracture.
+//!
+//! A run resumed from a frame makes its part from the split mesh alone
+//! ([`PartFracture::resumed`]): an element goes to its scene element's process (children
+//! stay with their parent's), a node to the lowest process among its elements' (as splits
+//! give them), and a process holds its own elements and every element around their nodes.
+//! A split part also keeps elements no longer around a node of its own; so that the resumed
+//! run is the uninterrupted one bit for bit, the uninterrupted run continues at each restart
+//! point on the part the resumed one makes ([`PartFracture::restart`]).
 
 use super::components::connected_parts;
 use super::components::crack_ids;

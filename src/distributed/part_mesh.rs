@@ -49,7 +49,7 @@ pub enum Besides<'a> {
     /// elements of its ghost surface, see `super::ghost_surface`): the holders of their
     /// ranges send them.
     Asked(&'a [usize]),
-    /// Every element: each process holds the whole mesh (fracture splits it).
+    /// Every element: each process holds the whole mesh (fracture with heat splits it).
     All,
 }
 

@@ -18,8 +18,7 @@
 //! of a crack, another piece). [`super::ghost_surface`] gathers them; a part that also holds
 //! the elements of its ghost faces finds the whole boundary's pairs with the restricted term
 //! (tested by a step with contact); [`model_with_surface`] builds that term on a part holding
-//! them. [`super::part_fracture`] drives these after each split; a run does not yet, and a
-//! fractured run on several processes holds the whole mesh (docs/distributed.md).
+//! them. [`super::part_fracture`] drives these after each split (docs/distributed.md).
 
 use super::components::connected_parts;
 use super::ghost_surface::Surface;

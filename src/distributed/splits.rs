@@ -10,9 +10,7 @@
 //! its own part; the processes then find the smallest piece of the split mesh together, and
 //! a split that cuts off too small a piece is refused on every process, leaving the parts as
 //! they were. Checked on 3 processes against the whole mesh (`solver_tests/partition.rs`).
-//! [`super::part_fracture`] drives them after each step; a fractured run on several
-//! processes does not yet, and holds the whole mesh on each process and splits it there
-//! (docs/distributed.md).
+//! [`super::part_fracture`] drives them after each step (docs/distributed.md).
 
 use super::components::connected_parts;
 use super::ghosts::all_gathered;

@@ -99,7 +99,8 @@ impl SurfaceHold {
 /// The elements of this process's ghost surface within `reach` (m) of its owned boundary
 /// nodes (the whole mesh's numbers, ascending), the process holding `part` with mesh
 /// (`rest`, `tets`) at displacements `u` (m, 3 per node) and its nodes owned by
-/// `node_owner`. The mesh has no cracks (a fractured run holds the whole mesh). Every
+/// `node_owner`. The mesh has no cracks (fracture on the parts gathers its own ghost
+/// surface, `super::part_fracture`). Every
 /// process of `world` calls it.
 pub fn surface_elements(
     world: &SimpleCommunicator,

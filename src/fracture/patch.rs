@@ -14,9 +14,8 @@
 //! A patch can also be put together from the rows that processes holding parts of the mesh
 //! give ([`HeldMesh::patch_rows`], [`Patch::from_rows`]), and its split put into each
 //! process's part ([`Patch::apply_to_part`]); both are tested against the whole mesh on one
-//! process, and on three by `distributed::splits`, which makes splits on parts with them. A
-//! fractured run on several processes holds the whole mesh on each process and splits it
-//! there (docs/distributed.md).
+//! process, and on three by `distributed::splits`, which makes splits on parts with them
+//! (docs/distributed.md).
 
 use super::split::{Fracturable, NodeSplit};
 use crate::sim::part::Part;

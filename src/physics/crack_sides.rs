@@ -108,8 +108,8 @@ impl CrackSides {
     /// with a node the process owns has all its faces there (the part holds every element
     /// around an owned node, and a ghost surface the copies' faces); another pair's faces
     /// may be a part of its own, and its normal and gap then serve no pair this process
-    /// evaluates. The carried rows name the renamed nodes: a distributed run with cracks
-    /// holds the whole mesh on every process, numbered as the whole.
+    /// evaluates. The carried rows name the renamed nodes (fracture on the processes' parts
+    /// renumbers them itself, `distributed::part_fracture`).
     pub fn renumbered(&self, local: impl Fn(usize) -> Option<usize>) -> CrackSides {
         let faces = |faces: &[[usize; 3]]| -> Vec<[usize; 3]> {
             (faces.iter())

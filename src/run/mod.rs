@@ -21,7 +21,7 @@ use crate::sim::part::Part;
 use crate::sim::{SimError, Simulation, StepReport, StepSettings};
 use crate::thermal::{Heat, HeatLink};
 use frame::{emit_frame, FrameFlags, SharedFrame};
-use restore::{restore, resumed_part};
+use restore::{restore, resumed_on_parts, resumed_part};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -250,31 +250,14 @@ pub fn run_on(
                     || OutputWriter::resume_until(&output, end_time),
                     (ResumeFrame::to_bytes, ResumeFrame::from_bytes),
                 )?;
-                let setup = |error| RunError::Setup {
-                    path: scene.path.clone(),
-                    error,
-                };
-                let mut whole_fracture = Fracture::new(fracture_settings, &scene.model.mesh);
-                let mut whole = Simulation::new(scene.model.clone(), settings).map_err(setup)?;
-                restore(
-                    &mut whole,
-                    Some(&mut whole_fracture),
-                    &output,
-                    &frame,
-                    &scene.text,
+                let old = (sim, on_parts.take());
+                let resumed = resumed_on_parts(
+                    (scene, &output, &frame),
+                    (settings, fracture_settings),
+                    (processes, part),
+                    old,
                 )?;
-                drop(frame);
-                // The part's simulation and fracture go before the split mesh is shared out.
-                sim = whole;
-                drop(on_parts.take());
-                let (fracture, resumed) = processes
-                    .resumed_part_fracture(
-                        fracture_settings,
-                        (&scene.model.mesh, part),
-                        (sim, &whole_fracture),
-                    )
-                    .map_err(setup)?;
-                (sim, on_parts) = (resumed, Some(fracture));
+                (sim, on_parts) = (resumed.0, Some(resumed.1));
                 writer
             }
             (Some((processes, part)), None) => {

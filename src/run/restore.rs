@@ -1,18 +1,57 @@
 //! Resuming a run: the state of its last complete frame put back into a simulation.
 
-use super::{rows, Processes, RunError};
+use super::{rows, FractureOnParts, Processes, RunError};
 use crate::fem;
 use crate::fracture::split::Fracturable;
 use crate::fracture::Fracture;
+use crate::fracture::FractureSettings;
 use crate::mesh::TetMesh;
 use crate::output::{FrameHead, OutputError, OutputWriter, ResumeFrame};
+use crate::scene::Scene;
 use crate::sim::part::Part;
+use crate::sim::StepSettings;
 use crate::sim::{SchemeState, Simulation};
 use std::path::Path;
 
 /// Values in one block of a resumed frame's rows broadcast to every process: 1 Mi, 8 MiB of
 /// doubles.
 pub(super) const BLOCK_VALUES: usize = 1 << 20;
+
+/// A run of `scene` fracturing on the processes' parts resumed from `frame` (of the file
+/// `output`): the split mesh rebuilt whole from the frame as one process rebuilds it, then
+/// each process's part made from it alone and the simulation continued there (see
+/// [`Processes::resumed_part_fracture`]); this process's part of the scene's mesh is
+/// `part`. The `old` simulation and fracture (on the scene's part) go before the split
+/// mesh is shared out. Every process calls it.
+pub(super) fn resumed_on_parts<'p>(
+    (scene, output, frame): (&Scene, &Path, &crate::output::ResumeFrame),
+    (settings, fracture): (StepSettings, FractureSettings),
+    (processes, part): (&'p dyn Processes, &Part),
+    old: (Simulation, Option<Box<dyn FractureOnParts + 'p>>),
+) -> Result<(Simulation, Box<dyn FractureOnParts + 'p>), RunError> {
+    let setup = |error| RunError::Setup {
+        path: scene.path.clone(),
+        error,
+    };
+    let mut whole_fracture = Fracture::new(fracture, &scene.model.mesh);
+    let mut whole = Simulation::new(scene.model.clone(), settings).map_err(setup)?;
+    restore(
+        &mut whole,
+        Some(&mut whole_fracture),
+        output,
+        frame,
+        &scene.text,
+    )?;
+    drop(old);
+    let (on_parts, sim) = processes
+        .resumed_part_fracture(
+            fracture,
+            (&scene.model.mesh, part),
+            (whole, &whole_fracture),
+        )
+        .map_err(setup)?;
+    Ok((sim, on_parts))
+}
 
 /// This process's part `part` of the frame a distributed run resumes, whose `head` every
 /// process has: the writing process (the one with `writer`) reads each dataset of the frame a
