@@ -1840,7 +1840,7 @@ fn fracture_on_the_parts_makes_one_processs_splits() {
         same_splits += got.events.len();
     }
     let (area, want) = (
-        on_parts.crack_totals(&world).unwrap().area,
+        on_parts.crack_totals().area,
         whole_fracture.crack_area(&one.model.mesh.rest),
     );
     eprintln!(

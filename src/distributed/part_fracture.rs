@@ -44,7 +44,7 @@ use super::splits::{candidates_in_order, try_split, SplitPart};
 use super::surface_hold::{SurfaceHold, ALLOWANCE_EDGES};
 use super::{largest, sum_in_order, MpiCollective};
 use crate::fracture::cracks::{
-    crack_area, crack_faces, polygon_sides, CrackSurface, OriginalBoundary,
+    crack_area, crack_faces, polygon_sides, CrackFace, CrackSurface, OriginalBoundary,
 };
 use crate::fracture::driver::{
     pressing_forces, retake, solved_history, RefusedNode, CONTINUE_ANGLE, MIN_ELEMENT_FRACTION,
@@ -94,6 +94,8 @@ pub struct PartFracture {
     hold: Option<SurfaceHold>,
     /// CG's relative tolerance and iteration cap of the shared solver.
     solve: (f64, usize),
+    /// The whole mesh's cracks (none until the first split).
+    cracks: CrackTotals,
 }
 
 impl PartFracture {
@@ -125,6 +127,7 @@ impl PartFracture {
             node_owner,
             held,
             solve,
+            cracks: CrackTotals::default(),
         }
     }
 
@@ -251,6 +254,7 @@ impl PartFracture {
             part: all,
             held,
             solve,
+            cracks: CrackTotals::default(),
         };
         resumed.continue_on_held(world, &mut whole, false)?;
         Ok((resumed, whole))
@@ -340,25 +344,10 @@ impl PartFracture {
         Ok(report)
     }
 
-    /// The whole mesh's cracks: the crack faces of the elements each process evaluates,
-    /// their area and polygons, added over the processes. Every process of `world` calls it.
-    pub fn crack_totals(&self, world: &SimpleCommunicator) -> Result<CrackTotals, SimError> {
-        let f = &self.held.mesh;
-        let mesh = TetMesh::with_unused_nodes(f.rest.clone(), f.tets.clone())
-            .map_err(|e| SimError::Setup(format!("split part: {e}")))?;
-        let own: Vec<_> = (crack_faces(&mesh, &self.held.origin, &self.original).into_iter())
-            .filter(|c| self.held.part.own_elements[c.element])
-            .collect();
-        let scale = largest(
-            world,
-            mesh.rest.iter().map(|x| x.amax()).fold(0.0, f64::max),
-        );
-        let sides = polygon_sides(&own, &mesh.rest, &self.held.origin, scale);
-        Ok(CrackTotals {
-            faces: sum_in_order(world, own.len() as f64) as u64,
-            area: sum_in_order(world, crack_area(&own, &mesh.rest)),
-            polygons: (sum_in_order(world, sides as f64) as u64).div_ceil(2),
-        })
+    /// The whole mesh's cracks, as the last split or rebuild left them (see
+    /// [`PartFracture::rebuild`]): the same on every process.
+    pub fn crack_totals(&self) -> CrackTotals {
+        self.cracks
     }
 
     /// What a frame of `sim` (on [`PartFracture::part`]) holds of fracture on this process's
@@ -541,11 +530,10 @@ impl PartFracture {
         let (rest, tets) = (held.mesh.rest.clone(), held.mesh.tets.clone());
         let mesh = TetMesh::with_unused_nodes(rest, tets).map_err(invalid)?;
         let (piece, pieces) = connected_parts(world, &held.part, &mesh.tets, &held.node_owner);
-        let cracks: Vec<[usize; 3]> = (crack_faces(&mesh, &held.origin, &self.original))
-            .iter()
-            .map(|c| c.nodes)
-            .collect();
-        let contact = pieces >= 2 || largest(world, cracks.len() as f64) > 0.0;
+        let faces = crack_faces(&mesh, &held.origin, &self.original);
+        let cracks: Vec<[usize; 3]> = faces.iter().map(|c| c.nodes).collect();
+        let totals = crack_totals(world, (held, &mesh), faces);
+        let contact = pieces >= 2 || totals.faces > 0;
         let surface = contact.then(|| {
             let given = Surface::given(
                 &held.part,
@@ -639,6 +627,7 @@ impl PartFracture {
         );
         self.hold = reach.map(|reach| SurfaceHold::with_reach(reach, part, &sim.state.u));
         self.collective = collective;
+        self.cracks = totals;
         self.part = next.held.part;
         self.node_owner = next.held.node_owner;
         Ok(start)
@@ -790,6 +779,30 @@ struct NextPart {
     /// Each node's parent in this part's numbering (the node it is a copy of, itself if none;
     /// `usize::MAX − k` for node `k` whose parent it does not hold).
     node_parent: Vec<usize>,
+}
+
+/// The whole mesh's cracks from this process's split part `held` (its mesh `mesh`, numbered
+/// in the part) and the crack faces `faces` of that mesh: the faces of the elements each
+/// process evaluates, their area and polygons, added over the processes. Every process of
+/// `world` calls it.
+fn crack_totals(
+    world: &SimpleCommunicator,
+    (held, mesh): (&SplitPart, &TetMesh),
+    faces: Vec<CrackFace>,
+) -> CrackTotals {
+    let own: Vec<_> = (faces.into_iter())
+        .filter(|c| held.part.own_elements[c.element])
+        .collect();
+    let scale = largest(
+        world,
+        mesh.rest.iter().map(|x| x.amax()).fold(0.0, f64::max),
+    );
+    let sides = polygon_sides(&own, &mesh.rest, &held.origin, scale);
+    CrackTotals {
+        faces: sum_in_order(world, own.len() as f64) as u64,
+        area: sum_in_order(world, crack_area(&own, &mesh.rest)),
+        polygons: (sum_in_order(world, sides as f64) as u64).div_ceil(2),
+    }
 }
 
 /// `held` as the part a resumed run makes from the split mesh alone (see

@@ -121,8 +121,8 @@ impl FractureOnParts for RunFracture<'_> {
         self.fracture.restart(self.world, sim)
     }
 
-    fn crack_totals(&self) -> Result<CrackTotals, SimError> {
-        self.fracture.crack_totals(self.world)
+    fn crack_totals(&self) -> CrackTotals {
+        self.fracture.crack_totals()
     }
 
     fn frame_part(&self, sim: &Simulation) -> Result<FracturePart, SimError> {

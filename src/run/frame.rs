@@ -59,12 +59,15 @@ fn write_in_blocks(
 ) -> Result<(), RunError> {
     let source = FrameSource::of(sim);
     let mut derived = DerivedFields::of(&source, None, options.derived_scalars);
-    let on_part = fracture.map(|f| f.frame_part(sim)).transpose()?;
-    if let Some(f) = &on_part {
-        (derived.origin, derived.refused) = (f.origin.clone(), f.refused.clone());
+    // The crack triangles and gaps this process gives, where the run fractures on the parts.
+    let mut crack_rows = None;
+    if let Some(f) = fracture {
+        let part = f.frame_part(sim)?;
+        (derived.origin, derived.refused) = (part.origin, part.refused);
+        crack_rows = Some((part.cracks, part.gaps));
     }
-    let element_fields = element_fields(&source, &derived, on_part.is_some());
-    let node_fields = node_fields(&source, &derived, on_part.is_some());
+    let element_fields = element_fields(&source, &derived, fracture.is_some());
+    let node_fields = node_fields(&source, &derived, fracture.is_some());
     let names = |fields: &[Field]| {
         fields
             .iter()
@@ -79,7 +82,7 @@ fn write_in_blocks(
             .collect(),
         nodes: part.whole_nodes(),
         elements: part.whole_elements(),
-        topology_changed: flags.topology_changed && on_part.is_some(),
+        topology_changed: flags.topology_changed && fracture.is_some(),
         element_fields: names(&element_fields),
         node_fields: names(&node_fields),
     };
@@ -103,11 +106,11 @@ fn write_in_blocks(
     };
     // The crack triangles and gaps of every process, on the writing process.
     let (mut cracks, mut gaps) = (Vec::new(), Vec::new());
-    if let Some(f) = on_part {
-        processes.gather_values(f.cracks, &mut |rows| {
+    if let Some((my_cracks, my_gaps)) = crack_rows {
+        processes.gather_values(my_cracks, &mut |rows| {
             cracks.extend(rows.as_chunks::<CRACK_ROW>().0.iter().copied())
         });
-        processes.gather_values(f.gaps, &mut |rows| {
+        processes.gather_values(my_gaps, &mut |rows| {
             gaps.extend(rows.as_chunks::<3>().0.iter().copied())
         });
     }

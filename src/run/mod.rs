@@ -606,7 +606,7 @@ impl Run<'_> {
                 None => self.sim.model.mesh.num_tets(),
             };
             let cracks = match (&self.on_parts, &self.fracture) {
-                (Some(f), _) => Some(f.crack_totals()?),
+                (Some(f), _) => Some(f.crack_totals()),
                 (None, Some(f)) => {
                     let rest = &self.sim.model.mesh.rest;
                     Some(CrackTotals {
@@ -651,7 +651,7 @@ impl Run<'_> {
             // Every process's, from the sums over the parts.
             (Some(on_parts), _) => {
                 if let Some(outcome) = &mut fracture_outcome {
-                    outcome.crack_area = on_parts.crack_totals()?.area;
+                    outcome.crack_area = on_parts.crack_totals().area;
                 }
                 summary.outcome.fracture = fracture_outcome;
             }
