@@ -344,8 +344,8 @@ impl PartFracture {
         Ok(report)
     }
 
-    /// The whole mesh's cracks, as the last split or rebuild left them (see
-    /// [`PartFracture::rebuild`]): the same on every process.
+    /// The whole mesh's cracks, as the last split or gathering of the ghost surface left
+    /// them: the same on every process.
     pub fn crack_totals(&self) -> CrackTotals {
         self.cracks
     }
