@@ -455,6 +455,7 @@ impl Processes for MpiProcesses {
         settings: crate::fracture::FractureSettings,
         (mesh, part): (&TetMesh, &Part),
         whole: (Simulation, &crate::fracture::Fracture),
+        heat: Option<crate::thermal::HeatLink>,
     ) -> Result<(Box<dyn crate::run::FractureOnParts + '_>, Simulation), SimError> {
         let (_, process) = &*self.owners.borrow();
         if process.len() != part.elements.len() {
@@ -477,7 +478,7 @@ impl Processes for MpiProcesses {
             settings,
             (mesh, part),
             whole,
-            &scene_process,
+            (&scene_process, heat),
         )?;
         Ok((Box::new(fracture), sim))
     }

@@ -20,10 +20,15 @@
 //! Newton's tolerance, and so do the separations: the splits are one process's until two
 //! candidates' stresses are that close, or a split's crack plane passes that close to where
 //! it would cut another edge (a split is not continuous in its normal). Tested on three
-//! processes against one (`solver_tests/partition.rs`). Heat conduction is not carried over
-//! a split on the parts (refused). Between splits the ghost surface is gathered again when
-//! the ice has moved too far for it ([`PartFracture::surface_outgrown`],
-//! [`PartFracture::gather_surface_again`]), as for runs without fracture.
+//! processes against one (`solver_tests/partition.rs`). With heat conduction the heat model
+//! stays on the process's part of the scene's mesh, where it was set up (its pattern and
+//! share of the solver last the run), and a split part reads it by position as one process's
+//! split mesh reads the scene mesh's ([`crate::thermal::HeatLink::relinked`]): an element
+//! in its scene element, which lies in that part (every element around a node of an own
+//! element lies in a scene element around a node of an own scene element). Between splits
+//! the ghost surface is gathered again when the ice has moved too far for it
+//! ([`PartFracture::surface_outgrown`], [`PartFracture::gather_surface_again`]), as for runs
+//! without fracture.
 //!
 //! A run resumed from a frame makes its part from the split mesh alone
 //! ([`PartFracture::resumed`]): an element goes to its scene element's process (children
@@ -63,6 +68,7 @@ use crate::sim::part::lowest_owners;
 use crate::sim::part::Part;
 use crate::sim::potential::Collective;
 use crate::sim::{SimError, Simulation, State};
+use crate::thermal::HeatLink;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -96,6 +102,9 @@ pub struct PartFracture {
     solve: (f64, usize),
     /// The whole mesh's cracks (none until the first split).
     cracks: CrackTotals,
+    /// This process's part of the scene's mesh, on which the heat model (with `[thermal]`)
+    /// is solved through the run: a split part reads its temperatures by position.
+    heat_part: Part,
 }
 
 impl PartFracture {
@@ -115,6 +124,7 @@ impl PartFracture {
         let mesh = (&held.mesh.rest[..], &held.mesh.tets[..]);
         let halo = nonlocal_halo(world, &settings, &part, mesh, &node_owner);
         PartFracture {
+            heat_part: held.part.clone(),
             settings,
             collective: MpiCollective::new(&part, &node_owner),
             original,
@@ -176,7 +186,14 @@ impl PartFracture {
         world: &SimpleCommunicator,
         sim: &mut Simulation,
     ) -> Result<(), SimError> {
-        self.continue_on_held(world, sim, true)
+        self.continue_on_held(world, sim, true)?;
+        // With heat, the freeze states found again from the temperatures on the new part, as
+        // a resumed run finds them: those inherited were found on the part before, where a
+        // split's node outside the own elements may read its temperature in another
+        // element (the same value within round-off).
+        let temperature = sim.state.temperature.clone();
+        sim.set_temperature(temperature);
+        Ok(())
     }
 
     /// [`PartFracture::gather_surface_again`], and with `canonical` the split part first
@@ -210,13 +227,15 @@ impl PartFracture {
     /// partition, and `original`, `floors` and `solve` as in [`PartFracture::new`] (of the
     /// run's part of the scene mesh). Each element goes to the process of its scene element
     /// and each node to the lowest process among its elements', as the splits made them; the
-    /// part is then made and `whole` continued on it as [`PartFracture::restart`] does:
-    /// returned with the fracture. Every process of `world` calls it.
+    /// part is then made and `whole` continued on it as [`PartFracture::restart`] does,
+    /// with the heat model `heat` (with `[thermal]`: on this process's part `heat_part` of the
+    /// scene's mesh, at the frame's temperatures): returned with the fracture. Every process
+    /// of `world` calls it.
     pub fn resumed(
         world: &SimpleCommunicator,
         (settings, original): (FractureSettings, OriginalBoundary),
         (mut whole, fracture): (Simulation, &crate::fracture::Fracture),
-        scene_process: &[u32],
+        (scene_process, heat_part, heat): (&[u32], Part, Option<HeatLink>),
         (min_piece, area_floor): (f64, f64),
         solve: (f64, usize),
     ) -> Result<(Self, Simulation), SimError> {
@@ -255,8 +274,14 @@ impl PartFracture {
             held,
             solve,
             cracks: CrackTotals::default(),
+            heat_part,
         };
         resumed.continue_on_held(world, &mut whole, false)?;
+        if let Some(link) = heat {
+            let origin = resumed.part_origins();
+            let on_part = (&whole.model.mesh, &resumed.part, &origin[..]);
+            whole.attach_heat(heat_on_part(link, on_part, &resumed.heat_part)?);
+        }
         Ok((resumed, whole))
     }
 
@@ -360,14 +385,7 @@ impl PartFracture {
         sim: &Simulation,
     ) -> Result<FracturePart, SimError> {
         let part = &self.part;
-        // A ghost-surface element (not evaluated here, never written) stands in with the
-        // first element's scene element.
-        let origin: Vec<usize> = (part.elements.iter())
-            .map(|e| match self.held.part.elements.binary_search(e) {
-                Ok(h) => self.held.origin[h],
-                Err(_) => self.held.origin[0],
-            })
-            .collect();
+        let origin = self.part_origins();
         let refused = (part.nodes.iter())
             .flat_map(|i| match self.refused.get(i) {
                 None => [0.0; 4],
@@ -414,6 +432,20 @@ impl PartFracture {
             cracks,
             gaps,
         })
+    }
+
+    /// The scene element of each element of the simulation's part: a ghost-surface element
+    /// (never evaluated here) stands in with the split part's first own element's, as
+    /// [`PartFracture::with_surface`] gives it.
+    fn part_origins(&self) -> Vec<usize> {
+        let held = &self.held;
+        let first_own = held.part.own_elements.iter().position(|&o| o).unwrap_or(0);
+        (self.part.elements.iter())
+            .map(|e| match held.part.elements.binary_search(e) {
+                Ok(h) => held.origin[h],
+                Err(_) => held.origin[first_own],
+            })
+            .collect()
     }
 
     /// Whether the node `node` (the mesh's number), with separation `s`, is a candidate for
@@ -520,11 +552,6 @@ impl PartFracture {
         start: Option<State>,
         carried: SchemeState,
     ) -> Result<Option<State>, SimError> {
-        if sim.heat().is_some() {
-            return Err(SimError::NotDistributed(
-                "heat conduction with fracture on the processes' parts",
-            ));
-        }
         let invalid = |e: crate::mesh::MeshError| SimError::Setup(format!("split part: {e}"));
         let held = &self.held;
         let (rest, tets) = (held.mesh.rest.clone(), held.mesh.tets.clone());
@@ -576,8 +603,12 @@ impl PartFracture {
             values
         };
         let parent = &next.held.mesh.parent;
-        let state = &sim.state;
         let mut on_next = Simulation::for_part(model, sim.settings)?;
+        let held_next = (&next.held.part, &next.held.origin[..]);
+        sim.hand_heat_to(&mut on_next, parent, |link, mesh| {
+            heat_on_part(link, (mesh, held_next.0, held_next.1), &self.heat_part)
+        })?;
+        let state = &sim.state;
         on_next.state = State {
             u: from_owners(&held.mesh.u),
             v: from_owners(&held.mesh.v),
@@ -767,6 +798,34 @@ impl PartFracture {
             node_parent,
         }
     }
+}
+
+/// The heat model's `link` (on this process's part `heat_part` of the scene's mesh) to the
+/// mechanics `mesh` of the part `part`, whose elements lie in the scene elements `origin`:
+/// a node of the scene's mesh reads the heat model's node, another (a split's) its
+/// position in the scene element of its first element. Every element lies in a scene
+/// element of `heat_part`: a split part's element in its scene element, within the ring
+/// around the part's own scene elements; a ghost-surface element stands in with an own one.
+fn heat_on_part(
+    link: HeatLink,
+    (mesh, part, origin): (&TetMesh, &Part, &[usize]),
+    heat_part: &Part,
+) -> Result<HeatLink, SimError> {
+    let element_source = (origin.iter())
+        .map(|o| {
+            heat_part.elements.binary_search(o).map_err(|_| {
+                SimError::Setup(format!(
+                    "split part: scene element {o} lies outside the heat model's part"
+                ))
+            })
+        })
+        .collect::<Result<Vec<usize>, SimError>>()?;
+    let scene_nodes = heat_part.whole_nodes();
+    let heat_node = |k: usize| {
+        let i = part.nodes[k];
+        (i < scene_nodes).then(|| heat_part.local(i)).flatten()
+    };
+    Ok(link.relinked((&mesh.rest, &mesh.tets), element_source, heat_node))
 }
 
 /// The simulation's part after a split (see [`PartFracture::with_surface`]).

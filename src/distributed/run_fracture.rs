@@ -10,6 +10,7 @@ use crate::mesh::TetMesh;
 use crate::run::{CrackTotals, FractureOnParts, FracturePart};
 use crate::sim::part::Part;
 use crate::sim::{SimError, Simulation};
+use crate::thermal::HeatLink;
 use mpi::topology::SimpleCommunicator;
 
 /// [`PartFracture`] with the processes it runs on.
@@ -45,16 +46,16 @@ impl<'a> RunFracture<'a> {
 
     /// Fracture with `settings` resumed from a frame: `whole` is the simulation of the
     /// frame's split mesh on the whole mesh and its fracture; this process's part of the
-    /// scene's mesh `mesh` is `part`, and `scene_process` the
-    /// process of each scene element (see [`PartFracture::resumed`]). Returns it with the
-    /// simulation continued on this process's part of the split mesh. Every process of
-    /// `world` calls it.
+    /// scene's mesh `mesh` is `part`, `scene_process` the process of each scene element and
+    /// `heat` the heat model on `part` at the frame's temperatures, with `[thermal]` (see
+    /// [`PartFracture::resumed`]). Returns it with the simulation continued on this
+    /// process's part of the split mesh. Every process of `world` calls it.
     pub fn resumed(
         world: &'a SimpleCommunicator,
         settings: FractureSettings,
         (mesh, part): (&TetMesh, &Part),
         whole: (Simulation, &Fracture),
-        scene_process: &[u32],
+        (scene_process, heat): (&[u32], Option<HeatLink>),
     ) -> Result<(Self, Simulation), SimError> {
         let (original, floors) = of_scene(mesh, part);
         let solve = solve_of(&whole.0);
@@ -62,7 +63,7 @@ impl<'a> RunFracture<'a> {
             world,
             (settings, original),
             whole,
-            scene_process,
+            (scene_process, part.clone(), heat),
             floors,
             solve,
         )?;

@@ -159,13 +159,15 @@ pub trait Processes {
     /// Fracture with `settings` resumed from a frame (see [`FractureOnParts`]): `whole` is
     /// the simulation of the frame's split mesh on the whole mesh, not shared out, and its
     /// fracture; `part` is this process's part of the scene's mesh `mesh` (from
-    /// [`Processes::part_model`], shared out). Returns it with `whole` continued on this
+    /// [`Processes::part_model`], shared out) and `heat` the heat model on `part` at the
+    /// frame's temperatures, with `[thermal]`. Returns it with `whole` continued on this
     /// process's part of the split mesh. Every process calls it.
     fn resumed_part_fracture(
         &self,
         _settings: FractureSettings,
         (_mesh, _part): (&crate::mesh::TetMesh, &Part),
         _whole: (Simulation, &Fracture),
+        _heat: Option<HeatLink>,
     ) -> Result<(Box<dyn FractureOnParts + '_>, Simulation), SimError> {
         Err(SimError::NotDistributed("fracture on the processes' parts"))
     }
@@ -857,11 +859,9 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
 
 /// Whether a distributed run needs the whole mesh on every process: where the mesh has
 /// cracks already (their pairs of copies come with the scene), or fracture splits a mesh
-/// the processes' parts do not split — with heat conduction (carried over a split on the
-/// whole mesh only) or with ice–ice contact from the start. Fracture otherwise runs on the
-/// parts (`distributed::part_fracture`).
+/// with ice–ice contact from the start (which the processes' parts do not split). Fracture
+/// otherwise runs on the parts (`distributed::part_fracture`).
 fn needs_whole_mesh(scene: &Scene) -> bool {
     let cracked = (scene.model.ice_contact()).is_some_and(|c| !c.crack_sides().is_empty());
-    let whole_fracture = scene.thermal.is_some() || scene.model.ice_contact().is_some();
-    cracked || (scene.fracture.is_some() && whole_fracture)
+    cracked || (scene.fracture.is_some() && scene.model.ice_contact().is_some())
 }

@@ -42,15 +42,49 @@ pub(super) fn resumed_on_parts<'p>(
         frame,
         &scene.text,
     )?;
-    drop(old);
+    // The heat model stays on this process's part of the scene's mesh, at the frame's
+    // temperatures there.
+    let (mut old_sim, old_fracture) = old;
+    let heat = match old_sim.take_heat() {
+        Some(mut link) => {
+            let t = scene_temperatures(frame, link.heat.temperature().len(), Some(part)).map_err(
+                |reason| RunError::Resume {
+                    path: output.into(),
+                    reason,
+                },
+            )?;
+            link.heat.set_temperature(&t);
+            Some(link)
+        }
+        None => None,
+    };
+    drop((old_sim, old_fracture));
     let (on_parts, sim) = processes
         .resumed_part_fracture(
             fracture,
             (&scene.model.mesh, part),
             (whole, &whole_fracture),
+            heat,
         )
         .map_err(setup)?;
     Ok((sim, on_parts))
+}
+
+/// The temperatures (°C) of the `scene_nodes` nodes of the scene's mesh in `frame` — the
+/// first entries of its node field `temperature` (they keep their numbers through splits) —
+/// at the nodes of `part` (all of them without one).
+fn scene_temperatures(
+    frame: &ResumeFrame,
+    scene_nodes: usize,
+    part: Option<&Part>,
+) -> Result<Vec<f64>, String> {
+    let t = (frame.node_fields.iter())
+        .find(|f| f.name == "temperature" && f.columns == 1 && f.data.len() >= scene_nodes)
+        .ok_or("the last complete frame has no node field `temperature`")?;
+    Ok(match part {
+        Some(part) => part.nodes.iter().map(|&i| t.data[i]).collect(),
+        None => t.data[..scene_nodes].to_vec(),
+    })
 }
 
 /// This process's part `part` of the frame a distributed run resumes, whose `head` every
@@ -233,14 +267,7 @@ pub(super) fn restore(
     sim.state.time = frame.time;
     sim.state.step = frame.step;
     if let Some(scene_nodes) = sim.heat().map(|l| l.heat.temperature().len()) {
-        // The scene mesh's nodes keep their numbers through splits: its temperatures are the
-        // first entries of the frame's node field.
-        let t = frame
-            .node_fields
-            .iter()
-            .find(|f| f.name == "temperature" && f.columns == 1 && f.data.len() >= scene_nodes)
-            .ok_or_else(|| bad("the last complete frame has no node field `temperature`".into()))?;
-        sim.set_temperature(t.data[..scene_nodes].to_vec());
+        sim.set_temperature(scene_temperatures(frame, scene_nodes, None).map_err(bad)?);
     }
     let tets = sim.model.mesh.num_tets();
     if let Some(e) = frame

@@ -19,6 +19,7 @@ mod terms;
 
 use crate::assembly::{Assembly, DofMap};
 use crate::fem::StrainOffset;
+use crate::mesh::TetMesh;
 use crate::physics::contact::ContactForces;
 use crate::physics::freezing::{Schedule, ThermalPoint};
 use crate::physics::history::ElementHistory;
@@ -528,12 +529,9 @@ impl Simulation {
         let (time, step) = (self.state.time, self.state.step);
         let history = self.state.history.inherit(parent);
         let mut next = Simulation::for_part(model, self.settings)?;
-        next.thermal_schedule = (self.thermal_schedule.take()).map(|s| s.inherit(parent));
-        let mesh = &next.model.mesh;
-        next.heat = self
-            .heat
-            .take()
-            .map(|link| link.remeshed(&mesh.rest, &mesh.tets, parent));
+        self.hand_heat_to(&mut next, parent, |link, mesh| {
+            Ok(link.remeshed(&mesh.rest, &mesh.tets, parent))
+        })?;
         next.state = State {
             u,
             v,
@@ -563,6 +561,30 @@ impl Simulation {
         self.state.temperature = link.heat.temperature().to_vec();
         self.heat = Some(link);
         self.set_thermal_schedule(self.state.time, self.state.time, None);
+    }
+
+    /// Gives `next` — this run continued on a split mesh, its element `e` made from element
+    /// `parent[e]` — the heat model (with `[thermal]`), linked to `next`'s mesh by `relink`,
+    /// and the freeze states over the current step, element by element. The temperatures
+    /// travel with the state.
+    pub fn hand_heat_to(
+        &mut self,
+        next: &mut Simulation,
+        parent: &[usize],
+        relink: impl FnOnce(HeatLink, &TetMesh) -> Result<HeatLink, SimError>,
+    ) -> Result<(), SimError> {
+        next.thermal_schedule = (self.thermal_schedule.take()).map(|s| s.inherit(parent));
+        next.heat = match self.heat.take() {
+            Some(link) => Some(relink(link, &next.model.mesh)?),
+            None => None,
+        };
+        Ok(())
+    }
+
+    /// Takes the heat model away (with `[thermal]`; the simulation goes on without it).
+    pub fn take_heat(&mut self) -> Option<HeatLink> {
+        self.thermal_schedule = None;
+        self.heat.take()
     }
 
     /// Sets the scene-mesh temperatures (°C; a resumed run's) and the freeze states they give.

@@ -3,7 +3,9 @@
 //! the run); a split mechanics mesh reads it by position: every node keeps the scene node it
 //! is (nodes of the scene mesh keep their numbers through splits) or the scene element and
 //! barycentric weights of its rest position. Cracks therefore conduct heat as if closed: a
-//! modelling choice (docs/thermal.md), exact until the first split.
+//! modelling choice (docs/thermal.md), exact until the first split. On several processes
+//! each holds the heat model of its part of the scene's mesh, and its part of the split mesh
+//! reads it so (`distributed::part_fracture`).
 
 use super::Heat;
 use crate::mesh::TetMesh;
@@ -83,16 +85,28 @@ impl HeatLink {
     /// The link to a mechanics mesh made by splitting the current one: element `e` of nodes
     /// `tets[e]` came from element `parent[e]`; nodes beyond the scene's are placed by their
     /// `rest` position in the scene element their element lies in.
-    pub fn remeshed(
-        mut self,
-        rest: &[Vector3<f64>],
-        tets: &[[usize; 4]],
-        parent: &[usize],
-    ) -> Self {
+    pub fn remeshed(self, rest: &[Vector3<f64>], tets: &[[usize; 4]], parent: &[usize]) -> Self {
         let element_source: Vec<usize> = parent.iter().map(|&p| self.element_source[p]).collect();
         let scene_nodes = self.scene_rest.len();
+        self.relinked((rest, tets), element_source, |i| {
+            (i < scene_nodes).then_some(i)
+        })
+    }
+
+    /// The link to the mechanics mesh of rest positions `rest` (m) and elements `tets`,
+    /// element `e` lying in element `element_source[e]` of the heat model's mesh: node `i` is
+    /// the heat mesh's node `heat_node(i)` where that is one, else it is placed by its rest
+    /// position in the heat element of the first element using it. (A process's part of a
+    /// mesh split on the processes' parts reads the heat model on its part of the scene's
+    /// mesh so.)
+    pub fn relinked(
+        mut self,
+        (rest, tets): (&[Vector3<f64>], &[[usize; 4]]),
+        element_source: Vec<usize>,
+        heat_node: impl Fn(usize) -> Option<usize>,
+    ) -> Self {
         let mut node_source: Vec<Option<NodeSource>> = (0..rest.len())
-            .map(|i| (i < scene_nodes).then_some(NodeSource::Node(i)))
+            .map(|i| heat_node(i).map(NodeSource::Node))
             .collect();
         for (tet, &element) in tets.iter().zip(&element_source) {
             for &i in tet {
@@ -105,7 +119,7 @@ impl HeatLink {
             }
         }
         self.element_source = element_source;
-        // A node in no element (none after a split) reads scene node 0: it is never drawn.
+        // A node in no element (none after a split) reads heat node 0: it is never drawn.
         self.node_source = node_source
             .into_iter()
             .map(|s| s.unwrap_or(NodeSource::Node(0)))
