@@ -1778,7 +1778,14 @@ fn fracture_on_the_parts_makes_one_processs_splits() {
         (hi - lo).norm(),
     );
     let floors = (mesh.volume() / mesh.num_tets() as f64, area_floor(&mesh));
-    let mut on_parts = PartFracture::new(&world, settings, (held, original), floors, solve);
+    let mut on_parts = PartFracture::new(
+        &world,
+        settings,
+        (held, original),
+        floors,
+        (solve, &mut on_part),
+    )
+    .unwrap();
     let mut whole_fracture = Fracture::new(settings, &mesh);
     // A split is not continuous in its crack normal: the edges it cuts change where an edge
     // crosses the plane at the snap bound, and normals that differ by round-off (the

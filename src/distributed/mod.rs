@@ -436,7 +436,7 @@ impl Processes for MpiProcesses {
         &self,
         settings: crate::fracture::FractureSettings,
         mesh: &TetMesh,
-        sim: &Simulation,
+        sim: &mut Simulation,
         part: &Part,
     ) -> Result<Box<dyn crate::run::FractureOnParts + '_>, SimError> {
         let owners = self.owners.borrow().clone();
@@ -446,7 +446,7 @@ impl Processes for MpiProcesses {
             ));
         }
         let fracture =
-            run_fracture::RunFracture::new(&self.world, settings, (mesh, sim, part), owners);
+            run_fracture::RunFracture::new(&self.world, settings, (mesh, sim, part), owners)?;
         Ok(Box::new(fracture))
     }
 

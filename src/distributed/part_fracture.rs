@@ -108,23 +108,28 @@ pub struct PartFracture {
 }
 
 impl PartFracture {
-    /// Fracture with `settings` of a run whose simulation is on `held`'s part (no ghost
-    /// surface: the mesh has no ice–ice contact yet), the part's scene boundary planes
+    /// Fracture with `settings` of the simulation `sim`, on the part `on_sim` (its mesh,
+    /// state, nodes' owners and elements' processes; the part of the scene's mesh the run
+    /// started on, on which the heat model stays), whose scene boundary planes are
     /// `original`; `min_piece` (m³) and `area_floor` (m²) are the whole scene mesh's (see
     /// [`crate::fracture::Fracture`]) and `solve` the shared solver's CG tolerance and cap.
-    /// Every process of `world` calls it.
+    /// The part that splits is its own elements and those around their nodes; with ice–ice
+    /// contact (bodies in contact from the start) `sim` continues on that part with a ghost
+    /// surface the fracture gathers and holds. Every process of `world` calls it.
     pub fn new(
         world: &SimpleCommunicator,
         settings: FractureSettings,
-        (held, original): (SplitPart, OriginalBoundary),
+        (on_sim, original): (SplitPart, OriginalBoundary),
         (min_piece, area_floor): (f64, f64),
-        solve: (f64, usize),
-    ) -> Self {
-        let (part, node_owner) = (held.part.clone(), held.node_owner.clone());
-        let mesh = (&held.mesh.rest[..], &held.mesh.tets[..]);
+        (solve, sim): ((f64, usize), &mut Simulation),
+    ) -> Result<Self, SimError> {
+        let (part, node_owner) = (on_sim.part.clone(), on_sim.node_owner.clone());
+        let mesh = (&on_sim.mesh.rest[..], &on_sim.mesh.tets[..]);
         let halo = nonlocal_halo(world, &settings, &part, mesh, &node_owner);
-        PartFracture {
-            heat_part: held.part.clone(),
+        // A part holding a ghost surface for ice–ice contact holds more than splits.
+        let held = canonical_part(&on_sim, world.rank() as u32);
+        let mut fracture = PartFracture {
+            heat_part: part.clone(),
             settings,
             collective: MpiCollective::new(&part, &node_owner),
             original,
@@ -138,7 +143,11 @@ impl PartFracture {
             held,
             solve,
             cracks: CrackTotals::default(),
+        };
+        if sim.model.ice_contact().is_some() {
+            fracture.continue_on_held(world, sim, false)?;
         }
+        Ok(fracture)
     }
 
     /// The simulation's part (see [`PartFracture::new`]): it changes with each split.

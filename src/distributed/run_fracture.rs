@@ -22,16 +22,18 @@ pub struct RunFracture<'a> {
 impl<'a> RunFracture<'a> {
     /// Fracture with `settings` of `sim`, built on this process's `part` of the scene's
     /// mesh `mesh` (which every process holds whole), whose nodes' owners and elements'
-    /// processes are `owners`. Every process of `world` calls it.
+    /// processes are `owners`; with ice–ice contact `sim` continues on the part and a ghost
+    /// surface the fracture holds (see [`PartFracture::new`]). Every process of `world`
+    /// calls it.
     pub fn new(
         world: &'a SimpleCommunicator,
         settings: FractureSettings,
-        (mesh, sim, part): (&TetMesh, &Simulation, &Part),
+        (mesh, sim, part): (&TetMesh, &mut Simulation, &Part),
         (node_owner, process): (Vec<u32>, Vec<u32>),
-    ) -> Self {
+    ) -> Result<Self, SimError> {
         let on_part = &sim.model.mesh;
         let (u, v) = (sim.state.u.clone(), sim.state.v.clone());
-        let held = SplitPart {
+        let on_sim = SplitPart {
             mesh: Fracturable::new(on_part.rest.clone(), on_part.tets.clone(), u, v),
             node_owner,
             origin: part.elements.clone(),
@@ -40,8 +42,9 @@ impl<'a> RunFracture<'a> {
         };
         let (original, floors) = of_scene(mesh, part);
         let solve = solve_of(sim);
-        let fracture = PartFracture::new(world, settings, (held, original), floors, solve);
-        RunFracture { world, fracture }
+        let fracture =
+            PartFracture::new(world, settings, (on_sim, original), floors, (solve, sim))?;
+        Ok(RunFracture { world, fracture })
     }
 
     /// Fracture with `settings` resumed from a frame: `whole` is the simulation of the

@@ -151,7 +151,7 @@ pub trait Processes {
         &self,
         _settings: FractureSettings,
         _mesh: &crate::mesh::TetMesh,
-        _sim: &Simulation,
+        _sim: &mut Simulation,
         _part: &Part,
     ) -> Result<Box<dyn FractureOnParts + '_>, SimError> {
         Err(SimError::NotDistributed("fracture on the processes' parts"))
@@ -228,7 +228,7 @@ pub fn run_on(
     // Fracture on the processes' parts where they hold parts, else on the mesh held.
     let mut on_parts = match (shared, scene.fracture) {
         (Some((processes, part)), Some(f)) => Some(
-            (processes.part_fracture(f, &scene.model.mesh, &sim, part)).map_err(|error| {
+            (processes.part_fracture(f, &scene.model.mesh, &mut sim, part)).map_err(|error| {
                 RunError::Setup {
                     path: scene.path.clone(),
                     error,
@@ -317,8 +317,8 @@ pub fn run_on(
     };
     let shared = processes.zip(part).filter(|(_, part)| !part.is_whole());
     // Processes holding ghost surfaces gather them again from the whole model as the ice
-    // moves; other runs let it go.
-    let surface = shared.is_some() && scene.model.ice_contact().is_some();
+    // moves (fracture on the parts holds its own); other runs let it go.
+    let surface = shared.is_some() && scene.model.ice_contact().is_some() && on_parts.is_none();
     let mut run = Run {
         frames: (scene.frame_options, scene.output_every, scene.restart_every),
         settings,
@@ -858,10 +858,8 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
 }
 
 /// Whether a distributed run needs the whole mesh on every process: where the mesh has
-/// cracks already (their pairs of copies come with the scene), or fracture splits a mesh
-/// with ice–ice contact from the start (which the processes' parts do not split). Fracture
-/// otherwise runs on the parts (`distributed::part_fracture`).
+/// cracks already (their pairs of copies come with the scene). Fracture otherwise runs on
+/// the parts (`distributed::part_fracture`).
 fn needs_whole_mesh(scene: &Scene) -> bool {
-    let cracked = (scene.model.ice_contact()).is_some_and(|c| !c.crack_sides().is_empty());
-    cracked || (scene.fracture.is_some() && scene.model.ice_contact().is_some())
+    (scene.model.ice_contact()).is_some_and(|c| !c.crack_sides().is_empty())
 }
