@@ -435,7 +435,6 @@ impl Processes for MpiProcesses {
     fn part_fracture(
         &self,
         settings: crate::fracture::FractureSettings,
-        mesh: &TetMesh,
         sim: &mut Simulation,
         part: &Part,
     ) -> Result<Box<dyn crate::run::FractureOnParts + '_>, SimError> {
@@ -445,42 +444,8 @@ impl Processes for MpiProcesses {
                 "fracture on a part other than the one shared out".into(),
             ));
         }
-        let fracture =
-            run_fracture::RunFracture::new(&self.world, settings, (mesh, sim, part), owners)?;
+        let fracture = run_fracture::RunFracture::new(&self.world, settings, (sim, part), owners)?;
         Ok(Box::new(fracture))
-    }
-
-    fn resumed_part_fracture(
-        &self,
-        settings: crate::fracture::FractureSettings,
-        (mesh, part): (&TetMesh, &Part),
-        whole: (Simulation, &crate::fracture::Fracture),
-        heat: Option<crate::thermal::HeatLink>,
-    ) -> Result<(Box<dyn crate::run::FractureOnParts + '_>, Simulation), SimError> {
-        let (_, process) = &*self.owners.borrow();
-        if process.len() != part.elements.len() {
-            return Err(SimError::Setup(
-                "fracture on a part other than the one shared out".into(),
-            ));
-        }
-        // Every scene element's process, from the processes evaluating them.
-        let own: Vec<u64> = (part.elements.iter().zip(process))
-            .zip(&part.own_elements)
-            .filter(|(_, &own)| own)
-            .flat_map(|((&e, &p), _)| [e as u64, u64::from(p)])
-            .collect();
-        let mut scene_process = vec![0; mesh.num_tets()];
-        for pair in ghosts::all_gathered(&self.world, &own).chunks_exact(2) {
-            scene_process[pair[0] as usize] = pair[1] as u32;
-        }
-        let (fracture, sim) = run_fracture::RunFracture::resumed(
-            &self.world,
-            settings,
-            (mesh, part),
-            whole,
-            (&scene_process, heat),
-        )?;
-        Ok((Box::new(fracture), sim))
     }
 
     fn mesh_sharing(&self) -> Option<&dyn MeshSharing> {
@@ -670,7 +635,6 @@ pub(crate) fn sum_in_order(world: &SimpleCommunicator, x: f64) -> f64 {
     all.iter().sum()
 }
 
-/// The largest `x` over the processes of `world`.
 /// The part `gathered` and its model, of the whole model `model`.
 fn part_and_model(gathered: SharedMesh, model: &Model) -> Result<(Part, Model), SimError> {
     let part = gathered.part;
@@ -687,6 +651,7 @@ fn largest_component(values: &[f64]) -> f64 {
     values.iter().fold(0.0f64, |m, x| m.max(x.abs()))
 }
 
+/// The largest `x` over the processes of `world`.
 pub(crate) fn largest(world: &SimpleCommunicator, x: f64) -> f64 {
     let mut y = 0.0;
     world.all_reduce_into(&x, &mut y, SystemOperation::max());

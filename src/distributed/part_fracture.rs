@@ -41,6 +41,7 @@
 use super::components::connected_parts;
 use super::components::crack_ids;
 use super::ghost_surface::{gathered, Surface};
+use super::ghosts::all_gathered;
 use super::node_halo::NodeHalo;
 use super::rebuild::{
     model_after_split, model_with_surface, numbering_after_split, share_after_split,
@@ -229,25 +230,23 @@ impl PartFracture {
         self.rebuild(world, sim, None, carried).map(|_| ())
     }
 
-    /// Fracture with `settings` resumed from a frame on this process's part: `whole` is the
-    /// simulation of the split mesh the frame holds, on the whole mesh (not shared out), and
-    /// its [`crate::fracture::Fracture`] (the scene element each element lies in, the
-    /// refused splits); `scene_process` is the process of each scene element in the run's
-    /// partition, and `original`, `floors` and `solve` as in [`PartFracture::new`] (of the
-    /// run's part of the scene mesh). Each element goes to the process of its scene element
-    /// and each node to the lowest process among its elements', as the splits made them; the
-    /// part is then made and `whole` continued on it as [`PartFracture::restart`] does,
-    /// with the heat model `heat` (with `[thermal]`: on this process's part `heat_part` of the
-    /// scene's mesh, at the frame's temperatures): returned with the fracture. Every process
-    /// of `world` calls it.
+    /// This fracture resumed from a frame, on the part that frame's split mesh gives this
+    /// process: `whole` is the simulation of the split mesh the frame holds, on the whole
+    /// mesh (not shared out), and its [`crate::fracture::Fracture`] (the scene element each
+    /// element lies in, the refused splits); `heat` the heat model on this process's part of
+    /// the scene's mesh at the frame's temperatures (with `[thermal]`). The parameters and
+    /// what was found of the scene's mesh at set-up stay. Each element goes to the process
+    /// of its scene element and each node to the lowest process among its elements', as the
+    /// splits made them; the part is then made and `whole` continued on it as
+    /// [`PartFracture::restart`] does: returned with the fracture. Every process of `world`
+    /// calls it.
     pub fn resumed(
+        &self,
         world: &SimpleCommunicator,
-        (settings, original): (FractureSettings, OriginalBoundary),
         (mut whole, fracture): (Simulation, &crate::fracture::Fracture),
-        (scene_process, heat_part, heat): (&[u32], Part, Option<HeatLink>),
-        (min_piece, area_floor): (f64, f64),
-        solve: (f64, usize),
+        heat: Option<HeatLink>,
     ) -> Result<(Self, Simulation), SimError> {
+        let scene_process = scene_processes(world, &self.heat_part);
         let rank = world.rank() as u32;
         let mesh = &whole.model.mesh;
         let process: Vec<u32> = fracture.origin.iter().map(|&o| scene_process[o]).collect();
@@ -270,20 +269,20 @@ impl PartFracture {
         // Until it is continued on its part, the simulation is the whole mesh's.
         let all = Part::new(&mesh.tets, (&process, &owners), rank, (&[], true));
         let mut resumed = PartFracture {
-            settings,
+            settings: self.settings,
             collective: MpiCollective::new(&held.part, &held.node_owner),
-            original,
+            original: self.original.clone(),
             refused,
-            min_piece,
-            area_floor,
+            min_piece: self.min_piece,
+            area_floor: self.area_floor,
             halo: None,
             hold: None,
             node_owner: owners,
             part: all,
             held,
-            solve,
+            solve: self.solve,
             cracks: CrackTotals::default(),
-            heat_part,
+            heat_part: self.heat_part.clone(),
         };
         resumed.continue_on_held(world, &mut whole, false)?;
         if let Some(link) = heat {
@@ -807,6 +806,21 @@ impl PartFracture {
             node_parent,
         }
     }
+}
+
+/// The process of every scene element, from the processes' parts `scene_part` of the scene's
+/// mesh (each evaluating its own elements). Every process of `world` calls it.
+fn scene_processes(world: &SimpleCommunicator, scene_part: &Part) -> Vec<u32> {
+    let rank = u64::from(world.rank() as u32);
+    let own: Vec<u64> = (scene_part.elements.iter().zip(&scene_part.own_elements))
+        .filter(|(_, &own)| own)
+        .flat_map(|(&e, _)| [e as u64, rank])
+        .collect();
+    let mut process = vec![0; scene_part.whole_elements()];
+    for pair in all_gathered(world, &own).chunks_exact(2) {
+        process[pair[0] as usize] = pair[1] as u32;
+    }
+    process
 }
 
 /// The heat model's `link` (on this process's part `heat_part` of the scene's mesh) to the

@@ -3,9 +3,10 @@
 
 use super::part_fracture::PartFracture;
 use super::splits::SplitPart;
+use super::{largest, sum_in_order};
 use crate::fracture::cracks::OriginalBoundary;
 use crate::fracture::split::Fracturable;
-use crate::fracture::{area_floor, Fracture, FractureReport, FractureSettings};
+use crate::fracture::{area_floor_of, Fracture, FractureReport, FractureSettings};
 use crate::mesh::TetMesh;
 use crate::run::{CrackTotals, FractureOnParts, FracturePart};
 use crate::sim::part::Part;
@@ -21,14 +22,13 @@ pub struct RunFracture<'a> {
 
 impl<'a> RunFracture<'a> {
     /// Fracture with `settings` of `sim`, built on this process's `part` of the scene's
-    /// mesh `mesh` (which every process holds whole), whose nodes' owners and elements'
-    /// processes are `owners`; with ice–ice contact `sim` continues on the part and a ghost
-    /// surface the fracture holds (see [`PartFracture::new`]). Every process of `world`
-    /// calls it.
+    /// mesh, whose nodes' owners and elements' processes are `owners`; with ice–ice contact
+    /// `sim` continues on the part and a ghost surface the fracture holds (see
+    /// [`PartFracture::new`]). Every process of `world` calls it.
     pub fn new(
         world: &'a SimpleCommunicator,
         settings: FractureSettings,
-        (mesh, sim, part): (&TetMesh, &mut Simulation, &Part),
+        (sim, part): (&mut Simulation, &Part),
         (node_owner, process): (Vec<u32>, Vec<u32>),
     ) -> Result<Self, SimError> {
         let on_part = &sim.model.mesh;
@@ -40,57 +40,47 @@ impl<'a> RunFracture<'a> {
             process,
             part: part.clone(),
         };
-        let (original, floors) = of_scene(mesh, part);
+        let (original, floors) = of_scene(world, &sim.model.mesh, part);
         let solve = solve_of(sim);
         let fracture =
             PartFracture::new(world, settings, (on_sim, original), floors, (solve, sim))?;
         Ok(RunFracture { world, fracture })
     }
-
-    /// Fracture with `settings` resumed from a frame: `whole` is the simulation of the
-    /// frame's split mesh on the whole mesh and its fracture; this process's part of the
-    /// scene's mesh `mesh` is `part`, `scene_process` the process of each scene element and
-    /// `heat` the heat model on `part` at the frame's temperatures, with `[thermal]` (see
-    /// [`PartFracture::resumed`]). Returns it with the simulation continued on this
-    /// process's part of the split mesh. Every process of `world` calls it.
-    pub fn resumed(
-        world: &'a SimpleCommunicator,
-        settings: FractureSettings,
-        (mesh, part): (&TetMesh, &Part),
-        whole: (Simulation, &Fracture),
-        (scene_process, heat): (&[u32], Option<HeatLink>),
-    ) -> Result<(Self, Simulation), SimError> {
-        let (original, floors) = of_scene(mesh, part);
-        let solve = solve_of(&whole.0);
-        let (fracture, sim) = PartFracture::resumed(
-            world,
-            (settings, original),
-            whole,
-            (scene_process, part.clone(), heat),
-            floors,
-            solve,
-        )?;
-        Ok((RunFracture { world, fracture }, sim))
-    }
 }
 
-/// The scene's boundary planes of this process's `part` of the scene mesh `mesh`, and the
-/// whole scene mesh's smallest piece (m³) and area floor (m²) (see [`PartFracture::new`]).
-fn of_scene(mesh: &TetMesh, part: &Part) -> (OriginalBoundary, (f64, f64)) {
-    let all_marks = mesh.boundary_marks();
-    let marks: Vec<u8> = part.elements.iter().map(|&e| all_marks[e]).collect();
+/// The scene's boundary planes of this process's `part` of the scene's mesh, of mesh `mesh`
+/// (numbered in the part), and the whole scene mesh's smallest piece (m³) and area floor
+/// (m²) (see [`PartFracture::new`]), from sums and maxima over the processes of `world`,
+/// which all call it.
+///
+/// The planes are those of the part's boundary faces: the whole boundary's and the faces
+/// where the part is cut off. A cut face is never a face of an element the process
+/// evaluates, nor through a node of one (every element around such a node is held), and
+/// the crack faces that count are only those (see [`PartFracture`]): a cut face taken for
+/// the scene's boundary changes nothing there.
+fn of_scene(
+    world: &SimpleCommunicator,
+    mesh: &TetMesh,
+    part: &Part,
+) -> (OriginalBoundary, (f64, f64)) {
     let (lo, hi) = mesh.bounding_box();
-    let on_part = TetMesh {
-        rest: part.nodes.iter().map(|&i| mesh.rest[i]).collect(),
-        tets: part.tets_of(&mesh.tets),
-    };
+    let (lo, hi) = (
+        lo.map(|x| -largest(world, -x)),
+        hi.map(|x| largest(world, x)),
+    );
+    let elements = part.whole_elements();
     let original = OriginalBoundary::of_part(
-        &on_part,
-        (&part.elements, &marks),
-        mesh.num_tets(),
+        mesh,
+        (&part.elements, &mesh.boundary_marks()),
+        elements,
         (hi - lo).norm(),
     );
-    let floors = (mesh.volume() / mesh.num_tets() as f64, area_floor(mesh));
+    let own_volume: f64 = (0..mesh.num_tets())
+        .filter(|&e| part.own_elements[e])
+        .map(|e| mesh.signed_volume(e))
+        .sum();
+    let volume = sum_in_order(world, own_volume);
+    let floors = (volume / elements as f64, area_floor_of(volume, elements));
     (original, floors)
 }
 
@@ -131,5 +121,15 @@ impl FractureOnParts for RunFracture<'_> {
 
     fn frame_part(&self, sim: &Simulation) -> Result<FracturePart, SimError> {
         self.fracture.frame_part(self.world, sim)
+    }
+
+    fn resume(
+        &mut self,
+        whole: (Simulation, &Fracture),
+        heat: Option<HeatLink>,
+    ) -> Result<Simulation, SimError> {
+        let (fracture, sim) = self.fracture.resumed(self.world, whole, heat)?;
+        self.fracture = fracture;
+        Ok(sim)
     }
 }

@@ -88,7 +88,12 @@ impl NodeSeparation {
 /// an edge of a box mesh has for a plane across it (h²/4), and it stays tied to the scene's
 /// mesh (evaluated once, before any split), so it scales with the mesh like A(n) does.
 pub fn area_floor(mesh: &crate::mesh::TetMesh) -> f64 {
-    let h = (6.0 * mesh.volume() / mesh.num_tets() as f64).cbrt();
+    area_floor_of(mesh.volume(), mesh.num_tets())
+}
+
+/// [`area_floor`] of a mesh of `elements` elements of rest volume `volume` (m³) in all.
+pub fn area_floor_of(volume: f64, elements: usize) -> f64 {
+    let h = (6.0 * volume / elements as f64).cbrt();
     0.25 * h * h
 }
 

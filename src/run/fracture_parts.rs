@@ -24,13 +24,23 @@ pub trait FractureOnParts {
     /// Gathers the ghost surface again at the state of `sim`, which continues on the new part.
     fn gather_surface_again(&mut self, sim: &mut Simulation) -> Result<(), SimError>;
     /// Continues `sim` at a restart point on the part a run resumed there makes from the
-    /// frame alone (see [`super::Processes::resumed_part_fracture`]), so that the resumed
-    /// run is this one bit for bit.
+    /// frame alone (see [`FractureOnParts::resume`]), so that the resumed run is this one
+    /// bit for bit.
     fn restart(&mut self, sim: &mut Simulation) -> Result<(), SimError>;
     /// The whole mesh's cracks, the same on every process.
     fn crack_totals(&self) -> CrackTotals;
     /// What a frame of `sim` holds of fracture on this process's part.
     fn frame_part(&self, sim: &Simulation) -> Result<FracturePart, SimError>;
+    /// Resumes this fracture (as set up on the scene's parts) from a frame: `whole` is the
+    /// simulation of the frame's split mesh on the whole mesh, not shared out, and its
+    /// fracture; `heat` the heat model on this process's part of the scene's mesh at the
+    /// frame's temperatures, with `[thermal]`. Returns `whole` continued on this process's
+    /// part of the split mesh.
+    fn resume(
+        &mut self,
+        whole: (Simulation, &crate::fracture::Fracture),
+        heat: Option<crate::thermal::HeatLink>,
+    ) -> Result<Simulation, SimError>;
 }
 
 /// The cracks of the whole mesh.

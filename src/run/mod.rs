@@ -145,30 +145,13 @@ pub trait Processes {
         ))
     }
     /// Fracture with `settings` of `sim`, built on this process's `part` of the scene's mesh
-    /// `mesh` and shared among the processes (see [`FractureOnParts`]). Every process calls
-    /// it.
+    /// and shared among the processes (see [`FractureOnParts`]). Every process calls it.
     fn part_fracture(
         &self,
         _settings: FractureSettings,
-        _mesh: &crate::mesh::TetMesh,
         _sim: &mut Simulation,
         _part: &Part,
     ) -> Result<Box<dyn FractureOnParts + '_>, SimError> {
-        Err(SimError::NotDistributed("fracture on the processes' parts"))
-    }
-    /// Fracture with `settings` resumed from a frame (see [`FractureOnParts`]): `whole` is
-    /// the simulation of the frame's split mesh on the whole mesh, not shared out, and its
-    /// fracture; `part` is this process's part of the scene's mesh `mesh` (from
-    /// [`Processes::part_model`], shared out) and `heat` the heat model on `part` at the
-    /// frame's temperatures, with `[thermal]`. Returns it with `whole` continued on this
-    /// process's part of the split mesh. Every process calls it.
-    fn resumed_part_fracture(
-        &self,
-        _settings: FractureSettings,
-        (_mesh, _part): (&crate::mesh::TetMesh, &Part),
-        _whole: (Simulation, &Fracture),
-        _heat: Option<HeatLink>,
-    ) -> Result<(Box<dyn FractureOnParts + '_>, Simulation), SimError> {
         Err(SimError::NotDistributed("fracture on the processes' parts"))
     }
     /// The processes building a scene on their parts of its mesh (see
@@ -228,11 +211,9 @@ pub fn run_on(
     // Fracture on the processes' parts where they hold parts, else on the mesh held.
     let mut on_parts = match (shared, scene.fracture) {
         (Some((processes, part)), Some(f)) => Some(
-            (processes.part_fracture(f, &scene.model.mesh, &mut sim, part)).map_err(|error| {
-                RunError::Setup {
-                    path: scene.path.clone(),
-                    error,
-                }
+            (processes.part_fracture(f, &mut sim, part)).map_err(|error| RunError::Setup {
+                path: scene.path.clone(),
+                error,
             })?,
         ),
         _ => None,
@@ -242,23 +223,17 @@ pub fn run_on(
         .map(|f| Fracture::new(f, &sim.model.mesh));
     let writes = processes.is_none_or(|p| p.writes());
     let writer = if options.resume {
-        let on_parts_settings = scene.fracture.filter(|_| on_parts.is_some());
-        match (shared, on_parts_settings) {
+        match (shared, on_parts.take()) {
             // Fracture on the parts: the split mesh rebuilt whole from the frame, then shared.
-            (Some((processes, part)), Some(fracture_settings)) => {
+            (Some((processes, part)), Some(fracture)) => {
                 let (writer, frame) = read_for_resume(
                     (scene, &output),
                     (Some(processes), processes.writes()),
                     || OutputWriter::resume_until(&output, end_time),
                     (ResumeFrame::to_bytes, ResumeFrame::from_bytes),
                 )?;
-                let old = (sim, on_parts.take());
-                let resumed = resumed_on_parts(
-                    (scene, &output, &frame),
-                    (settings, fracture_settings),
-                    (processes, part),
-                    old,
-                )?;
+                let resumed =
+                    resumed_on_parts((scene, &output, &frame), (settings, part), (sim, fracture))?;
                 (sim, on_parts) = (resumed.0, Some(resumed.1));
                 writer
             }

@@ -4,7 +4,6 @@ use super::{rows, FractureOnParts, Processes, RunError};
 use crate::fem;
 use crate::fracture::split::Fracturable;
 use crate::fracture::Fracture;
-use crate::fracture::FractureSettings;
 use crate::mesh::TetMesh;
 use crate::output::{FrameHead, OutputError, OutputWriter, ResumeFrame};
 use crate::scene::Scene;
@@ -18,23 +17,32 @@ use std::path::Path;
 pub(super) const BLOCK_VALUES: usize = 1 << 20;
 
 /// A run of `scene` fracturing on the processes' parts resumed from `frame` (of the file
-/// `output`): the split mesh rebuilt whole from the frame as one process rebuilds it, then
-/// each process's part made from it alone and the simulation continued there (see
-/// [`Processes::resumed_part_fracture`]); this process's part of the scene's mesh is
-/// `part`. The `old` simulation and fracture (on the scene's part) go before the split
-/// mesh is shared out. Every process calls it.
+/// `output`): the split mesh rebuilt whole from the frame as one process rebuilds it (from
+/// the whole scene, built again here where the scene was built on the processes' parts),
+/// then each process's part made from it alone and the simulation continued there (see
+/// [`FractureOnParts::resume`]); `part` is this process's part of the scene's mesh. The
+/// `old` simulation (on the scene's part) goes before the split mesh is shared out. Every
+/// process calls it.
 pub(super) fn resumed_on_parts<'p>(
     (scene, output, frame): (&Scene, &Path, &crate::output::ResumeFrame),
-    (settings, fracture): (StepSettings, FractureSettings),
-    (processes, part): (&'p dyn Processes, &Part),
-    old: (Simulation, Option<Box<dyn FractureOnParts + 'p>>),
+    (settings, part): (StepSettings, &Part),
+    (mut old_sim, mut on_parts): (Simulation, Box<dyn FractureOnParts + 'p>),
 ) -> Result<(Simulation, Box<dyn FractureOnParts + 'p>), RunError> {
     let setup = |error| RunError::Setup {
         path: scene.path.clone(),
         error,
     };
-    let mut whole_fracture = Fracture::new(fracture, &scene.model.mesh);
-    let mut whole = Simulation::new(scene.model.clone(), settings).map_err(setup)?;
+    let built_whole;
+    let scene_whole = match &scene.part {
+        Some(_) => {
+            built_whole = Scene::parse(&scene.text, &scene.path)?;
+            &built_whole
+        }
+        None => scene,
+    };
+    let model = &scene_whole.model;
+    let mut whole_fracture = Fracture::new(on_parts.settings(), &model.mesh);
+    let mut whole = Simulation::new(model.clone(), settings).map_err(setup)?;
     restore(
         &mut whole,
         Some(&mut whole_fracture),
@@ -44,7 +52,6 @@ pub(super) fn resumed_on_parts<'p>(
     )?;
     // The heat model stays on this process's part of the scene's mesh, at the frame's
     // temperatures there.
-    let (mut old_sim, old_fracture) = old;
     let heat = match old_sim.take_heat() {
         Some(mut link) => {
             let t = scene_temperatures(frame, link.heat.temperature().len(), Some(part)).map_err(
@@ -58,15 +65,8 @@ pub(super) fn resumed_on_parts<'p>(
         }
         None => None,
     };
-    drop((old_sim, old_fracture));
-    let (on_parts, sim) = processes
-        .resumed_part_fracture(
-            fracture,
-            (&scene.model.mesh, part),
-            (whole, &whole_fracture),
-            heat,
-        )
-        .map_err(setup)?;
+    drop(old_sim);
+    let sim = (on_parts.resume((whole, &whole_fracture), heat)).map_err(setup)?;
     Ok((sim, on_parts))
 }
 

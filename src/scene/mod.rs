@@ -886,6 +886,16 @@ impl Validator<'_> {
             mesh,
             material,
         )?;
+        if self.sharing.get().is_some() {
+            // One connected part (a process's part of it may have several pieces, which
+            // touch through the elements of others): the term comes on at the first crack,
+            // where the processes' fracture builds it (`distributed::rebuild`).
+            return Ok(IceContactTerm::inactive(
+                ice_stiffness,
+                ice_friction,
+                smoothing,
+            ));
+        }
         Ok(IceContactTerm::new(
             mesh,
             ice_stiffness,
@@ -915,7 +925,7 @@ impl Validator<'_> {
                 "must be ≥ 1 (remove [fracture] to turn fracture off)",
             ));
         }
-        let (lo, hi) = mesh.bounding_box();
+        let (lo, hi) = self.bounding_box(mesh);
         Ok(FractureSettings {
             toughness: self.positive("fracture.toughness", f.toughness)?,
             max_events_per_step,

@@ -15,9 +15,10 @@
 //! holds.
 //!
 //! Scenes with sections whose set-up needs the whole mesh — bodies, a freezing front
-//! prescribed from a surface, fracture, an initial state read from a file, ice–ice contact between several
-//! parts — are built whole on every process and shared out afterwards
-//! ([`builds_on_parts`]).
+//! prescribed from a surface, an initial state read from a file, ice–ice contact between
+//! several parts — are built whole on every process and shared out afterwards
+//! ([`builds_on_parts`]). (A fractured run resumed on parts builds the whole scene again
+//! to rebuild its split mesh from the frame: `run::restore`.)
 
 use super::{SceneError, SceneFile, Validator};
 use crate::mesh::{BoundaryFace, BoxGrid, TetMesh};
@@ -78,7 +79,8 @@ pub trait MeshSharing {
 /// Whether the scene `raw` is built on each process's part of its mesh: a single `[mesh]`
 /// box or mesh file (of one connected part: checked once read) with materials, eigenstrains,
 /// gravity, damping, supports, tractions, obstacles, plasticity, creep, heat with the
-/// freezing it drives, or a freezing front from a box's faces. Other sections' set-up needs the whole mesh (see the module docs).
+/// freezing it drives, fracture, or a freezing front from a box's faces. Other sections' set-up
+/// needs the whole mesh (see the module docs).
 pub fn builds_on_parts(raw: &SceneFile) -> bool {
     needs_whole_mesh(raw).is_none()
 }
@@ -96,7 +98,6 @@ pub(super) fn needs_whole_mesh(raw: &SceneFile) -> Option<&'static str> {
             raw.thermal.is_none() && !front_from_box_faces(raw),
             "[freezing]'s front from a surface",
         ),
-        (raw.fracture.is_some(), "[fracture]"),
         (raw.physics.ice_stiffness.is_some(), "physics.ice_stiffness"),
     ]
     .into_iter()
