@@ -225,7 +225,8 @@ struct Runs {
     /// The output files of one process and of several.
     one: PathBuf,
     two: PathBuf,
-    /// The report of the run on several.
+    /// The reports of the runs on one process and on several.
+    report_one: String,
     report: String,
     /// The scene's nodes and the nodes each of the several processes held.
     total: u64,
@@ -241,13 +242,14 @@ fn on_one_and_two(path: &Path, extra: &[&str]) -> Runs {
 fn on_one_and(processes: usize, path: &Path, extra: &[&str]) -> Runs {
     let dir = tempfile::tempdir().unwrap();
     let (one, two) = (dir.path().join("one.h5"), dir.path().join("two.h5"));
-    icefem_run(1, path, &one, extra);
+    let report_one = icefem_run(1, path, &one, extra);
     let report = icefem_run(processes, path, &two, extra);
     let (total, held) = held_nodes(&report);
     Runs {
         _dir: dir,
         one,
         two,
+        report_one,
         report,
         total,
         held,
@@ -480,6 +482,18 @@ fn two_processes_crack_as_one(path: &Path, extra: &[&str], same_steps: bool) -> 
                 .len()
         };
         assert_eq!(triangles(one), triangles(two), "{name}: crack triangles");
+        // The summary's state at the end, from sums and maxima over the parts.
+        let outcome = |report: &str| -> Vec<String> {
+            (report.lines())
+                .filter(|l| l.contains("frozen:") || l.contains("largest inelastic strain"))
+                .map(str::to_owned)
+                .collect()
+        };
+        assert_eq!(
+            outcome(&runs.report_one),
+            outcome(report),
+            "{name}: summary"
+        );
     }
     (area1, area2)
 }
@@ -534,7 +548,9 @@ fn two_pulled_bars_in_contact_on_two_processes_crack_as_on_one() {
 fn the_container_frozen_by_its_walls_on_two_processes_cracks_as_on_one() {
     // Heat conduction on the processes' parts of the scene's mesh, read by the split parts
     // by position; its 8 hours: 4 splits in steps 112 and 113, as on one process (measured
-    // 4.3e-19 m² apart in area; temperatures 3.6e-12 K apart, the heat CG's tolerance).
+    // 4.3e-19 m² apart in area; temperatures 3.6e-12 K apart, the heat CG's tolerance); the
+    // summary's frozen volume (100.0 %) and largest inelastic strain (1.069e-1) as one
+    // process's.
     let (one, two) =
         two_processes_crack_as_one(&scene("freezing_container_thermal.toml"), &[], true);
     assert!((one - two).abs() <= 1e-6 * one, "{one:e} vs {two:e}");

@@ -624,22 +624,17 @@ impl Run<'_> {
         }
         summary.final_step = self.sim.state.step;
         summary.final_time = self.sim.state.time;
-        match (&self.on_parts, &self.fracture) {
-            // Every process's, from the sums over the parts.
-            (Some(on_parts), _) => {
-                if let Some(outcome) = &mut fracture_outcome {
-                    outcome.crack_area = on_parts.crack_totals().area;
+        if let Some(outcome) = &mut fracture_outcome {
+            match (&self.on_parts, &self.fracture) {
+                // Every process's, from the sums over the parts.
+                (Some(on_parts), _) => outcome.crack_area = on_parts.crack_totals().area,
+                (None, Some(fracture)) => {
+                    outcome.crack_area = fracture.crack_area(&self.sim.model.mesh.rest)
                 }
-                summary.outcome.fracture = fracture_outcome;
+                (None, None) => {}
             }
-            (None, fracture) if self.shared.is_none() => {
-                if let (Some(outcome), Some(fracture)) = (&mut fracture_outcome, fracture) {
-                    outcome.crack_area = fracture.crack_area(&self.sim.model.mesh.rest);
-                }
-                summary.outcome = Outcome::at_end(&self.sim, fracture_outcome);
-            }
-            _ => {}
         }
+        summary.outcome = Outcome::at_end(&self.sim, fracture_outcome);
         if let Some(writer) = self.writer {
             summary.frames = writer.frame_count();
             writer.finish()?;

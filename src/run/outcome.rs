@@ -49,29 +49,26 @@ impl FractureOutcome {
 }
 
 impl Outcome {
-    /// The state at the end of a run of `sim` (on the whole mesh) as an outcome, with the
-    /// fracture already folded in.
+    /// The state at the end of a run of `sim` as an outcome, with the fracture already
+    /// folded in; in a distributed run from sums and maxima over the processes' own elements
+    /// and owned nodes (every process calls it).
     pub fn at_end(sim: &Simulation, fracture: Option<FractureOutcome>) -> Self {
         let model = &sim.model;
         let history = &sim.state.history;
         let mesh = &model.mesh;
+        let own = || (0..mesh.num_tets()).filter(|&e| sim.evaluates(e));
         let frozen_fraction = (!history.freeze_state.is_empty()).then(|| {
-            let volumes: Vec<f64> = (0..mesh.num_tets())
-                .map(|e| mesh.signed_volume(e))
-                .collect();
-            let frozen: f64 = volumes
-                .iter()
-                .zip(&history.freeze_state)
-                .map(|(v, s)| v * s)
+            let volume: f64 = own().map(|e| mesh.signed_volume(e)).sum();
+            let frozen: f64 = own()
+                .map(|e| mesh.signed_volume(e) * history.freeze_state[e])
                 .sum();
-            frozen / volumes.iter().sum::<f64>()
+            sim.sum_over_processes(frozen) / sim.sum_over_processes(volume)
         });
         let largest_inelastic_strain = (!history.plastic_strain.is_empty()).then(|| {
-            history
-                .plastic_strain
-                .iter()
-                .map(|e| e.norm())
-                .fold(0.0, f64::max)
+            let largest = own()
+                .map(|e| history.plastic_strain[e].norm())
+                .fold(0.0, f64::max);
+            sim.max_over_processes(largest)
         });
         let mut warnings = Vec::new();
         if let Some(fall) = fall_out_of_reach(sim) {
@@ -98,14 +95,19 @@ fn fall_out_of_reach(sim: &Simulation) -> Option<(f64, f64)> {
     let down = model.gravity.try_normalize(0.0)?;
     let mesh = &model.mesh;
     let (lo, hi) = mesh.bounding_box();
+    let (lo, hi) = (
+        lo.map(|x| -sim.max_over_processes(-x)),
+        hi.map(|x| sim.max_over_processes(x)),
+    );
     let size = (hi - lo).norm();
     let u = &sim.state.u;
     let displacement = |i: usize| Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
-    let mass: f64 = model.mass.iter().sum();
-    let drop = (0..mesh.num_nodes())
+    let owned = || (0..mesh.num_nodes()).filter(|&i| sim.owns_node(i));
+    let mass = sim.sum_over_processes(owned().map(|i| model.mass[i]).sum());
+    let fall: f64 = owned()
         .map(|i| model.mass[i] * displacement(i).dot(&down))
-        .sum::<f64>()
-        / mass;
+        .sum();
+    let drop = sim.sum_over_processes(fall) / mass;
     // A NaN drop (a body with no mass) is no fall either.
     if drop.is_nan() || drop <= FALL_LIMIT * size {
         return None;
@@ -115,7 +117,8 @@ fn fall_out_of_reach(sim: &Simulation) -> Option<(f64, f64)> {
         let x = mesh.rest[i] + displacement(i);
         obstacles.iter().any(|o| within(o, t, &x, size))
     });
-    (!near).then_some((drop, drop / size))
+    let near_anywhere = sim.max_over_processes(f64::from(u8::from(near))) > 0.0;
+    (!near_anywhere).then_some((drop, drop / size))
 }
 
 /// Whether `x` (m) is within `reach` (m) of obstacle `o` at time `t` (s), or inside it.

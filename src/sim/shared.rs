@@ -84,7 +84,7 @@ impl Simulation {
     }
 
     /// The largest `x` over the processes of a distributed run (`x` on one).
-    pub(super) fn max_over_processes(&self, x: f64) -> f64 {
+    pub fn max_over_processes(&self, x: f64) -> f64 {
         match &self.shared {
             Some(shared) => shared.distribution.collective().max(x),
             None => x,
@@ -99,11 +99,25 @@ impl Simulation {
     }
 
     /// Σ over the processes of a distributed run of `x` (`x` on one).
-    pub(super) fn sum_over_processes(&self, x: f64) -> f64 {
+    pub fn sum_over_processes(&self, x: f64) -> f64 {
         match &self.shared {
             Some(shared) => shared.distribution.collective().sum(x),
             None => x,
         }
+    }
+
+    /// Whether this process evaluates element `e` (its own; always on one process): each
+    /// element counts in sums over the elements on one process.
+    pub fn evaluates(&self, e: usize) -> bool {
+        self.shared
+            .as_ref()
+            .is_none_or(|shared| shared.distribution.owned_elements()[e])
+    }
+
+    /// Whether this process owns node `i` (always on one process): each node counts in sums
+    /// over the nodes on one process.
+    pub fn owns_node(&self, i: usize) -> bool {
+        self.counts(3 * i)
     }
 
     /// Whether this process counts dof `d` in sums over the dofs: it owns it (always on one
