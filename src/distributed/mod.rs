@@ -651,6 +651,22 @@ fn largest_component(values: &[f64]) -> f64 {
     values.iter().fold(0.0f64, |m, x| m.max(x.abs()))
 }
 
+/// `result` where every process of `world` has a result; else this process's error, or
+/// `elsewhere()` where only another process failed: the processes then go on or stop alike,
+/// and none waits for the others in a collective that follows. Every process calls it.
+pub(crate) fn agreed<T, E>(
+    world: &SimpleCommunicator,
+    result: Result<T, E>,
+    elsewhere: impl FnOnce() -> E,
+) -> Result<T, E> {
+    let failed = largest(world, f64::from(u8::from(result.is_err()))) > 0.0;
+    match (result, failed) {
+        (Ok(value), false) => Ok(value),
+        (Err(e), _) => Err(e),
+        (Ok(_), true) => Err(elsewhere()),
+    }
+}
+
 /// The largest `x` over the processes of `world`.
 pub(crate) fn largest(world: &SimpleCommunicator, x: f64) -> f64 {
     let mut y = 0.0;

@@ -48,7 +48,7 @@ use super::rebuild::{
 };
 use super::splits::{candidates_in_order, try_split, SplitPart};
 use super::surface_hold::{SurfaceHold, ALLOWANCE_EDGES};
-use super::{largest, sum_in_order, MpiCollective};
+use super::{agreed, largest, sum_in_order, MpiCollective};
 use crate::fracture::cracks::{
     crack_area, crack_faces, polygon_sides, CrackFace, CrackSurface, OriginalBoundary,
 };
@@ -563,7 +563,9 @@ impl PartFracture {
         let invalid = |e: crate::mesh::MeshError| SimError::Setup(format!("split part: {e}"));
         let held = &self.held;
         let (rest, tets) = (held.mesh.rest.clone(), held.mesh.tets.clone());
-        let mesh = TetMesh::with_unused_nodes(rest, tets).map_err(invalid)?;
+        let elsewhere = || SimError::Setup("another process's split part failed".into());
+        let mesh = TetMesh::with_unused_nodes(rest, tets).map_err(invalid);
+        let mesh = agreed(world, mesh, elsewhere)?;
         let (piece, pieces) = connected_parts(world, &held.part, &mesh.tets, &held.node_owner);
         let faces = crack_faces(&mesh, &held.origin, &self.original);
         let cracks: Vec<[usize; 3]> = faces.iter().map(|c| c.nodes).collect();
@@ -590,7 +592,8 @@ impl PartFracture {
             ),
             None => model_after_split(world, &next.held, &sim.model, &self.original),
         }
-        .map_err(invalid)?;
+        .map_err(invalid);
+        let model = agreed(world, model, elsewhere)?;
         let renumbered = |history: &TermHistory| {
             let old = renumbered_gaps(history, &self.part, &next.held.part);
             model.inherited_history(&old, &next.node_parent)
@@ -611,11 +614,12 @@ impl PartFracture {
             values
         };
         let parent = &next.held.mesh.parent;
-        let mut on_next = Simulation::for_part(model, sim.settings)?;
+        let mut on_next = agreed(world, Simulation::for_part(model, sim.settings), elsewhere)?;
         let held_next = (&next.held.part, &next.held.origin[..]);
-        sim.hand_heat_to(&mut on_next, parent, |link, mesh| {
+        let heat = sim.hand_heat_to(&mut on_next, parent, |link, mesh| {
             heat_on_part(link, (mesh, held_next.0, held_next.1), &self.heat_part)
-        })?;
+        });
+        agreed(world, heat, elsewhere)?;
         let state = &sim.state;
         on_next.state = State {
             u: from_owners(&held.mesh.u),

@@ -12,6 +12,7 @@
 //! they were. Checked on 3 processes against the whole mesh (`solver_tests/partition.rs`).
 //! [`super::part_fracture`] drives them after each step (docs/distributed.md).
 
+use super::agreed;
 use super::components::connected_parts;
 use super::ghosts::all_gathered;
 use crate::fracture::cracks::OriginalBoundary;
@@ -185,8 +186,9 @@ pub struct PartSplit {
 /// or the split cuts off a piece smaller than `min_piece` (m³), in which case `held` is left
 /// as it was. `original` is the scene boundary's planes of the part's scene elements, and
 /// `snap` and `min_quality` the split's [`crate::fracture::FractureSettings`]. Every process
-/// calls it, and every process takes the same decision. Fails if a part cannot take the
-/// split (a part holding elements of every process's, see `Patch::apply_to_part`).
+/// calls it, and every process takes the same decision. Fails on every process if a part
+/// cannot take the split (a part holding elements of every process's, see
+/// `Patch::apply_to_part`).
 pub fn try_split(
     world: &SimpleCommunicator,
     held: &mut SplitPart,
@@ -230,7 +232,10 @@ pub fn try_split(
     let (mut mesh, mut node_owner) = (held.mesh.clone(), held.node_owner.clone());
     mesh.parent = (0..mesh.tets.len()).collect();
     mesh.node_parent = (0..mesh.rest.len()).collect();
-    let part = patch.apply_to_part(&held.part, (&mut mesh, &mut node_owner), &processes, rank)?;
+    let applied = patch.apply_to_part(&held.part, (&mut mesh, &mut node_owner), &processes, rank);
+    let part = agreed(world, applied, || {
+        "another process's part could not take the split".into()
+    })?;
     if smallest_piece(world, &part, &mesh, &node_owner) < min_piece {
         return Ok(Err(Refusal::PieceTooSmall));
     }
