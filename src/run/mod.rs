@@ -370,8 +370,7 @@ fn simulation_for(
                     }
                     None => {
                         Simulation::check(&scene.model, &settings).map_err(setup)?;
-                        let whole_and_h = (needs_whole_mesh(scene), settings.dt);
-                        (processes.part_model(&scene.model, whole_and_h)).map_err(setup)?
+                        (processes.part_model(&scene.model, (false, settings.dt))).map_err(setup)?
                     }
                 };
                 (
@@ -825,11 +824,4 @@ fn as_rows(v: &[f64]) -> &[[f64; 3]] {
     let (rows, rest) = v.as_chunks::<3>();
     debug_assert!(rest.is_empty());
     rows
-}
-
-/// Whether a distributed run needs the whole mesh on every process: where the mesh has
-/// cracks already (their pairs of copies come with the scene). Fracture otherwise runs on
-/// the parts (`distributed::part_fracture`).
-fn needs_whole_mesh(scene: &Scene) -> bool {
-    (scene.model.ice_contact()).is_some_and(|c| !c.crack_sides().is_empty())
 }

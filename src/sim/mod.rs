@@ -516,11 +516,12 @@ impl Simulation {
             None => None,
         };
         let model = match &shared {
-            // A split changes elements of several parts at once: a run with fracture holds
-            // the whole mesh on every process (`run::needs_whole_mesh`).
+            // A split changes elements of several parts at once: on parts, fracture splits
+            // through `distributed::part_fracture`; here only where every process holds the
+            // whole mesh.
             Some((_, part)) if !part.is_whole() => {
                 return Err(SimError::NotDistributed(
-                    "splitting a process's part of the mesh (fracture needs the whole mesh)",
+                    "remeshing a process's part of the mesh (fracture on parts splits through the processes' fracture)",
                 ))
             }
             Some((_, part)) => part.whole_model(model),
