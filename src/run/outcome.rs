@@ -150,6 +150,14 @@ impl Outcome {
                     mpa(f.largest_stress),
                     mpa(f.toughness)
                 ));
+            } else if f.crack_area > 0.0 {
+                // A resumed run: its cracks were made before it.
+                lines.push(format!(
+                    "cracks: no new fracture events, crack area {:.3e} m²; the largest separation stress {:.3} MPa against the toughness {:.3} MPa",
+                    f.crack_area,
+                    mpa(f.largest_stress),
+                    mpa(f.toughness)
+                ));
             } else {
                 let capped = f.yield_stress.map_or(String::new(), |s| {
                     format!(
@@ -173,5 +181,35 @@ impl Outcome {
             ));
         }
         lines
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{FractureOutcome, Outcome};
+
+    #[test]
+    fn a_run_without_new_splits_on_a_cracked_mesh_reports_its_cracks() {
+        // A resumed run whose cracks were all made before it: not "no cracks".
+        let fracture = |events, crack_area| FractureOutcome {
+            events,
+            crack_area,
+            largest_stress: 2.363e6,
+            toughness: 3e6,
+            yield_stress: None,
+        };
+        let lines = |f| {
+            let outcome = Outcome {
+                fracture: Some(f),
+                ..Outcome::default()
+            };
+            outcome.lines()
+        };
+        assert_eq!(
+            lines(fracture(0, 2.222e-3)),
+            ["cracks: no new fracture events, crack area 2.222e-3 m²; the largest separation stress 2.363 MPa against the toughness 3.000 MPa"]
+        );
+        assert!(lines(fracture(0, 0.0))[0].starts_with("no cracks: the largest separation"));
+        assert!(lines(fracture(4, 2.222e-3))[0].starts_with("cracks: 4 fracture events"));
     }
 }
