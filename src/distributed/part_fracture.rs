@@ -288,7 +288,9 @@ impl PartFracture {
         if let Some(link) = heat {
             let origin = resumed.part_origins();
             let on_part = (&whole.model.mesh, &resumed.part, &origin[..]);
-            whole.attach_heat(heat_on_part(link, on_part, &resumed.heat_part)?);
+            let link = heat_on_part(link, on_part, &resumed.heat_part);
+            let elsewhere = || SimError::Setup("another process's heat model failed".into());
+            whole.attach_heat(agreed(world, link, elsewhere)?);
         }
         Ok((resumed, whole))
     }
