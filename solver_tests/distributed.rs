@@ -520,15 +520,15 @@ fn the_fractured_container_on_two_processes_cracks_as_on_one() {
 }
 
 /// The pulled bar and a second one beside it, 0.5 mm apart (ice–ice contact from the start),
-/// written into `dir`.
-fn two_pulled_bars(dir: &Path) -> PathBuf {
+/// with `extra` text, written into `dir`.
+fn two_pulled_bars(dir: &Path, extra: &str) -> PathBuf {
     let one_bar = "box = { size = [0.04, 0.02, 0.02], cells = [8, 4, 4] }";
     let two_bars = "boxes = [\n  { size = [0.04, 0.02, 0.02], cells = [8, 4, 4] },\n  \
                     { origin = [0.0, 0.0205, 0.0], size = [0.04, 0.02, 0.02], cells = [8, 4, 4] },\n]";
     let text = std::fs::read_to_string(scene("pulled_bar.toml")).unwrap();
     assert!(text.contains(one_bar), "the pulled bar's mesh line");
     let path = dir.join("two_bars.toml");
-    std::fs::write(&path, text.replace(one_bar, two_bars)).unwrap();
+    std::fs::write(&path, text.replace(one_bar, two_bars) + extra).unwrap();
     path
 }
 
@@ -539,7 +539,7 @@ fn two_pulled_bars_in_contact_on_two_processes_crack_as_on_one() {
     // each, the other bar's side within the contact's reach), and the split parts gather it
     // again; 39 splits in steps 5 to 9 as on one process, 167 crack faces, 8.000e-4 m².
     let dir = tempfile::tempdir().unwrap();
-    let bars = two_pulled_bars(dir.path());
+    let bars = two_pulled_bars(dir.path(), "");
     let (one, two) = two_processes_crack_as_one(&bars, &[], true);
     assert!((one - two).abs() <= 1e-6 * one, "{one:e} vs {two:e}");
 }
@@ -921,13 +921,17 @@ fn a_cracked_run_on_two_processes_resumed_on_two_is_the_uninterrupted_run_bit_fo
 }
 
 #[test]
-fn cracked_bars_in_contact_on_two_processes_resumed_on_two_are_the_uninterrupted_run_bit_for_bit() {
+fn cooled_bars_in_contact_cracked_on_two_processes_resume_bit_for_bit() {
     // Cut at step 20, after the two bars' 39 splits: the resumed run gathers the ghost
     // surfaces on the parts it makes from the frame, as the uninterrupted run does at its
-    // restart points.
+    // restart points. The bars cool (heat conduction on the scene's parts, read by the
+    // split parts and their ghost surfaces' elements by position).
     let dir = tempfile::tempdir().unwrap();
-    let bars = two_pulled_bars(dir.path());
-    let fields = ["displacement", "rest_positions"];
+    let cooled = "\n[thermal]\ninitial_temperature = -2.0\n[[thermal.convection]]\n\
+                  faces = [\"walls\", \"bottom\", \"top\"]\nh = 500.0\n\
+                  ambient_temperature = -10.0\n";
+    let bars = two_pulled_bars(dir.path(), cooled);
+    let fields = ["displacement", "rest_positions", "temperature"];
     resumed_on_two_is_uninterrupted(&bars, ("0.002", "0.004"), &fields);
 }
 
