@@ -3,11 +3,16 @@
 //! mesh's nodes, numbered as the mechanics' nodes are (a fixed-temperature node is a row of
 //! its diagonal alone), solved by conjugate gradients with BoomerAMG; each process gathers
 //! the solution on its part's free nodes. Sums, maxima and the union of the edges whose
-//! couplings are cancelled go over MPI.
+//! couplings are cancelled go over MPI. With fracture the heat model stays on the part it was
+//! set up on, and a split part reads it by position (`link_on_part`).
 
 use super::partition::PartNumbering;
 use super::petsc::{Gather, Int, Krylov, Matrix, Vector};
+use crate::mesh::TetMesh;
+use crate::sim::part::Part;
+use crate::sim::SimError;
 use crate::thermal::system::ScalarSystem;
+use crate::thermal::HeatLink;
 use crate::thermal::HeatShare;
 use mpi::topology::SimpleCommunicator;
 
@@ -191,4 +196,32 @@ impl HeatShare for HeatProcessShare {
             .gather(&self.solution, |mine| x.copy_from_slice(mine))
             .map_err(error)
     }
+}
+
+/// The heat model's `link` (on this process's part `heat_part` of the scene's mesh) to the
+/// mechanics `mesh` of the part `part`, whose elements lie in the scene elements `origin`:
+/// a node of the scene's mesh reads the heat model's node, another (a split's) its
+/// position in the scene element of its first element. Every element lies in a scene
+/// element of `heat_part`: a split part's element in its scene element, within the ring
+/// around the part's own scene elements; a ghost-surface element stands in with an own one.
+pub(super) fn link_on_part(
+    link: HeatLink,
+    (mesh, part, origin): (&TetMesh, &Part, &[usize]),
+    heat_part: &Part,
+) -> Result<HeatLink, SimError> {
+    let element_source = (origin.iter())
+        .map(|o| {
+            heat_part.elements.binary_search(o).map_err(|_| {
+                SimError::Setup(format!(
+                    "split part: scene element {o} lies outside the heat model's part"
+                ))
+            })
+        })
+        .collect::<Result<Vec<usize>, SimError>>()?;
+    let scene_nodes = heat_part.whole_nodes();
+    let heat_node = |k: usize| {
+        let i = part.nodes[k];
+        (i < scene_nodes).then(|| heat_part.local(i)).flatten()
+    };
+    Ok(link.relinked((&mesh.rest, &mesh.tets), element_source, heat_node))
 }

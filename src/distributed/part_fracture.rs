@@ -23,7 +23,7 @@
 //! processes against one (`solver_tests/partition.rs`). With heat conduction the heat model
 //! stays on the process's part of the scene's mesh, where it was set up (its pattern and
 //! share of the solver last the run), and a split part reads it by position as one process's
-//! split mesh reads the scene mesh's ([`crate::thermal::HeatLink::relinked`]): an element
+//! split mesh reads the scene mesh's (`distributed::heat::link_on_part`): an element
 //! in its scene element, which lies in that part (every element around a node of an own
 //! element lies in a scene element around a node of an own scene element). Between splits
 //! the ghost surface is gathered again when the ice has moved too far for it
@@ -42,6 +42,7 @@ use super::components::connected_parts;
 use super::components::crack_ids;
 use super::ghost_surface::{gathered, Surface};
 use super::ghosts::all_gathered;
+use super::heat::link_on_part;
 use super::node_halo::NodeHalo;
 use super::rebuild::{
     model_after_split, model_with_surface, numbering_after_split, share_after_split,
@@ -201,8 +202,7 @@ impl PartFracture {
         // a resumed run finds them: those inherited were found on the part before, where a
         // split's node outside the own elements may read its temperature in another
         // element (the same value within round-off).
-        let temperature = sim.state.temperature.clone();
-        sim.set_temperature(temperature);
+        sim.freeze_states_from_temperatures();
         Ok(())
     }
 
@@ -288,7 +288,7 @@ impl PartFracture {
         if let Some(link) = heat {
             let origin = resumed.part_origins();
             let on_part = (&whole.model.mesh, &resumed.part, &origin[..]);
-            let link = heat_on_part(link, on_part, &resumed.heat_part);
+            let link = link_on_part(link, on_part, &resumed.heat_part);
             let elsewhere = || SimError::Setup("another process's heat model failed".into());
             whole.attach_heat(agreed(world, link, elsewhere)?);
         }
@@ -619,7 +619,7 @@ impl PartFracture {
         let mut on_next = agreed(world, Simulation::for_part(model, sim.settings), elsewhere)?;
         let held_next = (&next.held.part, &next.held.origin[..]);
         let heat = sim.hand_heat_to(&mut on_next, parent, |link, mesh| {
-            heat_on_part(link, (mesh, held_next.0, held_next.1), &self.heat_part)
+            link_on_part(link, (mesh, held_next.0, held_next.1), &self.heat_part)
         });
         agreed(world, heat, elsewhere)?;
         let state = &sim.state;
@@ -827,34 +827,6 @@ fn scene_processes(world: &SimpleCommunicator, scene_part: &Part) -> Vec<u32> {
         process[pair[0] as usize] = pair[1] as u32;
     }
     process
-}
-
-/// The heat model's `link` (on this process's part `heat_part` of the scene's mesh) to the
-/// mechanics `mesh` of the part `part`, whose elements lie in the scene elements `origin`:
-/// a node of the scene's mesh reads the heat model's node, another (a split's) its
-/// position in the scene element of its first element. Every element lies in a scene
-/// element of `heat_part`: a split part's element in its scene element, within the ring
-/// around the part's own scene elements; a ghost-surface element stands in with an own one.
-fn heat_on_part(
-    link: HeatLink,
-    (mesh, part, origin): (&TetMesh, &Part, &[usize]),
-    heat_part: &Part,
-) -> Result<HeatLink, SimError> {
-    let element_source = (origin.iter())
-        .map(|o| {
-            heat_part.elements.binary_search(o).map_err(|_| {
-                SimError::Setup(format!(
-                    "split part: scene element {o} lies outside the heat model's part"
-                ))
-            })
-        })
-        .collect::<Result<Vec<usize>, SimError>>()?;
-    let scene_nodes = heat_part.whole_nodes();
-    let heat_node = |k: usize| {
-        let i = part.nodes[k];
-        (i < scene_nodes).then(|| heat_part.local(i)).flatten()
-    };
-    Ok(link.relinked((&mesh.rest, &mesh.tets), element_source, heat_node))
 }
 
 /// The simulation's part after a split (see [`PartFracture::with_surface`]).

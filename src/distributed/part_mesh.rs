@@ -49,7 +49,8 @@ pub enum Besides<'a> {
     /// elements of its ghost surface, see `super::ghost_surface`): the holders of their
     /// ranges send them.
     Asked(&'a [usize]),
-    /// Every element: each process holds the whole mesh (fracture with heat splits it).
+    /// Every element: each process holds the whole mesh (`ICEFEM_WHOLE_MESH=1`, and tests
+    /// that read the whole state).
     All,
 }
 

@@ -7,7 +7,7 @@ use crate::mesh::TetMesh;
 use crate::sim::part::Part;
 
 /// How the mesh is shared among `parts` processes, over the whole mesh: what a process builds
-/// where it holds the whole mesh (a split mesh, with fracture and heat). A run on parts keeps
+/// where it holds the whole mesh (asked for with `ICEFEM_WHOLE_MESH=1`). A run on parts keeps
 /// [`PartNumbering`] only, gathered without the whole mesh (`super::part_mesh`).
 #[derive(Clone, Debug)]
 pub struct Partition {

@@ -592,8 +592,15 @@ impl Simulation {
     pub fn set_temperature(&mut self, temperature: Vec<f64>) {
         if self.heat.is_some() {
             self.state.temperature = temperature;
-            self.set_thermal_schedule(self.state.time, self.state.time, None);
+            self.freeze_states_from_temperatures();
         }
+    }
+
+    /// Sets the elements' freeze states to those the state's temperatures give through the
+    /// heat model's link to the current mesh, as a resumed run finds them (nothing without
+    /// `[thermal]`).
+    pub fn freeze_states_from_temperatures(&mut self) {
+        self.set_thermal_schedule(self.state.time, self.state.time, None);
     }
 
     /// The heat model, with `[thermal]`.
