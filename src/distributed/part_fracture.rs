@@ -62,15 +62,13 @@ use crate::fracture::{
     PartAverages,
 };
 use crate::mesh::TetMesh;
-use crate::physics::ice_contact::{IceContact, IceContactTerm, CRACK_GAPS};
+use crate::physics::ice_contact::{renumbered_gaps, IceContact, IceContactTerm, CRACK_GAPS};
 use crate::physics::term::TermHistory;
-use crate::run::{CrackTotals, FracturePart, CRACK_ROW};
+use crate::run::{CrackTotals, FracturePart, ResumedSplit, CRACK_ROW};
 use crate::sim::integrator::SchemeState;
-use crate::sim::part::lowest_owners;
 use crate::sim::part::Part;
 use crate::sim::potential::Collective;
 use crate::sim::{SimError, Simulation, State};
-use crate::thermal::HeatLink;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -230,44 +228,74 @@ impl PartFracture {
         self.rebuild(world, sim, None, carried).map(|_| ())
     }
 
-    /// This fracture resumed from a frame, on the part that frame's split mesh gives this
-    /// process: `whole` is the simulation of the split mesh the frame holds, on the whole
-    /// mesh (not shared out), and its [`crate::fracture::Fracture`] (the scene element each
-    /// element lies in, the refused splits); `heat` the heat model on this process's part of
-    /// the scene's mesh at the frame's temperatures (with `[thermal]`). The parameters and
-    /// what was found of the scene's mesh at set-up stay. Each element goes to the process
-    /// of its scene element and each node to the lowest process among its elements', as the
-    /// splits made them; the part is then made and `whole` continued on it as
-    /// [`PartFracture::restart`] does: returned with the fracture. Every process of `world`
-    /// calls it.
+    /// The process of each element of the scene's mesh (its own elements' on every
+    /// process). Every process of `world` calls it.
+    pub fn scene_processes(&self, world: &SimpleCommunicator) -> Vec<u32> {
+        scene_processes(world, &self.heat_part)
+    }
+
+    /// This fracture resumed from a frame, on `split`, this process's part of the frame's
+    /// split mesh (see [`ResumedSplit`]): `sim` is the run as set up on
+    /// [`PartFracture::part`] (no split made yet, so its elements are the scene's), with the
+    /// frame's temperatures where it has a heat model. The split part's model is made from
+    /// `sim`'s, each element's from its scene element's, as a split makes it; then the run is
+    /// continued on the part with its ghost surface as [`PartFracture::restart`] continues
+    /// it, at the frame's displacements and velocities: returned with the fracture. The
+    /// parameters and what was found of the scene's mesh at set-up stay. Every process of
+    /// `world` calls it.
     pub fn resumed(
         &self,
         world: &SimpleCommunicator,
-        (mut whole, fracture): (Simulation, &crate::fracture::Fracture),
-        heat: Option<HeatLink>,
+        mut sim: Simulation,
+        split: ResumedSplit,
     ) -> Result<(Self, Simulation), SimError> {
-        let scene_process = scene_processes(world, &self.heat_part);
-        let rank = world.rank() as u32;
-        let mesh = &whole.model.mesh;
-        let process: Vec<u32> = fracture.origin.iter().map(|&o| scene_process[o]).collect();
-        let owners = lowest_owners(&mesh.tets, &process, mesh.num_nodes());
-        let part = Part::new(&mesh.tets, (&process, &owners), rank, (&[], false));
-        let (u, v) = (whole.state.u.clone(), whole.state.v.clone());
-        let split = Fracturable::new(mesh.rest.clone(), mesh.tets.clone(), u, v);
-        let held = SplitPart {
-            mesh: split.rows_of(&part),
-            node_owner: part.nodes.iter().map(|&i| owners[i]).collect(),
-            origin: part.elements.iter().map(|&e| fracture.origin[e]).collect(),
-            process: part.elements.iter().map(|&e| process[e]).collect(),
-            part,
-        };
-        // The refusals of the nodes this process owns.
-        let refused = (fracture.refused.iter().enumerate())
-            .filter_map(|(i, r)| Some((i, (*r)?)))
-            .filter(|(i, _)| owners[*i] == rank)
+        let elsewhere = || SimError::Setup("another process's resumed part failed".into());
+        let invalid = |e: crate::mesh::MeshError| SimError::Setup(format!("resumed part: {e}"));
+        // Every element of the part lies in a scene element this part holds: an own element
+        // in an own one, one around an own element's node in one sharing a node with it.
+        let parent: Result<Vec<usize>, SimError> = (split.origin.iter())
+            .map(|&o| {
+                self.part.elements.binary_search(&o).map_err(|_| {
+                    SimError::Setup(format!(
+                        "resumed part: scene element {o} is not held by this process"
+                    ))
+                })
+            })
             .collect();
-        // Until it is continued on its part, the simulation is the whole mesh's.
-        let all = Part::new(&mesh.tets, (&process, &owners), rank, (&[], true));
+        let parent = agreed(world, parent, elsewhere)?;
+        let rank = world.rank() as u32;
+        let refused = (split.refused.chunks_exact(4).zip(&split.part.nodes))
+            .zip(&split.node_owner)
+            .filter(|(_, &owner)| owner == rank)
+            .filter_map(|((row, &node), _)| Some((node, RefusedNode::from_row(row)?)))
+            .collect();
+        let mut mesh = Fracturable::new(split.rest, split.tets, split.u, split.v);
+        mesh.parent = parent;
+        let held = SplitPart {
+            part: split.part,
+            mesh,
+            node_owner: split.node_owner,
+            origin: split.origin,
+            process: split.process,
+        };
+        let model = model_after_split(world, &held, &sim.model, &self.original).map_err(invalid);
+        let model = agreed(world, model, elsewhere)?;
+        let mut on_split = agreed(world, Simulation::for_part(model, sim.settings), elsewhere)?;
+        let parent = &held.mesh.parent;
+        let heat = sim.hand_heat_to(&mut on_split, parent, |link, mesh| {
+            link_on_part(link, (mesh, &held.part, &held.origin), &self.heat_part)
+        });
+        agreed(world, heat, elsewhere)?;
+        // What the time scheme and the terms carry is the frame's, set on the final part.
+        on_split.state = State {
+            u: held.mesh.u.clone(),
+            v: held.mesh.v.clone(),
+            history: sim.state.history.inherit(parent),
+            carried: SchemeState::default(),
+            term_history: TermHistory::default(),
+            ..sim.state.clone()
+        };
+        drop(sim);
         let mut resumed = PartFracture {
             settings: self.settings,
             collective: MpiCollective::new(&held.part, &held.node_owner),
@@ -277,22 +305,15 @@ impl PartFracture {
             area_floor: self.area_floor,
             halo: None,
             hold: None,
-            node_owner: owners,
-            part: all,
+            node_owner: held.node_owner.clone(),
+            part: held.part.clone(),
             held,
             solve: self.solve,
             cracks: CrackTotals::default(),
             heat_part: self.heat_part.clone(),
         };
-        resumed.continue_on_held(world, &mut whole, false)?;
-        if let Some(link) = heat {
-            let origin = resumed.part_origins();
-            let on_part = (&whole.model.mesh, &resumed.part, &origin[..]);
-            let link = link_on_part(link, on_part, &resumed.heat_part);
-            let elsewhere = || SimError::Setup("another process's heat model failed".into());
-            whole.attach_heat(agreed(world, link, elsewhere)?);
-        }
-        Ok((resumed, whole))
+        resumed.continue_on_held(world, &mut on_split, false)?;
+        Ok((resumed, on_split))
     }
 
     /// Fractures `sim` (on [`PartFracture::part`]) after a converged step, as
@@ -597,7 +618,7 @@ impl PartFracture {
         .map_err(invalid);
         let model = agreed(world, model, elsewhere)?;
         let renumbered = |history: &TermHistory| {
-            let old = renumbered_gaps(history, &self.part, &next.held.part);
+            let old = renumbered_gaps(history, |i| next.held.part.local(self.part.nodes[i]));
             model.inherited_history(&old, &next.node_parent)
         };
         let term_history = renumbered(&sim.state.term_history);
@@ -925,23 +946,6 @@ fn canonical_part(held: &SplitPart, rank: u32) -> SplitPart {
         origin: elements.iter().map(|&k| held.origin[k]).collect(),
         process: elements.iter().map(|&k| held.process[k]).collect(),
     }
-}
-
-/// The crack gaps of `history` (rows p, q, g numbered in the part `old`) renumbered in the
-/// part `new`; pairs with a node `new` does not hold are dropped.
-fn renumbered_gaps(history: &TermHistory, old: &Part, new: &Part) -> TermHistory {
-    let rows: Vec<f64> = (history.get(CRACK_GAPS).chunks_exact(3))
-        .filter_map(|r| {
-            let at = |x: f64| new.local(old.nodes[x as usize]).map(|k| k as f64);
-            Some([at(r[0])?, at(r[1])?, r[2]])
-        })
-        .flatten()
-        .collect();
-    let mut renumbered = TermHistory::default();
-    if !rows.is_empty() {
-        renumbered.set(CRACK_GAPS, 3, rows);
-    }
-    renumbered
 }
 
 /// How far (m) from its owned boundary nodes a process gathers its ghost surface after a

@@ -6,13 +6,13 @@ use super::splits::SplitPart;
 use super::{largest, sum_in_order};
 use crate::fracture::cracks::OriginalBoundary;
 use crate::fracture::split::Fracturable;
-use crate::fracture::{area_floor_of, Fracture, FractureReport, FractureSettings};
+use crate::fracture::{area_floor_of, FractureReport, FractureSettings};
 use crate::mesh::TetMesh;
-use crate::run::{CrackTotals, FractureOnParts, FracturePart};
+use crate::run::{CrackTotals, FractureOnParts, FracturePart, ResumedSplit};
 use crate::sim::part::Part;
 use crate::sim::{SimError, Simulation};
-use crate::thermal::HeatLink;
 use mpi::topology::SimpleCommunicator;
+use mpi::traits::Communicator;
 
 /// [`PartFracture`] with the processes it runs on.
 pub struct RunFracture<'a> {
@@ -123,12 +123,15 @@ impl FractureOnParts for RunFracture<'_> {
         self.fracture.frame_part(self.world, sim)
     }
 
-    fn resume(
-        &mut self,
-        whole: (Simulation, &Fracture),
-        heat: Option<HeatLink>,
-    ) -> Result<Simulation, SimError> {
-        let (fracture, sim) = self.fracture.resumed(self.world, whole, heat)?;
+    fn scene_processes(&self) -> (Vec<u32>, u32) {
+        (
+            self.fracture.scene_processes(self.world),
+            self.world.rank() as u32,
+        )
+    }
+
+    fn resume(&mut self, sim: Simulation, split: ResumedSplit) -> Result<Simulation, SimError> {
+        let (fracture, sim) = self.fracture.resumed(self.world, sim, split)?;
         self.fracture = fracture;
         Ok(sim)
     }

@@ -174,6 +174,22 @@ pub struct RefusedNode {
     pub normal: Vector3<f64>,
 }
 
+impl RefusedNode {
+    /// The refusal a row written by [`Fracture::refusals_as_rows`] holds, if any (an unknown
+    /// code reads as none).
+    pub fn from_row(row: &[f64]) -> Option<RefusedNode> {
+        let reason = match row[0] {
+            1.0 => Refusal::PlaneMissesStar,
+            2.0 => Refusal::PieceTooSmall,
+            _ => return None,
+        };
+        Some(RefusedNode {
+            reason,
+            normal: Vector3::new(row[1], row[2], row[3]),
+        })
+    }
+}
+
 /// A split made on a copy of the mesh.
 struct SplitAttempt {
     /// The split mesh, carrying the state and (in `extra`) the step's start displacements and
@@ -333,20 +349,7 @@ impl Fracture {
     /// Restores the refused splits from rows written by [`Fracture::refusals_as_rows`]
     /// (unknown codes read as none).
     pub fn restore_refusals(&mut self, rows: &[f64]) {
-        self.refused = rows
-            .chunks_exact(4)
-            .map(|r| {
-                let reason = match r[0] {
-                    1.0 => Refusal::PlaneMissesStar,
-                    2.0 => Refusal::PieceTooSmall,
-                    _ => return None,
-                };
-                Some(RefusedNode {
-                    reason,
-                    normal: Vector3::new(r[1], r[2], r[3]),
-                })
-            })
-            .collect();
+        self.refused = rows.chunks_exact(4).map(RefusedNode::from_row).collect();
     }
 
     /// Total crack area at rest, one side (m²), on the mesh with rest positions `rest`.

@@ -6,6 +6,7 @@ use crate::fracture::cracks::CrackSurface;
 use crate::fracture::{FractureReport, FractureSettings};
 use crate::sim::part::Part;
 use crate::sim::{SimError, Simulation};
+use nalgebra::Vector3;
 
 /// Fracture of a simulation held in parts by the processes of a run. Every process calls
 /// every method, in the same order.
@@ -31,16 +32,41 @@ pub trait FractureOnParts {
     fn crack_totals(&self) -> CrackTotals;
     /// What a frame of `sim` holds of fracture on this process's part.
     fn frame_part(&self, sim: &Simulation) -> Result<FracturePart, SimError>;
-    /// Resumes this fracture (as set up on the scene's parts) from a frame: `whole` is the
-    /// simulation of the frame's split mesh on the whole mesh, not shared out, and its
-    /// fracture; `heat` the heat model on this process's part of the scene's mesh at the
-    /// frame's temperatures, with `[thermal]`. Returns `whole` continued on this process's
-    /// part of the split mesh.
-    fn resume(
-        &mut self,
-        whole: (Simulation, &crate::fracture::Fracture),
-        heat: Option<crate::thermal::HeatLink>,
-    ) -> Result<Simulation, SimError>;
+    /// The process of each element of the scene's mesh, whose split elements stay with it,
+    /// and this process's number.
+    fn scene_processes(&self) -> (Vec<u32>, u32);
+    /// Resumes this fracture, as set up on the scene's parts, from a frame: `sim` is the run
+    /// as set up (on [`FractureOnParts::part`], with the frame's temperatures), `split` this
+    /// process's part of the frame's split mesh. Returns the run continued on that part with
+    /// its ghost surface, its model made from `sim`'s and its heat model linked to it, as a
+    /// restart point continues it ([`FractureOnParts::restart`]); the frame's state on
+    /// it is the caller's to set.
+    fn resume(&mut self, sim: Simulation, split: ResumedSplit) -> Result<Simulation, SimError>;
+}
+
+/// A process's part of a resumed frame's split mesh, shared out as the splits share it: each
+/// element with the process of its scene element, each node with the lowest process among
+/// its elements'; the part holds the process's own elements and every element around their
+/// nodes.
+#[derive(Clone, Debug, Default)]
+pub struct ResumedSplit {
+    /// The part (the frame mesh's numbers).
+    pub part: Part,
+    /// Its nodes' rest positions (m).
+    pub rest: Vec<Vector3<f64>>,
+    /// Its elements, numbered in the part.
+    pub tets: Vec<[usize; 4]>,
+    /// Its nodes' displacements (m) and velocities (m/s), 3 a node.
+    pub u: Vec<f64>,
+    pub v: Vec<f64>,
+    /// Its nodes' owners.
+    pub node_owner: Vec<u32>,
+    /// Its elements' scene elements and processes.
+    pub origin: Vec<usize>,
+    pub process: Vec<u32>,
+    /// Its nodes' refused splits, 4 a node (see
+    /// [`crate::fracture::Fracture::refusals_as_rows`]; empty: none).
+    pub refused: Vec<f64>,
 }
 
 /// The cracks of the whole mesh.

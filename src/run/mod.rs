@@ -6,7 +6,7 @@ mod outcome;
 mod restore;
 mod surfaces;
 
-pub use fracture_parts::{CrackTotals, FractureOnParts, FracturePart, CRACK_ROW};
+pub use fracture_parts::{CrackTotals, FractureOnParts, FracturePart, ResumedSplit, CRACK_ROW};
 pub use outcome::{FractureOutcome, Outcome};
 
 use crate::fracture::{Fracture, FractureReport, FractureSettings};
@@ -224,33 +224,32 @@ pub fn run_on(
     let writes = processes.is_none_or(|p| p.writes());
     let writer = if options.resume {
         match (shared, on_parts.take()) {
-            // Fracture on the parts: the split mesh rebuilt whole from the frame, then shared.
-            (Some((processes, part)), Some(fracture)) => {
-                let (writer, frame) = read_for_resume(
-                    (scene, &output),
-                    (Some(processes), processes.writes()),
-                    || OutputWriter::resume_until(&output, end_time),
-                    (ResumeFrame::to_bytes, ResumeFrame::from_bytes),
-                )?;
-                let resumed =
-                    resumed_on_parts((scene, &output, &frame), (settings, part), (sim, fracture))?;
-                (sim, on_parts) = (resumed.0, Some(resumed.1));
-                writer
-            }
-            (Some((processes, part)), None) => {
+            // Each process reads its part's rows of the frame, a block at a time.
+            (Some((processes, part)), fracture) => {
                 let (writer, head) = read_for_resume(
                     (scene, &output),
                     (Some(processes), processes.writes()),
                     || OutputWriter::resume_head(&output, end_time),
                     (FrameHead::to_bytes, FrameHead::from_bytes),
                 )?;
-                let frame = resumed_part(
-                    processes,
-                    (writer.as_ref(), &output),
-                    (head, restore::BLOCK_VALUES),
-                    (part, &sim.model.mesh),
-                )?;
-                restore(&mut sim, None, &output, &frame, &scene.text)?;
+                let reading = (processes, writer.as_ref(), output.as_path());
+                match fracture {
+                    // Fracture on the parts: the frame's split mesh shared out as it splits.
+                    Some(fracture) => {
+                        let resumed =
+                            resumed_on_parts((reading, scene, head), (part, sim, fracture))?;
+                        (sim, on_parts) = (resumed.0, Some(resumed.1));
+                    }
+                    None => {
+                        let frame = resumed_part(
+                            processes,
+                            (writer.as_ref(), &output),
+                            (head, restore::BLOCK_VALUES),
+                            (part, &sim.model.mesh),
+                        )?;
+                        restore(&mut sim, None, &output, &frame, &scene.text)?;
+                    }
+                }
                 writer
             }
             (None, _) => {

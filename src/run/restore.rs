@@ -1,14 +1,15 @@
 //! Resuming a run: the state of its last complete frame put back into a simulation.
 
-use super::{rows, FractureOnParts, Processes, RunError};
+use super::{rows, FractureOnParts, Processes, ResumedSplit, RunError};
 use crate::fem;
 use crate::fracture::split::Fracturable;
 use crate::fracture::Fracture;
 use crate::mesh::TetMesh;
 use crate::output::{FrameHead, OutputError, OutputWriter, ResumeFrame};
+use crate::physics::ice_contact::{renumbered_gaps, CRACK_GAPS};
+use crate::physics::term::TermHistory;
 use crate::scene::Scene;
 use crate::sim::part::Part;
-use crate::sim::StepSettings;
 use crate::sim::{SchemeState, Simulation};
 use std::path::Path;
 
@@ -16,84 +17,219 @@ use std::path::Path;
 /// doubles.
 pub(super) const BLOCK_VALUES: usize = 1 << 20;
 
-/// A run of `scene` fracturing on the processes' parts resumed from `frame` (of the file
-/// `output`): the split mesh rebuilt whole from the frame as one process rebuilds it (from
-/// the whole scene, built again here where the scene was built on the processes' parts),
-/// then each process's part made from it alone and the simulation continued there (see
-/// [`FractureOnParts::resume`]); `part` is this process's part of the scene's mesh. The
-/// `old` simulation (on the scene's part) goes before the split mesh is shared out. Every
-/// process calls it.
+/// How a process reads a resumed frame: the processes, the writer (on the writing process,
+/// which reads the file and gives each block of rows to every process) and the file.
+type Reading<'a> = (&'a dyn Processes, Option<&'a OutputWriter>, &'a Path);
+
+/// A run of `scene` fracturing on the processes' parts resumed from the frame `head`, every
+/// process reading only its part's rows of it, a block at a time: the frame's split mesh
+/// shared out as the splits share it (each element to the process of its scene element,
+/// each node to the lowest of its elements' processes), the part's model made from `sim`'s
+/// — the run as set up on its part of the scene's mesh, `part`, on which a heat model stays
+/// at the frame's temperatures — and the frame's state put on it (see
+/// [`FractureOnParts::resume`]). Every process calls it.
 pub(super) fn resumed_on_parts<'p>(
-    (scene, output, frame): (&Scene, &Path, &crate::output::ResumeFrame),
-    (settings, part): (StepSettings, &Part),
-    (mut old_sim, mut on_parts): (Simulation, Box<dyn FractureOnParts + 'p>),
+    (reading, scene, head): (Reading, &Scene, FrameHead),
+    (part, mut sim, mut on_parts): (&Part, Simulation, Box<dyn FractureOnParts + 'p>),
 ) -> Result<(Simulation, Box<dyn FractureOnParts + 'p>), RunError> {
+    let (processes, writer, output) = reading;
+    let bad = |reason: String| RunError::Resume {
+        path: output.into(),
+        reason,
+    };
+    same_scene(&head.frame, &scene.text).map_err(bad)?;
+    if sim.heat().is_some() {
+        // The heat model's nodes are the scene's, whose numbers splits keep.
+        sim.state.temperature = node_rows(reading, &head, ("temperature", 1), &part.nodes)?;
+    }
+    let mut split = split_part(reading, &head, on_parts.scene_processes())?;
+    let rows = part_rows(reading, (head.clone(), BLOCK_VALUES), &split.part)?;
+    let field = |name: &str, columns: usize| {
+        (rows.node_fields.iter())
+            .find(|f| f.name == name && f.columns == columns)
+            .map(|f| f.data.clone())
+    };
+    split.rest = rows.rest_positions.iter().map(|&p| p.into()).collect();
+    split.u = field("displacement", 3)
+        .ok_or_else(|| bad("the last complete frame has no node field `displacement`".into()))?;
+    split.v = rows.velocities.concat();
+    split.refused = field("refused_split", 4).unwrap_or_default();
+    drop(rows);
     let setup = |error| RunError::Setup {
         path: scene.path.clone(),
         error,
     };
-    let built_whole;
-    let scene_whole = match &scene.part {
-        Some(_) => {
-            built_whole = Scene::parse(&scene.text, &scene.path)?;
-            &built_whole
-        }
-        None => scene,
-    };
-    let model = &scene_whole.model;
-    let mut whole_fracture = Fracture::new(on_parts.settings(), &model.mesh);
-    let mut whole = Simulation::new(model.clone(), settings).map_err(setup)?;
-    restore(
-        &mut whole,
-        Some(&mut whole_fracture),
-        output,
-        frame,
-        &scene.text,
+    let mut sim = on_parts.resume(sim, split).map_err(setup)?;
+    // The frame's state on the simulation's part, its ghost surface's nodes and elements too.
+    let frame = resumed_part(
+        processes,
+        (writer, output),
+        (head, BLOCK_VALUES),
+        (on_parts.part(), &sim.model.mesh),
     )?;
-    // The heat model stays on this process's part of the scene's mesh, at the frame's
-    // temperatures there.
-    let heat = match old_sim.take_heat() {
-        Some(mut link) => {
-            let t = scene_temperatures(frame, link.heat.temperature().len(), Some(part)).map_err(
-                |reason| RunError::Resume {
-                    path: output.into(),
-                    reason,
-                },
-            )?;
-            link.heat.set_temperature(&t);
-            Some(link)
-        }
-        None => None,
-    };
-    drop(old_sim);
-    let sim = (on_parts.resume((whole, &whole_fracture), heat)).map_err(setup)?;
+    // The temperatures are set already; the heat model is linked again once the state is.
+    let heat = sim.take_heat();
+    restore(&mut sim, None, output, &frame, &scene.text)?;
+    let part = on_parts.part();
+    let mut gaps = TermHistory::default();
+    if let Some(f) = (frame.row_fields.iter()).find(|f| f.name == CRACK_GAPS && f.columns == 3) {
+        gaps.set(CRACK_GAPS, 3, f.data.clone());
+    }
+    let gaps = renumbered_gaps(&gaps, |i| part.local(i));
+    let same: Vec<usize> = (0..part.nodes.len()).collect();
+    sim.state.term_history = sim.model.inherited_history(&gaps, &same);
+    if let Some(link) = heat {
+        sim.attach_heat(link);
+    }
     Ok((sim, on_parts))
 }
 
-/// The temperatures (°C) of the `scene_nodes` nodes of the scene's mesh in `frame` — the
-/// first entries of its node field `temperature` (they keep their numbers through splits) —
-/// at the nodes of `part` (all of them without one).
-fn scene_temperatures(
-    frame: &ResumeFrame,
-    scene_nodes: usize,
-    part: Option<&Part>,
-) -> Result<Vec<f64>, String> {
+/// Why a frame written from another scene text cannot be resumed, if it was.
+fn same_scene(frame: &ResumeFrame, scene_text: &str) -> Result<(), String> {
+    match frame.scene_text == scene_text {
+        true => Ok(()),
+        false => {
+            Err("it was written from a different scene text (resume needs the same scene)".into())
+        }
+    }
+}
+
+/// The rows `rows` (ascending) of the node field `name` of `cols` columns of the frame
+/// `head`, read a block at a time. Every process calls it.
+fn node_rows(
+    (processes, writer, path): Reading,
+    head: &FrameHead,
+    (name, cols): (&str, usize),
+    rows: &[usize],
+) -> Result<Vec<f64>, RunError> {
+    let stored = (head.frame.node_fields.iter()).any(|f| f.name == name && f.columns == cols);
+    if !stored || rows.last().is_some_and(|&i| i >= head.nodes) {
+        return Err(RunError::Resume {
+            path: path.into(),
+            reason: format!(
+                "the last complete frame has no node field `{name}` for the scene's nodes"
+            ),
+        });
+    }
+    let mut kept = Vec::with_capacity(rows.len() * cols);
+    blocks_of_rows(
+        (processes, path),
+        (head.nodes, cols, BLOCK_VALUES),
+        rows,
+        |block| writer.map_or(Ok(Vec::new()), |w| w.resumed_rows(name, cols, block)),
+        |row| kept.extend_from_slice(row),
+    )?;
+    Ok(kept)
+}
+
+/// This process's part of the split mesh of the frame `head`, as the splits share it out
+/// (see [`ResumedSplit`]; its rows besides the elements' are left empty), for scene elements
+/// of the processes `scene_process` on process `rank`: two passes over the frame's
+/// `origin` and `tets`, a block at a time. Every process calls it.
+fn split_part(
+    (processes, writer, path): Reading,
+    head: &FrameHead,
+    (scene_process, rank): (Vec<u32>, u32),
+) -> Result<ResumedSplit, RunError> {
+    let corrupt = |reason: &str| RunError::Resume {
+        path: path.into(),
+        reason: reason.into(),
+    };
+    let stored = (head.frame.element_fields.iter()).any(|f| f.name == "origin" && f.columns == 1);
+    if !stored {
+        return Err(corrupt(
+            "its mesh was split but the frame has no element field `origin`",
+        ));
+    }
+    // Each element's row: its scene element and its four nodes.
+    let read = |block: std::ops::Range<usize>| -> Result<Vec<f64>, OutputError> {
+        let Some(w) = writer else {
+            return Ok(Vec::new());
+        };
+        let origin = w.resumed_rows("origin", 1, block.clone())?;
+        let tets = w.resumed_tets(block)?;
+        Ok((origin.iter().zip(&tets))
+            .flat_map(|(&o, t)| [o, t[0] as f64, t[1] as f64, t[2] as f64, t[3] as f64])
+            .collect())
+    };
+    // Scene element numbers and node numbers are whole numbers below 2^53, exact as f64.
+    let process_of = |o: f64| -> Option<u32> {
+        (o >= 0.0 && o.fract() == 0.0)
+            .then(|| scene_process.get(o as usize).copied())
+            .flatten()
+    };
+    let not_scene = "an element's `origin` is not an element of the scene's mesh";
+    let elements = (processes, path);
+    let shape = (head.elements, 5, BLOCK_VALUES);
+    // Each node's owner, the lowest process among its elements', and the nodes of own elements.
+    let (mut owner, mut near) = (vec![u32::MAX; head.nodes], vec![false; head.nodes]);
+    let mut valid = true;
+    for_each_block(elements, shape, read, |_, rows| {
+        for row in rows.chunks_exact(5) {
+            let Some(p) = process_of(row[0]) else {
+                valid = false;
+                continue;
+            };
+            for &x in &row[1..] {
+                let i = x as usize;
+                owner[i] = owner[i].min(p);
+                near[i] |= p == rank;
+            }
+        }
+    })?;
+    if !valid {
+        return Err(corrupt(not_scene));
+    }
+    // The part: every element around a node of an own element.
+    let mut split = ResumedSplit::default();
+    let mut tets = Vec::new();
+    let mut part_elements = Vec::new();
+    for_each_block(elements, shape, read, |start, rows| {
+        for (k, row) in rows.chunks_exact(5).enumerate() {
+            let tet = [1, 2, 3, 4].map(|c| row[c] as usize);
+            if tet.iter().any(|&i| near[i]) {
+                part_elements.push(start + k);
+                split.origin.push(row[0] as usize);
+                split.process.push(process_of(row[0]).unwrap_or(u32::MAX));
+                tets.push(tet);
+            }
+        }
+    })?;
+    drop(near);
+    let mut nodes: Vec<usize> = tets.iter().flatten().copied().collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    let local = |i: usize| {
+        nodes
+            .binary_search(&i)
+            .expect("a node of the part's elements")
+    };
+    split.tets = tets.iter().map(|t| t.map(local)).collect();
+    split.node_owner = nodes.iter().map(|&i| owner[i]).collect();
+    let own = split.process.iter().map(|&p| p == rank).collect();
+    let owned = split.node_owner.iter().map(|&p| p == rank).collect();
+    split.part = Part::from_lists(
+        (part_elements, nodes),
+        (own, owned),
+        (head.nodes, head.elements),
+    );
+    Ok(split)
+}
+
+/// The temperatures (°C) of the `scene_nodes` nodes of the scene's mesh in `frame`: the
+/// first entries of its node field `temperature` (they keep their numbers through splits).
+fn scene_temperatures(frame: &ResumeFrame, scene_nodes: usize) -> Result<Vec<f64>, String> {
     let t = (frame.node_fields.iter())
         .find(|f| f.name == "temperature" && f.columns == 1 && f.data.len() >= scene_nodes)
         .ok_or("the last complete frame has no node field `temperature`")?;
-    Ok(match part {
-        Some(part) => part.nodes.iter().map(|&i| t.data[i]).collect(),
-        None => t.data[..scene_nodes].to_vec(),
-    })
+    Ok(t.data[..scene_nodes].to_vec())
 }
 
 /// This process's part `part` of the frame a distributed run resumes, whose `head` every
-/// process has: the writing process (the one with `writer`) reads each dataset of the frame a
-/// block of rows at a time and gives each block to every process, which keeps the rows of its
-/// part's nodes and elements — no process holds more of the frame than its part and a block
-/// (of at most `block` values). The frame's mesh must be the scene's, of which `mesh` is the
-/// part (numbered in the part; each process checks its rows, and any difference is every
-/// process's error).
+/// process has, read as [`part_rows`] reads it. The frame's mesh must be the one of which
+/// `mesh` is the part (numbered in the part; each process checks its rows, and any
+/// difference is every process's error); the frame returned has its elements numbered in the
+/// part.
 pub(super) fn resumed_part(
     processes: &dyn Processes,
     (writer, path): (Option<&OutputWriter>, &Path),
@@ -104,42 +240,10 @@ pub(super) fn resumed_part(
         path: path.into(),
         reason: "its mesh differs from the scene's mesh".into(),
     };
-    let (nodes, elements) = (part.whole_nodes(), part.whole_elements());
-    if head.nodes != nodes || head.elements != elements {
+    if head.nodes != part.whole_nodes() || head.elements != part.whole_elements() {
         return Err(differs());
     }
-    let frame = head.with_rows(
-        |name, cols, per_node| {
-            let (rows, whole) = if per_node {
-                (&part.nodes, nodes)
-            } else {
-                (&part.elements, elements)
-            };
-            let mut kept = Vec::with_capacity(rows.len() * cols);
-            blocks_of_rows(
-                (processes, path),
-                (whole, cols, block),
-                rows,
-                |block| writer.map_or(Ok(Vec::new()), |w| w.resumed_rows(name, cols, block)),
-                |row| kept.extend_from_slice(row),
-            )?;
-            Ok::<_, OutputError>(kept)
-        },
-        || {
-            let mut kept = Vec::with_capacity(part.elements.len());
-            blocks_of_rows(
-                (processes, path),
-                (elements, 4, block),
-                &part.elements,
-                |block| {
-                    let tets = writer.map_or(Ok(Vec::new()), |w| w.resumed_tets(block))?;
-                    Ok(tets.into_iter().flatten().map(|v| v as f64).collect())
-                },
-                |row| kept.push([0, 1, 2, 3].map(|k| row[k] as usize)),
-            )?;
-            Ok::<_, OutputError>(kept)
-        },
-    )?;
+    let frame = part_rows((processes, writer, path), (head, block), part)?;
     let rest_differs = (frame.rest_positions.iter())
         .zip(&mesh.rest)
         .any(|(p, x)| *p != <[f64; 3]>::from(*x));
@@ -155,6 +259,52 @@ pub(super) fn resumed_part(
     })
 }
 
+/// The rows of `part`'s nodes and elements of the frame `head` (its elements with the
+/// frame's node numbers): the writing process reads each dataset a block of rows at a time
+/// and gives each block to every process, which keeps the rows of its part — no process
+/// holds more of the frame than its part and a block (of at most `block` values). Every
+/// process calls it.
+fn part_rows(
+    (processes, writer, path): Reading,
+    (head, block): (FrameHead, usize),
+    part: &Part,
+) -> Result<ResumeFrame, RunError> {
+    let (nodes, elements) = (head.nodes, head.elements);
+    let frame = head.with_rows::<OutputError>(
+        |name, cols, per_node| {
+            let (rows, whole) = if per_node {
+                (&part.nodes, nodes)
+            } else {
+                (&part.elements, elements)
+            };
+            let mut kept = Vec::with_capacity(rows.len() * cols);
+            blocks_of_rows(
+                (processes, path),
+                (whole, cols, block),
+                rows,
+                |block| writer.map_or(Ok(Vec::new()), |w| w.resumed_rows(name, cols, block)),
+                |row| kept.extend_from_slice(row),
+            )?;
+            Ok(kept)
+        },
+        || {
+            let mut kept = Vec::with_capacity(part.elements.len());
+            blocks_of_rows(
+                (processes, path),
+                (elements, 4, block),
+                &part.elements,
+                |block| {
+                    let tets = writer.map_or(Ok(Vec::new()), |w| w.resumed_tets(block))?;
+                    Ok(tets.into_iter().flatten().map(|v| v as f64).collect())
+                },
+                |row| kept.push([0, 1, 2, 3].map(|k| row[k] as usize)),
+            )?;
+            Ok(kept)
+        },
+    );
+    frame.map_err(RunError::from)
+}
+
 /// Goes through the `whole` rows of `cols` columns of a dataset a block (of at most `block`
 /// values, or one row) at a time: `read` gives a block's rows on the writing process (nothing
 /// elsewhere), which every process receives, and `keep` is given the row of each of `rows`
@@ -163,22 +313,49 @@ fn blocks_of_rows(
     (processes, path): (&dyn Processes, &Path),
     (whole, cols, block): (usize, usize, usize),
     rows: &[usize],
-    mut read: impl FnMut(std::ops::Range<usize>) -> Result<Vec<f64>, OutputError>,
+    read: impl FnMut(std::ops::Range<usize>) -> Result<Vec<f64>, OutputError>,
     mut keep: impl FnMut(&[f64]),
 ) -> Result<(), OutputError> {
-    let block_rows = (block / cols.max(1)).max(1);
     let mut next = rows.iter().peekable();
+    for_each_block(
+        (processes, path),
+        (whole, cols, block),
+        read,
+        |start, values| {
+            let end = start + values.len() / cols.max(1);
+            while let Some(&&i) = next.peek().filter(|&&&i| i < end) {
+                keep(&values[(i - start) * cols..(i - start + 1) * cols]);
+                next.next();
+            }
+        },
+    )
+}
+
+/// Goes through the `whole` rows of `cols` columns of a dataset a block (of at most `block`
+/// values, or one row) at a time: `read` gives a block's rows on the writing process (nothing
+/// elsewhere), which every process receives and gives `each` with the block's first row. A
+/// block the writing process cannot read is every process's error.
+fn for_each_block(
+    (processes, path): (&dyn Processes, &Path),
+    (whole, cols, block): (usize, usize, usize),
+    mut read: impl FnMut(std::ops::Range<usize>) -> Result<Vec<f64>, OutputError>,
+    mut each: impl FnMut(usize, &[f64]),
+) -> Result<(), OutputError> {
+    let block_rows = (block / cols.max(1)).max(1);
     for start in (0..whole).step_by(block_rows) {
         let end = (start + block_rows).min(whole);
-        let mine: Vec<u8> = if processes.writes() {
-            read(start..end)?
-                .iter()
-                .flat_map(|x| x.to_le_bytes())
-                .collect()
-        } else {
-            Vec::new()
+        // A failed read sends nothing: the others find the block short and stop too.
+        let (mine, failed) = match processes.writes() {
+            true => match read(start..end) {
+                Ok(values) => (values.iter().flat_map(|x| x.to_le_bytes()).collect(), None),
+                Err(e) => (Vec::new(), Some(e)),
+            },
+            false => (Vec::new(), None),
         };
         let bytes = processes.broadcast_bytes(mine);
+        if let Some(e) = failed {
+            return Err(e);
+        }
         let values: Vec<f64> = bytes
             .chunks_exact(8)
             .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
@@ -189,10 +366,7 @@ fn blocks_of_rows(
                 reason: format!("a block of {} rows did not arrive whole", end - start),
             });
         }
-        while let Some(&&i) = next.peek().filter(|&&&i| i < end) {
-            keep(&values[(i - start) * cols..(i - start + 1) * cols]);
-            next.next();
-        }
+        each(start, &values);
     }
     Ok(())
 }
@@ -210,11 +384,7 @@ pub(super) fn restore(
         path: path.into(),
         reason,
     };
-    if frame.scene_text != scene_text {
-        return Err(bad(
-            "it was written from a different scene text (resume needs the same scene)".into(),
-        ));
-    }
+    same_scene(frame, scene_text).map_err(bad)?;
     let rest = rows(&sim.model.mesh.rest);
     if frame.rest_positions != rest || frame.tets != sim.model.mesh.tets {
         // A fractured run: rebuild its mesh from the scene's, element by element.
@@ -267,7 +437,7 @@ pub(super) fn restore(
     sim.state.time = frame.time;
     sim.state.step = frame.step;
     if let Some(scene_nodes) = sim.heat().map(|l| l.heat.temperature().len()) {
-        sim.set_temperature(scene_temperatures(frame, scene_nodes, None).map_err(bad)?);
+        sim.set_temperature(scene_temperatures(frame, scene_nodes).map_err(bad)?);
     }
     let tets = sim.model.mesh.num_tets();
     if let Some(e) = frame

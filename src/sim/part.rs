@@ -26,7 +26,7 @@ use nalgebra::Vector3;
 const NONE: usize = usize::MAX;
 
 /// One process's part of a mesh: its elements and nodes, numbered as in the whole mesh's order.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Part {
     /// The part's elements, as elements of the whole mesh (ascending).
     pub elements: Vec<usize>,

@@ -53,7 +53,7 @@ use nalgebra::Vector3;
 mod step;
 mod term;
 pub use step::{FrictionFrame, IceFriction, IceStep};
-pub use term::{IceContactTerm, CRACK_GAPS};
+pub use term::{renumbered_gaps, IceContactTerm, CRACK_GAPS};
 
 /// The ice–ice contact term of a mesh with several parts or with cracks.
 #[derive(Clone, Debug)]

@@ -7,7 +7,9 @@ use crate::mesh::TetMesh;
 use crate::physics::contact::{default_stiffness, stiffness_for_edge};
 use crate::physics::contact_forces::SceneContact;
 use crate::physics::crack_sides::CopyFrame;
-use crate::physics::term::{NodeRestriction, Remesh, Solve, StepStartView, StepTerm, Term};
+use crate::physics::term::{
+    NodeRestriction, Remesh, Solve, StepStartView, StepTerm, Term, TermHistory,
+};
 use nalgebra::Vector3;
 
 /// Ice–ice contact as a term of the incremental potential: present in every model, active
@@ -33,6 +35,27 @@ pub struct IceContactTerm {
 
 /// The name of the pairs' carried gaps in the state and in frames (see the module docs).
 pub const CRACK_GAPS: &str = "crack_gaps";
+
+/// The crack gaps `history` carries (rows p, q, g) with their nodes renumbered by `number`;
+/// a pair with a node `number` does not give is dropped.
+pub fn renumbered_gaps(
+    history: &TermHistory,
+    number: impl Fn(usize) -> Option<usize>,
+) -> TermHistory {
+    let rows: Vec<f64> = (history.get(CRACK_GAPS).chunks_exact(3))
+        .filter_map(|r| {
+            // Node numbers are whole numbers below 2^53, exact as f64.
+            let at = |x: f64| number(x as usize).map(|k| k as f64);
+            Some([at(r[0])?, at(r[1])?, r[2]])
+        })
+        .flatten()
+        .collect();
+    let mut renumbered = TermHistory::default();
+    if !rows.is_empty() {
+        renumbered.set(CRACK_GAPS, 3, rows);
+    }
+    renumbered
+}
 
 impl IceContactTerm {
     /// The term on `mesh` with crack faces `cracks`; `stiffness` 0 takes the default
