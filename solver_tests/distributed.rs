@@ -868,21 +868,34 @@ fn a_run_on_two_processes_resumed_on_two_is_the_uninterrupted_run_bit_for_bit() 
     resumed_on_two_is_uninterrupted(&scene("cantilever.toml"), ("0.5", "1.0"), &["displacement"]);
 }
 
+/// `scene` on `cut_on` processes to `cut` (s), resumed on three to `end` (s), against the
+/// run to `end` on `cut_on`: the resumed run's report, and the two files (in `dir`), whose
+/// displacements are asserted within the solver's tolerance (bound as in the module docs).
+fn resumed_on_three_continues(
+    dir: &Path,
+    (scene, cut_on): (&Path, usize),
+    (cut, end): (&str, &str),
+) -> (String, PathBuf, PathBuf) {
+    let (resumed, whole) = (dir.join("cut.h5"), dir.join("whole.h5"));
+    icefem_run(cut_on, scene, &resumed, &["--end-time", cut]);
+    let report = resume(3, scene, &resumed, end);
+    assert_eq!(held_nodes(&report).1.len(), 3, "{report}");
+    icefem_run(cut_on, scene, &whole, &["--end-time", end]);
+    let diff = difference(&resumed, &whole);
+    assert!(diff <= 1e-8, "{diff:e}");
+    (report, resumed, whole)
+}
+
 #[test]
 fn a_run_on_two_processes_resumed_on_three_continues_it() {
     // Three processes share the mesh out differently: each takes its rows of the frame, and
     // the run goes on within the solver's tolerance of the uninterrupted one (measured
-    // 4.9e-11 of the largest displacement over the cantilever's 30 steps; bound as in the
-    // module docs), with the same Newton iterations where a step does not start settled.
+    // 4.9e-11 of the largest displacement over the cantilever's 30 steps), with the same
+    // Newton iterations where a step does not start settled.
     let dir = tempfile::tempdir().unwrap();
-    let (resumed, whole) = (dir.path().join("cut.h5"), dir.path().join("whole.h5"));
     let cantilever = scene("cantilever.toml");
-    icefem_run(2, &cantilever, &resumed, &["--end-time", "0.5"]);
-    let report = resume(3, &cantilever, &resumed, "1.0");
-    assert_eq!(held_nodes(&report).1.len(), 3, "{report}");
-    icefem_run(2, &cantilever, &whole, &["--end-time", "1.0"]);
-    let diff = difference(&resumed, &whole);
-    assert!(diff <= 1e-8, "{diff:e}");
+    let (_, resumed, whole) =
+        resumed_on_three_continues(dir.path(), (&cantilever, 2), ("0.5", "1.0"));
     same_newton_iterations(&resumed, &whole, "cantilever");
 }
 
@@ -912,9 +925,9 @@ fn a_falling_cube_on_two_processes_resumed_on_two_is_the_uninterrupted_run_bit_f
 #[test]
 fn a_cracked_run_on_two_processes_resumed_on_two_is_the_uninterrupted_run_bit_for_bit() {
     // Cut at step 20, after the bar's 21 splits (steps 6 to 8), which the processes made on
-    // their parts: the resumed run rebuilds the split mesh from the frame and each process
-    // makes its part of it from the frame alone; the uninterrupted run goes on from every
-    // restart point on that part too (`FractureOnParts::restart`).
+    // their parts: each process of the resumed run reads its part of the split mesh from the
+    // frame, as the splits shared it out; the uninterrupted run goes on from every restart
+    // point on that part too (`FractureOnParts::restart`).
     let fields = ["displacement", "rest_positions"];
     resumed_on_two_is_uninterrupted(&scene("pulled_bar.toml"), ("0.002", "0.004"), &fields);
 }
@@ -924,24 +937,19 @@ fn a_cracked_run_on_one_process_resumed_on_three_continues_it() {
     // Cut at step 20 on one process, after the bar's 21 splits: each of three processes
     // reads its rows of the split mesh from the frame, which no process's part wrote, and
     // the run goes on with the uninterrupted one's mesh and within the solver's tolerance of
-    // its displacements (bound as in the module docs; measured 6e-25 of the largest).
+    // its displacements (measured 6e-25 of the largest).
     let dir = tempfile::tempdir().unwrap();
-    let (resumed, whole) = (dir.path().join("cut.h5"), dir.path().join("whole.h5"));
     let bar = scene("pulled_bar.toml");
-    icefem_run(1, &bar, &resumed, &["--end-time", "0.002"]);
-    let report = resume(3, &bar, &resumed, "0.004");
-    assert_eq!(held_nodes(&report).1.len(), 3, "{report}");
+    let (report, resumed, whole) =
+        resumed_on_three_continues(dir.path(), (&bar, 1), ("0.002", "0.004"));
     assert!(
         report.contains("no new fracture events, crack area 4.000e-4 m²"),
         "{report}"
     );
-    icefem_run(1, &bar, &whole, &["--end-time", "0.004"]);
     assert_eq!(
         frame_field(&resumed, "rest_positions"),
         frame_field(&whole, "rest_positions")
     );
-    let diff = difference(&resumed, &whole);
-    assert!(diff <= 1e-8, "{diff:e}");
 }
 
 #[test]
