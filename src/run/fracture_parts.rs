@@ -56,13 +56,15 @@ pub struct ResumedSplit {
     pub rest: Vec<Vector3<f64>>,
     /// Its elements, numbered in the part.
     pub tets: Vec<[usize; 4]>,
-    /// Its nodes' displacements (m) and velocities (m/s), 3 a node.
+    /// Its nodes' displacements (m), 3 a node.
     pub u: Vec<f64>,
+    /// Its nodes' velocities (m/s), 3 a node.
     pub v: Vec<f64>,
     /// Its nodes' owners.
     pub node_owner: Vec<u32>,
-    /// Its elements' scene elements and processes.
+    /// The scene element each of its elements lies in.
     pub origin: Vec<usize>,
+    /// Its elements' processes.
     pub process: Vec<u32>,
     /// Its nodes' refused splits, 4 a node (see
     /// [`crate::fracture::Fracture::refusals_as_rows`]; empty: none).
